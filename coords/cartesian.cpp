@@ -1,0 +1,53 @@
+#include "qota/cartesian.hpp"
+
+#include <Eigen/Geometry>
+#include <charconv>
+#include <cmath>
+
+#include "qota/error.hpp"
+
+namespace qota {
+namespace {
+
+std::string formatVector(const Eigen::Vector3d& v) {
+  std::string out;
+  char buf[32];
+  for (int i = 0; i < 3; ++i) {
+    if (i) out += ',';
+    auto r = std::to_chars(buf, buf + sizeof buf, v[i]);
+    out.append(buf, r.ptr);
+  }
+  return out;
+}
+
+}  // namespace
+
+CartesianMapping::CartesianMapping(const Eigen::Vector3d& gravity, const Eigen::Vector3d& origin)
+    : origin_(origin) {
+  if (!gravity.allFinite() || gravity.squaredNorm() == 0.0) {
+    throw Error("cartesian mapping: gravity must be a nonzero finite vector, got (" +
+                formatVector(gravity) + ")");
+  }
+  if (!origin.allFinite()) {
+    throw Error("cartesian mapping: origin must be finite, got (" + formatVector(origin) + ")");
+  }
+  vertical_ = gravity.x() == 0.0 && gravity.y() == 0.0 && gravity.z() < 0.0;
+  if (vertical_) {
+    gravity_ = Eigen::Vector3d(0, 0, -1);
+    rotation_.setIdentity();
+  } else {
+    gravity_ = gravity.normalized();
+    // The minimal rotation taking gravity onto -Z; Eigen handles the antiparallel case (gravity
+    // along +Z) by picking a rotation axis perpendicular to it.
+    rotation_ = Eigen::Quaterniond::FromTwoVectors(gravity_, Eigen::Vector3d(0, 0, -1))
+                    .normalized()
+                    .toRotationMatrix();
+  }
+}
+
+std::string CartesianMapping::describe() const {
+  return std::string(name()) + " gravity=" + formatVector(gravity_) +
+         " origin=" + formatVector(origin_);
+}
+
+}  // namespace qota

@@ -1,0 +1,33 @@
+// Exact 2D orientation, the predicate that makes qota's point-in-polygon test watertight.
+//
+// orient2d(a, b, c) is twice the signed area of triangle abc: positive when c lies to the left of
+// the directed line a->b (counter-clockwise turn), negative to the right, zero when collinear.
+// orient2dSign returns the sign of the exact real-number value for the given doubles, never a
+// rounded one, so two triangles sharing an edge always agree on which side of it a point lies, and
+// a point exactly on the edge is "on" (zero) for both.
+//
+// The exact path writes the determinant as six products, splits each into a rounded value and its
+// exact error with fma, and sums the twelve terms into a non-overlapping floating-point expansion
+// (Priest/Shewchuk's expansion arithmetic). The sign of an expansion is the sign of its largest
+// component. It is about 100 times slower than the plain determinant, so the hot paths call it
+// only when a filtered floating-point evaluation cannot decide (see TerrainIndex).
+//
+// Valid for all finite inputs whose products neither overflow nor underflow (|coordinate| between
+// about 1e-150 and 1e150, or zero), far beyond any terrain.
+#pragma once
+
+namespace qota {
+
+struct Point2 {
+  double u = 0, v = 0;
+};
+
+// Sign (-1, 0, +1) of the exact orient2d(a, b, c).
+int orient2dSign(Point2 a, Point2 b, Point2 c);
+
+// The plain floating-point determinant, for callers that filter it themselves.
+inline double orient2dApprox(Point2 a, Point2 b, Point2 c) {
+  return (a.u - c.u) * (b.v - c.v) - (a.v - c.v) * (b.u - c.u);
+}
+
+}  // namespace qota

@@ -1,0 +1,165 @@
+// The QOTA quadtree over a 2D domain (MERL TR-96-17, section 3): an axis-aligned quadtree whose
+// leaves hold references to the items (polygons) whose projection meets them. It knows nothing of
+// polygons itself: the build asks an overlap predicate, so every terrain kind reuses it.
+//
+// Layout: all nodes in one array of 8-byte records with 32-bit indices; the four children of a
+// node are consecutive; a leaf is a range of the one reference array. Cuts are at the midpoint of
+// the node (the paper's rule), so a node's box is implied by the path to it and is not stored:
+// a query descends with two compares per level.
+//
+// Boundary rule: a point exactly on a cut line belongs to the child on the high side (u >= mid goes
+// to the high-u child). Boxes are closed in the build, so an item touching a cut line is referenced
+// from both sides, and the query finds it whichever side it descends to. The midpoints the build
+// uses are computed by the same expression as the query's (lo + half[depth]), so the two agree
+// bit for bit.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+namespace qota {
+
+// A closed axis-aligned box [ulo, uhi] x [vlo, vhi]. Empty when ulo > uhi.
+struct Box2 {
+  double ulo = 1, vlo = 1, uhi = 0, vhi = 0;
+  bool empty() const { return !(ulo <= uhi && vlo <= vhi); }
+  bool contains(double u, double v) const { return u >= ulo && u <= uhi && v >= vlo && v <= vhi; }
+};
+
+struct QuadtreeOptions {
+  // The paper's Maxpoly: a node referencing more items than this is split, unless it is at
+  // maxDepth. Smaller values mean fewer polygon tests per query and a larger tree (the paper's
+  // Table 4). 8 keeps a query to about 8 tests at about 1.5 references per polygon.
+  std::uint32_t maxPoly = 8;
+  // The paper's Maxdepth: nodes at this depth (root = 0) are leaves whatever their count. It
+  // bounds the tree where many polygons meet in one point (a fan around a vertex), which no split
+  // can separate. 4^16 leaves is far more than any terrain's polygons.
+  std::uint32_t maxDepth = 16;
+};
+
+// The statistics of the paper's Table 4, plus the shape of the tree.
+struct QuadtreeStats {
+  std::uint64_t nodes = 0;
+  std::uint64_t leaves = 0;
+  std::uint64_t emptyLeaves = 0;
+  std::uint32_t depth = 0;              // deepest leaf (root = 0)
+  std::uint64_t references = 0;         // total leaf references (sum of leaf sizes)
+  std::uint32_t maxLeafItems = 0;
+  double meanLeafItems = 0;             // over all leaves
+  double averageTests = 0;              // leaf size averaged over the domain's area (Table 4)
+  std::uint64_t memoryBytes = 0;        // nodes and references
+};
+
+class Quadtree {
+ public:
+  static constexpr std::uint32_t kInner = 0xffffffffu;
+  struct Node {
+    std::uint32_t first;  // inner: index of the first of 4 children; leaf: first reference
+    std::uint32_t count;  // kInner for an inner node, else the leaf's reference count
+  };
+
+  Quadtree() = default;
+
+  // Builds over items 0..itemCount-1 in the closed box root. overlaps(item, box) must return true
+  // whenever the item meets the closed box (it may also return true when in doubt).
+  template <class Overlaps>
+  void build(std::uint32_t itemCount, Box2 root, const QuadtreeOptions& options,
+             Overlaps&& overlaps);
+
+  const Box2& box() const { return root_; }
+  bool contains(double u, double v) const { return root_.contains(u, v); }
+
+  // The items of the leaf containing (u, v). Precondition: contains(u, v).
+  std::span<const std::uint32_t> leafItems(double u, double v) const {
+    return leafRange(nodes_[leafIndex(u, v)]);
+  }
+  std::uint32_t leafIndex(double u, double v) const {
+    std::uint32_t n = 0;
+    double lu = root_.ulo, lv = root_.vlo;
+    for (std::uint32_t d = 0; nodes_[n].count == kInner; ++d) {
+      const double mu = lu + half_[d].u, mv = lv + half_[d].v;
+      const bool hu = u >= mu, hv = v >= mv;
+      lu = hu ? mu : lu;
+      lv = hv ? mv : lv;
+      n = nodes_[n].first + (static_cast<std::uint32_t>(hv) << 1 | static_cast<std::uint32_t>(hu));
+    }
+    return n;
+  }
+  std::span<const std::uint32_t> leafRange(const Node& leaf) const {
+    return {refs_.data() + leaf.first, leaf.count};
+  }
+
+  std::span<const Node> nodes() const { return nodes_; }
+  std::span<const std::uint32_t> references() const { return refs_; }
+  QuadtreeStats stats() const;
+
+ private:
+  struct Half {
+    double u, v;
+  };
+  template <class Overlaps>
+  void buildNode(std::uint32_t node, const Box2& box, std::uint32_t depth,
+                 std::vector<std::uint32_t>& items, Overlaps& overlaps);
+
+  Box2 root_;
+  QuadtreeOptions options_;
+  std::vector<Half> half_;  // half the node size at each depth: the offset of the cut
+  std::vector<Node> nodes_;
+  std::vector<std::uint32_t> refs_;
+};
+
+template <class Overlaps>
+void Quadtree::build(std::uint32_t itemCount, Box2 root, const QuadtreeOptions& options,
+                     Overlaps&& overlaps) {
+  root_ = root;
+  options_ = options;
+  nodes_.assign(1, Node{0, 0});
+  refs_.clear();
+  half_.clear();
+  if (root.empty() || itemCount == 0) return;
+  // Exact halvings of the root size (powers of two scale without rounding).
+  const double su = root.uhi - root.ulo, sv = root.vhi - root.vlo;
+  for (std::uint32_t d = 0; d <= options.maxDepth; ++d) {
+    half_.push_back({std::ldexp(su, -static_cast<int>(d) - 1),
+                     std::ldexp(sv, -static_cast<int>(d) - 1)});
+  }
+  std::vector<std::uint32_t> items(itemCount);
+  for (std::uint32_t i = 0; i < itemCount; ++i) items[i] = i;
+  buildNode(0, root, 0, items, overlaps);
+  nodes_.shrink_to_fit();
+  refs_.shrink_to_fit();
+}
+
+template <class Overlaps>
+void Quadtree::buildNode(std::uint32_t node, const Box2& box, std::uint32_t depth,
+                         std::vector<std::uint32_t>& items, Overlaps& overlaps) {
+  if (items.size() <= options_.maxPoly || depth >= options_.maxDepth) {
+    nodes_[node] = {static_cast<std::uint32_t>(refs_.size()),
+                    static_cast<std::uint32_t>(items.size())};
+    refs_.insert(refs_.end(), items.begin(), items.end());
+    return;
+  }
+  const auto first = static_cast<std::uint32_t>(nodes_.size());
+  nodes_[node] = {first, kInner};
+  nodes_.resize(first + 4, Node{0, 0});
+  // The same expressions as leafIndex: the cut is lo + half[depth].
+  const double mu = box.ulo + half_[depth].u, mv = box.vlo + half_[depth].v;
+  const Box2 child[4] = {{box.ulo, box.vlo, mu, mv},
+                         {mu, box.vlo, box.uhi, mv},
+                         {box.ulo, mv, mu, box.vhi},
+                         {mu, mv, box.uhi, box.vhi}};
+  std::vector<std::uint32_t> sub[4];
+  for (int c = 0; c < 4; ++c) {
+    sub[c].reserve(items.size() / 2);
+    for (std::uint32_t it : items) {
+      if (overlaps(it, child[c])) sub[c].push_back(it);
+    }
+  }
+  std::vector<std::uint32_t>().swap(items);  // free the parent's list before descending
+  for (int c = 0; c < 4; ++c) buildNode(first + c, child[c], depth + 1, sub[c], overlaps);
+}
+
+}  // namespace qota

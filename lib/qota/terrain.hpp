@@ -1,0 +1,143 @@
+// TerrainIndex: the QOTA terrain query structure for a Cartesian mapping (MERL TR-96-17).
+//
+// Build: every vertex is mapped once to (u, v, h) (so polygons sharing a vertex share its mapped
+// coordinates bit for bit); every convex polygon is split into a fan of triangles in the mapped
+// frame; triangles are stored once, in Morton order of their centroids, as packed 128-byte records
+// (bbox, edge line equations Au + Bv + C >= 0, height plane h = a u + b v + c) with their source
+// polygon id kept apart; the quadtree references them from every leaf their projection meets.
+//
+// Query: descend to the leaf of (u, v) (two compares a level), then for each referenced
+// triangle a bbox check, three edge checks and one plane solve.
+//
+// Boundary rule (watertight): triangles are closed. A point is inside a triangle when the exact
+// orientation of the point against each of its edges is >= 0. The edge equations are evaluated in
+// floating point with a per-triangle error bound, and only points within that bound of an edge
+// (points on an edge, in practice) go to the exact predicate (predicates.hpp). So a point on an
+// edge or vertex shared by adjacent triangles hits every one of them, and the union of the closed
+// triangles has no cracks: a query inside the terrain never falls through. A point in a hole hits
+// nothing, and queries outside the bounding box of the terrain return "no terrain" at once.
+//
+// Polygon rules: 3 or more vertex indices, all in range, all finite (else qota::Error naming the
+// polygon). Polygons are tested for convexity as seen along gravity, exactly; a non-convex one is
+// an error naming it. A polygon whose projection has zero area (a vertical wall, or a degenerate
+// one) is left out of the query structure and counted in Stats::walls. A polygon of more than 3
+// vertices is fanned from its first vertex; each fan triangle carries its own plane, so a
+// slightly non-planar polygon is followed exactly through its fan.
+//
+// Ties: when several polygons are equally near (a point on a shared edge), the one with the
+// smallest polygon id is returned. Heights are "above" when h >= z and "below" when h <= z, so a
+// hit exactly at the query height is both.
+//
+// Thread safety: a built index is immutable; any number of threads may query it at once.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include "qota/cartesian.hpp"
+#include "qota/mesh.hpp"
+#include "qota/predicates.hpp"
+#include "qota/quadtree.hpp"
+
+namespace qota {
+
+struct TerrainOptions {
+  QuadtreeOptions tree;
+};
+
+// Where the line through a mapped point meets the terrain.
+struct Hit {
+  double height = 0;         // h in the mapped frame (up = against gravity)
+  Eigen::Vector3d world;     // the point in the world frame
+  Eigen::Vector3d normal;    // unit surface normal in the world frame, pointing up (against gravity)
+  std::uint32_t polygon = 0; // index of the source polygon in the Mesh
+};
+
+// The nearest terrain below and above a point (the paper's floor and ceiling).
+struct Bracket {
+  std::optional<Hit> below;
+  std::optional<Hit> above;
+};
+
+struct TerrainStats {
+  std::uint64_t polygons = 0;   // polygons in the mesh
+  std::uint64_t triangles = 0;  // triangles in the query structure (polygons are fanned)
+  std::uint64_t walls = 0;      // polygons left out: zero area seen along gravity
+  std::uint64_t vertices = 0;
+  Box2 domain;                  // mapped bounding box of the triangles
+  QuadtreeStats tree;
+  std::uint64_t memoryBytes = 0;  // everything the index holds
+};
+
+class TerrainIndex {
+ public:
+  // Throws qota::Error for invalid polygons (see the rules above).
+  TerrainIndex(const Mesh& mesh, const CartesianMapping& mapping, const TerrainOptions& options = {});
+
+  // Upper bound of the memory a terrain of this many vertices and triangles needs while it is
+  // built and afterwards (used to refuse a raster too large for the machine before reading it).
+  static std::uint64_t estimateBuildBytes(std::uint64_t vertices, std::uint64_t triangles);
+
+  // Queries at a point (u, v) of the mapped frame.
+  std::optional<Hit> below(double u, double v, double h) const;   // nearest with height <= h
+  std::optional<Hit> above(double u, double v, double h) const;   // nearest with height >= h
+  Bracket bracket(double u, double v, double h) const;
+  std::optional<Hit> top(double u, double v) const;               // highest hit
+  std::vector<Hit> all(double u, double v) const;                 // every polygon, top to bottom
+
+  // The same at a world point: the line through it along gravity, "below" meaning further along
+  // gravity.
+  std::optional<Hit> belowWorld(const Eigen::Vector3d& p) const;
+  std::optional<Hit> aboveWorld(const Eigen::Vector3d& p) const;
+  Bracket bracketWorld(const Eigen::Vector3d& p) const;
+  std::optional<Hit> topWorld(const Eigen::Vector3d& p) const;
+  std::vector<Hit> allWorld(const Eigen::Vector3d& p) const;
+
+  // Height-only fast path: the highest terrain height at (u, v) with h <= z, or NaN-free "no
+  // terrain" as std::nullopt. Used by samplers and benchmarks that do not need the normal.
+  std::optional<double> heightBelow(double u, double v, double z) const;
+
+  const CartesianMapping& mapping() const { return mapping_; }
+  const TerrainStats& stats() const { return stats_; }
+  const Quadtree& tree() const { return tree_; }
+
+  // Polygon tests (bbox checks) the query at (u, v) performs: the size of its leaf.
+  std::uint32_t testsAt(double u, double v) const;
+
+ private:
+  // Hot per-triangle record, one per triangle, 128 bytes (two cache lines), in Morton order.
+  // The plane is solved from corner 0 (h0 + a (u - u0) + b (v - v0)) rather than as a u + b v + c:
+  // exact at that corner and with rounding proportional to the local relief, not to the size of
+  // the coordinates. There is no separate bbox: the three edge tests cost about as much as four
+  // bbox compares and need no extra bytes.
+  struct alignas(64) Tri {
+    double A[3], B[3], C[3];   // edges: inside is A u + B v + C >= 0 (counter-clockwise order)
+    double u0, v0, h0;         // corner 0
+    double a, b;               // plane slopes: dh/du, dh/dv
+    double tol;                // error bound of the edge evaluations inside the domain
+    float hlo, hhi;            // height range of the corners, rounded outward (clamps the plane)
+  };
+  static_assert(sizeof(Tri) == 128);
+
+  struct Cold {
+    std::uint32_t corner[3];  // mapped vertex indices, counter-clockwise
+    std::uint32_t polygon;    // source polygon
+  };
+
+  bool inside(std::uint32_t t, double u, double v) const;
+  double heightOf(const Tri& t, double u, double v) const;
+  Hit makeHit(std::uint32_t t, double u, double v, double h) const;
+  template <class Better>
+  std::optional<std::uint32_t> best(double u, double v, Better better, double& h) const;
+
+  CartesianMapping mapping_;
+  std::vector<Tri> tris_;
+  std::vector<Cold> cold_;
+  std::vector<Point2> corners2_;  // mapped (u, v) of each vertex, for the exact predicate
+  Quadtree tree_;
+  TerrainStats stats_;
+};
+
+}  // namespace qota

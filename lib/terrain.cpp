@@ -1,0 +1,378 @@
+#include "qota/terrain.hpp"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <string>
+
+#include "qota/error.hpp"
+
+namespace qota {
+namespace {
+
+constexpr double kUnitRoundoff = 0x1p-53;
+
+// Float bounds that enclose the double value (round toward -inf / +inf).
+float floatBelow(double x) {
+  float f = static_cast<float>(x);
+  if (static_cast<double>(f) > x) f = std::nextafter(f, -std::numeric_limits<float>::infinity());
+  return f;
+}
+float floatAbove(double x) {
+  float f = static_cast<float>(x);
+  if (static_cast<double>(f) < x) f = std::nextafter(f, std::numeric_limits<float>::infinity());
+  return f;
+}
+
+std::uint32_t spreadBits16(std::uint32_t x) {
+  x &= 0xffff;
+  x = (x | (x << 8)) & 0x00ff00ff;
+  x = (x | (x << 4)) & 0x0f0f0f0f;
+  x = (x | (x << 2)) & 0x33333333;
+  x = (x | (x << 1)) & 0x55555555;
+  return x;
+}
+
+std::string describePoint(const Eigen::Vector3d& p) {
+  return "(" + std::to_string(p.x()) + ", " + std::to_string(p.y()) + ", " + std::to_string(p.z()) +
+         ")";
+}
+
+// A triangle waiting for the build: mapped corner indices (counter-clockwise) and its polygon.
+struct Pending {
+  std::uint32_t corner[3];
+  std::uint32_t polygon;
+};
+
+// Sign of the convex polygon's orientation as seen along gravity: +1 counter-clockwise, -1
+// clockwise, 0 when its projection has no area. Throws when it is not convex. Every vertex must
+// lie on the inner side (or on the line) of every edge; this exact test rejects reflex corners and
+// self-intersecting outlines alike.
+int convexOrientation(std::span<const std::uint32_t> idx, const std::vector<Point2>& c,
+                      std::size_t polygon) {
+  const std::size_t n = idx.size();
+  int sign = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const Point2 a = c[idx[i]], b = c[idx[(i + 1) % n]];
+    for (std::size_t j = 0; j < n; ++j) {
+      if (j == i || j == (i + 1) % n) continue;
+      const int s = orient2dSign(a, b, c[idx[j]]);
+      if (s == 0) continue;
+      if (sign == 0) {
+        sign = s;
+      } else if (s != sign) {
+        throw Error("polygon " + std::to_string(polygon) + " (" + std::to_string(n) +
+                    " vertices) is not convex as seen along gravity; split it into convex "
+                    "polygons or triangles");
+      }
+    }
+  }
+  return sign;
+}
+
+}  // namespace
+
+std::uint64_t TerrainIndex::estimateBuildBytes(std::uint64_t vertices, std::uint64_t triangles) {
+  // Per vertex: mapped position and 2D corner. Per triangle: the pending list, the hot and cold
+  // records, the Morton keys and about three references alive at once during the build.
+  return vertices * (sizeof(Eigen::Vector3d) + sizeof(Point2)) +
+         triangles * (sizeof(Pending) + sizeof(Tri) + sizeof(Cold) + 16 + 12);
+}
+
+TerrainIndex::TerrainIndex(const Mesh& mesh, const CartesianMapping& mapping,
+                           const TerrainOptions& options)
+    : mapping_(mapping) {
+  const std::size_t nv = mesh.vertices.size();
+  const std::size_t np = mesh.polygonCount();
+  if (nv >= std::numeric_limits<std::uint32_t>::max() || np >= std::numeric_limits<std::uint32_t>::max()) {
+    throw Error("terrain: " + std::to_string(nv) + " vertices and " + std::to_string(np) +
+                " polygons exceed the 32-bit indices of the index");
+  }
+  stats_.polygons = np;
+  stats_.vertices = nv;
+
+  // Map every vertex once, so that polygons sharing a vertex share its mapped coordinates exactly.
+  std::vector<Eigen::Vector3d> mapped(nv);
+  corners2_.resize(nv);
+  for (std::size_t i = 0; i < nv; ++i) {
+    mapped[i] = mapping_.toMapped(mesh.vertices[i]);
+    corners2_[i] = {mapped[i].x(), mapped[i].y()};
+  }
+
+  // Validate each polygon and fan it into counter-clockwise triangles.
+  std::vector<Pending> pending;
+  pending.reserve(np);
+  for (std::size_t p = 0; p < np; ++p) {
+    const auto idx = mesh.polygon(p);
+    if (idx.size() < 3) {
+      throw Error("polygon " + std::to_string(p) + " has " + std::to_string(idx.size()) +
+                  " vertices; a polygon needs at least 3");
+    }
+    for (std::uint32_t i : idx) {
+      if (i >= nv) {
+        throw Error("polygon " + std::to_string(p) + " refers to vertex " + std::to_string(i) +
+                    " but the mesh has " + std::to_string(nv) + " vertices");
+      }
+      if (!mesh.vertices[i].allFinite() || !mapped[i].allFinite()) {
+        throw Error("polygon " + std::to_string(p) + ": vertex " + std::to_string(i) +
+                    " has a non-finite coordinate " + describePoint(mesh.vertices[i]));
+      }
+    }
+    const int sign = idx.size() == 3
+                         ? orient2dSign(corners2_[idx[0]], corners2_[idx[1]], corners2_[idx[2]])
+                         : convexOrientation(idx, corners2_, p);
+    const std::size_t before = pending.size();
+    if (sign != 0) {
+      for (std::size_t k = 1; k + 1 < idx.size(); ++k) {
+        const std::uint32_t a = idx[0], b = idx[k], c = idx[k + 1];
+        // Fan triangles over collinear corners have no area: the rest of the fan covers them.
+        if (idx.size() > 3 && orient2dSign(corners2_[a], corners2_[b], corners2_[c]) == 0) continue;
+        const auto poly = static_cast<std::uint32_t>(p);
+        pending.push_back(sign > 0 ? Pending{{a, b, c}, poly} : Pending{{a, c, b}, poly});
+      }
+    }
+    if (pending.size() == before) ++stats_.walls;
+  }
+  stats_.triangles = pending.size();
+
+  // The domain: the bounding box of every triangle, in the mapped frame.
+  Box2 domain{std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity(),
+              -std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()};
+  for (const auto& q : pending) {
+    for (std::uint32_t c : q.corner) {
+      domain.ulo = std::min(domain.ulo, corners2_[c].u);
+      domain.uhi = std::max(domain.uhi, corners2_[c].u);
+      domain.vlo = std::min(domain.vlo, corners2_[c].v);
+      domain.vhi = std::max(domain.vhi, corners2_[c].v);
+    }
+  }
+  if (pending.empty()) domain = Box2{};
+  stats_.domain = domain;
+
+  // Store triangles in Morton order of their centroids, so that the triangles of one leaf (and of
+  // neighbouring leaves) sit next to each other in memory.
+  if (!pending.empty()) {
+    const double su = domain.uhi > domain.ulo ? 65535.0 / (domain.uhi - domain.ulo) : 0.0;
+    const double sv = domain.vhi > domain.vlo ? 65535.0 / (domain.vhi - domain.vlo) : 0.0;
+    std::vector<std::uint64_t> keyed(pending.size());
+    for (std::size_t t = 0; t < pending.size(); ++t) {
+      double cu = 0, cv = 0;
+      for (std::uint32_t c : pending[t].corner) {
+        cu += corners2_[c].u / 3;
+        cv += corners2_[c].v / 3;
+      }
+      const auto iu = static_cast<std::uint32_t>(std::clamp((cu - domain.ulo) * su, 0.0, 65535.0));
+      const auto iv = static_cast<std::uint32_t>(std::clamp((cv - domain.vlo) * sv, 0.0, 65535.0));
+      const std::uint64_t code = spreadBits16(iu) | (spreadBits16(iv) << 1);
+      keyed[t] = code << 32 | t;
+    }
+    std::sort(keyed.begin(), keyed.end());
+    std::vector<Pending> sorted(pending.size());
+    for (std::size_t t = 0; t < keyed.size(); ++t) sorted[t] = pending[keyed[t] & 0xffffffffu];
+    pending.swap(sorted);
+  }
+
+  // Hot and cold records. The edge tolerance bounds the rounding error of A u + B v + C for every
+  // (u, v) in the domain: the rounded A, B, C (one rounding each, two for C's products) and the
+  // evaluation (three roundings) stay within 8 units of the magnitude sum; 16 leaves a margin.
+  const double umax = std::max(std::fabs(domain.ulo), std::fabs(domain.uhi));
+  const double vmax = std::max(std::fabs(domain.vlo), std::fabs(domain.vhi));
+  tris_.resize(pending.size());
+  cold_.resize(pending.size());
+  std::vector<Box2> boxes(pending.size());  // build only: bboxes for the overlap test
+  for (std::size_t t = 0; t < pending.size(); ++t) {
+    const Pending& q = pending[t];
+    Tri& r = tris_[t];
+    cold_[t] = Cold{{q.corner[0], q.corner[1], q.corner[2]}, q.polygon};
+    double hlo = INFINITY, hhi = -INFINITY, tol = 0;
+    Box2& bb = boxes[t];
+    bb = Box2{INFINITY, INFINITY, -INFINITY, -INFINITY};
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector3d& p0 = mapped[q.corner[k]];
+      const Eigen::Vector3d& p1 = mapped[q.corner[(k + 1) % 3]];
+      r.A[k] = p0.y() - p1.y();
+      r.B[k] = p1.x() - p0.x();
+      r.C[k] = p0.x() * p1.y() - p1.x() * p0.y();
+      tol = std::max(tol, std::fabs(r.A[k]) * umax + std::fabs(r.B[k]) * vmax +
+                              std::fabs(p0.x() * p1.y()) + std::fabs(p1.x() * p0.y()));
+      bb.ulo = std::min(bb.ulo, p0.x()), bb.uhi = std::max(bb.uhi, p0.x());
+      bb.vlo = std::min(bb.vlo, p0.y()), bb.vhi = std::max(bb.vhi, p0.y());
+      hlo = std::min(hlo, p0.z()), hhi = std::max(hhi, p0.z());
+    }
+    r.tol = 16.0 * kUnitRoundoff * tol;
+    r.hlo = floatBelow(hlo), r.hhi = floatAbove(hhi);
+    const Eigen::Vector3d& p0 = mapped[q.corner[0]];
+    const Eigen::Vector3d n = (mapped[q.corner[1]] - p0).cross(mapped[q.corner[2]] - p0);
+    r.u0 = p0.x(), r.v0 = p0.y(), r.h0 = p0.z();
+    r.a = -n.x() / n.z();
+    r.b = -n.y() / n.z();
+    if (!(n.z() > 0) || !std::isfinite(r.a) || !std::isfinite(r.b)) {
+      // A sliver with nonzero exact area whose plane is vertical to within rounding. It stays in
+      // the index, or its neighbours would open a crack; its height is its corners' mid-range.
+      r.a = r.b = 0;
+      r.h0 = 0.5 * (hlo + hhi);
+    }
+  }
+
+  // The quadtree: a triangle is referenced from a leaf when its closed projection meets the closed
+  // leaf box (separating axes: the box axes, then each edge with its error bound, so that a
+  // triangle is dropped only when the box is certainly outside it).
+  tree_.build(static_cast<std::uint32_t>(tris_.size()), domain, options.tree,
+              [this, &boxes](std::uint32_t t, const Box2& b) {
+                const Tri& r = tris_[t];
+                const Box2& tb = boxes[t];
+                if (tb.ulo > b.uhi || tb.uhi < b.ulo || tb.vlo > b.vhi || tb.vhi < b.vlo) return false;
+                for (int k = 0; k < 3; ++k) {
+                  const double u = r.A[k] >= 0 ? b.uhi : b.ulo;
+                  const double v = r.B[k] >= 0 ? b.vhi : b.vlo;
+                  if (r.A[k] * u + r.B[k] * v + r.C[k] < -r.tol) return false;
+                }
+                return true;
+              });
+  stats_.tree = tree_.stats();
+  stats_.memoryBytes = tris_.size() * sizeof(Tri) + cold_.size() * sizeof(Cold) +
+                       corners2_.size() * sizeof(Point2) + stats_.tree.memoryBytes;
+}
+
+bool TerrainIndex::inside(std::uint32_t t, double u, double v) const {
+  const Cold& c = cold_[t];
+  const Point2 p{u, v};
+  for (int k = 0; k < 3; ++k) {
+    if (orient2dSign(corners2_[c.corner[k]], corners2_[c.corner[(k + 1) % 3]], p) < 0) return false;
+  }
+  return true;
+}
+
+inline double TerrainIndex::heightOf(const Tri& t, double u, double v) const {
+  // The clamp keeps a sliver's extrapolated plane inside its corners' height range.
+  return std::clamp(t.h0 + t.a * (u - t.u0) + t.b * (v - t.v0), static_cast<double>(t.hlo),
+                    static_cast<double>(t.hhi));
+}
+
+template <class Better>
+std::optional<std::uint32_t> TerrainIndex::best(double u, double v, Better better, double& h) const {
+  if (!tree_.contains(u, v)) return std::nullopt;  // also rejects NaN
+  std::uint32_t found = std::numeric_limits<std::uint32_t>::max();
+  for (std::uint32_t t : tree_.leafItems(u, v)) {
+    const Tri& r = tris_[t];
+    const double e0 = r.A[0] * u + r.B[0] * v + r.C[0];
+    const double e1 = r.A[1] * u + r.B[1] * v + r.C[1];
+    const double e2 = r.A[2] * u + r.B[2] * v + r.C[2];
+    const double m = std::min(e0, std::min(e1, e2));
+    if (m < -r.tol) continue;                   // certainly outside
+    if (m <= r.tol && !inside(t, u, v)) continue;  // within rounding of an edge: decide exactly
+    const double ht = heightOf(r, u, v);
+    if (better(ht, t, found, h)) {
+      found = t;
+      h = ht;
+    }
+  }
+  if (found == std::numeric_limits<std::uint32_t>::max()) return std::nullopt;
+  return found;
+}
+
+Hit TerrainIndex::makeHit(std::uint32_t t, double u, double v, double h) const {
+  const Tri& r = tris_[t];
+  Hit hit;
+  hit.height = h;
+  hit.world = mapping_.toWorld(Eigen::Vector3d(u, v, h));
+  hit.normal = mapping_.directionToWorld(Eigen::Vector3d(-r.a, -r.b, 1.0).normalized());
+  hit.polygon = cold_[t].polygon;
+  return hit;
+}
+
+std::optional<Hit> TerrainIndex::below(double u, double v, double z) const {
+  double h = 0;
+  auto t = best(u, v,
+                [&](double ht, std::uint32_t cand, std::uint32_t cur, double hcur) {
+                  if (!(ht <= z)) return false;
+                  if (cur == std::numeric_limits<std::uint32_t>::max() || ht > hcur) return true;
+                  return ht == hcur && cold_[cand].polygon < cold_[cur].polygon;
+                },
+                h);
+  if (!t) return std::nullopt;
+  return makeHit(*t, u, v, h);
+}
+
+std::optional<Hit> TerrainIndex::above(double u, double v, double z) const {
+  double h = 0;
+  auto t = best(u, v,
+                [&](double ht, std::uint32_t cand, std::uint32_t cur, double hcur) {
+                  if (!(ht >= z)) return false;
+                  if (cur == std::numeric_limits<std::uint32_t>::max() || ht < hcur) return true;
+                  return ht == hcur && cold_[cand].polygon < cold_[cur].polygon;
+                },
+                h);
+  if (!t) return std::nullopt;
+  return makeHit(*t, u, v, h);
+}
+
+std::optional<double> TerrainIndex::heightBelow(double u, double v, double z) const {
+  double h = 0;
+  auto t = best(u, v,
+                [&](double ht, std::uint32_t, std::uint32_t cur, double hcur) {
+                  return ht <= z && (cur == std::numeric_limits<std::uint32_t>::max() || ht > hcur);
+                },
+                h);
+  if (!t) return std::nullopt;
+  return h;
+}
+
+Bracket TerrainIndex::bracket(double u, double v, double h) const {
+  return {below(u, v, h), above(u, v, h)};
+}
+
+std::optional<Hit> TerrainIndex::top(double u, double v) const {
+  return below(u, v, std::numeric_limits<double>::infinity());
+}
+
+std::vector<Hit> TerrainIndex::all(double u, double v) const {
+  std::vector<Hit> hits;
+  if (!tree_.contains(u, v)) return hits;
+  for (std::uint32_t t : tree_.leafItems(u, v)) {
+    const Tri& r = tris_[t];
+    if (!inside(t, u, v)) continue;  // rare call: the exact test alone is fine here
+    hits.push_back(makeHit(t, u, v, heightOf(r, u, v)));
+  }
+  std::sort(hits.begin(), hits.end(), [](const Hit& a, const Hit& b) {
+    return a.height != b.height ? a.height > b.height : a.polygon < b.polygon;
+  });
+  // A fanned polygon is met once: drop repeats from its fan triangles (on their shared diagonal).
+  std::vector<Hit> unique;
+  for (Hit& h : hits) {
+    const bool seen = std::any_of(unique.begin(), unique.end(),
+                                  [&](const Hit& k) { return k.polygon == h.polygon; });
+    if (!seen) unique.push_back(std::move(h));
+  }
+  return unique;
+}
+
+std::optional<Hit> TerrainIndex::belowWorld(const Eigen::Vector3d& p) const {
+  const Eigen::Vector3d m = mapping_.toMapped(p);
+  return below(m.x(), m.y(), m.z());
+}
+std::optional<Hit> TerrainIndex::aboveWorld(const Eigen::Vector3d& p) const {
+  const Eigen::Vector3d m = mapping_.toMapped(p);
+  return above(m.x(), m.y(), m.z());
+}
+Bracket TerrainIndex::bracketWorld(const Eigen::Vector3d& p) const {
+  const Eigen::Vector3d m = mapping_.toMapped(p);
+  return bracket(m.x(), m.y(), m.z());
+}
+std::optional<Hit> TerrainIndex::topWorld(const Eigen::Vector3d& p) const {
+  const Eigen::Vector3d m = mapping_.toMapped(p);
+  return top(m.x(), m.y());
+}
+std::vector<Hit> TerrainIndex::allWorld(const Eigen::Vector3d& p) const {
+  const Eigen::Vector3d m = mapping_.toMapped(p);
+  return all(m.x(), m.y());
+}
+
+std::uint32_t TerrainIndex::testsAt(double u, double v) const {
+  if (!tree_.contains(u, v)) return 0;
+  return static_cast<std::uint32_t>(tree_.leafItems(u, v).size());
+}
+
+}  // namespace qota

@@ -1,0 +1,34 @@
+#!/usr/bin/env bash
+# Installs the Debian packages qota builds against. Skips what is already present, so it is
+# cheap to run before every build. Needs root (or sudo) only when something is missing.
+set -euo pipefail
+
+packages=(
+  build-essential cmake pkg-config
+  libgdal-dev gdal-bin          # rasters, CRS transforms (and gdallocationinfo for the tests)
+  libgeographiclib-dev          # ellipsoid math
+  libeigen3-dev                 # rotations, plane fits
+  libglm-dev                    # interop type for rendering code
+  libgtest-dev libgmock-dev     # tests
+  libbenchmark-dev              # bench/
+  libcli11-dev                  # argument parsing for the qota tool
+  libpng-dev                    # PNG previews
+)
+
+missing=()
+for p in "${packages[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'install ok installed'; then
+    missing+=("$p")
+  fi
+done
+
+if [ ${#missing[@]} -eq 0 ]; then
+  exit 0
+fi
+
+echo "qota: installing ${missing[*]}" >&2
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO=sudo; fi
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
