@@ -21,6 +21,7 @@ void printCrs(const DemTerrain& dem, std::ostream& out) {
   }
   OGRSpatialReference srs;
   srs.importFromWkt(dem.crsWkt.c_str());
+  if (!srs.GetAuthorityCode(nullptr)) srs.AutoIdentifyEPSG();  // e.g. an unnamed UTM zone
   const char* name = srs.GetName();
   const char* auth = srs.GetAuthorityName(nullptr);
   const char* code = srs.GetAuthorityCode(nullptr);

@@ -7,6 +7,9 @@
 // the node (the paper's rule), so a node's box is implied by the path to it and is not stored:
 // a query descends with two compares per level.
 //
+// Split rule: the paper's (more than Maxpoly items and above Maxdepth), plus a cost check: a node
+// whose split would not cut the expected number of polygon tests by at least 15% stays a leaf.
+//
 // Boundary rule: a point exactly on a cut line belongs to the child on the high side (u >= mid goes
 // to the high-u child). Boxes are closed in the build, so an item touching a cut line is referenced
 // from both sides, and the query finds it whichever side it descends to. The midpoints the build
@@ -18,7 +21,10 @@
 #include <cmath>
 #include <cstdint>
 #include <span>
+#include <string>
 #include <vector>
+
+#include "qota/error.hpp"
 
 namespace qota {
 
@@ -56,6 +62,9 @@ struct QuadtreeStats {
 class Quadtree {
  public:
   static constexpr std::uint32_t kInner = 0xffffffffu;
+  // A node is split only when its children's mean polygon count is at most this fraction of its
+  // own (see buildNode).
+  static constexpr double kMinSplitGain = 0.85;
   struct Node {
     std::uint32_t first;  // inner: index of the first of 4 children; leaf: first reference
     std::uint32_t count;  // kInner for an inner node, else the leaf's reference count
@@ -109,6 +118,8 @@ class Quadtree {
   std::vector<Half> half_;  // half the node size at each depth: the offset of the cut
   std::vector<Node> nodes_;
   std::vector<std::uint32_t> refs_;
+  std::uint64_t refBudget_ = 0;
+  std::uint32_t itemCount_ = 0;
 };
 
 template <class Overlaps>
@@ -126,6 +137,12 @@ void Quadtree::build(std::uint32_t itemCount, Box2 root, const QuadtreeOptions& 
     half_.push_back({std::ldexp(su, -static_cast<int>(d) - 1),
                      std::ldexp(sv, -static_cast<int>(d) - 1)});
   }
+  // Items that share an edge can never be separated by a cut, so with a Maxpoly below the number
+  // of polygons along an edge or around a vertex every leaf on that edge would split down to
+  // Maxdepth: a tree exponential in Maxdepth. Far before that, stop with an error that says what
+  // to change.
+  refBudget_ = 64ull * itemCount + (1ull << 22);
+  itemCount_ = itemCount;
   std::vector<std::uint32_t> items(itemCount);
   for (std::uint32_t i = 0; i < itemCount; ++i) items[i] = i;
   buildNode(0, root, 0, items, overlaps);
@@ -157,6 +174,26 @@ void Quadtree::buildNode(std::uint32_t node, const Box2& box, std::uint32_t dept
     for (std::uint32_t it : items) {
       if (overlaps(it, child[c])) sub[c].push_back(it);
     }
+  }
+  // A split pays only when a query in one of the four equal-area children tests clearly fewer
+  // polygons than in the parent. It does not where polygons cannot be separated: a fan around a
+  // vertex, a stack of overlapping polygons, or the rim of such a stack, where a leaf would
+  // otherwise split down to Maxdepth along the rim. Such a node stays a leaf.
+  const std::size_t childRefs = sub[0].size() + sub[1].size() + sub[2].size() + sub[3].size();
+  if (static_cast<double>(childRefs) > kMinSplitGain * 4.0 * static_cast<double>(items.size())) {
+    nodes_.resize(first);
+    nodes_[node] = {static_cast<std::uint32_t>(refs_.size()),
+                    static_cast<std::uint32_t>(items.size())};
+    refs_.insert(refs_.end(), items.begin(), items.end());
+    return;
+  }
+  if (refs_.size() + items.size() > refBudget_ || nodes_.size() > refBudget_) {
+    throw Error("quadtree: more than " + std::to_string(refBudget_) + " leaf references for " +
+                std::to_string(itemCount_) + " polygons; Maxpoly " +
+                std::to_string(options_.maxPoly) +
+                " is smaller than the number of polygons that share an edge or overlap here, so "
+                "leaves split down to Maxdepth " + std::to_string(options_.maxDepth) +
+                ": raise Maxpoly or lower Maxdepth");
   }
   std::vector<std::uint32_t>().swap(items);  // free the parent's list before descending
   for (int c = 0; c < 4; ++c) buildNode(first + c, child[c], depth + 1, sub[c], overlaps);

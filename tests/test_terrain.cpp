@@ -1,0 +1,286 @@
+// TerrainIndex against the brute-force oracle, and its query semantics and input rules.
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "oracle.hpp"
+#include "qota/error.hpp"
+#include "qota/terrain.hpp"
+#include "random_terrain.hpp"
+
+namespace {
+
+using qota::CartesianMapping;
+using qota::Hit;
+using qota::Mesh;
+using qota::TerrainIndex;
+using qota::test::bruteForce;
+
+// Compares every query kind at random world points with the oracle. Points within `ambiguous` of
+// a polygon edge (where the answer depends on rounding) are counted, and their heights are
+// checked only where the polygons' surfaces meet.
+struct OracleStats {
+  int queries = 0, ambiguous = 0, hits = 0;
+};
+
+// Void (gtest's ASSERT needs it); the counts go to `st`.
+void compareWithOracle(const Mesh& mesh, const CartesianMapping& mapping,
+                       const qota::TerrainOptions& options, int queries, std::uint64_t seed,
+                       OracleStats& st) {
+  const TerrainIndex index(mesh, mapping, options);
+  Eigen::Vector3d lo = mesh.vertices[0], hi = mesh.vertices[0];
+  for (const auto& v : mesh.vertices) lo = lo.cwiseMin(v), hi = hi.cwiseMax(v);
+  const double size = (hi - lo).norm();
+  const double ambiguous = 1e-9 * size;
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> unit(-0.1, 1.1);
+  for (int q = 0; q < queries; ++q) {
+    const Eigen::Vector3d p = lo + (hi - lo).cwiseProduct(
+                                       Eigen::Vector3d(unit(rng), unit(rng), unit(rng)));
+    const auto oracle = bruteForce(mesh, mapping.gravity(), mapping.origin(), p);
+    ++st.queries;
+    if (oracle.nearestEdge < ambiguous) {
+      ++st.ambiguous;
+      continue;
+    }
+    const double z = mapping.toMapped(p).z();
+    // Oracle answers: topmost, nearest below z, nearest above z (ties: smallest polygon id).
+    const qota::test::OracleHit *top = nullptr, *below = nullptr, *above = nullptr;
+    bool heightTie = false;
+    for (const auto& h : oracle.hits) {
+      auto better = [&](const qota::test::OracleHit* cur, bool higher) {
+        if (!cur) return true;
+        if (h.height == cur->height) return h.polygon < cur->polygon;
+        return higher ? h.height > cur->height : h.height < cur->height;
+      };
+      if (std::fabs(h.height - z) < ambiguous) heightTie = true;
+      if (better(top, true)) top = &h;
+      if (h.height <= z && better(below, true)) below = &h;
+      if (h.height >= z && better(above, false)) above = &h;
+    }
+    for (const auto& h1 : oracle.hits) {
+      for (const auto& h2 : oracle.hits) {
+        if (h1.polygon != h2.polygon && std::fabs(h1.height - h2.height) < ambiguous) heightTie = true;
+      }
+    }
+    if (heightTie) {
+      ++st.ambiguous;
+      continue;
+    }
+    auto check = [&](const std::optional<Hit>& got, const qota::test::OracleHit* want,
+                     const char* what) {
+      ASSERT_EQ(got.has_value(), want != nullptr) << what << " at query " << q;
+      if (!want) return;
+      ASSERT_EQ(got->polygon, want->polygon) << what << " at query " << q;
+      ASSERT_NEAR(got->height, want->height, 1e-9 * std::max(1.0, std::fabs(want->height)))
+          << what << " at query " << q;
+      // The world point lies on the line and at that height.
+      const Eigen::Vector3d m = mapping.toMapped(got->world);
+      const Eigen::Vector3d pm = mapping.toMapped(p);
+      ASSERT_NEAR(m.x(), pm.x(), 1e-9 * size);
+      ASSERT_NEAR(m.y(), pm.y(), 1e-9 * size);
+      ASSERT_NEAR(got->normal.norm(), 1.0, 1e-12);
+      ASSERT_LT(got->normal.dot(mapping.gravity()), 0.0);  // points up
+    };
+    check(index.topWorld(p), top, "top");
+    check(index.belowWorld(p), below, "below");
+    check(index.aboveWorld(p), above, "above");
+    const auto br = index.bracketWorld(p);
+    check(br.below, below, "bracket.below");
+    check(br.above, above, "bracket.above");
+    const auto all = index.allWorld(p);
+    ASSERT_EQ(all.size(), oracle.hits.size()) << "all at query " << q;
+    for (std::size_t i = 1; i < all.size(); ++i) ASSERT_GE(all[i - 1].height, all[i].height);
+    for (const auto& h : oracle.hits) {
+      ASSERT_TRUE(std::any_of(all.begin(), all.end(), [&](const Hit& g) { return g.polygon == h.polygon; }));
+    }
+    if (top) ++st.hits;
+  }
+}
+
+OracleStats compareWithOracle(const Mesh& mesh, const CartesianMapping& mapping,
+                              const qota::TerrainOptions& options, int queries, std::uint64_t seed) {
+  OracleStats st;
+  compareWithOracle(mesh, mapping, options, queries, seed, st);
+  return st;
+}
+
+TEST(TerrainOracle, VerticalGravity) {
+  for (std::uint64_t seed = 1; seed <= 4; ++seed) {
+    const Mesh mesh = qota::test::randomTerrain({}, seed);
+    const auto st = compareWithOracle(mesh, CartesianMapping(), {}, 4000, seed);
+    EXPECT_GT(st.hits, st.queries / 4);
+    EXPECT_LT(st.ambiguous, st.queries / 100);
+  }
+}
+
+TEST(TerrainOracle, TiltedGravity) {
+  std::mt19937_64 rng(77);
+  std::normal_distribution<double> n(0, 1);
+  for (std::uint64_t seed = 10; seed < 16; ++seed) {
+    Eigen::Vector3d g(n(rng), n(rng), n(rng));
+    if (seed == 15) g = Eigen::Vector3d(1, 0.3, 0);  // sideways: a wall-like view of the terrain
+    const Mesh mesh = qota::test::randomTerrain({}, seed);
+    const auto st = compareWithOracle(mesh, CartesianMapping(g, Eigen::Vector3d(3, 4, 5)), {}, 3000, seed);
+    EXPECT_GT(st.hits, 0);
+    EXPECT_LT(st.ambiguous, st.queries / 100);
+  }
+}
+
+TEST(TerrainOracle, TreeParametersDoNotChangeAnswers) {
+  const Mesh mesh = qota::test::randomTerrain({}, 21);
+  for (const qota::QuadtreeOptions tree : {qota::QuadtreeOptions{2, 12}, qota::QuadtreeOptions{400, 5},
+                                           qota::QuadtreeOptions{3, 2}, qota::QuadtreeOptions{8, 0}}) {
+    compareWithOracle(mesh, CartesianMapping(Eigen::Vector3d(0.2, -0.1, -1)), {tree}, 1500, 21);
+  }
+}
+
+TEST(TerrainOracle, LargeCoordinates) {
+  // A terrain in map coordinates in the millions (UTM-like), origin near the data.
+  qota::test::RandomTerrainSpec spec;
+  spec.offsetX = 557805;
+  spec.offsetY = 5122005;
+  spec.cell = 30;
+  const Mesh mesh = qota::test::randomTerrain(spec, 5);
+  compareWithOracle(mesh, CartesianMapping(Eigen::Vector3d(0, 0, -1), Eigen::Vector3d(558000, 5122400, 0)),
+                    {}, 3000, 5);
+  compareWithOracle(mesh, CartesianMapping(Eigen::Vector3d(0.1, 0, -1), Eigen::Vector3d(558000, 5122400, 0)),
+                    {}, 3000, 6);
+}
+
+// --- Semantics -------------------------------------------------------------------------------
+
+Mesh twoFloors() {
+  // A unit square floor at h = 0 (two triangles) and a ceiling quad at h = 3 (one polygon).
+  Mesh m;
+  for (double z : {0.0, 3.0}) {
+    m.addVertex({0, 0, z});
+    m.addVertex({1, 0, z});
+    m.addVertex({1, 1, z});
+    m.addVertex({0, 1, z});
+  }
+  m.addTriangle(0, 1, 2);
+  m.addTriangle(0, 2, 3);
+  m.addPolygon({4, 5, 6, 7});
+  return m;
+}
+
+TEST(TerrainQueries, FloorAndCeiling) {
+  const TerrainIndex index(twoFloors(), CartesianMapping());
+  const auto b = index.bracket(0.3, 0.6, 1.0);
+  ASSERT_TRUE(b.below && b.above);
+  EXPECT_EQ(b.below->height, 0.0);
+  EXPECT_EQ(b.below->polygon, 1u);  // (0.3, 0.6) is in the second triangle
+  EXPECT_EQ(b.above->height, 3.0);
+  EXPECT_EQ(b.above->polygon, 2u);
+  EXPECT_EQ(index.top(0.3, 0.6)->height, 3.0);
+  EXPECT_FALSE(index.below(0.3, 0.6, -0.5));
+  EXPECT_FALSE(index.above(0.3, 0.6, 3.5));
+  // Exactly at a surface: both below and above.
+  EXPECT_EQ(index.below(0.5, 0.5, 3.0)->height, 3.0);
+  EXPECT_EQ(index.above(0.5, 0.5, 3.0)->height, 3.0);
+  // On the shared diagonal: the smaller polygon id wins the tie.
+  EXPECT_EQ(index.below(0.5, 0.5, 1.0)->polygon, 0u);
+  const auto all = index.all(0.5, 0.5);
+  ASSERT_EQ(all.size(), 3u);  // the ceiling once, both floor triangles
+  EXPECT_EQ(all[0].height, 3.0);
+  EXPECT_EQ(all[0].polygon, 2u);
+  // Outside the terrain, NaN: no terrain, not an error.
+  EXPECT_FALSE(index.top(1.5, 0.5));
+  EXPECT_FALSE(index.top(NAN, 0.5));
+  EXPECT_TRUE(index.all(-1, -1).empty());
+}
+
+TEST(TerrainQueries, NormalAndWorldPoint) {
+  // A plane z = 0.5 x tilted about y.
+  Mesh m;
+  m.addVertex({0, 0, 0});
+  m.addVertex({2, 0, 1});
+  m.addVertex({0, 2, 0});
+  m.addTriangle(0, 1, 2);
+  const TerrainIndex index(m, CartesianMapping());
+  const auto h = index.top(0.5, 0.5);
+  ASSERT_TRUE(h);
+  EXPECT_DOUBLE_EQ(h->height, 0.25);
+  EXPECT_TRUE(h->world.isApprox(Eigen::Vector3d(0.5, 0.5, 0.25)));
+  EXPECT_TRUE(h->normal.isApprox(Eigen::Vector3d(-0.5, 0, 1).normalized()));
+}
+
+TEST(TerrainQueries, EmptyTerrain) {
+  const TerrainIndex index(Mesh{}, CartesianMapping());
+  EXPECT_FALSE(index.top(0, 0));
+  EXPECT_EQ(index.stats().triangles, 0u);
+  EXPECT_EQ(index.stats().tree.nodes, 1u);
+}
+
+TEST(TerrainQueries, FanAroundAVertexDeeperThanMaxPoly) {
+  // 64 triangles around one vertex: no split can separate them, Maxdepth stops the tree.
+  Mesh m;
+  const std::uint32_t c = m.addVertex({0.3, 0.2, 1});
+  const int n = 64;
+  for (int i = 0; i < n; ++i) {
+    const double a = 2 * M_PI * i / n;
+    m.addVertex({0.3 + std::cos(a), 0.2 + std::sin(a), 0});
+  }
+  for (int i = 0; i < n; ++i) m.addTriangle(c, 1 + i, 1 + (i + 1) % n);
+  const TerrainIndex index(m, CartesianMapping(), {{4, 10}});
+  EXPECT_EQ(index.stats().tree.depth, 10u);
+  const auto h = index.top(0.3, 0.2);
+  ASSERT_TRUE(h);
+  EXPECT_EQ(h->height, 1.0);
+  EXPECT_EQ(h->polygon, 0u);
+  // A fan centred on the root's centre meets all four children: nothing to split.
+  for (auto& v : m.vertices) v -= Eigen::Vector3d(0.3, 0.2, 0);
+  const TerrainIndex centred(m, CartesianMapping(), {{4, 10}});
+  EXPECT_EQ(centred.stats().tree.depth, 0u);
+  EXPECT_EQ(centred.top(0, 0)->height, 1.0);
+}
+
+// --- Input rules -----------------------------------------------------------------------------
+
+TEST(TerrainInput, WallsAreLeftOutAndCounted) {
+  Mesh m = twoFloors();
+  const auto a = m.addVertex({0, 0, 0}), b = m.addVertex({1, 0, 0}), c = m.addVertex({1, 0, 2}),
+             d = m.addVertex({0, 0, 2});
+  m.addPolygon({a, b, c, d});
+  m.addTriangle(a, a, b);  // degenerate
+  const TerrainIndex index(m, CartesianMapping());
+  EXPECT_EQ(index.stats().walls, 2u);
+  EXPECT_EQ(index.stats().polygons, 5u);
+  EXPECT_EQ(index.stats().triangles, 4u);
+}
+
+TEST(TerrainInput, ErrorsNameThePolygon) {
+  auto expectError = [](const Mesh& m, const std::string& needle) {
+    try {
+      TerrainIndex index(m, CartesianMapping());
+      FAIL() << "no error, expected one mentioning '" << needle << "'";
+    } catch (const qota::Error& e) {
+      EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+    }
+  };
+  Mesh nan = twoFloors();
+  nan.vertices[6].y() = NAN;
+  expectError(nan, "polygon 2");
+  Mesh range = twoFloors();
+  range.addTriangle(0, 1, 99);
+  expectError(range, "polygon 3 refers to vertex 99");
+  Mesh nonConvex;
+  for (auto [x, y] : {std::pair{0.0, 0.0}, {2.0, 0.0}, {1.0, 0.5}, {2.0, 2.0}, {0.0, 2.0}}) {
+    nonConvex.addVertex({x, y, 0});
+  }
+  nonConvex.addPolygon({0, 1, 2, 3, 4});
+  expectError(nonConvex, "polygon 0 (5 vertices) is not convex");
+  Mesh bowtie;
+  for (auto [x, y] : {std::pair{0.0, 0.0}, {1.0, 0.0}, {0.0, 1.0}, {1.0, 1.0}}) bowtie.addVertex({x, y, 0});
+  bowtie.addPolygon({0, 1, 2, 3});
+  expectError(bowtie, "not convex");
+  Mesh two;
+  two.addVertex({0, 0, 0});
+  two.addVertex({1, 0, 0});
+  two.offsets = {0, 2};
+  two.indices = {0, 1};
+  expectError(two, "polygon 0 has 2 vertices");
+}
+
+}  // namespace
