@@ -395,6 +395,35 @@ void benchHeightBelow(benchmark::State& state, Terrain& t, const std::vector<Poi
              t.checksum);
 }
 
+// heightsBelow over blocks of points: one iteration is one point, and every kBatch-th iteration
+// answers the next block, so the time per iteration is the amortised time per point.
+constexpr std::size_t kBatch = 1024;
+
+std::vector<qota::Point2> toPoint2(const std::vector<Point>& points) {
+  std::vector<qota::Point2> out(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i) out[i] = {points[i].u, points[i].v};
+  return out;
+}
+
+void benchBatch(benchmark::State& state, Terrain& t, const std::vector<Point>& points) {
+  const qota::TerrainIndex& index = t.ensureIndex();
+  const std::vector<qota::Point2> p2 = toPoint2(points);
+  std::vector<std::optional<double>> out(kBatch);
+  const std::size_t n = p2.size();  // a multiple of kBatch
+  std::size_t i = 0;
+  double sum = 0;
+  for (auto _ : state) {
+    if (i % kBatch == 0) {
+      index.heightsBelow(std::span(p2).subspan(i % n, kBatch), kInf, out);
+      sum += out[0].value_or(0.0) + out[kBatch - 1].value_or(0.0);
+    }
+    ++i;
+  }
+  benchmark::DoNotOptimize(sum);
+  t.checksum += sum;
+  state.SetItemsProcessed(state.iterations());
+}
+
 void benchTop(benchmark::State& state, Terrain& t, const std::vector<Point>& points) {
   const qota::TerrainIndex& index = t.ensureIndex();
   runQueries(state, points,
@@ -427,6 +456,7 @@ std::vector<std::string> benchmarkNames(const std::string& terrain, const std::s
   std::vector<std::string> names{terrain + "/build"};
   for (const char* set : {"hit", "miss", "walk"}) {
     names.push_back(terrain + "/" + set + "/qota");
+    names.push_back(terrain + "/" + set + "/qota_batch");
     if (std::string(set) == "hit") names.push_back(terrain + "/hit/qota_top");
     names.push_back(terrain + "/" + set + "/" + baseline);
   }
@@ -446,6 +476,8 @@ void registerBenchmarks(Terrain& t) {
     const std::string prefix = n + "/" + set + "/";
     RegisterBenchmark((prefix + "qota").c_str(),
                       [&t, points](benchmark::State& s) { benchHeightBelow(s, t, *points); });
+    RegisterBenchmark((prefix + "qota_batch").c_str(),
+                      [&t, points](benchmark::State& s) { benchBatch(s, t, *points); });
     if (std::string(set) == "hit") {
       RegisterBenchmark((prefix + "qota_top").c_str(),
                         [&t, points](benchmark::State& s) { benchTop(s, t, *points); });
@@ -538,6 +570,14 @@ Agreement compare(const std::vector<Point>& points, A a, B b) {
   return g;
 }
 
+// The same for answers already computed, one per point (the batch queries).
+template <class B>
+Agreement compareAnswers(const std::vector<Point>& points,
+                         const std::vector<std::optional<double>>& answers, B b) {
+  std::size_t i = 0;
+  return compare(points, [&](double, double) { return answers[i++]; }, b);
+}
+
 // One line of the final table: a query set timed with qota and with a baseline.
 struct Row {
   std::string query;
@@ -568,6 +608,14 @@ TerrainReport makeReport(Terrain& t) {
   const auto base = [&t](double u, double v) {
     return std::visit([&](const auto& lookup) { return lookup(u, v); }, t.baseline);
   };
+  // The batch answers, computed once per set (untimed), compared point by point.
+  const auto batchOf = [&index](const std::vector<Point>& points) {
+    std::vector<std::optional<double>> out(points.size());
+    index.heightsBelow(toPoint2(points), kInf, out);
+    return out;
+  };
+  const auto hitBatch = batchOf(t.queries.hit), walkBatch = batchOf(t.queries.walk),
+             missBatch = batchOf(t.queries.miss);
   const auto brute = [&t](double u, double v) { return bruteTop(t.bruteTriangles, u, v); };
 
   TerrainReport r;
@@ -580,8 +628,14 @@ TerrainReport makeReport(Terrain& t) {
   r.rows.push_back({"hit", p + "hit/qota", b, p + "hit/" + b, compare(t.queries.hit, qotaHeight, base)});
   r.rows.push_back({"hit top()", p + "hit/qota_top", b, p + "hit/" + b,
                     compare(t.queries.hit, qotaTopHeight, base)});
+  r.rows.push_back({"hit batch", p + "hit/qota_batch", b, p + "hit/" + b,
+                    compareAnswers(t.queries.hit, hitBatch, base)});
   r.rows.push_back({"miss", p + "miss/qota", b, p + "miss/" + b, compare(t.queries.miss, qotaHeight, base)});
+  r.rows.push_back({"miss batch", p + "miss/qota_batch", b, p + "miss/" + b,
+                    compareAnswers(t.queries.miss, missBatch, base)});
   r.rows.push_back({"walk", p + "walk/qota", b, p + "walk/" + b, compare(t.queries.walk, qotaHeight, base)});
+  r.rows.push_back({"walk batch", p + "walk/qota_batch", b, p + "walk/" + b,
+                    compareAnswers(t.queries.walk, walkBatch, base)});
   r.rows.push_back({"hit", p + "hit/qota", "brute", p + "hit/brute",
                     compare(t.queries.brute, qotaHeight, brute)});
   return r;

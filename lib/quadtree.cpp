@@ -4,12 +4,87 @@
 
 namespace qota {
 
+void Quadtree::buildJumpTable() {
+  jumpDepth_ = 0;
+  cutU_.clear(), cutV_.clear(), jump_.clear();
+  // Depth of the tree, and its leaf count, decide the table's depth: about one cell per leaf (so
+  // most queries land on their leaf at once), at most 4^11 cells (16 MiB).
+  std::uint32_t depth = 0, leaves = 0;
+  struct Item {
+    std::uint32_t node, depth;
+  };
+  std::vector<Item> stack{{0, 0}};
+  while (!stack.empty()) {
+    const Item it = stack.back();
+    stack.pop_back();
+    if (nodes_[it.node].count == kInner) {
+      for (std::uint32_t c = 0; c < 4; ++c) stack.push_back({nodes_[it.node].first + c, it.depth + 1});
+    } else {
+      ++leaves;
+      depth = std::max(depth, it.depth);
+    }
+  }
+  std::uint32_t k = 0;
+  while (k < depth && k < 11 && (std::uint64_t{1} << (2 * (k + 1))) <= 2ull * leaves) ++k;
+  if (k < 2) return;  // a tree this small descends in a few compares anyway
+
+  // The cut positions exactly as the descent sums them: column i's low edge adds half[d] for
+  // every bit d of i (most significant first).
+  const std::uint32_t n = 1u << k;
+  auto cuts = [&](double lo, bool alongU) {
+    std::vector<double> c(n);
+    for (std::uint32_t i = 0; i < n; ++i) {
+      double x = lo;
+      for (std::uint32_t d = 0; d < k; ++d) {
+        if (i >> (k - 1 - d) & 1u) x = x + (alongU ? half_[d].u : half_[d].v);
+      }
+      c[i] = x;
+    }
+    return c;
+  };
+  cutU_ = cuts(root_.ulo, true);
+  cutV_ = cuts(root_.vlo, false);
+  // A binary search over the cuts is the descent only while they increase (they do unless the
+  // cells are near the coordinates' rounding); otherwise go without the table.
+  for (std::uint32_t i = 1; i < n; ++i) {
+    if (!(cutU_[i] > cutU_[i - 1]) || !(cutV_[i] > cutV_[i - 1])) {
+      cutU_.clear(), cutV_.clear();
+      return;
+    }
+  }
+  jump_.assign(std::size_t{n} * n, Node{0, 0});
+  struct Cell {
+    std::uint32_t node, depth, ix, iy;  // ix, iy: the node's first cell at depth k
+  };
+  std::vector<Cell> todo{{0, 0, 0, 0}};
+  while (!todo.empty()) {
+    const Cell c = todo.back();
+    todo.pop_back();
+    const Node& nd = nodes_[c.node];
+    if (nd.count == kInner && c.depth < k) {
+      const std::uint32_t step = 1u << (k - c.depth - 1);
+      for (std::uint32_t q = 0; q < 4; ++q) {
+        todo.push_back({nd.first + q, c.depth + 1, c.ix + (q & 1u) * step, c.iy + (q >> 1) * step});
+      }
+      continue;
+    }
+    const std::uint32_t span = 1u << (k - c.depth);
+    for (std::uint32_t y = c.iy; y < c.iy + span; ++y) {
+      std::fill_n(jump_.begin() + (std::size_t{y} << k) + c.ix, span, nd);
+    }
+  }
+  jumpDepth_ = k;
+  jumpScaleU_ = n / (root_.uhi - root_.ulo);
+  jumpScaleV_ = n / (root_.vhi - root_.vlo);
+}
+
 QuadtreeStats Quadtree::stats() const {
   QuadtreeStats s;
   s.nodes = nodes_.size();
   s.references = refs_.size();
   s.memoryBytes = nodes_.size() * sizeof(Node) + refs_.size() * sizeof(std::uint32_t) +
-                  half_.size() * sizeof(Half);
+                  half_.size() * sizeof(Half) + jump_.size() * sizeof(Node) +
+                  (cutU_.size() + cutV_.size()) * sizeof(double);
   // Walk the tree to learn each leaf's depth; a leaf at depth d covers 4^-d of the domain.
   struct Item {
     std::uint32_t node, depth;
@@ -24,11 +99,12 @@ QuadtreeStats Quadtree::stats() const {
       for (std::uint32_t c = 0; c < 4; ++c) stack.push_back({n.first + c, it.depth + 1});
       continue;
     }
+    const std::uint32_t count = leafSize(n);
     ++s.leaves;
-    if (n.count == 0) ++s.emptyLeaves;
+    if (count == 0) ++s.emptyLeaves;
     s.depth = std::max(s.depth, it.depth);
-    s.maxLeafItems = std::max(s.maxLeafItems, n.count);
-    weighted += std::ldexp(static_cast<double>(n.count), -2 * static_cast<int>(it.depth));
+    s.maxLeafItems = std::max(s.maxLeafItems, count);
+    weighted += std::ldexp(static_cast<double>(count), -2 * static_cast<int>(it.depth));
   }
   s.meanLeafItems = s.leaves ? static_cast<double>(s.references) / static_cast<double>(s.leaves) : 0;
   s.averageTests = weighted;

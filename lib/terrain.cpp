@@ -46,11 +46,27 @@ struct Pending {
   std::uint32_t polygon;
 };
 
+// True when the polygon's projection has an area below 1e-9 of its squared size: a wall seen
+// edge-on, whose corners rounding has scattered off their common line (a vertical wall under a
+// tilted gravity). Such a polygon is a wall, not a non-convex one.
+bool nearlyFlat(std::span<const std::uint32_t> idx, std::span<const Point2> c) {
+  // Unsigned fan areas, so that a bow-tie's halves cannot cancel out.
+  double area2 = 0, ulo = INFINITY, uhi = -INFINITY, vlo = INFINITY, vhi = -INFINITY;
+  for (std::size_t i = 0; i < idx.size(); ++i) {
+    const Point2 a = c[idx[i]];
+    if (i + 2 < idx.size()) area2 += std::fabs(orient2dApprox(c[idx[0]], c[idx[i + 1]], c[idx[i + 2]]));
+    ulo = std::min(ulo, a.u), uhi = std::max(uhi, a.u), vlo = std::min(vlo, a.v), vhi = std::max(vhi, a.v);
+  }
+  const double size2 = (uhi - ulo) * (uhi - ulo) + (vhi - vlo) * (vhi - vlo);
+  return area2 <= 1e-9 * size2;
+}
+
 // Sign of the convex polygon's orientation as seen along gravity: +1 counter-clockwise, -1
-// clockwise, 0 when its projection has no area. Throws when it is not convex. Every vertex must
+// clockwise, 0 when its projection has no area (or nearly none, see nearlyFlat). Throws when it
+// is not convex. Every vertex must
 // lie on the inner side (or on the line) of every edge; this exact test rejects reflex corners and
 // self-intersecting outlines alike.
-int convexOrientation(std::span<const std::uint32_t> idx, const std::vector<Point2>& c,
+int convexOrientation(std::span<const std::uint32_t> idx, std::span<const Point2> c,
                       std::size_t polygon) {
   const std::size_t n = idx.size();
   int sign = 0;
@@ -63,6 +79,7 @@ int convexOrientation(std::span<const std::uint32_t> idx, const std::vector<Poin
       if (sign == 0) {
         sign = s;
       } else if (s != sign) {
+        if (nearlyFlat(idx, c)) return 0;
         throw Error("polygon " + std::to_string(polygon) + " (" + std::to_string(n) +
                     " vertices) is not convex as seen along gravity; split it into convex "
                     "polygons or triangles");
@@ -231,9 +248,52 @@ TerrainIndex::TerrainIndex(const Mesh& mesh, const CartesianMapping& mapping,
                 }
                 return true;
               });
+  // Single-layer leaves: where no two of a leaf's triangles overlap, the first one containing a
+  // point is the only surface there, and the query stops at it. Their items are put in polygon
+  // order so that this first one is also the smallest polygon id, as the tie rule says.
+  tree_.markLeaves([this](std::span<std::uint32_t> items) {
+    for (std::size_t i = 0; i < items.size(); ++i) {
+      for (std::size_t j = i + 1; j < items.size(); ++j) {
+        if (!separated(items[i], items[j])) return false;
+      }
+    }
+    std::sort(items.begin(), items.end(), [this](std::uint32_t a, std::uint32_t b) {
+      return cold_[a].polygon != cold_[b].polygon ? cold_[a].polygon < cold_[b].polygon : a < b;
+    });
+    return true;
+  });
   stats_.tree = tree_.stats();
   stats_.memoryBytes = tris_.size() * sizeof(Tri) + cold_.size() * sizeof(Cold) +
                        corners2_.size() * sizeof(Point2) + stats_.tree.memoryBytes;
+}
+
+bool TerrainIndex::separated(std::uint32_t a, std::uint32_t b) const {
+  // Two counter-clockwise triangles have disjoint interiors exactly when an edge line of one has
+  // all corners of the other on its outer side or on it (separating axis theorem). The edge
+  // equations decide unless a corner is within their error bound of the line; then the exact
+  // predicate does.
+  const auto apart = [this](std::uint32_t p, std::uint32_t q) {
+    const Tri& r = tris_[p];
+    const Cold& cp = cold_[p];
+    const Cold& cq = cold_[q];
+    for (int k = 0; k < 3; ++k) {
+      bool all = true;
+      for (int c = 0; c < 3 && all; ++c) {
+        // A corner shared with the edge lies on it: the common case of neighbours, no test.
+        if (cq.corner[c] == cp.corner[k] || cq.corner[c] == cp.corner[(k + 1) % 3]) continue;
+        const Point2 x = corners2_[cq.corner[c]];
+        const double e = r.A[k] * x.u + r.B[k] * x.v + r.C[k];
+        if (e > r.tol) {
+          all = false;
+        } else if (e >= -r.tol) {
+          all = orient2dSign(corners2_[cp.corner[k]], corners2_[cp.corner[(k + 1) % 3]], x) <= 0;
+        }
+      }
+      if (all) return true;
+    }
+    return false;
+  };
+  return apart(a, b) || apart(b, a);
 }
 
 bool TerrainIndex::inside(std::uint32_t t, double u, double v) const {
@@ -251,25 +311,78 @@ inline double TerrainIndex::heightOf(const Tri& t, double u, double v) const {
                     static_cast<double>(t.hhi));
 }
 
-template <class Better>
-std::optional<std::uint32_t> TerrainIndex::best(double u, double v, Better better, double& h) const {
-  if (!tree_.contains(u, v)) return std::nullopt;  // also rejects NaN
-  std::uint32_t found = std::numeric_limits<std::uint32_t>::max();
-  for (std::uint32_t t : tree_.leafItems(u, v)) {
+// The nearest triangle at (u, v) on one side of z: Below = true finds the highest with h <= z,
+// false the lowest with h >= z; equal heights go to the smaller polygon id.
+//
+// This is the hot loop. The leaf's triangle records are prefetched first, so their cache misses
+// overlap instead of waiting on each other behind mispredicted branches; the per-triangle test
+// then selects without branching on the data, except for the rare point within rounding of an
+// edge, which takes the exact predicate.
+template <bool Below>
+std::uint32_t TerrainIndex::nearest(double u, double v, double z, double& h) const {
+  if (!tree_.contains(u, v)) return kNone;  // also rejects NaN
+  const Quadtree::Node leaf = tree_.leafNode(u, v);
+  const auto items = tree_.leafRange(leaf);
+  prefetchTriangles(items);
+  return nearestIn<Below>(items, Quadtree::singleLayer(leaf), u, v, z, h);
+}
+
+void TerrainIndex::prefetchTriangles(std::span<const std::uint32_t> items) const {
+  for (std::uint32_t t : items) {
+    const char* p = reinterpret_cast<const char*>(&tris_[t]);
+    __builtin_prefetch(p);
+    __builtin_prefetch(p + 64);
+  }
+}
+
+bool TerrainIndex::contains(const Tri& r, std::uint32_t t, double u, double v) const {
+  const double e0 = r.A[0] * u + r.B[0] * v + r.C[0];
+  const double e1 = r.A[1] * u + r.B[1] * v + r.C[1];
+  const double e2 = r.A[2] * u + r.B[2] * v + r.C[2];
+  const double m = std::min(e0, std::min(e1, e2));
+  if (std::fabs(m) <= r.tol) [[unlikely]] return inside(t, u, v);
+  return m > 0;
+}
+
+template <bool Below>
+std::uint32_t TerrainIndex::nearestIn(std::span<const std::uint32_t> items, bool singleLayer,
+                                      double u, double v, double z, double& h) const {
+  if (singleLayer) {
+    // One surface: the first triangle containing the point is the answer, if on the right side.
+    for (std::uint32_t t : items) {
+      const Tri& r = tris_[t];
+      if (!contains(r, t, u, v)) continue;
+      h = heightOf(r, u, v);
+      return (Below ? h <= z : h >= z) ? t : kNone;
+    }
+    return kNone;
+  }
+  std::uint32_t found = kNone;
+  double best = Below ? -std::numeric_limits<double>::infinity() : std::numeric_limits<double>::infinity();
+  for (std::uint32_t t : items) {
     const Tri& r = tris_[t];
     const double e0 = r.A[0] * u + r.B[0] * v + r.C[0];
     const double e1 = r.A[1] * u + r.B[1] * v + r.C[1];
     const double e2 = r.A[2] * u + r.B[2] * v + r.C[2];
     const double m = std::min(e0, std::min(e1, e2));
-    if (m < -r.tol) continue;                   // certainly outside
-    if (m <= r.tol && !inside(t, u, v)) continue;  // within rounding of an edge: decide exactly
-    const double ht = heightOf(r, u, v);
-    if (better(ht, t, found, h)) {
-      found = t;
-      h = ht;
+    // Inside when the smallest edge value is positive; only within rounding of an edge (|m| at
+    // most the error bound, which is rare and so well predicted) is the exact test needed.
+    bool in = m > 0;
+    if (std::fabs(m) <= r.tol) [[unlikely]] {
+      in = inside(t, u, v);
     }
+    const double ht = heightOf(r, u, v);
+    const bool side = Below ? ht <= z : ht >= z;
+    bool better = Below ? ht > best : ht < best;
+    if (ht == best) [[unlikely]] {
+      better = found != kNone && cold_[t].polygon < cold_[found].polygon;
+    }
+    // Bitwise, not short-circuit: a select, not three data-dependent branches.
+    const bool take = in & side & better;
+    found = take ? t : found;
+    best = take ? ht : best;
   }
-  if (found == std::numeric_limits<std::uint32_t>::max()) return std::nullopt;
+  h = best;
   return found;
 }
 
@@ -285,38 +398,54 @@ Hit TerrainIndex::makeHit(std::uint32_t t, double u, double v, double h) const {
 
 std::optional<Hit> TerrainIndex::below(double u, double v, double z) const {
   double h = 0;
-  auto t = best(u, v,
-                [&](double ht, std::uint32_t cand, std::uint32_t cur, double hcur) {
-                  if (!(ht <= z)) return false;
-                  if (cur == std::numeric_limits<std::uint32_t>::max() || ht > hcur) return true;
-                  return ht == hcur && cold_[cand].polygon < cold_[cur].polygon;
-                },
-                h);
-  if (!t) return std::nullopt;
-  return makeHit(*t, u, v, h);
+  const std::uint32_t t = nearest<true>(u, v, z, h);
+  if (t == std::numeric_limits<std::uint32_t>::max()) return std::nullopt;
+  return makeHit(t, u, v, h);
 }
 
 std::optional<Hit> TerrainIndex::above(double u, double v, double z) const {
   double h = 0;
-  auto t = best(u, v,
-                [&](double ht, std::uint32_t cand, std::uint32_t cur, double hcur) {
-                  if (!(ht >= z)) return false;
-                  if (cur == std::numeric_limits<std::uint32_t>::max() || ht < hcur) return true;
-                  return ht == hcur && cold_[cand].polygon < cold_[cur].polygon;
-                },
-                h);
-  if (!t) return std::nullopt;
-  return makeHit(*t, u, v, h);
+  const std::uint32_t t = nearest<false>(u, v, z, h);
+  if (t == std::numeric_limits<std::uint32_t>::max()) return std::nullopt;
+  return makeHit(t, u, v, h);
+}
+
+void TerrainIndex::heightsBelow(std::span<const Point2> points, double z,
+                                std::span<std::optional<double>> heights) const {
+  if (heights.size() < points.size()) {
+    throw Error("heightsBelow: " + std::to_string(points.size()) + " points but room for " +
+                std::to_string(heights.size()) + " heights");
+  }
+  // Software pipelining over groups of points: first every point's leaf (the jump table), then
+  // every leaf's reference list, then every leaf's triangles, each stage issuing its loads for
+  // the whole group before any of them is waited for. A single query waits for three dependent
+  // cache misses in turn; here the misses of a group overlap.
+  constexpr std::size_t kGroup = 16;
+  Quadtree::Node leaf[kGroup];
+  bool on[kGroup];
+  for (std::size_t g = 0; g < points.size(); g += kGroup) {
+    const std::size_t n = std::min(kGroup, points.size() - g);
+    for (std::size_t i = 0; i < n; ++i) {
+      const Point2 p = points[g + i];
+      on[i] = tree_.contains(p.u, p.v);
+      leaf[i] = on[i] ? tree_.leafNode(p.u, p.v) : Quadtree::Node{0, 0};
+      __builtin_prefetch(tree_.leafRange(leaf[i]).data());
+    }
+    for (std::size_t i = 0; i < n; ++i) prefetchTriangles(tree_.leafRange(leaf[i]));
+    for (std::size_t i = 0; i < n; ++i) {
+      double h = 0;
+      const Point2 p = points[g + i];
+      const std::uint32_t t =
+          on[i] ? nearestIn<true>(tree_.leafRange(leaf[i]), Quadtree::singleLayer(leaf[i]), p.u, p.v, z, h)
+                : kNone;
+      heights[g + i] = t == kNone ? std::nullopt : std::optional<double>(h);
+    }
+  }
 }
 
 std::optional<double> TerrainIndex::heightBelow(double u, double v, double z) const {
   double h = 0;
-  auto t = best(u, v,
-                [&](double ht, std::uint32_t, std::uint32_t cur, double hcur) {
-                  return ht <= z && (cur == std::numeric_limits<std::uint32_t>::max() || ht > hcur);
-                },
-                h);
-  if (!t) return std::nullopt;
+  if (nearest<true>(u, v, z, h) == std::numeric_limits<std::uint32_t>::max()) return std::nullopt;
   return h;
 }
 

@@ -25,6 +25,7 @@
 #include <vector>
 
 #include "qota/error.hpp"
+#include "qota/memory.hpp"
 
 namespace qota {
 
@@ -65,10 +66,14 @@ class Quadtree {
   // A node is split only when its children's mean polygon count is at most this fraction of its
   // own (see buildNode).
   static constexpr double kMinSplitGain = 0.85;
+  // A leaf flag set by markLeaves: the leaf's items do not overlap (a single layer of terrain).
+  static constexpr std::uint32_t kSingleLayer = 0x80000000u;
   struct Node {
     std::uint32_t first;  // inner: index of the first of 4 children; leaf: first reference
-    std::uint32_t count;  // kInner for an inner node, else the leaf's reference count
+    std::uint32_t count;  // kInner for an inner node, else the leaf's reference count | flags
   };
+  static std::uint32_t leafSize(const Node& leaf) { return leaf.count & ~kSingleLayer; }
+  static bool singleLayer(const Node& leaf) { return (leaf.count & kSingleLayer) != 0; }
 
   Quadtree() = default;
 
@@ -83,22 +88,45 @@ class Quadtree {
 
   // The items of the leaf containing (u, v). Precondition: contains(u, v).
   std::span<const std::uint32_t> leafItems(double u, double v) const {
-    return leafRange(nodes_[leafIndex(u, v)]);
+    return leafRange(leafNode(u, v));
   }
-  std::uint32_t leafIndex(double u, double v) const {
-    std::uint32_t n = 0;
+  // The leaf containing (u, v), as a copy of its node. Precondition: contains(u, v).
+  Node leafNode(double u, double v) const {
+    Node nd = nodes_[0];
+    std::uint32_t d = 0;
     double lu = root_.ulo, lv = root_.vlo;
-    for (std::uint32_t d = 0; nodes_[n].count == kInner; ++d) {
+    if (jumpDepth_) {
+      // Start at depth jumpDepth_ from the table instead of descending the levels above it; the
+      // table holds the node itself, so a leaf at or above that depth costs no node load.
+      const std::uint32_t ix = jumpColumn(u, cutU_, jumpScaleU_, root_.ulo);
+      const std::uint32_t iy = jumpColumn(v, cutV_, jumpScaleV_, root_.vlo);
+      nd = jump_[(iy << jumpDepth_) | ix];
+      if (nd.count != kInner) return nd;
+      lu = cutU_[ix], lv = cutV_[iy], d = jumpDepth_;
+    }
+    for (; nd.count == kInner; ++d) {
       const double mu = lu + half_[d].u, mv = lv + half_[d].v;
       const bool hu = u >= mu, hv = v >= mv;
       lu = hu ? mu : lu;
       lv = hv ? mv : lv;
-      n = nodes_[n].first + (static_cast<std::uint32_t>(hv) << 1 | static_cast<std::uint32_t>(hu));
+      nd = nodes_[nd.first + (static_cast<std::uint32_t>(hv) << 1 | static_cast<std::uint32_t>(hu))];
     }
-    return n;
+    return nd;
   }
   std::span<const std::uint32_t> leafRange(const Node& leaf) const {
-    return {refs_.data() + leaf.first, leaf.count};
+    return {refs_.data() + leaf.first, leafSize(leaf)};
+  }
+
+  // Lets the owner reorder each leaf's items and flag it single-layer: visit(items) may permute
+  // the span and returns whether to set kSingleLayer.
+  template <class Visit>
+  void markLeaves(Visit&& visit) {
+    for (Node& n : nodes_) {
+      if (n.count == kInner) continue;
+      const std::span<std::uint32_t> items(refs_.data() + n.first, leafSize(n));
+      n.count = leafSize(n) | (visit(items) ? kSingleLayer : 0u);
+    }
+    buildJumpTable();  // the table holds copies of the leaves
   }
 
   std::span<const Node> nodes() const { return nodes_; }
@@ -109,6 +137,18 @@ class Quadtree {
   struct Half {
     double u, v;
   };
+  // The column (or row) at jumpDepth_ that the descent would reach: the last cut at or below x.
+  // The cuts are the descent's own sums, so the answer is the same bit for bit; the estimate
+  // from the scale is off by at most one column, and only at cut lines.
+  static std::uint32_t jumpColumn(double x, const std::vector<double>& cut, double scale, double lo) {
+    const auto last = static_cast<std::int64_t>(cut.size()) - 1;
+    auto g = static_cast<std::int64_t>((x - lo) * scale);
+    g = g < 0 ? 0 : g > last ? last : g;
+    while (g > 0 && x < cut[g]) --g;
+    while (g < last && x >= cut[g + 1]) ++g;
+    return static_cast<std::uint32_t>(g);
+  }
+  void buildJumpTable();
   template <class Overlaps>
   void buildNode(std::uint32_t node, const Box2& box, std::uint32_t depth,
                  std::vector<std::uint32_t>& items, Overlaps& overlaps);
@@ -116,8 +156,15 @@ class Quadtree {
   Box2 root_;
   QuadtreeOptions options_;
   std::vector<Half> half_;  // half the node size at each depth: the offset of the cut
-  std::vector<Node> nodes_;
-  std::vector<std::uint32_t> refs_;
+  BigVector<Node> nodes_;
+  BigVector<std::uint32_t> refs_;
+  // Jump table: for each cell of the uniform grid at depth jumpDepth_, a copy of the node at that
+  // depth (or of the shallower leaf) covering it. 0 = no table. cutU_[i] is the low edge of column i as the
+  // descent computes it.
+  std::uint32_t jumpDepth_ = 0;
+  double jumpScaleU_ = 0, jumpScaleV_ = 0;
+  std::vector<double> cutU_, cutV_;
+  BigVector<Node> jump_;
   std::uint64_t refBudget_ = 0;
   std::uint32_t itemCount_ = 0;
 };
@@ -130,6 +177,8 @@ void Quadtree::build(std::uint32_t itemCount, Box2 root, const QuadtreeOptions& 
   nodes_.assign(1, Node{0, 0});
   refs_.clear();
   half_.clear();
+  jumpDepth_ = 0;
+  cutU_.clear(), cutV_.clear(), jump_.clear();
   if (root.empty() || itemCount == 0) return;
   // Exact halvings of the root size (powers of two scale without rounding).
   const double su = root.uhi - root.ulo, sv = root.vhi - root.vlo;
@@ -148,6 +197,7 @@ void Quadtree::build(std::uint32_t itemCount, Box2 root, const QuadtreeOptions& 
   buildNode(0, root, 0, items, overlaps);
   nodes_.shrink_to_fit();
   refs_.shrink_to_fit();
+  buildJumpTable();
 }
 
 template <class Overlaps>

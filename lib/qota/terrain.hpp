@@ -34,9 +34,11 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <optional>
+#include <span>
 #include <vector>
 
 #include "qota/cartesian.hpp"
+#include "qota/memory.hpp"
 #include "qota/mesh.hpp"
 #include "qota/predicates.hpp"
 #include "qota/quadtree.hpp"
@@ -98,6 +100,11 @@ class TerrainIndex {
   // Height-only fast path: the highest terrain height at (u, v) with h <= z, or NaN-free "no
   // terrain" as std::nullopt. Used by samplers and benchmarks that do not need the normal.
   std::optional<double> heightBelow(double u, double v, double z) const;
+  // heightBelow for many points at once (heights[i] for points[i]): the same answers, with the
+  // memory latency of the points overlapped (several times faster on terrains larger than the
+  // cache). heights must have room for every point.
+  void heightsBelow(std::span<const Point2> points, double z,
+                    std::span<std::optional<double>> heights) const;
 
   const CartesianMapping& mapping() const { return mapping_; }
   const TerrainStats& stats() const { return stats_; }
@@ -129,13 +136,20 @@ class TerrainIndex {
   bool inside(std::uint32_t t, double u, double v) const;
   double heightOf(const Tri& t, double u, double v) const;
   Hit makeHit(std::uint32_t t, double u, double v, double h) const;
-  template <class Better>
-  std::optional<std::uint32_t> best(double u, double v, Better better, double& h) const;
+  static constexpr std::uint32_t kNone = 0xffffffffu;
+  template <bool Below>
+  std::uint32_t nearest(double u, double v, double z, double& h) const;
+  template <bool Below>
+  std::uint32_t nearestIn(std::span<const std::uint32_t> items, bool singleLayer, double u,
+                          double v, double z, double& h) const;
+  bool contains(const Tri& r, std::uint32_t t, double u, double v) const;
+  bool separated(std::uint32_t a, std::uint32_t b) const;
+  void prefetchTriangles(std::span<const std::uint32_t> items) const;
 
   CartesianMapping mapping_;
-  std::vector<Tri> tris_;
-  std::vector<Cold> cold_;
-  std::vector<Point2> corners2_;  // mapped (u, v) of each vertex, for the exact predicate
+  BigVector<Tri> tris_;
+  BigVector<Cold> cold_;
+  BigVector<Point2> corners2_;  // mapped (u, v) of each vertex, for the exact predicate
   Quadtree tree_;
   TerrainStats stats_;
 };
