@@ -1,0 +1,22 @@
+#!/usr/bin/env bash
+# Installs what qota needs, builds the qota command and runs it on the bundled SRTM tile of
+# Mount Rainier: the quadtree statistics, then heights under a few points.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+./scripts/install-deps.sh
+cmake -S . -B build -DCMAKE_BUILD_TYPE=Release > /dev/null
+cmake --build build -j2 --target qota_cli
+dem=data/mt_rainier_90m.tif
+echo "== qota info $dem"
+build/tools/qota info "$dem"
+echo "== qota sample $dem   (lon lat -> height in metres; 'none': no terrain)"
+points='-121.7603 46.8529
+-121.7353 46.7865
+-121.5 46.5
+-121.9 46.1'
+labels='summit of Mount Rainier
+Paradise visitor centre
+centre of the tile
+south-west of the tile'
+paste -d '  ' <(echo "$points") <(echo "$points" | build/tools/qota sample "$dem") <(echo "$labels") |
+  awk '{printf "%12s %10s  -> %-20s %s %s %s %s\n", $1, $2, $3, $4, $5, $6, $7}'

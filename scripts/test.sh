@@ -1,0 +1,10 @@
+#!/usr/bin/env bash
+# Installs what qota needs, builds everything (library, tools, tests, examples, benchmark) and
+# runs the whole test suite.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+./scripts/install-deps.sh
+cmake -S . -B build -DCMAKE_BUILD_TYPE=Release -DQOTA_BUILD_TESTS=ON -DQOTA_BUILD_EXAMPLES=ON \
+  -DQOTA_BUILD_BENCH=ON > /dev/null
+cmake --build build -j2
+ctest --test-dir build -j2 --output-on-failure
