@@ -7,6 +7,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <glm/glm.hpp>
 
 #include "qota/terrain.hpp"
