@@ -499,6 +499,18 @@ std::vector<Hit> TerrainIndex::allWorld(const Eigen::Vector3d& p) const {
   return all(m.x(), m.y());
 }
 
+bool TerrainIndex::occludedAbove(double u, double v, double h, std::uint32_t vertex) const {
+  if (!tree_.contains(u, v)) return false;
+  for (std::uint32_t t : tree_.leafItems(u, v)) {
+    const Tri& r = tris_[t];
+    if (!contains(r, t, u, v)) continue;
+    const Cold& c = cold_[t];
+    if (c.corner[0] == vertex || c.corner[1] == vertex || c.corner[2] == vertex) continue;
+    if (heightOf(r, u, v) > h) return true;
+  }
+  return false;
+}
+
 std::uint32_t TerrainIndex::testsAt(double u, double v) const {
   if (!tree_.contains(u, v)) return 0;
   return static_cast<std::uint32_t>(tree_.leafItems(u, v).size());

@@ -13,6 +13,7 @@ packages=(
   libbenchmark-dev              # bench/
   libcli11-dev                  # argument parsing for the qota tool
   libpng-dev                    # PNG previews
+  libnova-dev                   # solar position (VSOP87) for qota shadow
 )
 
 missing=()

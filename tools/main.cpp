@@ -2,6 +2,8 @@
 // Parsing only; each tool is a library function in qota_tools.hpp.
 #include <CLI/CLI.hpp>
 #include <iostream>
+#include <string>
+#include <vector>
 
 #include "qota_tools.hpp"
 
@@ -18,6 +20,18 @@ void addTreeOptions(CLI::App* app, qota::TerrainOptions& terrain) {
 }
 
 }  // namespace
+
+// GDAL's tools spell some options with one dash and several letters (-az, -alt, -of, -co);
+// CLI11 reads a single dash as short flags, so those spellings become --az, --alt, --of, --co.
+std::vector<std::string> gdalStyleArguments(int argc, char** argv) {
+  std::vector<std::string> args(argv, argv + argc);
+  for (std::size_t i = 1; i < args.size(); ++i) {
+    for (const char* name : {"-az", "-alt", "-of", "-co"}) {
+      if (args[i] == name) args[i] = std::string("-") + name;
+    }
+  }
+  return args;
+}
 
 int main(int argc, char** argv) {
   CLI::App app{
@@ -48,8 +62,52 @@ int main(int argc, char** argv) {
   infoCmd->add_option("source", info.source, "Elevation raster (any GDAL format)")->required();
   addTreeOptions(infoCmd, info.terrain);
 
+  qota::tools::ShadowOptions shadow;
+  CLI::App* shadowCmd = app.add_subcommand(
+      "shadow",
+      "Shadows of the sun (or any directional light) on a DEM, through a QOTA shadow quadtree. "
+      "Output: a raster on the DEM's grid, lit = 255, shadow = 0, nodata = 128 (Byte), or hours of "
+      "direct sunlight (Float32, nodata -1) with --hours. Terrain outside the raster is not seen: "
+      "shadows cast from beyond the edge are missing, up to the 'shadow reach' the tool prints "
+      "(relief / tan(altitude)); pad tiles by that much. A DEM in a geographic CRS is placed on "
+      "its ellipsoid (Earth curvature included) unless --flat.");
+  shadowCmd->add_option("source", shadow.source, "Elevation raster (any GDAL format)")->required();
+  shadowCmd->add_option("-o,--output", shadow.output, "Output raster")->required();
+  shadowCmd->add_option("--of", shadow.format, "GDAL format (-of); default: from the extension");
+  shadowCmd->add_option("--co", shadow.creationOptions, "Creation option NAME=VALUE (-co), repeatable");
+  shadowCmd->add_flag("-q,--quiet", shadow.quiet, "No progress or summary");
+  shadowCmd->add_option("--az", shadow.azimuth,
+                        "Sun azimuth (-az), degrees clockwise from north (default 315)");
+  shadowCmd->add_option("--alt", shadow.altitude,
+                        "Sun altitude (-alt), degrees above the horizon (default 45)");
+  std::vector<double> sunVector;
+  shadowCmd->add_option("--sun-vector", sunVector, "Vector toward the light: east,north,up")
+      ->delimiter(',')
+      ->expected(3);
+  shadowCmd->add_option("--time", shadow.time,
+                        "Date and time, ISO 8601 (2024-06-21T14:00, with Z or +HH:MM, or --tz): "
+                        "the sun's position at the DEM's centre");
+  shadowCmd->add_option("--tz", shadow.tz, "UTC offset of --time when it has none (+02:00)");
+  std::vector<double> hours;
+  shadowCmd->add_option("--hours", hours,
+                        "START END STEP: hours of direct sunlight between these local hours of "
+                        "--time's date, sampled every STEP hours")
+      ->expected(3);
+  shadowCmd->add_flag("--flat", shadow.flat, "Ignore Earth curvature for a geographic DEM");
+  shadowCmd->add_option("--pixel-size", shadow.pixelSize, "Metres per pixel for a raster without CRS");
+  shadowCmd->add_option("--png", shadow.png, "Also write a PNG preview: the shadows over a hillshade");
+  shadowCmd->add_option("--lit-value", shadow.litValue, "Output value of lit cells")->capture_default_str();
+  shadowCmd->add_option("--shadow-value", shadow.shadowValue, "Output value of shadowed cells")
+      ->capture_default_str();
+  shadowCmd->add_option("--nodata-value", shadow.nodataValue, "Output value (and nodata) of cells without data")
+      ->capture_default_str();
+  addTreeOptions(shadowCmd, shadow.terrain);
+
   try {
-    app.parse(argc, argv);
+    const std::vector<std::string> args = gdalStyleArguments(argc, argv);
+    std::vector<const char*> cargs;
+    for (const auto& a : args) cargs.push_back(a.c_str());
+    app.parse(static_cast<int>(cargs.size()), const_cast<char**>(cargs.data()));
   } catch (const CLI::ParseError& e) {
     // CLI11 prints help (exit 0) or the parse error (non-zero).
     const int code = app.exit(e);
@@ -57,5 +115,10 @@ int main(int argc, char** argv) {
   }
   if (*sampleCmd) return qota::tools::sample(sample, std::cin, std::cout, std::cerr);
   if (*infoCmd) return qota::tools::info(info, std::cout, std::cerr);
+  if (*shadowCmd) {
+    if (!sunVector.empty()) shadow.sunVector = Eigen::Vector3d(sunVector[0], sunVector[1], sunVector[2]);
+    if (!hours.empty()) shadow.hours = std::array<double, 3>{hours[0], hours[1], hours[2]};
+    return qota::tools::shadow(shadow, std::cout, std::cerr);
+  }
   return 2;
 }

@@ -3,8 +3,12 @@
 // arguments. Errors are printed to `err` as "qota <tool>: <message>".
 #pragma once
 
+#include <Eigen/Core>
+#include <array>
 #include <iosfwd>
+#include <optional>
 #include <string>
+#include <vector>
 
 #include "qota/terrain.hpp"
 
@@ -40,5 +44,33 @@ struct InfoOptions {
   TerrainOptions terrain;
 };
 int info(const InfoOptions& options, std::ostream& out, std::ostream& err);
+
+// qota shadow: where a directional light (the sun) is blocked by the terrain, as a raster on the
+// DEM's grid (see qota/shadow.hpp for the geometry).
+//
+// The light: azimuth/altitude in degrees (gdaldem's -az/-alt), or a vector toward the light in
+// the DEM's east-north-up frame, or a date and time (the sun's position at the DEM's centre).
+// Output: Byte, litValue where lit, shadowValue in shadow, nodataValue (also set as the band's
+// nodata) where the DEM has none; or, with hours, Float32 hours of direct sunlight over the day
+// (nodata -1). Written to a temporary file and renamed into place, so a failed or cancelled run
+// never leaves a partial raster under the requested name. Exit code 0 on success, 2 on error.
+struct ShadowOptions {
+  std::string source;
+  std::string output;
+  std::string format;                    // GDAL driver; empty: guessed from the extension
+  std::vector<std::string> creationOptions;  // NAME=VALUE
+  bool quiet = false;
+  std::optional<double> azimuth, altitude;
+  std::optional<Eigen::Vector3d> sunVector;
+  std::string time;                      // ISO 8601
+  std::string tz;                        // UTC offset for a time without one
+  std::optional<std::array<double, 3>> hours;  // start, end, step (local hours of the date)
+  bool flat = false;
+  double pixelSize = 0;                  // metres per pixel for a raster without CRS
+  std::string png;                       // preview: shadow over a hillshade
+  int litValue = 255, shadowValue = 0, nodataValue = 128;
+  TerrainOptions terrain;
+};
+int shadow(const ShadowOptions& options, std::ostream& out, std::ostream& err);
 
 }  // namespace qota::tools

@@ -106,6 +106,11 @@ class TerrainIndex {
   void heightsBelow(std::span<const Point2> points, double z,
                     std::span<std::optional<double>> heights) const;
 
+  // Whether a triangle that does not have mesh vertex `vertex` as a corner contains (u, v) at a
+  // height strictly above h: the shadow test of a point at that vertex, whose own triangles can
+  // never shade it (they meet its line at the point itself).
+  bool occludedAbove(double u, double v, double h, std::uint32_t vertex) const;
+
   const CartesianMapping& mapping() const { return mapping_; }
   const TerrainStats& stats() const { return stats_; }
   const Quadtree& tree() const { return tree_; }

@@ -1,0 +1,67 @@
+// Shadows of a directional light on a DEM, through a QOTA "shadow quadtree" (MERL TR-96-17,
+// "Future Directions"): the same index as for terrain following, with the light's direction of
+// travel as the preferred direction. A point is in shadow when the line from it toward the light
+// meets terrain strictly above it, i.e. between it and the light.
+//
+// Rule: each pixel centre is a vertex of the terrain (see dem.hpp). Its own triangles (those with
+// it as a corner) are excluded by construction: they meet its line only at the point itself. Any
+// other triangle containing the line's position in the light's frame at a height strictly above
+// the point's shades it. No tolerance is added, so a ridge one triangle thin still casts its
+// shadow; the inside test is exact (see terrain.hpp). The sun is treated as a point (no penumbra).
+//
+// Frame: the DEM in metres around its centre, east-north-up (LocalFrame). A DEM in a geographic
+// CRS is put on its ellipsoid (WGS84 unless the CRS says otherwise) with GeographicLib's
+// LocalCartesian, so the Earth's curvature lowers distant terrain as it should; `flat` maps
+// longitude and latitude linearly instead. A projected DEM uses its own x, y in metres, with the
+// sun's azimuth turned from true north to grid north (meridian convergence at the centre).
+// Heights are taken as metres.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "qota/dem.hpp"
+#include "qota/sun.hpp"
+#include "qota/terrain.hpp"
+
+namespace qota {
+
+// The DEM's vertices in a local metric east-north-up frame; same vertex and triangle indices as
+// dem.mesh (nodata vertices stay NaN).
+struct LocalFrame {
+  Mesh mesh;
+  int width = 0, height = 0;
+  bool geographicLocation = false;  // centreLon/Lat are known (the DEM has a CRS)
+  double centreLon = 0, centreLat = 0;
+  // Clockwise angle (degrees) from the frame's +y axis to true north: 0 for east-north-up
+  // frames, the meridian convergence for grid frames.
+  double trueNorthFromY = 0;
+  double minHeight = 0, maxHeight = 0;  // over valid cells
+  double pixelSizeX = 1, pixelSizeY = 1;  // metres, at the centre
+  std::string description;
+
+  // The direction toward a sun at this azimuth/altitude (true north) in this frame.
+  Eigen::Vector3d towardSun(const SunPosition& sun) const;
+};
+
+// pixelSize: metres per pixel for a raster without CRS (0: refuse such a raster).
+LocalFrame localFrame(const DemTerrain& dem, bool flat, double pixelSize = 0);
+
+// Progress: fraction done in [0, 1] and a message; return false to cancel (then qota::Error).
+using Progress = std::function<bool(double, const char*)>;
+
+enum class Light : std::uint8_t { Shadow = 0, Lit = 1, NoData = 2 };
+
+// The light at every pixel centre of the frame's grid, row-major. towardLight: unit vector toward
+// the light in the frame. A light at or below the horizon (z <= 0) leaves every cell in shadow.
+std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& towardLight,
+                              const TerrainOptions& options = {}, const Progress& progress = {});
+
+// How far (metres) a shadow can reach across the raster's edge: relief / tan(altitude).
+double shadowReach(const LocalFrame& frame, const Eigen::Vector3d& towardLight);
+
+}  // namespace qota

@@ -1,0 +1,219 @@
+#include "qota/shadow.hpp"
+
+#include <GeographicLib/LocalCartesian.hpp>
+#include <ogr_spatialref.h>
+
+#include <atomic>
+#include <cmath>
+#include <memory>
+#include <thread>
+
+#include "qota/error.hpp"
+
+namespace qota {
+namespace {
+
+constexpr double kDeg = M_PI / 180.0;
+
+// A raster's axes are x = easting or longitude, y = northing or latitude (GDAL's convention for
+// rasters), whatever the CRS's official axis order.
+OGRSpatialReference rasterCrs(const DemTerrain& dem) {
+  OGRSpatialReference srs;
+  if (srs.importFromWkt(dem.crsWkt.c_str()) != OGRERR_NONE) {
+    throw Error(dem.path + ": its coordinate reference system cannot be read");
+  }
+  srs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  return srs;
+}
+
+void ellipsoidOf(const OGRSpatialReference& srs, double& a, double& f) {
+  OGRErr e1 = OGRERR_NONE, e2 = OGRERR_NONE;
+  a = srs.GetSemiMajor(&e1);
+  const double invf = srs.GetInvFlattening(&e2);
+  f = invf > 0 ? 1.0 / invf : 0.0;
+  if (e1 != OGRERR_NONE || e2 != OGRERR_NONE || !(a > 0)) {
+    a = GeographicLib::Constants::WGS84_a();
+    f = GeographicLib::Constants::WGS84_f();
+  }
+}
+
+}  // namespace
+
+Eigen::Vector3d LocalFrame::towardSun(const SunPosition& sun) const {
+  SunPosition inFrame = sun;
+  inFrame.azimuth = sun.azimuth + trueNorthFromY;
+  return towardSunEnu(inFrame);
+}
+
+LocalFrame localFrame(const DemTerrain& dem, bool flat, double pixelSize) {
+  LocalFrame f;
+  f.width = dem.width;
+  f.height = dem.height;
+  f.mesh.indices = dem.mesh.indices;
+  f.mesh.offsets = dem.mesh.offsets;
+  const std::size_t n = dem.mesh.vertices.size();
+  f.mesh.vertices.resize(n);
+  const double cc = (dem.width - 1) / 2.0, cr = (dem.height - 1) / 2.0;
+  const auto centre = dem.pixelCentre(cc, cr);
+
+  if (dem.crsWkt.empty()) {
+    if (!(pixelSize > 0)) {
+      throw Error(dem.path + ": the raster has no coordinate reference system, so the size of its "
+                  "pixels in metres is unknown; give it with --pixel-size METRES");
+    }
+    // Pixel grid, rows running south.
+    for (std::size_t i = 0; i < n; ++i) {
+      const double c = static_cast<double>(i % dem.width), r = static_cast<double>(i / dem.width);
+      f.mesh.vertices[i] = {(c - cc) * pixelSize, -(r - cr) * pixelSize, dem.mesh.vertices[i].z()};
+    }
+    f.description = "pixel grid, " + std::to_string(pixelSize) + " m per pixel (no CRS)";
+  } else {
+    const OGRSpatialReference srs = rasterCrs(dem);
+    if (srs.IsGeographic()) {
+      double a = 0, fl = 0;
+      ellipsoidOf(srs, a, fl);
+      const double lon0 = centre[0], lat0 = centre[1];
+      f.geographicLocation = true;
+      f.centreLon = lon0;
+      f.centreLat = lat0;
+      if (flat) {
+        // Longitude and latitude scaled linearly by the ellipsoid's radii of curvature at the
+        // centre: no curvature.
+        const double e2 = fl * (2 - fl), s = std::sin(lat0 * kDeg);
+        const double w = std::sqrt(1 - e2 * s * s);
+        const double nRad = a / w, mRad = a * (1 - e2) / (w * w * w);
+        for (std::size_t i = 0; i < n; ++i) {
+          const Eigen::Vector3d& p = dem.mesh.vertices[i];
+          f.mesh.vertices[i] = {(p.x() - lon0) * kDeg * nRad * std::cos(lat0 * kDeg),
+                                (p.y() - lat0) * kDeg * mRad, p.z()};
+        }
+        f.description = "flat east-north-up metres around the centre (--flat)";
+      } else {
+        const GeographicLib::LocalCartesian local(lat0, lon0, 0, GeographicLib::Geocentric(a, fl));
+        for (std::size_t i = 0; i < n; ++i) {
+          const Eigen::Vector3d& p = dem.mesh.vertices[i];
+          Eigen::Vector3d& q = f.mesh.vertices[i];
+          if (!std::isfinite(p.z())) {
+            q = {NAN, NAN, NAN};
+            continue;
+          }
+          local.Forward(p.y(), p.x(), p.z(), q.x(), q.y(), q.z());
+        }
+        f.description = "east-north-up metres on the ellipsoid (a = " + std::to_string(a) +
+                        " m), tangent at the centre";
+      }
+    } else {
+      const double unit = srs.GetLinearUnits();
+      for (std::size_t i = 0; i < n; ++i) {
+        const Eigen::Vector3d& p = dem.mesh.vertices[i];
+        f.mesh.vertices[i] = {(p.x() - centre[0]) * unit, (p.y() - centre[1]) * unit, p.z()};
+      }
+      f.description = "projected grid metres";
+      // Where the centre is, and where true north points on the grid there.
+      OGRSpatialReference geo;
+      geo.CopyGeogCSFrom(&srs);
+      geo.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+      std::unique_ptr<OGRCoordinateTransformation> toGeo(OGRCreateCoordinateTransformation(&srs, &geo));
+      std::unique_ptr<OGRCoordinateTransformation> toGrid(OGRCreateCoordinateTransformation(&geo, &srs));
+      double x = centre[0], y = centre[1];
+      if (toGeo && toGrid && toGeo->Transform(1, &x, &y)) {
+        f.geographicLocation = true;
+        f.centreLon = x;
+        f.centreLat = y;
+        double nx = x, ny = y + 0.01;
+        if (toGrid->Transform(1, &nx, &ny)) {
+          f.trueNorthFromY = std::atan2(nx - centre[0], ny - centre[1]) / kDeg;
+        }
+      }
+    }
+  }
+  f.minHeight = INFINITY;
+  f.maxHeight = -INFINITY;
+  for (const auto& p : f.mesh.vertices) {
+    if (std::isfinite(p.z())) {
+      f.minHeight = std::min(f.minHeight, p.z());
+      f.maxHeight = std::max(f.maxHeight, p.z());
+    }
+  }
+  if (!(f.minHeight <= f.maxHeight)) f.minHeight = f.maxHeight = 0;
+  if (dem.width > 1 && dem.height > 1) {
+    const std::size_t ci = static_cast<std::size_t>(std::floor(cr)) * dem.width +
+                           static_cast<std::size_t>(std::floor(cc));
+    const auto& v = f.mesh.vertices;
+    if (std::isfinite(v[ci].x()) && std::isfinite(v[ci + 1].x())) {
+      f.pixelSizeX = (v[ci + 1] - v[ci]).head<2>().norm();
+    }
+    if (ci + dem.width < v.size() && std::isfinite(v[ci].x()) && std::isfinite(v[ci + dem.width].x())) {
+      f.pixelSizeY = (v[ci + dem.width] - v[ci]).head<2>().norm();
+    }
+  }
+  return f;
+}
+
+double shadowReach(const LocalFrame& frame, const Eigen::Vector3d& towardLight) {
+  const Eigen::Vector3d d = towardLight.normalized();
+  const double horizontal = d.head<2>().norm();
+  if (d.z() <= 0) return INFINITY;
+  return (frame.maxHeight - frame.minHeight) * horizontal / d.z();
+}
+
+std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& towardLight,
+                              const TerrainOptions& options, const Progress& progress) {
+  const auto& vertices = frame.mesh.vertices;
+  const std::size_t n = vertices.size();
+  std::vector<Light> out(n, Light::NoData);
+  const auto report = [&](double done, const char* message) {
+    if (progress && !progress(done, message)) throw Error("shadow computation cancelled");
+  };
+  if (!towardLight.allFinite() || towardLight.squaredNorm() == 0) {
+    throw Error("light direction must be a nonzero finite vector");
+  }
+  const Eigen::Vector3d light = towardLight.normalized();
+  if (light.z() <= 0) {
+    // The light is at or below the horizon: no direct light anywhere.
+    for (std::size_t i = 0; i < n; ++i) {
+      if (std::isfinite(vertices[i].z())) out[i] = Light::Shadow;
+    }
+    report(1.0, "light below the horizon");
+    return out;
+  }
+
+  report(0.0, "building the shadow quadtree");
+  // The light's direction of travel is the "gravity" of the shadow quadtree: "above" a point
+  // means toward the light.
+  const TerrainIndex index(frame.mesh, CartesianMapping(-light), options);
+  const CartesianMapping& mapping = index.mapping();
+  report(0.3, "testing cells");
+
+  // Rows are shared out to the machine's cores; the calling thread reports progress.
+  const auto rows = static_cast<std::size_t>(frame.height);
+  const auto width = static_cast<std::size_t>(frame.width);
+  std::atomic<std::size_t> nextRow{0}, rowsDone{0};
+  std::atomic<bool> stop{false};
+  const auto work = [&](bool reporter) {
+    for (std::size_t r; !stop && (r = nextRow++) < rows;) {
+      for (std::size_t c = 0; c < width; ++c) {
+        const std::size_t i = r * width + c;
+        if (!std::isfinite(vertices[i].z())) continue;
+        const Eigen::Vector3d m = mapping.toMapped(vertices[i]);
+        out[i] = index.occludedAbove(m.x(), m.y(), m.z(), static_cast<std::uint32_t>(i))
+                     ? Light::Shadow
+                     : Light::Lit;
+      }
+      const std::size_t done = ++rowsDone;
+      if (reporter && progress && !progress(0.3 + 0.7 * static_cast<double>(done) / rows, "testing cells")) {
+        stop = true;
+      }
+    }
+  };
+  const unsigned threads = std::max(1u, std::min(8u, std::thread::hardware_concurrency()));
+  std::vector<std::thread> pool;
+  for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work, false);
+  work(true);
+  for (auto& t : pool) t.join();
+  if (stop) throw Error("shadow computation cancelled");
+  report(1.0, "done");
+  return out;
+}
+
+}  // namespace qota
