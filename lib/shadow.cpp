@@ -1,5 +1,6 @@
 #include "qota/shadow.hpp"
 
+#include <Eigen/Geometry>
 #include <GeographicLib/LocalCartesian.hpp>
 #include <ogr_spatialref.h>
 
@@ -9,6 +10,7 @@
 #include <thread>
 
 #include "qota/error.hpp"
+#include "qota/predicates.hpp"
 
 namespace qota {
 namespace {
@@ -150,6 +152,51 @@ LocalFrame localFrame(const DemTerrain& dem, bool flat, double pixelSize) {
   return f;
 }
 
+namespace {
+
+// Triangles around each vertex, as offsets into one list (a vertex of a DEM has at most 6).
+struct VertexStar {
+  std::vector<std::uint32_t> start, tris;
+  VertexStar(const Mesh& mesh) : start(mesh.vertices.size() + 1, 0) {
+    for (std::uint32_t idx : mesh.indices) ++start[idx + 1];
+    for (std::size_t i = 1; i < start.size(); ++i) start[i] += start[i - 1];
+    tris.resize(mesh.indices.size());
+    std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
+    for (std::size_t t = 0; t < mesh.polygonCount(); ++t) {
+      for (std::uint32_t idx : mesh.polygon(t)) tris[fill[idx]++] = static_cast<std::uint32_t>(t);
+    }
+  }
+};
+
+// Attached shadow: the light arrives from below the surface at vertex i. Seen from above (the
+// frame's z), the light's horizontal direction leaves i through one of its own triangles (exactly:
+// the one whose corner sector at i contains that direction); the vertex is in attached shadow when
+// the light rises more slowly than that triangle does in that direction. A light straight up, or
+// a direction leaving the terrain (across a void or the border), is not attached shadow.
+bool attachedShadow(const Mesh& mesh, const VertexStar& star, std::uint32_t i, const Eigen::Vector3d& light) {
+  const Eigen::Vector3d& p = mesh.vertices[i];
+  const Point2 p2{p.x(), p.y()}, s2{p.x() + light.x(), p.y() + light.y()};
+  if (light.x() == 0 && light.y() == 0) return false;
+  for (std::uint32_t k = star.start[i]; k < star.start[i + 1]; ++k) {
+    const auto t = mesh.polygon(star.tris[k]);
+    // The other two corners, in counter-clockwise order around i.
+    std::uint32_t a = t[0] == i ? t[1] : t[1] == i ? t[2] : t[0];
+    std::uint32_t b = t[0] == i ? t[2] : t[1] == i ? t[0] : t[1];
+    Point2 a2{mesh.vertices[a].x(), mesh.vertices[a].y()}, b2{mesh.vertices[b].x(), mesh.vertices[b].y()};
+    const int orientation = orient2dSign(p2, a2, b2);
+    if (orientation == 0) continue;
+    if (orientation < 0) std::swap(a, b), std::swap(a2, b2);
+    if (orient2dSign(p2, a2, s2) < 0 || orient2dSign(p2, s2, b2) < 0) continue;  // not this sector
+    // The triangle's rise along the light's horizontal direction, against the light's own rise.
+    const Eigen::Vector3d n = (mesh.vertices[a] - p).cross(mesh.vertices[b] - p);  // up-facing
+    // On the plane, dz = -(n.x dx + n.y dy) / n.z; below it when light.z < dz.
+    return light.z() * n.z() < -(n.x() * light.x() + n.y() * light.y());
+  }
+  return false;
+}
+
+}  // namespace
+
 double shadowReach(const LocalFrame& frame, const Eigen::Vector3d& towardLight) {
   const Eigen::Vector3d d = towardLight.normalized();
   const double horizontal = d.head<2>().norm();
@@ -183,6 +230,7 @@ std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& to
   // means toward the light.
   const TerrainIndex index(frame.mesh, CartesianMapping(-light), options);
   const CartesianMapping& mapping = index.mapping();
+  const VertexStar star(frame.mesh);
   report(0.3, "testing cells");
 
   // Rows are shared out to the machine's cores; the calling thread reports progress.
@@ -195,10 +243,11 @@ std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& to
       for (std::size_t c = 0; c < width; ++c) {
         const std::size_t i = r * width + c;
         if (!std::isfinite(vertices[i].z())) continue;
+        const auto vi = static_cast<std::uint32_t>(i);
         const Eigen::Vector3d m = mapping.toMapped(vertices[i]);
-        out[i] = index.occludedAbove(m.x(), m.y(), m.z(), static_cast<std::uint32_t>(i))
-                     ? Light::Shadow
-                     : Light::Lit;
+        const bool shadowed = attachedShadow(frame.mesh, star, vi, light) ||
+                              index.occludedAbove(m.x(), m.y(), m.z(), vi);
+        out[i] = shadowed ? Light::Shadow : Light::Lit;
       }
       const std::size_t done = ++rowsDone;
       if (reporter && progress && !progress(0.3 + 0.7 * static_cast<double>(done) / rows, "testing cells")) {

@@ -236,6 +236,21 @@ TerrainIndex::TerrainIndex(const Mesh& mesh, const CartesianMapping& mapping,
   // The quadtree: a triangle is referenced from a leaf when its closed projection meets the closed
   // leaf box (separating axes: the box axes, then each edge with its error bound, so that a
   // triangle is dropped only when the box is certainly outside it).
+  // The size floor of the tree: half the median triangle extent along each axis. Smaller nodes
+  // cannot part triangles that are larger than they are (a stack of surfaces seen along a
+  // grazing light, a fan), they only multiply references.
+  double floorU = 0, floorV = 0;
+  if (!boxes.empty()) {
+    std::vector<double> du(boxes.size()), dv(boxes.size());
+    for (std::size_t t = 0; t < boxes.size(); ++t) {
+      du[t] = boxes[t].uhi - boxes[t].ulo;
+      dv[t] = boxes[t].vhi - boxes[t].vlo;
+    }
+    std::nth_element(du.begin(), du.begin() + du.size() / 2, du.end());
+    std::nth_element(dv.begin(), dv.begin() + dv.size() / 2, dv.end());
+    floorU = 0.5 * du[du.size() / 2];
+    floorV = 0.5 * dv[dv.size() / 2];
+  }
   tree_.build(static_cast<std::uint32_t>(tris_.size()), domain, options.tree,
               [this, &boxes](std::uint32_t t, const Box2& b) {
                 const Tri& r = tris_[t];
@@ -247,7 +262,8 @@ TerrainIndex::TerrainIndex(const Mesh& mesh, const CartesianMapping& mapping,
                   if (r.A[k] * u + r.B[k] * v + r.C[k] < -r.tol) return false;
                 }
                 return true;
-              });
+              },
+              floorU, floorV);
   // Single-layer leaves: where no two of a leaf's triangles overlap, the first one containing a
   // point is the only surface there, and the query stops at it. Their items are put in polygon
   // order so that this first one is also the smallest polygon id, as the tie rule says.

@@ -7,8 +7,10 @@
 // the node (the paper's rule), so a node's box is implied by the path to it and is not stored:
 // a query descends with two compares per level.
 //
-// Split rule: the paper's (more than Maxpoly items and above Maxdepth), plus a cost check: a node
-// whose split would not cut the expected number of polygon tests by at least 15% stays a leaf.
+// Split rule: the paper's (more than Maxpoly items and above Maxdepth), plus two checks: a node
+// whose split would not cut the expected number of polygon tests by at least 15% stays a leaf,
+// and so does a node smaller than the owner's size floor (typically half a polygon), where the
+// items overlap because they are larger than the node and no cut can part them.
 //
 // Boundary rule: a point exactly on a cut line belongs to the child on the high side (u >= mid goes
 // to the high-u child). Boxes are closed in the build, so an item touching a cut line is referenced
@@ -79,9 +81,11 @@ class Quadtree {
 
   // Builds over items 0..itemCount-1 in the closed box root. overlaps(item, box) must return true
   // whenever the item meets the closed box (it may also return true when in doubt).
+  // minSizeU/V: a node smaller than this along both axes is not split (no cut can separate items
+  // larger than the node; see TerrainIndex). 0: no floor.
   template <class Overlaps>
   void build(std::uint32_t itemCount, Box2 root, const QuadtreeOptions& options,
-             Overlaps&& overlaps);
+             Overlaps&& overlaps, double minSizeU = 0, double minSizeV = 0);
 
   const Box2& box() const { return root_; }
   bool contains(double u, double v) const { return root_.contains(u, v); }
@@ -167,13 +171,16 @@ class Quadtree {
   BigVector<Node> jump_;
   std::uint64_t refBudget_ = 0;
   std::uint32_t itemCount_ = 0;
+  double minSizeU_ = 0, minSizeV_ = 0;
 };
 
 template <class Overlaps>
 void Quadtree::build(std::uint32_t itemCount, Box2 root, const QuadtreeOptions& options,
-                     Overlaps&& overlaps) {
+                     Overlaps&& overlaps, double minSizeU, double minSizeV) {
   root_ = root;
   options_ = options;
+  minSizeU_ = minSizeU;
+  minSizeV_ = minSizeV;
   nodes_.assign(1, Node{0, 0});
   refs_.clear();
   half_.clear();
@@ -203,7 +210,8 @@ void Quadtree::build(std::uint32_t itemCount, Box2 root, const QuadtreeOptions& 
 template <class Overlaps>
 void Quadtree::buildNode(std::uint32_t node, const Box2& box, std::uint32_t depth,
                          std::vector<std::uint32_t>& items, Overlaps& overlaps) {
-  if (items.size() <= options_.maxPoly || depth >= options_.maxDepth) {
+  if (items.size() <= options_.maxPoly || depth >= options_.maxDepth ||
+      (box.uhi - box.ulo < minSizeU_ && box.vhi - box.vlo < minSizeV_)) {
     nodes_[node] = {static_cast<std::uint32_t>(refs_.size()),
                     static_cast<std::uint32_t>(items.size())};
     refs_.insert(refs_.end(), items.begin(), items.end());

@@ -3,11 +3,18 @@
 // travel as the preferred direction. A point is in shadow when the line from it toward the light
 // meets terrain strictly above it, i.e. between it and the light.
 //
-// Rule: each pixel centre is a vertex of the terrain (see dem.hpp). Its own triangles (those with
-// it as a corner) are excluded by construction: they meet its line only at the point itself. Any
-// other triangle containing the line's position in the light's frame at a height strictly above
-// the point's shades it. No tolerance is added, so a ridge one triangle thin still casts its
-// shadow; the inside test is exact (see terrain.hpp). The sun is treated as a point (no penumbra).
+// Rule: each pixel centre is a vertex of the terrain (see dem.hpp). It is in shadow when
+// - another triangle lies strictly between it and the light (cast shadow): its own triangles
+//   (those with it as a corner) are excluded by construction, since they meet its line only at
+//   the point itself; any other triangle containing the line's position in the light's frame at
+//   a height strictly above the point's shades it. No tolerance is added, so a ridge one triangle
+//   thin still casts its shadow; the inside test is exact (see terrain.hpp);
+// - or the light arrives from below its own surface (attached shadow): seen from above, the
+//   light's horizontal direction leaves the vertex across one of its own triangles, and the light
+//   rises more slowly than that triangle in that direction. (Inside the terrain such a ray always
+//   meets another triangle on its way out; this catches the rays that leave through a void or the
+//   raster's border instead.)
+// The sun is treated as a point (no penumbra).
 //
 // Frame: the DEM in metres around its centre, east-north-up (LocalFrame). A DEM in a geographic
 // CRS is put on its ellipsoid (WGS84 unless the CRS says otherwise) with GeographicLib's

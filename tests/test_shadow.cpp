@@ -1,0 +1,344 @@
+// Shadow masks: exact cases, the brute-force oracle, a ray march on the real DEM, the tool.
+#include <gdal_priv.h>
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <filesystem>
+#include <random>
+#include <sstream>
+
+#include "qota/error.hpp"
+#include "qota/shadow.hpp"
+#include "qota/synthetic.hpp"
+#include "qota_tools.hpp"
+
+namespace {
+
+using qota::Light;
+using qota::LocalFrame;
+
+// A DEM in memory (no file): values row-major, pixel grid frame of `pixel` metres (no CRS).
+qota::DemTerrain gridDem(int w, int h, const std::vector<double>& z) {
+  qota::DemTerrain dem;
+  dem.path = "grid";
+  dem.width = w;
+  dem.height = h;
+  dem.geotransform = {0, 1, 0, 0, 0, -1};
+  dem.mesh.vertices.resize(z.size());
+  for (int r = 0; r < h; ++r) {
+    for (int c = 0; c < w; ++c) dem.mesh.vertices[r * w + c] = {c + 0.5, -(r + 0.5), z[r * w + c]};
+  }
+  for (int r = 0; r + 1 < h; ++r) {
+    for (int c = 0; c + 1 < w; ++c) {
+      const auto tl = static_cast<std::uint32_t>(r * w + c), tr = tl + 1, bl = tl + w, br = bl + 1;
+      if (std::isfinite(z[tl]) && std::isfinite(z[bl]) && std::isfinite(z[br])) dem.mesh.addTriangle(tl, bl, br);
+      if (std::isfinite(z[tl]) && std::isfinite(z[br]) && std::isfinite(z[tr])) dem.mesh.addTriangle(tl, br, tr);
+    }
+  }
+  return dem;
+}
+
+std::size_t count(const std::vector<Light>& m, Light l) { return std::count(m.begin(), m.end(), l); }
+
+TEST(Shadow, FlatTerrainHasNoShadow) {
+  const LocalFrame f = qota::localFrame(gridDem(40, 30, std::vector<double>(1200, 100.0)), false, 10);
+  for (double alt : {0.5, 5.0, 30.0, 89.0}) {
+    for (double az : {0.0, 45.0, 200.0, 333.3}) {
+      const auto m = qota::shadowMask(f, f.towardSun({az, alt}));
+      EXPECT_EQ(count(m, Light::Lit), 1200u) << az << ' ' << alt;
+    }
+  }
+}
+
+TEST(Shadow, StepCastsHOverTanAltitude) {
+  // A 50 m step: the plateau (columns < 100) ends at column 99, the plain starts at column 100.
+  // Sun from the west: a plain cell at distance d = (col - 99) * 10 m from the plateau's edge is
+  // in shadow exactly when 50 > d tan(alt).
+  const int w = 200, h = 12;
+  std::vector<double> z(w * h);
+  for (int r = 0; r < h; ++r) {
+    for (int c = 0; c < w; ++c) z[r * w + c] = c < 100 ? 50.0 : 0.0;
+  }
+  const LocalFrame f = qota::localFrame(gridDem(w, h, z), false, 10);
+  for (double alt : {5.0, 10.0, 30.0, 45.0, 60.0, 80.0}) {
+    const auto m = qota::shadowMask(f, f.towardSun({270, alt}));
+    // Rows 0 and h - 1 are left out: there the ray runs exactly along the raster's outer edge,
+    // which only one triangle touches, and rounding decides whether it grazes it.
+    for (int r = 1; r + 1 < h; ++r) {
+      for (int c = 0; c < w; ++c) {
+        const bool expectShadow = c >= 100 && 50.0 > (c - 99) * 10.0 * std::tan(alt * M_PI / 180);
+        ASSERT_EQ(m[r * w + c] == Light::Shadow, expectShadow) << "alt " << alt << " col " << c;
+      }
+    }
+    // Its length is H / tan(alt) to within a cell.
+    const double length = 50.0 / std::tan(alt * M_PI / 180);
+    int shadowed = 0;
+    for (int c = 100; c < w; ++c) shadowed += m[5 * w + c] == Light::Shadow;
+    EXPECT_NEAR(shadowed * 10.0, length, 10.0);
+  }
+}
+
+TEST(Shadow, ZenithAndNight) {
+  const qota::Heightfield hf = qota::fractalHeightfield(60, 50, 1.0, 30.0, 4);
+  const LocalFrame f = qota::localFrame(gridDem(60, 50, hf.z), false, 10);
+  EXPECT_EQ(count(qota::shadowMask(f, {0, 0, 1}), Light::Lit), 3000u);
+  EXPECT_EQ(count(qota::shadowMask(f, f.towardSun({120, -3})), Light::Shadow), 3000u);
+  EXPECT_EQ(count(qota::shadowMask(f, f.towardSun({120, 0})), Light::Shadow), 3000u);
+  EXPECT_THROW(qota::shadowMask(f, {0, 0, 0}), qota::Error);
+}
+
+// The terrain's height under (x, y) seen from above, by testing every triangle (none: NaN).
+double surfaceAt(const LocalFrame& f, double x, double y) {
+  const auto& v = f.mesh.vertices;
+  for (std::size_t p = 0; p < f.mesh.polygonCount(); ++p) {
+    const auto t = f.mesh.polygon(p);
+    const Eigen::Vector2d a = v[t[0]].head<2>(), b = v[t[1]].head<2>(), c = v[t[2]].head<2>();
+    const double area = (b - a).x() * (c - a).y() - (b - a).y() * (c - a).x();
+    const Eigen::Vector2d q(x, y);
+    const double wa = ((b - q).x() * (c - q).y() - (b - q).y() * (c - q).x()) / area;
+    const double wb = ((c - q).x() * (a - q).y() - (c - q).y() * (a - q).x()) / area;
+    const double wc = 1 - wa - wb;
+    if (wa >= 0 && wb >= 0 && wc >= 0) return wa * v[t[0]].z() + wb * v[t[1]].z() + wc * v[t[2]].z();
+  }
+  return NAN;
+}
+
+// The oracle: attached shadow when a point a millionth of a pixel toward the light lies below the
+// surface there; cast shadow when the ray from the vertex toward the light meets a triangle that
+// does not have that vertex as a corner (Moller-Trumbore, t > 0).
+std::vector<Light> bruteForceMask(const LocalFrame& f, const Eigen::Vector3d& light) {
+  const auto& v = f.mesh.vertices;
+  std::vector<Light> out(v.size(), Light::NoData);
+  const double eps = 1e-6 * f.pixelSizeX / std::max(1e-9, light.head<2>().norm());
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    if (!std::isfinite(v[i].z())) continue;
+    out[i] = Light::Lit;
+    const Eigen::Vector3d q = v[i] + eps * light;
+    if (light.head<2>().norm() > 0 && q.z() < surfaceAt(f, q.x(), q.y())) out[i] = Light::Shadow;
+    for (std::size_t p = 0; p < f.mesh.polygonCount() && out[i] == Light::Lit; ++p) {
+      const auto t = f.mesh.polygon(p);
+      if (t[0] == i || t[1] == i || t[2] == i) continue;
+      const Eigen::Vector3d e1 = v[t[1]] - v[t[0]], e2 = v[t[2]] - v[t[0]];
+      const Eigen::Vector3d pv = light.cross(e2);
+      const double det = e1.dot(pv);
+      if (det == 0) continue;
+      const Eigen::Vector3d tv = v[i] - v[t[0]];
+      const double a = tv.dot(pv) / det;
+      const Eigen::Vector3d qv = tv.cross(e1);
+      const double b = light.dot(qv) / det;
+      const double dist = e2.dot(qv) / det;
+      if (a >= 0 && b >= 0 && a + b <= 1 && dist > 0) out[i] = Light::Shadow;
+    }
+  }
+  return out;
+}
+
+TEST(Shadow, IdenticalToBruteForceOnSmallDems) {
+  std::mt19937_64 rng(2024);
+  std::uniform_real_distribution<double> az(0, 360), alt(2, 70);
+  for (int k = 0; k < 12; ++k) {
+    qota::Heightfield hf = qota::fractalHeightfield(28, 24, 1.0, 60.0 + 20 * k, 100 + k);
+    if (k % 3 == 0) hf.z[5 * 28 + 7] = NAN;  // a void
+    const LocalFrame f = qota::localFrame(gridDem(28, 24, hf.z), false, 10);
+    const Eigen::Vector3d light = f.towardSun({az(rng), alt(rng)});
+    const auto fast = qota::shadowMask(f, light, {{k % 2 ? 3u : 8u, 16}});
+    const auto slow = bruteForceMask(f, light);
+    ASSERT_EQ(fast, slow) << "case " << k;
+    EXPECT_GT(count(fast, Light::Shadow), 0u);
+  }
+}
+
+// The naive baseline: from each cell, step toward the sun half a pixel at a time until the ray
+// leaves the grid; shadowed when the terrain (the same triangles) rises above the ray.
+std::vector<Light> rayMarch(const LocalFrame& f, const qota::SunPosition& sun, int rowStep) {
+  const int w = f.width, h = f.height;
+  const auto& v = f.mesh.vertices;
+  const double sx = f.pixelSizeX, sy = f.pixelSizeY;
+  const Eigen::Vector3d d = f.towardSun(sun);
+  // Along the unit vector d by a length L: columns L dcol, rows L drow, height L d.z.
+  const double dcol = d.x() / sx, drow = -d.y() / sy;
+  const double step = 0.5 / std::max(std::fabs(dcol), std::fabs(drow));  // half a pixel
+  auto heightAt = [&](double c, double r, double& z) {
+    if (c < 0 || r < 0 || c > w - 1 || r > h - 1) return false;
+    const int c0 = std::min(static_cast<int>(c), w - 2), r0 = std::min(static_cast<int>(r), h - 2);
+    const double fc = c - c0, fr = r - r0;
+    const auto Z = [&](int cc, int rr) { return v[static_cast<std::size_t>(rr) * w + cc].z(); };
+    // Diagonal from (c0, r0) to (c0 + 1, r0 + 1): lower-left triangle when fr > fc.
+    z = fr > fc ? Z(c0, r0) + fr * (Z(c0, r0 + 1) - Z(c0, r0)) + fc * (Z(c0 + 1, r0 + 1) - Z(c0, r0 + 1))
+                : Z(c0, r0) + fc * (Z(c0 + 1, r0) - Z(c0, r0)) + fr * (Z(c0 + 1, r0 + 1) - Z(c0 + 1, r0));
+    return true;
+  };
+  std::vector<Light> out(v.size(), Light::NoData);
+  for (int r = 0; r < h; r += rowStep) {
+    for (int c = 0; c < w; ++c) {
+      const std::size_t i = static_cast<std::size_t>(r) * w + c;
+      if (!std::isfinite(v[i].z())) continue;
+      out[i] = Light::Lit;
+      for (int k = 1;; ++k) {
+        const double len = k * step;
+        double z = 0;
+        if (!heightAt(c + dcol * len, r + drow * len, z)) break;
+        if (!std::isfinite(z)) continue;
+        if (z > v[i].z() + d.z() * len) {
+          out[i] = Light::Shadow;
+          break;
+        }
+      }
+    }
+  }
+  return out;
+}
+
+TEST(Shadow, AgreesWithRayMarchOnTheRealDem) {
+  // The flat frame, where a ray march in pixel space is exact in its geometry; it samples the
+  // terrain every half pixel, so it misses ridges thinner than that (and grazing rays), which
+  // are the disagreements.
+  const qota::DemTerrain dem = qota::loadDem(QOTA_DATA_DIR "/mt_rainier_90m.tif");
+  const LocalFrame f = qota::localFrame(dem, true);
+  for (const qota::SunPosition sun : {qota::SunPosition{135, 20}, qota::SunPosition{250, 35}}) {
+    const auto exact = qota::shadowMask(f, f.towardSun(sun));
+    const auto march = rayMarch(f, sun, 7);
+    std::size_t compared = 0, differ = 0, marchMissed = 0;
+    for (std::size_t i = 0; i < exact.size(); ++i) {
+      if (march[i] == Light::NoData) continue;
+      ++compared;
+      if (march[i] != exact[i]) {
+        ++differ;
+        marchMissed += exact[i] == Light::Shadow;
+      }
+    }
+    RecordProperty("compared", static_cast<int>(compared));
+    std::printf("sun %g/%g: %zu cells compared, %zu differ (%.4f %%), %zu of them shadows the "
+                "march missed\n", sun.azimuth, sun.altitude, compared, differ,
+                100.0 * differ / compared, marchMissed);
+    EXPECT_GT(compared, 200000u);
+    EXPECT_LE(differ * 1000, compared);  // at least 99.9 % agree
+  }
+}
+
+TEST(Shadow, CurvatureLowersDistantTerrain) {
+  // On the ellipsoid, terrain far away drops below the tangent plane (about 8 m at 10 km), so
+  // fewer cells are shaded at a low sun than on the flat frame.
+  const qota::DemTerrain dem = qota::loadDem(QOTA_DATA_DIR "/mt_rainier_90m.tif");
+  const LocalFrame curved = qota::localFrame(dem, false), flat = qota::localFrame(dem, true);
+  EXPECT_GT(curved.mesh.vertices[0].z(), -1000.0);
+  EXPECT_LT(curved.mesh.vertices[0].z(), flat.mesh.vertices[0].z());
+  // The far corner sinks below the tangent plane by about d^2 / 2R.
+  const std::size_t i = 1200;  // north-east corner, about 47 km from the centre
+  const double d = curved.mesh.vertices[i].head<2>().norm();
+  EXPECT_NEAR(flat.mesh.vertices[i].z() - curved.mesh.vertices[i].z(), d * d / (2 * 6371000.0),
+              0.02 * d * d / (2 * 6371000.0));
+}
+
+// --- The tool -----------------------------------------------------------------------------------
+
+std::filesystem::path scratch(const std::string& name) {
+  const auto dir = std::filesystem::temp_directory_path() / "qota_shadow_tests";
+  std::filesystem::create_directories(dir);
+  return dir / name;
+}
+
+TEST(ShadowTool, WritesAGeoreferencedMaskAndPreview) {
+  qota::tools::ShadowOptions o;
+  o.source = QOTA_DATA_DIR "/SainteHelens.dem";
+  o.output = scratch("helens.tif").string();
+  o.png = scratch("helens.png").string();
+  o.time = "1980-09-06T09:00";
+  o.tz = "-07:00";
+  std::ostringstream out, err;
+  ASSERT_EQ(qota::tools::shadow(o, out, err), 0) << err.str();
+  EXPECT_NE(out.str().find("shadow reach: "), std::string::npos) << out.str();
+  qota::ensureGdalRegistered();
+  std::unique_ptr<GDALDataset> ds(GDALDataset::Open(o.output.c_str(), GDAL_OF_RASTER));
+  ASSERT_NE(ds, nullptr);
+  EXPECT_EQ(ds->GetRasterXSize(), 327);
+  EXPECT_EQ(ds->GetRasterBand(1)->GetRasterDataType(), GDT_Byte);
+  EXPECT_EQ(ds->GetRasterBand(1)->GetNoDataValue(), 128);
+  double gt[6];
+  ds->GetGeoTransform(gt);
+  EXPECT_EQ(gt[0], 557805);
+  std::vector<std::uint8_t> v(327 * 468);
+  ASSERT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Read, 0, 0, 327, 468, v.data(), 327, 468, GDT_Byte, 0, 0), CE_None);
+  std::size_t lit = 0, dark = 0, none = 0;
+  for (auto x : v) lit += x == 255, dark += x == 0, none += x == 128;
+  EXPECT_EQ(lit + dark + none, v.size());
+  EXPECT_GT(dark, 100u);
+  EXPECT_GT(lit, dark);
+  EXPECT_TRUE(std::filesystem::exists(o.png));
+}
+
+TEST(ShadowTool, HoursOfSunlight) {
+  qota::tools::ShadowOptions o;
+  o.source = QOTA_DATA_DIR "/SainteHelens.dem";
+  o.output = scratch("hours.tif").string();
+  o.time = "2024-06-21";
+  o.tz = "-07:00";
+  o.hours = std::array<double, 3>{4, 22, 1};
+  o.quiet = true;
+  std::ostringstream out, err;
+  ASSERT_EQ(qota::tools::shadow(o, out, err), 0) << err.str();
+  std::unique_ptr<GDALDataset> ds(GDALDataset::Open(o.output.c_str(), GDAL_OF_RASTER));
+  ASSERT_NE(ds, nullptr);
+  EXPECT_EQ(ds->GetRasterBand(1)->GetRasterDataType(), GDT_Float32);
+  double minmax[2];
+  ds->GetRasterBand(1)->ComputeRasterMinMax(FALSE, minmax);
+  EXPECT_GE(minmax[0], 0.0);
+  EXPECT_LE(minmax[1], 16.0);  // about 15.5 h of daylight at 46 N at midsummer
+  EXPECT_GT(minmax[1], 12.0);
+}
+
+TEST(ShadowTool, BadInputIsAClearErrorAndLeavesNoFile) {
+  std::ostringstream out, err;
+  qota::tools::ShadowOptions o;
+  o.source = "/no/such/dem.tif";
+  o.output = scratch("none.tif").string();
+  EXPECT_EQ(qota::tools::shadow(o, out, err), 2);
+  EXPECT_NE(err.str().find("/no/such/dem.tif"), std::string::npos);
+
+  o.source = QOTA_DATA_DIR "/SainteHelens.dem";
+  o.output = "/no/such/dir/out.tif";
+  err.str("");
+  EXPECT_EQ(qota::tools::shadow(o, out, err), 2);
+  EXPECT_NE(err.str().find("/no/such/dir/out.tif"), std::string::npos) << err.str();
+
+  o.output = scratch("twice.tif").string();
+  std::filesystem::remove(o.output);
+  o.azimuth = 100;
+  o.time = "2024-01-01T12:00Z";
+  err.str("");
+  EXPECT_EQ(qota::tools::shadow(o, out, err), 2);
+  EXPECT_NE(err.str().find("give one light"), std::string::npos);
+  EXPECT_FALSE(std::filesystem::exists(o.output));
+
+  // Below the horizon: documented, every cell dark, success.
+  o.time.clear();
+  o.altitude = -5;
+  o.quiet = true;
+  err.str("");
+  EXPECT_EQ(qota::tools::shadow(o, out, err), 0);
+  EXPECT_NE(err.str().find("below the horizon"), std::string::npos);
+
+  // A raster without georeferencing: an error unless --pixel-size gives its scale.
+  const auto bare = scratch("bare.tif");
+  {
+    GDALDriver* drv = GetGDALDriverManager()->GetDriverByName("GTiff");
+    std::unique_ptr<GDALDataset> ds(drv->Create(bare.c_str(), 20, 20, 1, GDT_Float32, nullptr));
+    std::vector<float> z(400, 5.0f);
+    ASSERT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, 20, 20, z.data(), 20, 20, GDT_Float32, 0, 0), CE_None);
+  }
+  o.source = bare.string();
+  o.altitude = 30;
+  err.str("");
+  EXPECT_EQ(qota::tools::shadow(o, out, err), 2);
+  EXPECT_NE(err.str().find("--pixel-size"), std::string::npos) << err.str();
+  o.pixelSize = 2;
+  EXPECT_EQ(qota::tools::shadow(o, out, err), 0) << err.str();
+  o.azimuth.reset();
+  o.altitude.reset();
+  o.time = "2024-01-01T12:00Z";
+  err.str("");
+  EXPECT_EQ(qota::tools::shadow(o, out, err), 2);
+  EXPECT_NE(err.str().find("no coordinate reference system"), std::string::npos) << err.str();
+}
+
+}  // namespace
