@@ -20,3 +20,5 @@ centre of the tile
 south-west of the tile'
 paste -d '  ' <(echo "$points") <(echo "$points" | build/tools/qota sample "$dem") <(echo "$labels") |
   awk '{printf "%12s %10s  -> %-20s %s %s %s %s\n", $1, $2, $3, $4, $5, $6, $7}'
+echo "== qota shadow $dem (sun from the south-east, 20 degrees up)"
+build/tools/qota shadow "$dem" -o build/rainier_shadow.tif -az 135 -alt 20 --png build/rainier_shadow.png

@@ -87,11 +87,10 @@ std::vector<double> preview(const LocalFrame& f, const Eigen::Vector3d& light,
   for (int r = 0; r < h; ++r) {
     for (int c = 0; c < w; ++c) {
       const std::size_t i = static_cast<std::size_t>(r) * w + c;
-      if (!std::isfinite(v[i].z())) continue;
+      if (!f.valid[i]) continue;
       const auto at = [&](int cc, int rr) -> const Eigen::Vector3d& {
         cc = std::clamp(cc, 0, w - 1), rr = std::clamp(rr, 0, h - 1);
-        const Eigen::Vector3d& p = v[static_cast<std::size_t>(rr) * w + cc];
-        return std::isfinite(p.z()) ? p : v[i];
+        return v[static_cast<std::size_t>(rr) * w + cc];
       };
       const Eigen::Vector3d east = at(c + 1, r) - at(c - 1, r), north = at(c, r - 1) - at(c, r + 1);
       Eigen::Vector3d n = east.cross(north);
@@ -157,7 +156,7 @@ int shadow(const ShadowOptions& o, std::ostream& out, std::ostream& err) {
         }
       }
       for (std::size_t i = 0; i < values.size(); ++i) {
-        values[i] = std::isfinite(frame.mesh.vertices[i].z()) ? hoursLit[i] : -1.0;
+        values[i] = frame.valid[i] ? hoursLit[i] : -1.0;
       }
       if (mask.empty()) mask = shadowMask(frame, Eigen::Vector3d(0, 0, -1));  // night all day
       shownLight = frame.towardSun(sunPosition(midnight + (start + end) / 48.0, frame.centreLon, frame.centreLat));

@@ -14,7 +14,9 @@
 //   rises more slowly than that triangle in that direction. (Inside the terrain such a ray always
 //   meets another triangle on its way out; this catches the rays that leave through a void or the
 //   raster's border instead.)
-// The sun is treated as a point (no penumbra).
+// The sun is treated as a point (no penumbra). The shadow quadtree holds only the triangles that
+// face away from the light: a ray that starts into the open air meets terrain first by entering
+// it, through such a triangle, so the others cannot change the answer (shadow.cpp).
 //
 // Frame: the DEM in metres around its centre, east-north-up (LocalFrame). A DEM in a geographic
 // CRS is put on its ellipsoid (WGS84 unless the CRS says otherwise) with GeographicLib's
@@ -37,10 +39,13 @@
 
 namespace qota {
 
-// The DEM's vertices in a local metric east-north-up frame; same vertex and triangle indices as
-// dem.mesh (nodata vertices stay NaN).
+// The DEM's vertices in a local metric east-north-up frame (same vertex indices as dem.mesh),
+// with every cell's two triangles. Voids are filled from their rims for occlusion: light cannot
+// pass under the terrain through missing data, and every vertex has a full ring of triangles.
+// Their cells stay nodata (valid = 0) in every output.
 struct LocalFrame {
   Mesh mesh;
+  std::vector<std::uint8_t> valid;  // the DEM has a height at this cell
   int width = 0, height = 0;
   bool geographicLocation = false;  // centreLon/Lat are known (the DEM has a CRS)
   double centreLon = 0, centreLat = 0;
@@ -65,8 +70,10 @@ enum class Light : std::uint8_t { Shadow = 0, Lit = 1, NoData = 2 };
 
 // The light at every pixel centre of the frame's grid, row-major. towardLight: unit vector toward
 // the light in the frame. A light at or below the horizon (z <= 0) leaves every cell in shadow.
+// threads: how many to test cells with; 0 = one per core.
 std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& towardLight,
-                              const TerrainOptions& options = {}, const Progress& progress = {});
+                              const TerrainOptions& options = {}, const Progress& progress = {},
+                              unsigned threads = 0);
 
 // How far (metres) a shadow can reach across the raster's edge: relief / tan(altitude).
 double shadowReach(const LocalFrame& frame, const Eigen::Vector3d& towardLight);
