@@ -97,8 +97,8 @@ class TerrainIndex {
   std::optional<Hit> topWorld(const Eigen::Vector3d& p) const;
   std::vector<Hit> allWorld(const Eigen::Vector3d& p) const;
 
-  // Height-only fast path: the highest terrain height at (u, v) with h <= z, or NaN-free "no
-  // terrain" as std::nullopt. Used by samplers and benchmarks that do not need the normal.
+  // Height-only fast path: the highest terrain height at (u, v) with h <= z, or std::nullopt for
+  // no terrain. For samplers and benchmarks that do not need the normal or the polygon.
   std::optional<double> heightBelow(double u, double v, double z) const;
   // heightBelow for many points at once (heights[i] for points[i]): the same answers, with the
   // memory latency of the points overlapped (several times faster on terrains larger than the
