@@ -190,16 +190,14 @@ LocalFrame localFrame(const DemTerrain& dem, bool flat, double pixelSize) {
   }
   if (!(f.minHeight <= f.maxHeight)) f.minHeight = f.maxHeight = 0;
   if (dem.width > 1 && dem.height > 1) {
+    // Every vertex has a position (voids are filled), so the centre's neighbours give the size.
     const std::size_t ci = static_cast<std::size_t>(std::floor(cr)) * dem.width +
                            static_cast<std::size_t>(std::floor(cc));
     const auto& v = f.mesh.vertices;
-    if (std::isfinite(v[ci].x()) && std::isfinite(v[ci + 1].x())) {
-      f.pixelSizeX = (v[ci + 1] - v[ci]).head<2>().norm();
-    }
-    if (ci + dem.width < v.size() && std::isfinite(v[ci].x()) && std::isfinite(v[ci + dem.width].x())) {
-      f.pixelSizeY = (v[ci + dem.width] - v[ci]).head<2>().norm();
-    }
+    f.pixelSizeX = (v[ci + 1] - v[ci]).head<2>().norm();
+    f.pixelSizeY = (v[ci + dem.width] - v[ci]).head<2>().norm();
   }
+
   return f;
 }
 
