@@ -1,29 +1,17 @@
 #include "qota/cartesian.hpp"
 
 #include <Eigen/Geometry>
-#include <charconv>
 #include <cmath>
 
+#include "describe.hpp"
 #include "qota/error.hpp"
 
 namespace qota {
-namespace {
 
-std::string formatVector(const Eigen::Vector3d& v) {
-  std::string out;
-  char buf[32];
-  for (int i = 0; i < 3; ++i) {
-    if (i) out += ',';
-    auto r = std::to_chars(buf, buf + sizeof buf, v[i]);
-    out.append(buf, r.ptr);
-  }
-  return out;
-}
-
-}  // namespace
+using detail::formatVector;
 
 CartesianMapping::CartesianMapping(const Eigen::Vector3d& gravity, const Eigen::Vector3d& origin)
-    : origin_(origin) {
+    : given_(gravity), origin_(origin) {
   if (!gravity.allFinite() || gravity.squaredNorm() == 0.0) {
     throw Error("cartesian mapping: gravity must be a nonzero finite vector, got (" +
                 formatVector(gravity) + ")");
@@ -46,7 +34,7 @@ CartesianMapping::CartesianMapping(const Eigen::Vector3d& gravity, const Eigen::
 }
 
 std::string CartesianMapping::describe() const {
-  return std::string(name()) + " gravity=" + formatVector(gravity_) +
+  return std::string(name()) + " gravity=" + formatVector(given_) +
          " origin=" + formatVector(origin_);
 }
 

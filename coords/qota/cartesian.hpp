@@ -17,15 +17,12 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <limits>
 #include <string>
 
-namespace qota {
+#include "qota/mapping.hpp"
 
-// A line of the mapping in the world frame: the points origin + t * down, t real.
-struct MappedLine {
-  Eigen::Vector3d origin;  // the point with h = 0
-  Eigen::Vector3d down;    // unit vector, the preferred ("gravity") direction
-};
+namespace qota {
 
 class CartesianMapping {
  public:
@@ -36,6 +33,7 @@ class CartesianMapping {
                             const Eigen::Vector3d& origin = Eigen::Vector3d::Zero());
 
   static constexpr const char* name() { return "cartesian"; }
+  static constexpr bool kHeightUp = true;
 
   Eigen::Vector3d toMapped(const Eigen::Vector3d& world) const {
     if (vertical_) return world - origin_;
@@ -51,6 +49,10 @@ class CartesianMapping {
     return rotation_.transpose() * mapped;
   }
   MappedLine line(double u, double v) const { return {toWorld({u, v, 0.0}), gravity_}; }
+  MappedDomain domain() const {
+    constexpr double inf = std::numeric_limits<double>::infinity();
+    return {-inf, inf, -inf, inf, false};
+  }
 
   const Eigen::Vector3d& gravity() const { return gravity_; }  // unit
   const Eigen::Vector3d& origin() const { return origin_; }
@@ -58,10 +60,12 @@ class CartesianMapping {
   // True when gravity is exactly -Z and the mapping is a pure translation.
   bool vertical() const { return vertical_; }
 
-  // "cartesian gravity=gx,gy,gz origin=ox,oy,oz", with round-trip precision.
+  // "cartesian gravity=gx,gy,gz origin=ox,oy,oz", with round-trip precision (the gravity as
+  // given, so that parsing it back builds the identical mapping).
   std::string describe() const;
 
  private:
+  Eigen::Vector3d given_;  // the gravity as given, for describe(): an exact round trip
   Eigen::Vector3d gravity_;
   Eigen::Vector3d origin_;
   Eigen::Matrix3d rotation_;

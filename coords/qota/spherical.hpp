@@ -1,0 +1,51 @@
+// Spherical mapping: radial gravity around a centre (planets, moons, asteroids).
+//
+// u = longitude theta in degrees, [-180, 180), east positive, 0 on the world +x axis, 90 on +y;
+// v = latitude phi in degrees, [-90, 90], positive toward world +z;
+// h = radius r, the distance from the centre, in world units.
+// Right-handed: (east, north, up) at every point off the poles. Down points to the centre, so the
+// line of (u, v) is the ray centre + r * up(u, v), r >= 0, and "below" means a smaller radius.
+//
+// Poles: at v = +-90 every u names the same ray (toMapped returns u = 0 there). Seam: u = -180
+// and u = 180 are the same meridian; toMapped returns -180. The centre itself has no direction:
+// toMapped throws there. Trigonometry is in degrees with exact quadrant reduction
+// (GeographicLib's Math::sincosd), so the poles, the equator and the seam map exactly.
+#pragma once
+
+#include <Eigen/Core>
+#include <string>
+
+#include "qota/mapping.hpp"
+
+namespace qota {
+
+class SphericalMapping {
+ public:
+  // centre: finite (throws qota::Error otherwise).
+  explicit SphericalMapping(const Eigen::Vector3d& centre = Eigen::Vector3d::Zero());
+
+  static constexpr const char* name() { return "spherical"; }
+  static constexpr bool kHeightUp = true;
+
+  Eigen::Vector3d toMapped(const Eigen::Vector3d& world) const;
+  Eigen::Vector3d toWorld(const Eigen::Vector3d& mapped) const {
+    return centre_ + mapped.z() * up(mapped.x(), mapped.y());
+  }
+  // Unit radial direction of (u, v) (degrees).
+  static Eigen::Vector3d up(double u, double v);
+  MappedLine line(double u, double v) const { return {centre_, -up(u, v)}; }
+  MappedDomain domain() const { return {-180.0, 180.0, -90.0, 90.0, true}; }
+  std::string describe() const;  // "spherical centre=x,y,z"
+
+  const Eigen::Vector3d& centre() const { return centre_; }
+
+ private:
+  Eigen::Vector3d centre_;
+};
+
+// Longitude and latitude (degrees) of a direction, with the conventions above: lon in
+// [-180, 180), lon = 0 when the direction is along +-z. Shared by the spherical and geodetic
+// mappings (longitude is the same on a sphere and an ellipsoid of revolution).
+double longitudeOf(double x, double y);
+
+}  // namespace qota

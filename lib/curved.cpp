@@ -1,0 +1,536 @@
+#include "qota/curved.hpp"
+
+#include <Eigen/Geometry>
+#include <GeographicLib/Math.hpp>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <string>
+#include <type_traits>
+
+#include "qota/error.hpp"
+#include "qota/predicates.hpp"
+
+namespace qota {
+namespace {
+
+constexpr double kEps = 1.1102230246251565e-16;
+constexpr double kInf = std::numeric_limits<double>::infinity();
+// Footprint boxes are widened by this many degrees (u, and v for the angular mappings): far more
+// than the rounding of an angle from atan2 or of a query direction from sincosd (a few 1e-14
+// degrees), far less than any polygon.
+constexpr double kPadDegrees = 1e-9;
+
+using GeographicLib::Math;
+
+template <class M>
+constexpr bool kAngularV = !std::is_same_v<M, CylindricalMapping>;  // v is a latitude
+
+struct FootBox {
+  double ulo, uhi, vlo, vhi;  // ulo in [-180, 180), uhi <= ulo + 360
+};
+
+// The angle range around the z axis of a triangle whose edges each sweep the shorter arc between
+// their ends (a great-circle arc seen from the centre, a straight edge seen from the axis).
+// Vertices on the axis have no angle and are skipped: the edges to them are meridians of the
+// other ends. Returns false when the triangle goes around the axis or an edge crosses it: every
+// angle.
+bool angleRange(const Eigen::Vector3d p[3], double& lo, double& hi) {
+  double ang[3];
+  int m = 0;
+  for (int i = 0; i < 3; ++i) {
+    if (p[i].x() != 0.0 || p[i].y() != 0.0) ang[m++] = Math::atan2d(p[i].y(), p[i].x());
+  }
+  if (m == 0) return false;
+  double run = ang[0], total = 0;
+  lo = hi = run;
+  for (int i = 1; i <= m; ++i) {
+    const double delta = std::remainder(ang[i % m] - ang[i - 1], 360.0);
+    if (std::fabs(delta) >= 180.0 - 1e-9) return false;  // an edge through the axis
+    total += delta;
+    if (i < m) {
+      run += delta;
+      lo = std::min(lo, run), hi = std::max(hi, run);
+    }
+  }
+  return std::fabs(total) < 180.0;  // a loop around the axis sums to +-360
+}
+
+double latitudeOf(const Eigen::Vector3d& p) { return Math::atan2d(p.z(), std::hypot(p.x(), p.y())); }
+
+// Latitude range (degrees) of the central projection of triangle p: vertices plus the interior
+// extremum of each great-circle arc.
+void latitudeRange(const Eigen::Vector3d p[3], double& lo, double& hi) {
+  lo = kInf, hi = -kInf;
+  for (int i = 0; i < 3; ++i) {
+    const Eigen::Vector3d& a = p[i];
+    const Eigen::Vector3d& b = p[(i + 1) % 3];
+    lo = std::min(lo, latitudeOf(a)), hi = std::max(hi, latitudeOf(a));
+    const Eigen::Vector3d n = a.cross(b);
+    if (n.squaredNorm() == 0.0) continue;
+    // The highest point of the great circle with normal n, and the lowest (its opposite).
+    const Eigen::Vector3d top(-n.x() * n.z(), -n.y() * n.z(), n.x() * n.x() + n.y() * n.y());
+    for (const Eigen::Vector3d& q : {top, Eigen::Vector3d(-top)}) {
+      if (a.cross(q).dot(n) > 0.0 && q.cross(b).dot(n) > 0.0) {
+        const double lat = latitudeOf(q);
+        lo = std::min(lo, lat), hi = std::max(hi, lat);
+      }
+    }
+  }
+}
+
+// Geodetic latitude from the latitude chi of the axis-scaled point (x, y, z / (1 - e^2)) and the
+// ratio k of their tangents (see geodeticRange).
+double geodeticFromScaled(double chi, double k) {
+  double s, c;
+  Math::sincosd(chi, s, c);
+  return Math::atan2d(s, k * c);
+}
+
+}  // namespace
+
+template <class M>
+CurvedIndex<M>::CurvedIndex(const Mesh& mesh, const M& mapping, const TerrainOptions& options)
+    : mapping_(mapping) {
+  const std::size_t nv = mesh.vertices.size();
+  if (nv > 0xfffffff0u) throw Error("curved terrain: more than 2^32 vertices");
+  std::vector<Eigen::Vector3d> local(nv);
+  std::vector<double> vertexHeight;  // geodetic only: ellipsoid height of each vertex
+  for (std::size_t i = 0; i < nv; ++i) {
+    // Non-finite vertices (nodata) are allowed while no polygon uses them.
+    local[i] = worldToLocal(mesh.vertices[i]);
+    if (local[i].allFinite()) scale_ = std::max(scale_, local[i].lpNorm<1>());
+  }
+  if constexpr (std::is_same_v<M, GeodeticMapping>) {
+    vertexHeight.resize(nv);
+    for (std::size_t i = 0; i < nv; ++i) {
+      if (local[i].allFinite()) vertexHeight[i] = mapping_.toMapped(mesh.vertices[i]).z();
+    }
+  }
+
+  std::vector<Tri> tris;
+  std::vector<FootBox> boxes;
+  tris.reserve(mesh.polygonCount());
+  boxes.reserve(mesh.polygonCount());
+  const std::size_t np = mesh.polygonCount();
+  for (std::size_t poly = 0; poly < np; ++poly) {
+    const auto corners = mesh.polygon(poly);
+    if (corners.size() < 3) {
+      throw Error("curved terrain: polygon " + std::to_string(poly) + " has " +
+                  std::to_string(corners.size()) + " vertices (needs 3 or more)");
+    }
+    for (std::uint32_t c : corners) {
+      if (c >= nv) {
+        throw Error("curved terrain: polygon " + std::to_string(poly) + " uses vertex " +
+                    std::to_string(c) + " of " + std::to_string(nv));
+      }
+      if (!local[c].allFinite()) {
+        throw Error("curved terrain: polygon " + std::to_string(poly) + " uses vertex " +
+                    std::to_string(c) + ", which is not finite");
+      }
+    }
+    for (std::size_t k = 1; k + 1 < corners.size(); ++k) {
+      const std::uint32_t id[3] = {corners[0], corners[k], corners[k + 1]};
+      const Eigen::Vector3d p[3] = {local[id[0]], local[id[1]], local[id[2]]};
+      const Eigen::Vector3d n = (p[1] - p[0]).cross(p[2] - p[0]);
+      if (n.squaredNorm() == 0.0) {
+        ++stats_.degenerate;
+        continue;
+      }
+      Tri t{};
+      for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) t.p[i][j] = p[i][j];
+        t.n[i] = n[i];
+      }
+      t.na = n.dot(p[0]);
+      t.polygon = static_cast<std::uint32_t>(poly);
+
+      FootBox box;
+      const bool allAngles =
+          !angleRange(p, box.ulo, box.uhi) || box.uhi - box.ulo > 360.0 - 2 * kPadDegrees;
+      if (allAngles) {
+        box.ulo = -180.0, box.uhi = 180.0;
+      } else {
+        box.ulo -= kPadDegrees, box.uhi += kPadDegrees;
+        const double shift = 360.0 * std::floor((box.ulo + 180.0) / 360.0);
+        box.ulo -= shift, box.uhi -= shift;
+      }
+      if constexpr (std::is_same_v<M, SphericalMapping>) {
+        latitudeRange(p, box.vlo, box.vhi);
+      } else if constexpr (std::is_same_v<M, GeodeticMapping>) {
+        // On the scaled points (x, y, z / (1 - e^2)) the geocentric latitude chi of a surface
+        // point is its geodetic latitude phi, and a straight edge stays straight, so the arc
+        // extrema bound chi exactly. Off the surface, tan(chi) = k tan(phi) with
+        // k = 1 + e^2 h / ((1 - e^2)(N + h)), N in [a, a / sqrt(1 - e^2)]; phi is monotone in
+        // chi and in k, so the corners of the chi and k ranges bound it. The triangle's heights
+        // lie between its lowest vertex minus its sag below the ellipsoid (edge^2 / (8 radius of
+        // curvature), doubled) and its highest vertex (height is convex).
+        const double e2 = mapping_.e2(), a = mapping_.a();
+        Eigen::Vector3d q[3];
+        double hlo = kInf, hhi = -kInf, edge2 = 0;
+        for (int i = 0; i < 3; ++i) {
+          q[i] = Eigen::Vector3d(p[i].x(), p[i].y(), p[i].z() / (1.0 - e2));
+          hlo = std::min(hlo, vertexHeight[id[i]]), hhi = std::max(hhi, vertexHeight[id[i]]);
+          edge2 = std::max(edge2, (p[i] - p[(i + 1) % 3]).squaredNorm());
+        }
+        hlo -= edge2 / (4.0 * a * (1.0 - e2)) + 1e-9 * a;
+        hhi += 1e-9 * a;
+        double chiLo, chiHi;
+        latitudeRange(q, chiLo, chiHi);
+        if (hlo <= -0.5 * a) {
+          box.vlo = -90.0, box.vhi = 90.0;  // deep inside the ellipsoid: no useful bound
+        } else {
+          double kmin = kInf, kmax = -kInf;
+          for (double h : {hlo, hhi}) {
+            for (double nn : {a, a / std::sqrt(1.0 - e2)}) {
+              const double k = 1.0 + e2 * h / ((1.0 - e2) * (nn + h));
+              kmin = std::min(kmin, k), kmax = std::max(kmax, k);
+            }
+          }
+          box.vlo = std::min(geodeticFromScaled(chiLo, kmin), geodeticFromScaled(chiLo, kmax));
+          box.vhi = std::max(geodeticFromScaled(chiHi, kmin), geodeticFromScaled(chiHi, kmax));
+        }
+      } else {
+        box.vlo = std::min({p[0].z(), p[1].z(), p[2].z()});
+        box.vhi = std::max({p[0].z(), p[1].z(), p[2].z()});
+      }
+      if constexpr (kAngularV<M>) {
+        // A triangle around the axis may contain a pole, which no vertex or edge reaches.
+        double tp;
+        if (allAngles && hits(t, lineAt(0.0, 90.0), tp)) box.vhi = 90.0;
+        if (allAngles && hits(t, lineAt(0.0, -90.0), tp)) box.vlo = -90.0;
+        box.vlo = std::max(-90.0, box.vlo - kPadDegrees);
+        box.vhi = std::min(90.0, box.vhi + kPadDegrees);
+      } else {
+        const double pad = 1e-12 * (std::fabs(box.vlo) + std::fabs(box.vhi) + scale_);
+        box.vlo -= pad, box.vhi += pad;
+      }
+      // Rounded outward to float for the record's quick reject.
+      t.ulo = std::nextafter(static_cast<float>(box.ulo), -INFINITY);
+      t.uhi = std::nextafter(static_cast<float>(box.uhi), INFINITY);
+      t.vlo = std::nextafter(static_cast<float>(box.vlo), -INFINITY);
+      t.vhi = std::nextafter(static_cast<float>(box.vhi), INFINITY);
+      tris.push_back(t);
+      boxes.push_back(box);
+    }
+  }
+  if (tris.size() >= Quadtree::kInner) throw Error("curved terrain: too many triangles");
+  const auto count = static_cast<std::uint32_t>(tris.size());
+
+  // The tree's domain: all longitudes; the latitudes, or the axial range of the triangles.
+  Box2 root{-180.0, -90.0, 180.0, 90.0};
+  if constexpr (!kAngularV<M>) {
+    root.vlo = kInf, root.vhi = -kInf;
+    for (const FootBox& b : boxes) root.vlo = std::min(root.vlo, b.vlo), root.vhi = std::max(root.vhi, b.vhi);
+  }
+
+  // Morton order of the box centres, so the triangles of one leaf sit together in memory.
+  std::vector<std::uint64_t> key(count);
+  for (std::uint32_t i = 0; i < count; ++i) {
+    const double cu = std::remainder(0.5 * (boxes[i].ulo + boxes[i].uhi), 360.0);
+    const double cv = 0.5 * (boxes[i].vlo + boxes[i].vhi);
+    const auto qu = static_cast<std::uint64_t>(std::clamp((cu + 180.0) / 360.0, 0.0, 1.0) * 65535.0);
+    const double fv = root.vhi > root.vlo ? (cv - root.vlo) / (root.vhi - root.vlo) : 0.0;
+    const auto qv = static_cast<std::uint64_t>(std::clamp(fv, 0.0, 1.0) * 65535.0);
+    std::uint64_t k = 0;
+    for (int bit = 0; bit < 16; ++bit) {
+      k |= ((qu >> bit) & 1u) << (2 * bit) | ((qv >> bit) & 1u) << (2 * bit + 1);
+    }
+    key[i] = k << 32 | i;
+  }
+  std::sort(key.begin(), key.end());
+  tris_.resize(count);
+  std::vector<FootBox> sorted(count);
+  for (std::uint32_t i = 0; i < count; ++i) {
+    const auto src = static_cast<std::uint32_t>(key[i]);
+    tris_[i] = tris[src];
+    sorted[i] = boxes[src];
+  }
+  std::vector<Tri>().swap(tris);
+  boxes.swap(sorted);
+
+  // Polar lists: the triangles the exact test finds on the line of each pole.
+  if constexpr (kAngularV<M>) {
+    const Line north = lineAt(0.0, 90.0), south = lineAt(0.0, -90.0);
+    for (std::uint32_t i = 0; i < count; ++i) {
+      double t;
+      if (boxes[i].vhi >= 90.0 && hits(tris_[i], north, t)) polarNorth_.push_back(i);
+      if (boxes[i].vlo <= -90.0 && hits(tris_[i], south, t)) polarSouth_.push_back(i);
+    }
+  }
+
+  // Size floor: half the median footprint extent (see Quadtree).
+  double minU = 0, minV = 0;
+  if (count > 0) {
+    std::vector<double> su(count), sv(count);
+    for (std::uint32_t i = 0; i < count; ++i) {
+      su[i] = boxes[i].uhi - boxes[i].ulo;
+      sv[i] = boxes[i].vhi - boxes[i].vlo;
+    }
+    std::nth_element(su.begin(), su.begin() + count / 2, su.end());
+    std::nth_element(sv.begin(), sv.begin() + count / 2, sv.end());
+    minU = 0.5 * su[count / 2], minV = 0.5 * sv[count / 2];
+  }
+  const auto overlaps = [&boxes](std::uint32_t i, const Box2& b) {
+    const FootBox& f = boxes[i];
+    if (f.vlo > b.vhi || f.vhi < b.vlo) return false;
+    return (f.ulo <= b.uhi && f.uhi >= b.ulo) || (f.ulo - 360.0 <= b.uhi && f.uhi - 360.0 >= b.ulo);
+  };
+  tree_.build(count, root, options.tree, overlaps, minU, minV);
+
+  stats_.polygons = np;
+  stats_.triangles = count;
+  stats_.vertices = nv;
+  stats_.polarNorth = polarNorth_.size();
+  stats_.polarSouth = polarSouth_.size();
+  stats_.domain = root;
+  stats_.tree = tree_.stats();
+  stats_.memoryBytes = stats_.tree.memoryBytes + tris_.size() * sizeof(Tri) +
+                       (polarNorth_.size() + polarSouth_.size()) * sizeof(std::uint32_t);
+}
+
+template <class M>
+Eigen::Vector3d CurvedIndex<M>::worldToLocal(const Eigen::Vector3d& world) const {
+  if constexpr (std::is_same_v<M, SphericalMapping>) return world - mapping_.centre();
+  else if constexpr (std::is_same_v<M, CylindricalMapping>) return mapping_.toLocal(world);
+  else return world;
+}
+
+template <class M>
+Eigen::Vector3d CurvedIndex<M>::localToWorld(const Eigen::Vector3d& local) const {
+  if constexpr (std::is_same_v<M, SphericalMapping>) return local + mapping_.centre();
+  else if constexpr (std::is_same_v<M, CylindricalMapping>) return mapping_.fromLocal(local);
+  else return local;
+}
+
+template <class M>
+Eigen::Vector3d CurvedIndex<M>::localDirToWorld(const Eigen::Vector3d& local) const {
+  if constexpr (std::is_same_v<M, CylindricalMapping>) return mapping_.rotation().transpose() * local;
+  else return local;
+}
+
+template <class M>
+typename CurvedIndex<M>::Line CurvedIndex<M>::lineAt(double u, double v) const {
+  Line line{};
+  double su, cu;
+  Math::sincosd(u, su, cu);
+  if constexpr (std::is_same_v<M, CylindricalMapping>) {
+    line.s = v;
+    line.d[0] = cu, line.d[1] = su, line.d[2] = 0.0;
+  } else {
+    double sv, cv;
+    Math::sincosd(v, sv, cv);
+    line.d[0] = cv * cu, line.d[1] = cv * su, line.d[2] = sv;
+    if constexpr (std::is_same_v<M, GeodeticMapping>) {
+      line.nprime = mapping_.a() / std::sqrt(1.0 - mapping_.e2() * sv * sv);
+      line.s = -line.nprime * mapping_.e2() * sv;
+    }
+  }
+  return line;
+}
+
+template <class M>
+int CurvedIndex<M>::edgeSign(const double* a, const double* b, const Line& line,
+                             double bound) const {
+  // d . (a x b) - s (d_x (a_y - b_y) - d_y (a_x - b_x)) = det[a - O; b - O; d]. Swapping a and b
+  // negates every rounded term exactly, so neighbours sharing the edge see opposite signs.
+  const double* d = line.d;
+  double val = d[0] * (a[1] * b[2] - a[2] * b[1]) + d[1] * (a[2] * b[0] - a[0] * b[2]) +
+               d[2] * (a[0] * b[1] - a[1] * b[0]);
+  if constexpr (!std::is_same_v<M, SphericalMapping>) {
+    val -= line.s * (d[0] * (a[1] - b[1]) - d[1] * (a[0] - b[0]));
+  }
+  if (val > bound) return 1;
+  if (val < -bound) return -1;
+  // The bound covers the rounding of the shifted corners below, so both paths give the sign of
+  // one geometry: the corners moved to their rounded offsets from O.
+  const double as[3] = {a[0], a[1], a[2] - line.s};
+  const double bs[3] = {b[0], b[1], b[2] - line.s};
+  return orient3dSign(as, bs, d);
+}
+
+template <class M>
+bool CurvedIndex<M>::hits(const Tri& t, const Line& line, double& tOut) const {
+  const double r = scale_ + std::fabs(line.s);
+  const double bound = 64.0 * kEps * r * r;
+  const int s0 = edgeSign(t.p[0], t.p[1], line, bound);
+  const int s1 = edgeSign(t.p[1], t.p[2], line, bound);
+  if (s0 * s1 < 0) return false;
+  const int s2 = edgeSign(t.p[2], t.p[0], line, bound);
+  if (s0 * s2 < 0 || s1 * s2 < 0) return false;
+  if (s0 == 0 && s1 == 0 && s2 == 0) return false;  // the line lies in the triangle's plane
+  const double nd = t.n[0] * line.d[0] + t.n[1] * line.d[1] + t.n[2] * line.d[2];
+  if (nd == 0.0) return false;
+  tOut = (t.na - line.s * t.n[2]) / nd;
+  return tOut > 0.0;
+}
+
+template <class M>
+bool CurvedIndex<M>::polar(double v) const {
+  if constexpr (kAngularV<M>) return v == 90.0 || v == -90.0;
+  else return false;
+}
+
+template <class M>
+double CurvedIndex<M>::normalizeU(double u) const {
+  if (u >= -180.0 && u < 180.0) return u;
+  double w = std::remainder(u, 360.0);  // [-180, 180]
+  return w >= 180.0 ? w - 360.0 : w;
+}
+
+template <class M>
+template <class Visit>
+void CurvedIndex<M>::forCandidates(double u, double v, Visit&& visit) const {
+  if (polar(v)) {
+    for (std::uint32_t i : v > 0 ? polarNorth_ : polarSouth_) visit(i);
+    return;
+  }
+  if (!tree_.contains(u, v)) return;
+  for (std::uint32_t i : tree_.leafItems(u, v)) {
+    const Tri& t = tris_[i];
+    if (v < t.vlo || v > t.vhi) continue;
+    if (!((u >= t.ulo && u <= t.uhi) || u + 360.0 <= t.uhi)) continue;
+    visit(i);
+  }
+}
+
+template <class M>
+template <bool Below>
+std::uint32_t CurvedIndex<M>::nearest(double u, double v, double h, double& hOut, Line& line,
+                                      double& tOut) const {
+  if constexpr (kAngularV<M>) {
+    if (!(v >= -90.0 && v <= 90.0)) {
+      throw Error(std::string(M::name()) + " query: latitude " + std::to_string(v) +
+                  " is outside [-90, 90]");
+    }
+  }
+  if (!std::isfinite(u) || !std::isfinite(v)) {
+    throw Error(std::string(M::name()) + " query: (u, v) is not finite");
+  }
+  u = normalizeU(u);
+  line = lineAt(u, v);
+  const double ez = elevation(h);
+  std::uint32_t best = kNone;
+  double bestE = 0;
+  forCandidates(u, v, [&](std::uint32_t i) {
+    double t;
+    if (!hits(tris_[i], line, t)) return;
+    const double hh = heightOf(line, t);
+    const double e = elevation(hh);
+    if (Below ? !(e <= ez) : !(e >= ez)) return;
+    if (best == kNone || (Below ? e > bestE : e < bestE) ||
+        (e == bestE && tris_[i].polygon < tris_[best].polygon)) {
+      best = i, bestE = e, hOut = hh, tOut = t;
+    }
+  });
+  return best;
+}
+
+template <class M>
+Hit CurvedIndex<M>::makeHit(std::uint32_t i, const Line& line, double tHit) const {
+  const Tri& t = tris_[i];
+  const Eigen::Vector3d d(line.d[0], line.d[1], line.d[2]);
+  Eigen::Vector3d n = Eigen::Vector3d(t.n[0], t.n[1], t.n[2]).normalized();
+  const Eigen::Vector3d up = M::kHeightUp ? d : Eigen::Vector3d(-d);
+  if (n.dot(up) < 0) n = -n;
+  Hit hit;
+  hit.height = heightOf(line, tHit);
+  hit.world = localToWorld(Eigen::Vector3d(0, 0, line.s) + tHit * d);
+  hit.normal = localDirToWorld(n);
+  hit.polygon = t.polygon;
+  return hit;
+}
+
+template <class M>
+std::optional<Hit> CurvedIndex<M>::below(double u, double v, double h) const {
+  double hh, t;
+  Line line;
+  const std::uint32_t i = nearest<true>(u, v, h, hh, line, t);
+  if (i == kNone) return std::nullopt;
+  return makeHit(i, line, t);
+}
+
+template <class M>
+std::optional<Hit> CurvedIndex<M>::above(double u, double v, double h) const {
+  double hh, t;
+  Line line;
+  const std::uint32_t i = nearest<false>(u, v, h, hh, line, t);
+  if (i == kNone) return std::nullopt;
+  return makeHit(i, line, t);
+}
+
+template <class M>
+Bracket CurvedIndex<M>::bracket(double u, double v, double h) const {
+  return {below(u, v, h), above(u, v, h)};
+}
+
+template <class M>
+std::optional<Hit> CurvedIndex<M>::top(double u, double v) const {
+  return below(u, v, M::kHeightUp ? kInf : -kInf);
+}
+
+template <class M>
+std::optional<double> CurvedIndex<M>::height(double u, double v) const {
+  double hh, t;
+  Line line;
+  if (nearest<true>(u, v, M::kHeightUp ? kInf : -kInf, hh, line, t) == kNone) return std::nullopt;
+  return hh;
+}
+
+template <class M>
+std::vector<Hit> CurvedIndex<M>::all(double u, double v) const {
+  if constexpr (kAngularV<M>) {
+    if (!(v >= -90.0 && v <= 90.0)) {
+      throw Error(std::string(M::name()) + " query: latitude " + std::to_string(v) +
+                  " is outside [-90, 90]");
+    }
+  }
+  u = normalizeU(u);
+  const Line line = lineAt(u, v);
+  std::vector<Hit> hits_;
+  forCandidates(u, v, [&](std::uint32_t i) {
+    double t;
+    if (hits(tris_[i], line, t)) hits_.push_back(makeHit(i, line, t));
+  });
+  std::sort(hits_.begin(), hits_.end(), [this](const Hit& a, const Hit& b) {
+    const double ea = elevation(a.height), eb = elevation(b.height);
+    return ea != eb ? ea > eb : a.polygon < b.polygon;
+  });
+  return hits_;
+}
+
+template <class M>
+std::optional<Hit> CurvedIndex<M>::belowWorld(const Eigen::Vector3d& p) const {
+  const Eigen::Vector3d m = mapping_.toMapped(p);
+  return below(m.x(), m.y(), m.z());
+}
+
+template <class M>
+std::optional<Hit> CurvedIndex<M>::aboveWorld(const Eigen::Vector3d& p) const {
+  const Eigen::Vector3d m = mapping_.toMapped(p);
+  return above(m.x(), m.y(), m.z());
+}
+
+template <class M>
+Bracket CurvedIndex<M>::bracketWorld(const Eigen::Vector3d& p) const {
+  const Eigen::Vector3d m = mapping_.toMapped(p);
+  return bracket(m.x(), m.y(), m.z());
+}
+
+template <class M>
+std::uint32_t CurvedIndex<M>::testsAt(double u, double v) const {
+  std::uint32_t n = 0;
+  u = normalizeU(u);
+  if (polar(v)) return static_cast<std::uint32_t>((v > 0 ? polarNorth_ : polarSouth_).size());
+  if (!tree_.contains(u, v)) return 0;
+  (void)u;
+  n = static_cast<std::uint32_t>(tree_.leafItems(u, v).size());
+  return n;
+}
+
+template class CurvedIndex<SphericalMapping>;
+template class CurvedIndex<CylindricalMapping>;
+template class CurvedIndex<GeodeticMapping>;
+
+}  // namespace qota

@@ -1,0 +1,176 @@
+#include "qota/globe.hpp"
+
+#include <GeographicLib/Constants.hpp>
+#include <GeographicLib/Math.hpp>
+#include <cmath>
+#include <gdal_priv.h>
+#include <ogr_spatialref.h>
+
+#include "qota/error.hpp"
+
+namespace qota {
+namespace {
+
+bool readCrs(const DemTerrain& dem, OGRSpatialReference& srs) {
+  if (dem.crsWkt.empty() || srs.importFromWkt(dem.crsWkt.c_str()) != OGRERR_NONE) return false;
+  srs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  return true;
+}
+
+// Checks that the raster is a north-up lon/lat grid (the only layout a globe is built from).
+void requireLonLatGrid(const DemTerrain& dem, const char* what) {
+  const auto& gt = dem.geotransform;
+  if (!demIsLonLat(dem)) {
+    throw Error(dem.path + ": " + what + " needs a raster in longitude/latitude degrees (a "
+                "geographic CRS); reproject it with gdalwarp -t_srs EPSG:4326");
+  }
+  if (gt[2] != 0.0 || gt[4] != 0.0 || !(gt[1] > 0.0) || !(gt[5] < 0.0)) {
+    throw Error(dem.path + ": " + what + " needs a north-up raster without rotation "
+                "(geotransform with positive pixel width and negative pixel height)");
+  }
+}
+
+}  // namespace
+
+void demEllipsoid(const DemTerrain& dem, double& a, double& f) {
+  a = GeographicLib::Constants::WGS84_a();
+  f = GeographicLib::Constants::WGS84_f();
+  OGRSpatialReference srs;
+  if (!readCrs(dem, srs)) return;
+  OGRErr e1 = OGRERR_NONE, e2 = OGRERR_NONE;
+  const double sa = srs.GetSemiMajor(&e1);
+  const double invf = srs.GetInvFlattening(&e2);
+  if (e1 == OGRERR_NONE && e2 == OGRERR_NONE && sa > 0) {
+    a = sa;
+    f = invf > 0 ? 1.0 / invf : 0.0;
+  }
+}
+
+bool demIsLonLat(const DemTerrain& dem) {
+  OGRSpatialReference srs;
+  if (readCrs(dem, srs)) return srs.IsGeographic();
+  // No CRS: accept a grid that lies within the lon/lat ranges.
+  const auto lo = dem.pixelCentre(0, 0);
+  const auto hi = dem.pixelCentre(dem.width - 1, dem.height - 1);
+  for (const auto& p : {lo, hi}) {
+    if (!(p[0] >= -360.0 && p[0] <= 360.0 && p[1] >= -90.0 && p[1] <= 90.0)) return false;
+  }
+  return true;
+}
+
+PlanetTerrain loadPlanet(const std::string& path, const PlanetOptions& options) {
+  PlanetTerrain planet;
+  planet.dem = loadDem(path, options.dem);
+  DemTerrain& dem = planet.dem;
+  requireLonLatGrid(dem, "a planet");
+  double radius = options.radius;
+  if (radius == 0) {
+    double a, f;
+    demEllipsoid(dem, a, f);
+    radius = f == 0 ? a : (2.0 * a + a * (1.0 - f)) / 3.0;  // IUGG mean radius R1
+  }
+  if (!(radius > 0) || !std::isfinite(radius)) {
+    throw Error(path + ": planet radius must be positive, got " + std::to_string(radius));
+  }
+  planet.radius = radius;
+
+  const auto& gt = dem.geotransform;
+  const int w = dem.width, h = dem.height;
+  Mesh& mesh = dem.mesh;
+  auto valid = [&](std::uint32_t i) { return std::isfinite(mesh.vertices[i].z()); };
+  // The antimeridian: cells between the last column and the first.
+  planet.wrapsLongitude = std::fabs(w * gt[1] - 360.0) < 0.5 * gt[1];
+  if (planet.wrapsLongitude && w > 1) {
+    for (int r = 0; r + 1 < h; ++r) {
+      const auto tl = static_cast<std::uint32_t>(r * w + w - 1), tr = static_cast<std::uint32_t>(r * w);
+      const auto bl = tl + w, br = tr + w;
+      if (valid(tl) && valid(bl) && valid(br)) mesh.addTriangle(tl, bl, br);
+      if (valid(tl) && valid(br) && valid(tr)) mesh.addTriangle(tl, br, tr);
+    }
+  }
+  // The polar caps: a vertex at the pole fanned to the first (last) row.
+  const double pixel = -gt[5];
+  auto cap = [&](int row, double poleLat) {
+    double sum = 0;
+    int n = 0;
+    for (int c = 0; c < w; ++c) {
+      const double z = mesh.vertices[static_cast<std::size_t>(row) * w + c].z();
+      if (std::isfinite(z)) sum += z, ++n;
+    }
+    if (n == 0) return false;
+    const std::uint32_t pole = mesh.addVertex({0.0, poleLat, sum / n});
+    for (int c = 0; c < w; ++c) {
+      const auto a = static_cast<std::uint32_t>(row * w + c);
+      const auto b = static_cast<std::uint32_t>(row * w + (c + 1) % w);
+      if (valid(a) && valid(b)) mesh.addTriangle(a, b, pole);
+    }
+    return true;
+  };
+  if (planet.wrapsLongitude) {
+    const double top = dem.pixelCentre(0, 0)[1], bottom = dem.pixelCentre(0, h - 1)[1];
+    if (90.0 - top <= pixel && top < 90.0) planet.northCap = cap(0, 90.0);
+    if (bottom + 90.0 <= pixel && bottom > -90.0) planet.southCap = cap(h - 1, -90.0);
+  }
+  // Lon/lat/height to the sphere.
+  for (Eigen::Vector3d& p : mesh.vertices) {
+    if (!std::isfinite(p.z())) continue;
+    p = (radius + p.z()) * SphericalMapping::up(p.x(), p.y());
+  }
+  return planet;
+}
+
+EllipsoidTerrain loadOnEllipsoid(const std::string& path, const DemOptions& options) {
+  DemTerrain dem = loadDem(path, options);
+  if (!demIsLonLat(dem)) {
+    throw Error(dem.path + ": the geodetic mapping needs a raster in longitude/latitude degrees "
+                "(a geographic CRS); reproject it with gdalwarp -t_srs EPSG:4326");
+  }
+  double a, f;
+  demEllipsoid(dem, a, f);
+  EllipsoidTerrain terrain{std::move(dem), GeodeticMapping(a, f)};
+  for (Eigen::Vector3d& p : terrain.dem.mesh.vertices) {
+    if (!std::isfinite(p.z())) continue;
+    p = terrain.mapping.toWorld(p);  // (lon, lat, h) is the mapped point
+  }
+  return terrain;
+}
+
+Mesh stationMesh(const Heightfield& relief, const StationOptions& options) {
+  const int nx = relief.nx, ny = relief.ny;
+  if (nx < 3 || ny < 2 || relief.z.size() != static_cast<std::size_t>(nx) * ny) {
+    throw Error("station: the relief grid must be at least 3 x 2, got " + std::to_string(nx) +
+                " x " + std::to_string(ny));
+  }
+  if (!(options.radius > 0) || !(options.length > 0)) {
+    throw Error("station: radius and length must be positive");
+  }
+  Mesh mesh;
+  mesh.vertices.reserve(static_cast<std::size_t>(nx) * ny);
+  for (int j = 0; j < ny; ++j) {
+    const double axial = -0.5 * options.length + options.length * j / (ny - 1);
+    for (int i = 0; i < nx; ++i) {
+      const double r = options.radius - relief.at(i, j);
+      if (!(r > 0) || !std::isfinite(r)) {
+        throw Error("station: relief height " + std::to_string(relief.at(i, j)) + " at (" +
+                    std::to_string(i) + ", " + std::to_string(j) + ") reaches the axis (radius " +
+                    std::to_string(options.radius) + ")");
+      }
+      double s, c;
+      GeographicLib::Math::sincosd(-180.0 + 360.0 * i / nx, s, c);
+      mesh.addVertex({r * c, r * s, axial});
+    }
+  }
+  mesh.indices.reserve(static_cast<std::size_t>(nx) * (ny - 1) * 6);
+  for (int j = 0; j + 1 < ny; ++j) {
+    for (int i = 0; i < nx; ++i) {
+      const auto a = static_cast<std::uint32_t>(j * nx + i);
+      const auto b = static_cast<std::uint32_t>(j * nx + (i + 1) % nx);
+      const std::uint32_t c = a + nx, d = b + nx;
+      mesh.addTriangle(a, c, d);
+      mesh.addTriangle(a, d, b);
+    }
+  }
+  return mesh;
+}
+
+}  // namespace qota

@@ -1,0 +1,149 @@
+// CurvedIndex: the QOTA query structure for the curved mappings (spherical, cylindrical,
+// geodetic), on the same quadtree core as the Cartesian TerrainIndex.
+//
+// In a curved mapping the line of (u, v) is not vertical, and a 3D triangle's projection into
+// (u, v) has curved edges. So the quadtree is used only to find candidates: each triangle is
+// referenced from every leaf its footprint box meets, where the footprint box is a conservative
+// (u, v) box of every line that can meet the triangle. The hit itself is exact for the 3D
+// triangle: the mapping's line meets it when the line lies on the inner side of the three planes
+// through the line's origin and each edge.
+//
+// Local frame: every mapping here has a symmetry axis. Vertices are stored in a local frame with
+// that axis as +z and the centre (or axis point) at 0: the world itself for the geodetic mapping,
+// world - centre for the sphere, the cylinder's rotation for the cylinder. The line of (u, v) is
+// then O + t d with O = (0, 0, s) on the axis: s = 0 for the sphere (the centre), s = v for the
+// cylinder (d is horizontal), s = -N e^2 sin(phi) for the ellipsoid normal.
+//
+// Edge test (watertight): for edge (a, b) the sign of det[a - O; b - O; d]. It is evaluated in
+// floating point as d . (a x b) - s (d_x (a_y - b_y) - d_y (a_x - b_x)), whose value for the edge
+// (b, a) of a neighbouring triangle is the exact negation, bit for bit; when it is within its
+// error bound of zero, the exact predicate (orient3dSign) decides. So adjacent triangles always
+// agree on which side of their shared edge a line passes, and a line exactly through a shared
+// vertex or edge meets at least one of them: a closed surface has no cracks. A triangle is hit
+// when its three signs agree (zeros allowed, winding ignored) and the hit is on the line's
+// positive side (t > 0: not behind the centre or the axis).
+//
+// Footprint boxes: u ranges come from the vertex angles around the axis (each edge covers the
+// shorter arc; a triangle around the axis covers all of u), v ranges from the vertices plus each
+// edge's interior extremum (great-circle arcs for the sphere; for the ellipsoid the same on the
+// axis-scaled vertices, widened by the triangle's height range, see curved.cpp). Boxes are
+// padded for the rounding of a query's direction. Polar caps: near a pole (|v| > 90 - 1e-6
+// degrees) longitude is ill-conditioned, so queries there test the short list of triangles that
+// reach that close to the pole instead of the tree.
+//
+// Polygons of more than 3 vertices are fanned from their first vertex. Degenerate triangles
+// (zero area) are left out and counted. Ties between equally near hits go to the smallest polygon
+// id, as in TerrainIndex.
+//
+// Thread safety: a built index is immutable; any number of threads may query it at once.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include "qota/cylindrical.hpp"
+#include "qota/geodetic.hpp"
+#include "qota/memory.hpp"
+#include "qota/mesh.hpp"
+#include "qota/quadtree.hpp"
+#include "qota/spherical.hpp"
+#include "qota/terrain.hpp"
+
+namespace qota {
+
+struct CurvedStats {
+  std::uint64_t polygons = 0;
+  std::uint64_t triangles = 0;   // in the query structure
+  std::uint64_t degenerate = 0;  // zero-area triangles left out
+  std::uint64_t vertices = 0;
+  std::uint64_t polarNorth = 0, polarSouth = 0;  // triangles in the polar lists
+  Box2 domain;                   // the tree's (u, v) box
+  QuadtreeStats tree;
+  std::uint64_t memoryBytes = 0;
+};
+
+// M is SphericalMapping, CylindricalMapping or GeodeticMapping (explicitly instantiated in
+// curved.cpp). Hits carry heights in the mapping's h, world points and world normals (pointing
+// up, against down).
+template <class M>
+class CurvedIndex {
+ public:
+  // Throws qota::Error for polygons with fewer than 3 vertices, out-of-range indices or
+  // non-finite vertices, naming the polygon.
+  CurvedIndex(const Mesh& mesh, const M& mapping, const TerrainOptions& options = {});
+
+  // Queries at (u, v) in degrees (u any value, wrapped; v in [-90, 90] for the sphere and the
+  // ellipsoid, else qota::Error), "below" meaning further along down: a smaller radius or
+  // ellipsoid height, a larger distance from a cylinder's axis.
+  std::optional<Hit> below(double u, double v, double h) const;
+  std::optional<Hit> above(double u, double v, double h) const;
+  Bracket bracket(double u, double v, double h) const;
+  std::optional<Hit> top(double u, double v) const;  // the highest hit (up = against down)
+  std::vector<Hit> all(double u, double v) const;    // every hit, top to bottom
+  // Height-only: the h of top(u, v), or nullopt.
+  std::optional<double> height(double u, double v) const;
+
+  // The same at a world point (mapped with the mapping first).
+  std::optional<Hit> belowWorld(const Eigen::Vector3d& p) const;
+  std::optional<Hit> aboveWorld(const Eigen::Vector3d& p) const;
+  Bracket bracketWorld(const Eigen::Vector3d& p) const;
+
+  const M& mapping() const { return mapping_; }
+  const CurvedStats& stats() const { return stats_; }
+  const Quadtree& tree() const { return tree_; }
+  // Candidate triangles a query at (u, v) looks at.
+  std::uint32_t testsAt(double u, double v) const;
+
+  // The query line in the local frame, exposed for tests: O = (0, 0, s), direction d (unit,
+  // pointing to increasing t), and the height of the point O + t d is heightAt(t).
+  struct Line {
+    double s;
+    double d[3];
+    double nprime;  // geodetic: N at the latitude (h = t - N); else 0
+  };
+  Line lineAt(double u, double v) const;
+
+ private:
+  // One triangle, 128 bytes: its local vertices (for the edge tests and the exact fallback), the
+  // plane n . x = na, the footprint box (float, rounded outward) and the source polygon.
+  struct alignas(64) Tri {
+    double p[3][3];
+    double n[3];
+    double na;
+    float ulo, uhi, vlo, vhi;  // uhi may exceed 180 (a box across the seam)
+    std::uint32_t polygon;
+  };
+  static_assert(sizeof(Tri) == 128);
+  static constexpr std::uint32_t kNone = 0xffffffffu;
+
+  double normalizeU(double u) const;
+  bool polar(double v) const;
+  // Whether the line meets triangle t; t_out is the line parameter of the hit.
+  bool hits(const Tri& t, const Line& line, double& tOut) const;
+  int edgeSign(const double* a, const double* b, const Line& line, double bound) const;
+  double heightOf(const Line& line, double t) const { return t - line.nprime; }
+  double elevation(double h) const { return M::kHeightUp ? h : -h; }
+  template <class Visit>
+  void forCandidates(double u, double v, Visit&& visit) const;
+  template <bool Below>
+  std::uint32_t nearest(double u, double v, double h, double& hOut, Line& line, double& tOut) const;
+  Hit makeHit(std::uint32_t t, const Line& line, double tHit) const;
+  Eigen::Vector3d localToWorld(const Eigen::Vector3d& local) const;
+  Eigen::Vector3d localDirToWorld(const Eigen::Vector3d& local) const;
+  Eigen::Vector3d worldToLocal(const Eigen::Vector3d& world) const;
+
+  M mapping_;
+  BigVector<Tri> tris_;
+  std::vector<std::uint32_t> polarNorth_, polarSouth_;
+  Quadtree tree_;
+  double scale_ = 0;  // max L1 norm of a local vertex: sets the edge tests' error bound
+  CurvedStats stats_;
+};
+
+using SphericalIndex = CurvedIndex<SphericalMapping>;
+using CylindricalIndex = CurvedIndex<CylindricalMapping>;
+using GeodeticIndex = CurvedIndex<GeodeticMapping>;
+
+}  // namespace qota
