@@ -218,12 +218,15 @@ CurvedIndex<M>::CurvedIndex(const Mesh& mesh, const M& mapping, const TerrainOpt
   if (tris.size() >= Quadtree::kInner) throw Error("curved terrain: too many triangles");
   const auto count = static_cast<std::uint32_t>(tris.size());
 
-  // The tree's domain: all longitudes; the latitudes, or the axial range of the triangles.
-  Box2 root{-180.0, -90.0, 180.0, 90.0};
-  if constexpr (!kAngularV<M>) {
-    root.vlo = kInf, root.vhi = -kInf;
-    for (const FootBox& b : boxes) root.vlo = std::min(root.vlo, b.vlo), root.vhi = std::max(root.vhi, b.vhi);
+  // The tree's domain: the union of the footprint boxes, so that a regional terrain (a DEM tile)
+  // gets a tree over its own area, not over the whole globe; all of u when a box crosses the
+  // seam.
+  Box2 root{kInf, kInf, -kInf, -kInf};
+  for (const FootBox& b : boxes) {
+    root.ulo = std::min(root.ulo, b.ulo), root.uhi = std::max(root.uhi, b.uhi);
+    root.vlo = std::min(root.vlo, b.vlo), root.vhi = std::max(root.vhi, b.vhi);
   }
+  if (root.uhi > 180.0) root.ulo = -180.0, root.uhi = 180.0;
 
   // Morton order of the box centres, so the triangles of one leaf sit together in memory.
   std::vector<std::uint64_t> key(count);
@@ -310,23 +313,49 @@ Eigen::Vector3d CurvedIndex<M>::localDirToWorld(const Eigen::Vector3d& local) co
   else return local;
 }
 
+// sin and cos of an angle in degrees for the query line, inline: reduced exactly to the nearest
+// multiple of 90 degrees (so the axes and the poles come out exact, as with GeographicLib's
+// sincosd), then Taylor series on |r| <= pi/4, whose truncation error is below 2e-17. About five
+// times faster than two libm calls, which matters at a hundred nanoseconds a query.
+inline void sinCosDegrees(double x, double& s, double& c) {
+  const double q = std::nearbyint(x * (1.0 / 90.0));
+  const double r = (x - 90.0 * q) * (M_PI / 180.0);  // x - 90 q is exact for |x| < 2^44
+  const double r2 = r * r;
+  const double sr =
+      r * (1 + r2 * (-1.0 / 6 + r2 * (1.0 / 120 + r2 * (-1.0 / 5040 + r2 * (1.0 / 362880 +
+      r2 * (-1.0 / 39916800 + r2 * (1.0 / 6227020800 + r2 * (-1.0 / 1307674368000))))))));
+  const double cr =
+      1 + r2 * (-0.5 + r2 * (1.0 / 24 + r2 * (-1.0 / 720 + r2 * (1.0 / 40320 + r2 * (-1.0 / 3628800 +
+      r2 * (1.0 / 479001600 + r2 * (-1.0 / 87178291200 + r2 * (1.0 / 20922789888000))))))));
+  switch (static_cast<long long>(q) & 3) {
+    case 0: s = sr, c = cr; break;
+    case 1: s = cr, c = -sr; break;
+    case 2: s = -sr, c = -cr; break;
+    default: s = -cr, c = sr; break;
+  }
+  if (s == 0.0) s = 0.0;  // no negative zeros
+  if (c == 0.0) c = 0.0;
+}
+
 template <class M>
 typename CurvedIndex<M>::Line CurvedIndex<M>::lineAt(double u, double v) const {
   Line line{};
   double su, cu;
-  Math::sincosd(u, su, cu);
+  sinCosDegrees(u, su, cu);
   if constexpr (std::is_same_v<M, CylindricalMapping>) {
     line.s = v;
     line.d[0] = cu, line.d[1] = su, line.d[2] = 0.0;
   } else {
     double sv, cv;
-    Math::sincosd(v, sv, cv);
+    sinCosDegrees(v, sv, cv);
     line.d[0] = cv * cu, line.d[1] = cv * su, line.d[2] = sv;
     if constexpr (std::is_same_v<M, GeodeticMapping>) {
       line.nprime = mapping_.a() / std::sqrt(1.0 - mapping_.e2() * sv * sv);
       line.s = -line.nprime * mapping_.e2() * sv;
     }
   }
+  const double r = scale_ + std::fabs(line.s);
+  line.bound = 64.0 * kEps * r * r;
   return line;
 }
 
@@ -352,12 +381,10 @@ int CurvedIndex<M>::edgeSign(const double* a, const double* b, const Line& line,
 
 template <class M>
 bool CurvedIndex<M>::hits(const Tri& t, const Line& line, double& tOut) const {
-  const double r = scale_ + std::fabs(line.s);
-  const double bound = 64.0 * kEps * r * r;
-  const int s0 = edgeSign(t.p[0], t.p[1], line, bound);
-  const int s1 = edgeSign(t.p[1], t.p[2], line, bound);
+  const int s0 = edgeSign(t.p[0], t.p[1], line, line.bound);
+  const int s1 = edgeSign(t.p[1], t.p[2], line, line.bound);
   if (s0 * s1 < 0) return false;
-  const int s2 = edgeSign(t.p[2], t.p[0], line, bound);
+  const int s2 = edgeSign(t.p[2], t.p[0], line, line.bound);
   if (s0 * s2 < 0 || s1 * s2 < 0) return false;
   if (s0 == 0 && s1 == 0 && s2 == 0) return false;  // the line lies in the triangle's plane
   const double nd = t.n[0] * line.d[0] + t.n[1] * line.d[1] + t.n[2] * line.d[2];
@@ -381,17 +408,90 @@ double CurvedIndex<M>::normalizeU(double u) const {
 
 template <class M>
 template <class Visit>
-void CurvedIndex<M>::forCandidates(double u, double v, Visit&& visit) const {
+void CurvedIndex<M>::forCandidates(double u, double v, const Line*& line, Line& storage,
+                                   Visit&& visit) const {
   if (polar(v)) {
+    storage = lineAt(u, v), line = &storage;
     for (std::uint32_t i : v > 0 ? polarNorth_ : polarSouth_) visit(i);
     return;
   }
   if (!tree_.contains(u, v)) return;
-  for (std::uint32_t i : tree_.leafItems(u, v)) {
-    const Tri& t = tris_[i];
-    if (v < t.vlo || v > t.vhi) continue;
-    if (!((u >= t.ulo && u <= t.uhi) || u + 360.0 <= t.uhi)) continue;
-    visit(i);
+  const std::span<const std::uint32_t> items = tree_.leafItems(u, v);
+  prefetch(items);
+  storage = lineAt(u, v), line = &storage;
+  for (std::uint32_t i : items) {
+    if (inBox(tris_[i], u, v)) visit(i);
+  }
+}
+
+template <class M>
+void CurvedIndex<M>::prefetch(std::span<const std::uint32_t> items) const {
+  for (std::uint32_t i : items) {
+    const char* p = reinterpret_cast<const char*>(&tris_[i]);
+    __builtin_prefetch(p);
+    __builtin_prefetch(p + 64);
+  }
+}
+
+template <class M>
+template <bool Below>
+std::uint32_t CurvedIndex<M>::nearestIn(std::span<const std::uint32_t> items, bool checkBox,
+                                        double u, double v, const Line& line, double ez,
+                                        double& hOut, double& tOut) const {
+  std::uint32_t best = kNone;
+  double bestE = 0;
+  for (std::uint32_t i : items) {
+    if (checkBox && !inBox(tris_[i], u, v)) continue;
+    double t;
+    if (!hits(tris_[i], line, t)) continue;
+    const double hh = heightOf(line, t);
+    const double e = elevation(hh);
+    if (Below ? !(e <= ez) : !(e >= ez)) continue;
+    if (best == kNone || (Below ? e > bestE : e < bestE) ||
+        (e == bestE && tris_[i].polygon < tris_[best].polygon)) {
+      best = i, bestE = e, hOut = hh, tOut = t;
+    }
+  }
+  return best;
+}
+
+template <class M>
+void CurvedIndex<M>::heights(std::span<const Point2> points,
+                             std::span<std::optional<double>> out) const {
+  if (out.size() < points.size()) {
+    throw Error("heights: " + std::to_string(points.size()) + " points but room for " +
+                std::to_string(out.size()));
+  }
+  // Software pipelining as in TerrainIndex::heightsBelow: every point's leaf, then every leaf's
+  // references, then every leaf's triangles, each stage issuing its loads for the whole group
+  // before any is waited for, so the three dependent cache misses of a query overlap.
+  constexpr std::size_t kGroup = 16;
+  constexpr double kTop = M::kHeightUp ? kInf : -kInf;
+  Quadtree::Node leaf[kGroup];
+  bool inTree[kGroup];
+  double uu[kGroup];
+  for (std::size_t g = 0; g < points.size(); g += kGroup) {
+    const std::size_t n = std::min(kGroup, points.size() - g);
+    for (std::size_t i = 0; i < n; ++i) {
+      const Point2 p = points[g + i];
+      uu[i] = normalizeU(p.u);
+      inTree[i] = std::isfinite(uu[i]) && !polar(p.v) && tree_.contains(uu[i], p.v);
+      leaf[i] = inTree[i] ? tree_.leafNode(uu[i], p.v) : Quadtree::Node{0, 0};
+      __builtin_prefetch(tree_.leafRange(leaf[i]).data());
+    }
+    for (std::size_t i = 0; i < n; ++i) prefetch(tree_.leafRange(leaf[i]));
+    for (std::size_t i = 0; i < n; ++i) {
+      const Point2 p = points[g + i];
+      if (!inTree[i]) {
+        out[g + i] = height(p.u, p.v);  // the poles, off the domain, and the errors
+        continue;
+      }
+      double h = 0, t = 0;
+      const Line line = lineAt(uu[i], p.v);
+      const std::uint32_t best =
+          nearestIn<true>(tree_.leafRange(leaf[i]), true, uu[i], p.v, line, elevation(kTop), h, t);
+      out[g + i] = best == kNone ? std::nullopt : std::optional<double>(h);
+    }
   }
 }
 
@@ -409,22 +509,16 @@ std::uint32_t CurvedIndex<M>::nearest(double u, double v, double h, double& hOut
     throw Error(std::string(M::name()) + " query: (u, v) is not finite");
   }
   u = normalizeU(u);
+  if (polar(v)) {
+    line = lineAt(u, v);
+    return nearestIn<Below>(v > 0 ? polarNorth_ : polarSouth_, false, u, v, line, elevation(h),
+                            hOut, tOut);
+  }
+  if (!tree_.contains(u, v)) return kNone;
+  const std::span<const std::uint32_t> items = tree_.leafItems(u, v);
+  prefetch(items);  // the candidates load while the line is computed
   line = lineAt(u, v);
-  const double ez = elevation(h);
-  std::uint32_t best = kNone;
-  double bestE = 0;
-  forCandidates(u, v, [&](std::uint32_t i) {
-    double t;
-    if (!hits(tris_[i], line, t)) return;
-    const double hh = heightOf(line, t);
-    const double e = elevation(hh);
-    if (Below ? !(e <= ez) : !(e >= ez)) return;
-    if (best == kNone || (Below ? e > bestE : e < bestE) ||
-        (e == bestE && tris_[i].polygon < tris_[best].polygon)) {
-      best = i, bestE = e, hOut = hh, tOut = t;
-    }
-  });
-  return best;
+  return nearestIn<Below>(items, true, u, v, line, elevation(h), hOut, tOut);
 }
 
 template <class M>
@@ -487,11 +581,12 @@ std::vector<Hit> CurvedIndex<M>::all(double u, double v) const {
     }
   }
   u = normalizeU(u);
-  const Line line = lineAt(u, v);
+  Line line;
+  const Line* lp = nullptr;
   std::vector<Hit> hits_;
-  forCandidates(u, v, [&](std::uint32_t i) {
+  forCandidates(u, v, lp, line, [&](std::uint32_t i) {
     double t;
-    if (hits(tris_[i], line, t)) hits_.push_back(makeHit(i, line, t));
+    if (hits(tris_[i], *lp, t)) hits_.push_back(makeHit(i, *lp, t));
   });
   std::sort(hits_.begin(), hits_.end(), [this](const Hit& a, const Hit& b) {
     const double ea = elevation(a.height), eb = elevation(b.height);

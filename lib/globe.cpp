@@ -150,6 +150,10 @@ Mesh stationMesh(const Heightfield& relief, const StationOptions& options) {
     const double axial = -0.5 * options.length + options.length * j / (ny - 1);
     for (int i = 0; i < nx; ++i) {
       const double r = options.radius - relief.at(i, j);
+      if (std::isnan(r)) {  // nodata: a hole (a window in the hull)
+        mesh.addVertex({NAN, NAN, NAN});
+        continue;
+      }
       if (!(r > 0) || !std::isfinite(r)) {
         throw Error("station: relief height " + std::to_string(relief.at(i, j)) + " at (" +
                     std::to_string(i) + ", " + std::to_string(j) + ") reaches the axis (radius " +
@@ -166,8 +170,9 @@ Mesh stationMesh(const Heightfield& relief, const StationOptions& options) {
       const auto a = static_cast<std::uint32_t>(j * nx + i);
       const auto b = static_cast<std::uint32_t>(j * nx + (i + 1) % nx);
       const std::uint32_t c = a + nx, d = b + nx;
-      mesh.addTriangle(a, c, d);
-      mesh.addTriangle(a, d, b);
+      auto ok = [&](std::uint32_t k) { return std::isfinite(mesh.vertices[k].x()); };
+      if (ok(a) && ok(c) && ok(d)) mesh.addTriangle(a, c, d);
+      if (ok(a) && ok(d) && ok(b)) mesh.addTriangle(a, d, b);
     }
   }
   return mesh;

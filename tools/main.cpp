@@ -54,6 +54,23 @@ int main(int argc, char** argv) {
   sampleCmd->add_option("-p,--precision", sample.precision,
                         "Decimals to print; default: the shortest that round-trips");
   sampleCmd->add_flag("--world", sample.printWorld, "Also print the world point x y z of the hit");
+  sampleCmd->add_option("--mapping", sample.mapping,
+                        "Frame: cartesian (the raster as a map), spherical (a lon/lat raster as a "
+                        "closed planet; lines 'lon lat [r]', prints the surface radius), geodetic "
+                        "(a lon/lat raster on its ellipsoid; lines 'lon lat [h]', prints the "
+                        "height along the normal), cylindrical (the raster as a station's relief; "
+                        "lines 'angle axial [h]', prints the distance from the axis)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"cartesian", "spherical", "geodetic", "cylindrical"}));
+  sampleCmd->add_option("--radius", sample.radius,
+                        "spherical: the planet's reference radius in metres (default: from the "
+                        "raster's CRS, 6371008.8 for WGS84); cylindrical: the station's radius "
+                        "(default 250)")
+      ->check(CLI::PositiveNumber);
+  sampleCmd->add_option("--length", sample.length, "cylindrical: the station's length (default 1000)")
+      ->check(CLI::PositiveNumber);
+  sampleCmd->add_flag("-w,--lat-lon", sample.swapXY,
+                      "Input lines are 'lat lon' (or 'y x') instead of 'lon lat'");
   addTreeOptions(sampleCmd, sample.terrain);
 
   qota::tools::InfoOptions info;

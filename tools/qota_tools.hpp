@@ -33,6 +33,17 @@ struct SampleOptions {
   std::string srs;          // CRS of the input points; empty: the raster's
   int precision = -1;       // -1: shortest round-trip; else decimals after the point
   bool printWorld = false;
+  // The frame (coords/README.md): "cartesian" (the raster as a map, heights along -Z),
+  // "spherical" (a lon/lat raster closed into a planet of radius `radius`, 0: from its CRS;
+  // points "lon lat [r]", output the surface radius), "geodetic" (a lon/lat raster on its CRS's
+  // ellipsoid; points "lon lat [h]", output the height along the ellipsoid normal), or
+  // "cylindrical" (the raster as the relief of a station of `radius` (default 250) and `length`
+  // (default 1000) around the z axis; points "angle axial [h]", output the distance from the
+  // axis, "below" meaning away from it).
+  std::string mapping = "cartesian";
+  double radius = 0;
+  double length = 0;
+  bool swapXY = false;      // input lines are "y x" (lat lon), as GeographicLib's -w
   TerrainOptions terrain;
 };
 int sample(const SampleOptions& options, std::istream& in, std::ostream& out, std::ostream& err);

@@ -3,14 +3,17 @@
 
 #include <charconv>
 #include <fstream>
+#include <functional>
 #include <iostream>
 #include <memory>
 #include <optional>
 #include <string_view>
 #include <vector>
 
+#include "qota/curved.hpp"
 #include "qota/dem.hpp"
 #include "qota/error.hpp"
+#include "qota/globe.hpp"
 #include "qota_tools.hpp"
 #include "text_output.hpp"
 
@@ -70,13 +73,85 @@ std::unique_ptr<OGRCoordinateTransformation> makeTransform(const std::string& sr
   return ct;
 }
 
+// One answer of a surface: the hit, or nothing; `problem` set when the point is outside the
+// surface's domain (printed as `token` with the message on stderr).
+struct Answer {
+  std::optional<Hit> hit;
+  std::string token, problem;
+};
+// (x, y) in the input's order after -w; z: the query height, or null for the top surface.
+using Surface = std::function<Answer(double x, double y, const double* z)>;
+
+// The terrain of options.source in options.mapping, with its query. The index lives in the
+// returned closure.
+Surface openSurface(const SampleOptions& options) {
+  const std::string& mapping = options.mapping;
+  if (mapping == "cartesian") {
+    auto dem = std::make_shared<DemTerrain>(loadDem(options.source));
+    auto index = std::make_shared<TerrainIndex>(dem->mesh, dem->mapping, options.terrain);
+    std::shared_ptr<OGRCoordinateTransformation> transform = makeTransform(options.srs, *dem);
+    return [dem, index, transform, srs = options.srs](double x0, double y0, const double* z) {
+      double x = x0, y = y0;
+      if (transform && !transform->Transform(1, &x, &y)) {
+        return Answer{std::nullopt, "error",
+                      "cannot transform (" + formatNumber(x0) + ", " + formatNumber(y0) +
+                          ") from " + srs + " to the raster's CRS"};
+      }
+      if (!dem->onRaster(x, y)) {
+        return Answer{std::nullopt, "none",
+                      "point (" + formatNumber(x) + ", " + formatNumber(y) + ") is off the raster"};
+      }
+      const Eigen::Vector3d m = dem->mapping.toMapped(Eigen::Vector3d(x, y, z ? *z : 0.0));
+      return Answer{z ? index->below(m.x(), m.y(), m.z()) : index->top(m.x(), m.y()), "", ""};
+    };
+  }
+  if (!options.srs.empty()) {
+    throw Error("--srs applies to the cartesian mapping only; the " + mapping +
+                " mapping reads longitude/latitude (or angle/axial) coordinates");
+  }
+  // The curved mappings share their query; only the terrain and the domain check differ.
+  auto curved = [](auto index, bool latitude) -> Surface {
+    return [index, latitude](double u, double v, const double* z) {
+      if (latitude && !(v >= -90.0 && v <= 90.0)) {
+        return Answer{std::nullopt, "error", "latitude " + formatNumber(v) + " is outside [-90, 90]"};
+      }
+      return Answer{z ? index->below(u, v, *z) : index->top(u, v), "", ""};
+    };
+  };
+  if (mapping == "spherical") {
+    PlanetOptions planetOptions;
+    planetOptions.radius = options.radius;
+    const PlanetTerrain planet = loadPlanet(options.source, planetOptions);
+    return curved(std::make_shared<SphericalIndex>(planet.dem.mesh, planet.mapping, options.terrain),
+                  true);
+  }
+  if (mapping == "geodetic") {
+    const EllipsoidTerrain terrain = loadOnEllipsoid(options.source);
+    return curved(std::make_shared<GeodeticIndex>(terrain.dem.mesh, terrain.mapping, options.terrain),
+                  true);
+  }
+  if (mapping == "cylindrical") {
+    // The raster is the station's relief: columns around the axis, rows along it.
+    const DemTerrain dem = loadDem(options.source);
+    Heightfield relief;
+    relief.nx = dem.width, relief.ny = dem.height;
+    relief.z.resize(dem.mesh.vertices.size());
+    for (std::size_t i = 0; i < relief.z.size(); ++i) relief.z[i] = dem.mesh.vertices[i].z();
+    StationOptions station;
+    if (options.radius > 0) station.radius = options.radius;
+    if (options.length > 0) station.length = options.length;
+    const Mesh mesh = stationMesh(relief, station);
+    return curved(std::make_shared<CylindricalIndex>(mesh, CylindricalMapping(), options.terrain),
+                  false);
+  }
+  throw Error("--mapping '" + mapping + "' is not one of cartesian, spherical, cylindrical, geodetic");
+}
+
 }  // namespace
 
 int sample(const SampleOptions& options, std::istream& in, std::ostream& out, std::ostream& err) {
   try {
-    const DemTerrain dem = loadDem(options.source);
-    const TerrainIndex index(dem.mesh, dem.mapping, options.terrain);
-    const auto transform = makeTransform(options.srs, dem);
+    const Surface surface = openSurface(options);
 
     std::ifstream file;
     std::istream* input = &in;
@@ -112,19 +187,13 @@ int sample(const SampleOptions& options, std::istream& in, std::ostream& out, st
         *output << '\n';
         continue;
       }
-      double x = v[0], y = v[1];
-      if (transform && !transform->Transform(1, &x, &y)) {
-        fail("error", "cannot transform (" + formatNumber(v[0]) + ", " + formatNumber(v[1]) +
-                          ") from " + options.srs + " to the raster's CRS");
+      const double x = options.swapXY ? v[1] : v[0], y = options.swapXY ? v[0] : v[1];
+      const Answer answer = surface(x, y, count == 3 ? &v[2] : nullptr);
+      if (!answer.problem.empty()) {
+        fail(answer.token, answer.problem);
         continue;
       }
-      if (!dem.onRaster(x, y)) {
-        fail("none", "point (" + formatNumber(x) + ", " + formatNumber(y) + ") is off the raster");
-        continue;
-      }
-      const Eigen::Vector3d m = dem.mapping.toMapped(Eigen::Vector3d(x, y, count == 3 ? v[2] : 0.0));
-      const std::optional<Hit> hit =
-          count == 3 ? index.below(m.x(), m.y(), m.z()) : index.top(m.x(), m.y());
+      const std::optional<Hit>& hit = answer.hit;
       if (!hit) {
         *output << "none\n";
         continue;

@@ -41,6 +41,7 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <optional>
+#include <span>
 #include <vector>
 
 #include "qota/cylindrical.hpp"
@@ -84,6 +85,10 @@ class CurvedIndex {
   std::vector<Hit> all(double u, double v) const;    // every hit, top to bottom
   // Height-only: the h of top(u, v), or nullopt.
   std::optional<double> height(double u, double v) const;
+  // height() for many points at once (out[i] for points[i], u = points[i].u, v = points[i].v):
+  // the same answers, with the memory latency of the points overlapped (several times faster on
+  // terrains larger than the cache). out must have room for every point.
+  void heights(std::span<const Point2> points, std::span<std::optional<double>> out) const;
 
   // The same at a world point (mapped with the mapping first).
   std::optional<Hit> belowWorld(const Eigen::Vector3d& p) const;
@@ -102,6 +107,7 @@ class CurvedIndex {
     double s;
     double d[3];
     double nprime;  // geodetic: N at the latitude (h = t - N); else 0
+    double bound;   // error bound of the filtered edge tests on this line
   };
   Line lineAt(double u, double v) const;
 
@@ -125,8 +131,17 @@ class CurvedIndex {
   int edgeSign(const double* a, const double* b, const Line& line, double bound) const;
   double heightOf(const Line& line, double t) const { return t - line.nprime; }
   double elevation(double h) const { return M::kHeightUp ? h : -h; }
+  // Calls visit(i) for every candidate triangle of (u, v); sets line (to storage) before the
+  // first call (the line is computed while the candidates load).
   template <class Visit>
-  void forCandidates(double u, double v, Visit&& visit) const;
+  void forCandidates(double u, double v, const Line*& line, Line& storage, Visit&& visit) const;
+  static bool inBox(const Tri& t, double u, double v) {
+    return v >= t.vlo && v <= t.vhi && ((u >= t.ulo && u <= t.uhi) || u + 360.0 <= t.uhi);
+  }
+  void prefetch(std::span<const std::uint32_t> items) const;
+  template <bool Below>
+  std::uint32_t nearestIn(std::span<const std::uint32_t> items, bool checkBox, double u, double v,
+                          const Line& line, double ez, double& hOut, double& tOut) const;
   template <bool Below>
   std::uint32_t nearest(double u, double v, double h, double& hOut, Line& line, double& tOut) const;
   Hit makeHit(std::uint32_t t, const Line& line, double tHit) const;

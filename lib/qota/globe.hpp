@@ -63,8 +63,9 @@ struct StationOptions {
 
 // The inside of a rotating station: relief.nx columns around the axis (angle -180 + 360 i / nx,
 // the last column joined to the first) by relief.ny rings along it, each vertex at distance
-// radius - height from the axis (hills rise toward the axis). Axis: the world z axis through the
-// origin. Throws qota::Error unless radius > every height and the grid is at least 3 x 2.
+// radius - height from the axis (hills rise toward the axis); a NaN height is a hole (every
+// triangle touching it is left out). Axis: the world z axis through the origin. Throws
+// qota::Error unless radius > every height and the grid is at least 3 x 2.
 Mesh stationMesh(const Heightfield& relief, const StationOptions& options);
 
 }  // namespace qota
