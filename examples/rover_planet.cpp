@@ -1,8 +1,9 @@
 // Drive a rover across the whole Earth under radial gravity: the bundled 20-arc-minute global
 // DEM is closed into a planet (spherical mapping, centre at the origin), and the rover follows
 // the great circle from Lisbon over Scandinavia and Siberia to Tokyo, then on across the Pacific
-// and New Zealand's South Island, over the antimeridian into the Southern Ocean. At every step it asks the QOTA index for the ground under it and prints the height above the
-// reference sphere, the local up (the unit radial direction) and the surface normal. The planet
+// and New Zealand's South Island, over the antimeridian into the Southern Ocean. At every step
+// it asks the QOTA index for the ground under it and prints the height above the reference
+// sphere, the local up (the unit radial direction) and the surface normal. The planet
 // is a closed surface, so every step must find ground; a last query stands exactly on the north
 // pole.
 //

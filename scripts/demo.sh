@@ -22,3 +22,9 @@ paste -d '  ' <(echo "$points") <(echo "$points" | build/tools/qota sample "$dem
   awk '{printf "%12s %10s  -> %-20s %s %s %s %s\n", $1, $2, $3, $4, $5, $6, $7}'
 echo "== qota shadow $dem (sun from the south-east, 20 degrees up)"
 build/tools/qota shadow "$dem" -o build/rainier_shadow.tif -az 135 -alt 20 --png build/rainier_shadow.png
+echo "== qota sample data/etopo20.tif --mapping spherical   (the globe as a closed planet under radial gravity;"
+echo "   lon lat -> surface radius in metres, and the world point)"
+printf '%s\n' '86.925 27.988' '142.2 11.35' '0 90' '180 -52' '-180 -52' |
+  build/tools/qota sample data/etopo20.tif --mapping spherical --world -p 1
+echo "== qota sample $dem --mapping geodetic -w   (lat lon -> height along the WGS84 normal)"
+echo '46.8529 -121.7603' | build/tools/qota sample "$dem" --mapping geodetic -w --world -p 3

@@ -12,6 +12,9 @@
 
 namespace qota {
 
+static_assert(CoordinateMapping<CartesianMapping> && CoordinateMapping<SphericalMapping> &&
+              CoordinateMapping<CylindricalMapping> && CoordinateMapping<GeodeticMapping>);
+
 using AnyMapping = std::variant<CartesianMapping, SphericalMapping, CylindricalMapping, GeodeticMapping>;
 
 // The mapping's describe() text: its name and parameters, "spherical centre=0,0,0".
