@@ -6,7 +6,8 @@
 // 2.9M triangles); a 1M-triangle station (cylindrical); and, for comparison, a 1M-triangle
 // fractal heightfield under the Cartesian mapping. Queries: 1M uniform random points (uniform on
 // the sphere for the planet), and a coherent track of 100 m steps along a great circle (along the
-// rows of the grid for the others). Brute force: every triangle intersected with the query line
+// rows of the grid for the others), with and without a cursor (temporal coherence: the last
+// leaf is remembered). Brute force: every triangle intersected with the query line
 // (Moller-Trumbore in double precision), on a few hundred of the random points, whose answers are
 // also checked against the index. Reports build seconds, ns per query and the ratio.
 //
@@ -76,6 +77,18 @@ double nsPerBatch(const std::vector<Query>& points, Batch&& batch, One&& one, in
   return ns;
 }
 
+// Disagreements between the cursor and the plain query along a track (every 13th point).
+template <class WithCursor, class Plain>
+int checkCursor(const std::vector<Query>& track, WithCursor&& withCursor, Plain&& plain) {
+  qota::Quadtree::Cursor cursor;
+  int bad = 0;
+  for (std::size_t i = 0; i < track.size(); ++i) {
+    const auto a = withCursor(cursor, track[i].u, track[i].v);
+    if (i % 13 == 0) bad += a != plain(track[i].u, track[i].v);
+  }
+  return bad;
+}
+
 // The line's top hit over every triangle: origin o, unit direction d toward increasing height,
 // the hit's height as the parameter along d plus `offset`. Moller-Trumbore, both windings.
 std::optional<double> bruteTop(const qota::Mesh& mesh, const Eigen::Vector3d& o,
@@ -106,14 +119,15 @@ std::optional<double> bruteTop(const qota::Mesh& mesh, const Eigen::Vector3d& o,
 struct Row {
   std::string mapping, terrain;
   std::size_t triangles;
-  double build, random, batch, track, brute;
+  double build, random, batch, track, cursor, brute;
   int misses, disagreements, bruteQueries;
 };
 
 void printRow(const Row& r) {
-  std::printf("%-11s %-22s %9zu %7.2f %8.0f %8.0f %8.0f %10.0f %9.0fx %6d %6d/%d\n",
+  std::printf("%-11s %-22s %9zu %7.2f %8.0f %8.0f %8.0f %8.0f %10.0f %9.0fx %6d %6d/%d\n",
               r.mapping.c_str(), r.terrain.c_str(), r.triangles, r.build, r.random, r.batch,
-              r.track, r.brute, r.brute / r.random, r.misses, r.disagreements, r.bruteQueries);
+              r.track, r.cursor, r.brute, r.brute / r.random, r.misses, r.disagreements,
+              r.bruteQueries);
 }
 
 // Times one curved index: random and track queries, brute force on the first `bruteCount`
@@ -122,7 +136,7 @@ template <class Index, class LineOf>
 Row measure(const std::string& mapping, const std::string& terrain, const qota::Mesh& mesh,
             std::function<Index()> build, const std::vector<Query>& random,
             const std::vector<Query>& track, int bruteCount, LineOf&& lineOf, bool largest) {
-  Row row{mapping, terrain, mesh.polygonCount(), 0, 0, 0, 0, 0, 0, 0, bruteCount};
+  Row row{mapping, terrain, mesh.polygonCount(), 0, 0, 0, 0, 0, 0, 0, 0, bruteCount};
   const auto t0 = Clock::now();
   const Index index = build();
   row.build = seconds(t0, Clock::now());
@@ -134,6 +148,12 @@ Row measure(const std::string& mapping, const std::string& terrain, const qota::
                          [&](double u, double v) { return index.height(u, v); }, row.disagreements);
   row.track = nsPerQuery(track, height, misses);
   row.misses += misses;
+  qota::Quadtree::Cursor cursor;
+  row.cursor = nsPerQuery(track, [&](double u, double v) { return index.height(cursor, u, v); },
+                          misses);
+  row.disagreements += checkCursor(track, [&](qota::Quadtree::Cursor& c, double u, double v) {
+    return index.height(c, u, v);
+  }, height);
   const auto b0 = Clock::now();
   for (int i = 0; i < bruteCount; ++i) {
     const auto [o, d, offset] = lineOf(random[i].u, random[i].v);
@@ -166,11 +186,11 @@ int main(int argc, char** argv) {
   std::uniform_real_distribution<double> unit(0, 1);
   std::printf("planet_bench: %zu random and %zu track queries per terrain, brute force on %d\n\n", n,
               n, bruteCount);
-  std::printf("%-11s %-22s %9s %7s %8s %8s %8s %10s %10s %6s %9s\n", "mapping", "terrain",
-              "triangles", "build s", "random", "batch", "track", "brute", "brute/rnd", "misses",
-              "disagree");
-  std::printf("%-11s %-22s %9s %7s %8s %8s %8s %10s\n", "", "", "", "", "ns/query", "ns/query",
-              "ns/query", "ns/query");
+  std::printf("%-11s %-22s %9s %7s %8s %8s %8s %8s %10s %10s %6s %9s\n", "mapping", "terrain",
+              "triangles", "build s", "random", "batch", "track", "+cursor", "brute", "brute/rnd",
+              "misses", "disagree");
+  std::printf("%-11s %-22s %9s %7s %8s %8s %8s %8s %10s\n", "", "", "", "", "ns/query",
+              "ns/query", "ns/query", "ns/query", "ns/query");
 
   // Spherical: the planet, uniform random points on the sphere and a great-circle track.
   {
@@ -210,7 +230,7 @@ int main(int argc, char** argv) {
       track[i] = {along, std::fmod(0.37 + std::floor(0.1 * i / span), span)};
     }
     const qota::CartesianMapping mapping;
-    Row row{"cartesian", "fractal heightfield", mesh.polygonCount(), 0, 0, 0, 0, 0, 0, 0, bruteCount};
+    Row row{"cartesian", "fractal heightfield", mesh.polygonCount(), 0, 0, 0, 0, 0, 0, 0, 0, bruteCount};
     const auto t0 = Clock::now();
     const qota::TerrainIndex index(mesh, mapping);
     row.build = seconds(t0, Clock::now());
@@ -226,6 +246,13 @@ int main(int argc, char** argv) {
         [&](double u, double v) { return index.heightBelow(u, v, kInf); }, row.disagreements);
     row.track = nsPerQuery(track, top, misses);
     row.misses += misses;
+    qota::Quadtree::Cursor cursor;
+    row.cursor = nsPerQuery(
+        track, [&](double u, double v) { return index.heightBelow(cursor, u, v, kInf); }, misses);
+    row.disagreements += checkCursor(
+        track,
+        [&](qota::Quadtree::Cursor& c, double u, double v) { return index.heightBelow(c, u, v, kInf); },
+        [&](double u, double v) { return index.heightBelow(u, v, kInf); });
     const auto b0 = Clock::now();
     for (int i = 0; i < bruteCount; ++i) {
       const auto t = bruteTop(mesh, Eigen::Vector3d(random[i].u, random[i].v, -1e6),

@@ -498,7 +498,7 @@ void CurvedIndex<M>::heights(std::span<const Point2> points,
 template <class M>
 template <bool Below>
 std::uint32_t CurvedIndex<M>::nearest(double u, double v, double h, double& hOut, Line& line,
-                                      double& tOut) const {
+                                      double& tOut, Quadtree::Cursor* cursor) const {
   if constexpr (kAngularV<M>) {
     if (!(v >= -90.0 && v <= 90.0)) {
       throw Error(std::string(M::name()) + " query: latitude " + std::to_string(v) +
@@ -515,7 +515,8 @@ std::uint32_t CurvedIndex<M>::nearest(double u, double v, double h, double& hOut
                             hOut, tOut);
   }
   if (!tree_.contains(u, v)) return kNone;
-  const std::span<const std::uint32_t> items = tree_.leafItems(u, v);
+  const std::span<const std::uint32_t> items =
+      tree_.leafRange(cursor ? tree_.leafNode(u, v, *cursor) : tree_.leafNode(u, v));
   prefetch(items);  // the candidates load while the line is computed
   line = lineAt(u, v);
   return nearestIn<Below>(items, true, u, v, line, elevation(h), hOut, tOut);
@@ -543,6 +544,36 @@ std::optional<Hit> CurvedIndex<M>::below(double u, double v, double h) const {
   const std::uint32_t i = nearest<true>(u, v, h, hh, line, t);
   if (i == kNone) return std::nullopt;
   return makeHit(i, line, t);
+}
+
+template <class M>
+std::optional<Hit> CurvedIndex<M>::below(Quadtree::Cursor& cursor, double u, double v,
+                                         double h) const {
+  double hh, t;
+  Line line;
+  const std::uint32_t i = nearest<true>(u, v, h, hh, line, t, &cursor);
+  if (i == kNone) return std::nullopt;
+  return makeHit(i, line, t);
+}
+
+template <class M>
+std::optional<Hit> CurvedIndex<M>::above(Quadtree::Cursor& cursor, double u, double v,
+                                         double h) const {
+  double hh, t;
+  Line line;
+  const std::uint32_t i = nearest<false>(u, v, h, hh, line, t, &cursor);
+  if (i == kNone) return std::nullopt;
+  return makeHit(i, line, t);
+}
+
+template <class M>
+std::optional<double> CurvedIndex<M>::height(Quadtree::Cursor& cursor, double u, double v) const {
+  double hh, t;
+  Line line;
+  if (nearest<true>(u, v, M::kHeightUp ? kInf : -kInf, hh, line, t, &cursor) == kNone) {
+    return std::nullopt;
+  }
+  return hh;
 }
 
 template <class M>

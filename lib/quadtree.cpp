@@ -4,6 +4,33 @@
 
 namespace qota {
 
+Quadtree::Node Quadtree::descend(double u, double v, Cursor& cursor) const {
+  // leafNode's descent, also tracking the high edges of the box: a low child's high edge is the
+  // cut itself, a high child's is its parent's.
+  Node nd = nodes_[0];
+  std::uint32_t d = 0;
+  double lu = root_.ulo, lv = root_.vlo, hu = root_.uhi, hv = root_.vhi;
+  if (jumpDepth_) {
+    const std::uint32_t ix = jumpColumn(u, cutU_, jumpScaleU_, root_.ulo);
+    const std::uint32_t iy = jumpColumn(v, cutV_, jumpScaleV_, root_.vlo);
+    nd = jump_[(iy << jumpDepth_) | ix];
+    lu = cutU_[ix], lv = cutV_[iy];
+    hu = ix + 1 < cutU_.size() ? cutU_[ix + 1] : root_.uhi;
+    hv = iy + 1 < cutV_.size() ? cutV_[iy + 1] : root_.vhi;
+    d = jumpDepth_;
+  }
+  for (; nd.count == kInner; ++d) {
+    const double mu = lu + half_[d].u, mv = lv + half_[d].v;
+    const bool highU = u >= mu, highV = v >= mv;
+    (highU ? lu : hu) = mu;
+    (highV ? lv : hv) = mv;
+    nd = nodes_[nd.first + (static_cast<std::uint32_t>(highV) << 1 | static_cast<std::uint32_t>(highU))];
+  }
+  cursor.leaf = nd;
+  cursor.box = {lu, lv, hu, hv};
+  return nd;
+}
+
 void Quadtree::buildJumpTable() {
   jumpDepth_ = 0;
   cutU_.clear(), cutV_.clear(), jump_.clear();

@@ -14,6 +14,7 @@ packages=(
   libcli11-dev                  # argument parsing for the qota tool
   libpng-dev                    # PNG previews
   libnova-dev                   # solar position (VSOP87) for qota shadow
+  libassimp-dev                 # mesh files (OBJ, PLY, glTF, STL, ...)
 )
 
 missing=()

@@ -120,6 +120,21 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   addTreeOptions(shadowCmd, shadow.terrain);
 
+  qota::tools::RenderTreeOptions renderTree;
+  CLI::App* renderTreeCmd = app.add_subcommand(
+      "render-tree",
+      "A picture of the QOTA quadtree over a DEM (the paper's Figure 4): a grey PNG on the "
+      "raster's grid, each leaf filled by its polygon count (white = empty, darker on a log scale "
+      "down to grey 120 at --max-poly polygons or more), leaf edges in black, over a faint "
+      "hillshade.");
+  renderTreeCmd->add_option("source", renderTree.source, "Elevation raster (any GDAL format)")->required();
+  renderTreeCmd->add_option("-o,--output", renderTree.output, "Output PNG")->required();
+  renderTreeCmd->add_option("--size", renderTree.size, "Pixels along the image's long side")
+      ->capture_default_str()
+      ->check(CLI::Range(16, 16384));
+  renderTreeCmd->add_flag("-q,--quiet", renderTree.quiet, "No summary");
+  addTreeOptions(renderTreeCmd, renderTree.terrain);
+
   try {
     const std::vector<std::string> args = gdalStyleArguments(argc, argv);
     std::vector<const char*> cargs;
@@ -137,5 +152,6 @@ int main(int argc, char** argv) {
     if (!hours.empty()) shadow.hours = std::array<double, 3>{hours[0], hours[1], hours[2]};
     return qota::tools::shadow(shadow, std::cout, std::cerr);
   }
+  if (*renderTreeCmd) return qota::tools::renderTree(renderTree, std::cout, std::cerr);
   return 2;
 }

@@ -84,4 +84,25 @@ struct ShadowOptions {
 };
 int shadow(const ShadowOptions& options, std::ostream& out, std::ostream& err);
 
+// qota render-tree: a picture of the QOTA quadtree over a DEM (the paper's Figure 4), as a grey
+// PNG on the raster's own pixel grid scaled to `size` pixels on the long side (north up for a
+// north-up raster; not georeferenced).
+//
+// Each leaf is filled with a grey level by its polygon count n: 255 (white) when empty, then
+// darker on a log scale, 255 - 135 log(1 + n) / log(1 + Maxpoly), down to 120 at Maxpoly
+// polygons; leaves holding more (at Maxdepth, or where no cut parts the polygons) stay at 120.
+// The terrain shows through as a faint hillshade (light from azimuth 315, altitude 45), which
+// scales a fill by 0.8 (facing away) to 1 (facing the light); nodata cells are not shaded. Leaf
+// edges (and the edge of the tree's root box) are drawn 1 pixel wide in black (0), a value no
+// fill takes, so leaves smaller than a pixel merge into black. Written to a temporary file and
+// renamed into place. Exit code 0 on success, 2 on error (unreadable DEM, output not writable or
+// not named .png, size outside 16..16384).
+struct RenderTreeOptions {
+  std::string source, output;
+  int size = 1024;  // pixels along the image's long side
+  bool quiet = false;
+  TerrainOptions terrain;
+};
+int renderTree(const RenderTreeOptions& options, std::ostream& out, std::ostream& err);
+
 }  // namespace qota::tools

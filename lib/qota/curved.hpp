@@ -85,6 +85,11 @@ class CurvedIndex {
   std::vector<Hit> all(double u, double v) const;    // every hit, top to bottom
   // Height-only: the h of top(u, v), or nullopt.
   std::optional<double> height(double u, double v) const;
+  // Temporal coherence: the same queries from a per-object cursor that remembers the last leaf
+  // (see TerrainIndex); identical answers.
+  std::optional<Hit> below(Quadtree::Cursor& cursor, double u, double v, double h) const;
+  std::optional<Hit> above(Quadtree::Cursor& cursor, double u, double v, double h) const;
+  std::optional<double> height(Quadtree::Cursor& cursor, double u, double v) const;
   // height() for many points at once (out[i] for points[i], u = points[i].u, v = points[i].v):
   // the same answers, with the memory latency of the points overlapped (several times faster on
   // terrains larger than the cache). out must have room for every point.
@@ -143,7 +148,8 @@ class CurvedIndex {
   std::uint32_t nearestIn(std::span<const std::uint32_t> items, bool checkBox, double u, double v,
                           const Line& line, double ez, double& hOut, double& tOut) const;
   template <bool Below>
-  std::uint32_t nearest(double u, double v, double h, double& hOut, Line& line, double& tOut) const;
+  std::uint32_t nearest(double u, double v, double h, double& hOut, Line& line, double& tOut,
+                        Quadtree::Cursor* cursor = nullptr) const;
   Hit makeHit(std::uint32_t t, const Line& line, double tHit) const;
   Eigen::Vector3d localToWorld(const Eigen::Vector3d& local) const;
   Eigen::Vector3d localDirToWorld(const Eigen::Vector3d& local) const;

@@ -117,9 +117,29 @@ class Quadtree {
     }
     return nd;
   }
+  // A query cursor for temporal coherence: the last leaf found and a box of points known to lie
+  // in it, half-open ([ulo, uhi) x [vlo, vhi), the boundary rule's own sides), so that a query a
+  // small step from the last one skips the descent. A default cursor matches nothing. One per
+  // moving object; not to be shared between threads.
+  struct Cursor {
+    Node leaf{0, 0};
+    Box2 box;
+  };
+  // leafNode(u, v), starting from the cursor when (u, v) is in its box, and updating it. The
+  // answer is the same leaf as leafNode(u, v). Precondition: contains(u, v).
+  Node leafNode(double u, double v, Cursor& cursor) const {
+    const Box2& b = cursor.box;
+    if (u >= b.ulo && u < b.uhi && v >= b.vlo && v < b.vhi) return cursor.leaf;
+    return descend(u, v, cursor);
+  }
   std::span<const std::uint32_t> leafRange(const Node& leaf) const {
     return {refs_.data() + leaf.first, leafSize(leaf)};
   }
+
+  // Calls visit(items) for every leaf whose closed box meets the segment (u0, v0)-(u1, v1)
+  // (boxes widened by a relative 1e-12, so rounding never drops one).
+  template <class Visit>
+  void forLeavesAlong(double u0, double v0, double u1, double v1, Visit&& visit) const;
 
   // Lets the owner reorder each leaf's items and flag it single-layer: visit(items) may permute
   // the span and returns whether to set kSingleLayer.
@@ -152,6 +172,7 @@ class Quadtree {
     while (g < last && x >= cut[g + 1]) ++g;
     return static_cast<std::uint32_t>(g);
   }
+  Node descend(double u, double v, Cursor& cursor) const;
   void buildJumpTable();
   template <class Overlaps>
   void buildNode(std::uint32_t node, const Box2& box, std::uint32_t depth,
@@ -173,6 +194,46 @@ class Quadtree {
   std::uint32_t itemCount_ = 0;
   double minSizeU_ = 0, minSizeV_ = 0;
 };
+
+template <class Visit>
+void Quadtree::forLeavesAlong(double u0, double v0, double u1, double v1, Visit&& visit) const {
+  if (half_.empty()) return;
+  struct Item {
+    std::uint32_t node, depth;
+    double lu, lv, hu, hv;
+  };
+  const double du = u1 - u0, dv = v1 - v0;
+  const double pad = 1e-12 * (std::fabs(root_.uhi - root_.ulo) + std::fabs(root_.vhi - root_.vlo));
+  // Slab test of the segment against a closed, padded box.
+  auto meets = [&](double lu, double lv, double hu, double hv) {
+    double t0 = 0, t1 = 1;
+    auto axis = [&](double o, double d, double lo, double hi) {
+      lo -= pad, hi += pad;
+      if (d == 0) return o >= lo && o <= hi;
+      double a = (lo - o) / d, b = (hi - o) / d;
+      if (a > b) std::swap(a, b);
+      t0 = std::max(t0, a), t1 = std::min(t1, b);
+      return t0 <= t1;
+    };
+    return axis(u0, du, lu, hu) && axis(v0, dv, lv, hv);
+  };
+  std::vector<Item> stack{{0, 0, root_.ulo, root_.vlo, root_.uhi, root_.vhi}};
+  while (!stack.empty()) {
+    const Item it = stack.back();
+    stack.pop_back();
+    if (!meets(it.lu, it.lv, it.hu, it.hv)) continue;
+    const Node& nd = nodes_[it.node];
+    if (nd.count != kInner) {
+      visit(leafRange(nd));
+      continue;
+    }
+    const double mu = it.lu + half_[it.depth].u, mv = it.lv + half_[it.depth].v;
+    stack.push_back({nd.first, it.depth + 1, it.lu, it.lv, mu, mv});
+    stack.push_back({nd.first + 1, it.depth + 1, mu, it.lv, it.hu, mv});
+    stack.push_back({nd.first + 2, it.depth + 1, it.lu, mv, mu, it.hv});
+    stack.push_back({nd.first + 3, it.depth + 1, mu, mv, it.hu, it.hv});
+  }
+}
 
 template <class Overlaps>
 void Quadtree::build(std::uint32_t itemCount, Box2 root, const QuadtreeOptions& options,

@@ -32,6 +32,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cmath>
 #include <cstdint>
 #include <optional>
 #include <span>
@@ -61,6 +62,12 @@ struct Hit {
 struct Bracket {
   std::optional<Hit> below;
   std::optional<Hit> above;
+};
+
+// A hit of an arbitrary line (alongLine): its parameter and the hit.
+struct LineHit {
+  double t = 0;
+  Hit hit;
 };
 
 struct TerrainStats {
@@ -106,6 +113,22 @@ class TerrainIndex {
   void heightsBelow(std::span<const Point2> points, double z,
                     std::span<std::optional<double>> heights) const;
 
+  // Temporal coherence: the same queries starting from a per-object cursor, which remembers the
+  // last leaf so that a query a small step from the last one skips the tree descent. Answers are
+  // identical to the plain queries. A cursor belongs to one object (and one thread).
+  std::optional<Hit> below(Quadtree::Cursor& cursor, double u, double v, double h) const;
+  std::optional<Hit> above(Quadtree::Cursor& cursor, double u, double v, double h) const;
+  std::optional<double> heightBelow(Quadtree::Cursor& cursor, double u, double v, double z) const;
+
+  // Every crossing of an arbitrary world line origin + t * direction, t in [tmin, tmax], nearest
+  // t first (equal t: smaller polygon id): for lines not along gravity, such as the world's
+  // gravity seen from a part of a scene that tilts. The quadtree is walked along the line's
+  // projection (only the piece inside the terrain's height range), and each candidate triangle
+  // is tested exactly (orient3dSign on its corners' offsets from the line's origin), so the line
+  // cannot slip between neighbours. Heights in the hits are this index's mapped h.
+  std::vector<LineHit> alongLine(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction,
+                                 double tmin = -INFINITY, double tmax = INFINITY) const;
+
   // Whether a triangle that does not have mesh vertex `vertex` as a corner contains (u, v) at a
   // height strictly above h: the shadow test of a point at that vertex, whose own triangles can
   // never shade it (they meet its line at the point itself).
@@ -143,7 +166,8 @@ class TerrainIndex {
   Hit makeHit(std::uint32_t t, double u, double v, double h) const;
   static constexpr std::uint32_t kNone = 0xffffffffu;
   template <bool Below>
-  std::uint32_t nearest(double u, double v, double z, double& h) const;
+  std::uint32_t nearest(double u, double v, double z, double& h,
+                        Quadtree::Cursor* cursor = nullptr) const;
   template <bool Below>
   std::uint32_t nearestIn(std::span<const std::uint32_t> items, bool singleLayer, double u,
                           double v, double z, double& h) const;
@@ -155,6 +179,8 @@ class TerrainIndex {
   BigVector<Tri> tris_;
   BigVector<Cold> cold_;
   BigVector<Point2> corners2_;  // mapped (u, v) of each vertex, for the exact predicate
+  BigVector<double> cornerH_;   // mapped h of each vertex (for lines not along gravity)
+  double hmin_ = INFINITY, hmax_ = -INFINITY;  // the triangles' height range
   Quadtree tree_;
   TerrainStats stats_;
 };

@@ -1,0 +1,184 @@
+// qota render-tree: the quadtree's leaves over a faint hillshade (see qota_tools.hpp).
+#include <Eigen/Geometry>
+#include <cpl_conv.h>
+#include <cpl_error.h>
+#include <cpl_vsi.h>
+#include <gdal_priv.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cctype>
+#include <cmath>
+#include <cstdint>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+
+#include "qota/dem.hpp"
+#include "qota/error.hpp"
+#include "qota/shadow.hpp"
+#include "qota_tools.hpp"
+#include "text_output.hpp"
+
+namespace qota::tools {
+namespace {
+
+constexpr int kMinSize = 16, kMaxSize = 16384;
+// The picture's grey levels (see RenderTreeOptions): the fill of an empty leaf, of a leaf with
+// Maxpoly polygons or more, the edge lines, and how much the hillshade may darken a fill.
+constexpr double kEmptyGrey = 255, kFullGrey = 150, kShadeDepth = 0.35;
+constexpr std::uint8_t kEdgeGrey = 40;
+
+// The leaf containing mapped (u, v), as an index into tree.nodes(), or -1 outside the root box.
+// The same descent as Quadtree::leafNode: the cut of a node at depth d is lo + size * 2^-(d+1)
+// (computed as the build computes it, so the two agree bit for bit), and a point on a cut goes
+// to the high side; the children are (low u, low v), (high u, low v), (low u, high v), (high u,
+// high v).
+std::int64_t leafAt(const Quadtree& tree, double u, double v) {
+  if (!tree.contains(u, v)) return -1;
+  const auto nodes = tree.nodes();
+  const Box2& root = tree.box();
+  const double su = root.uhi - root.ulo, sv = root.vhi - root.vlo;
+  double lu = root.ulo, lv = root.vlo;
+  std::uint32_t i = 0;
+  for (int d = 0; nodes[i].count == Quadtree::kInner; ++d) {
+    const double mu = lu + std::ldexp(su, -d - 1), mv = lv + std::ldexp(sv, -d - 1);
+    const bool hu = u >= mu, hv = v >= mv;
+    lu = hu ? mu : lu;
+    lv = hv ? mv : lv;
+    i = nodes[i].first + (static_cast<std::uint32_t>(hv) << 1 | static_cast<std::uint32_t>(hu));
+  }
+  return i;
+}
+
+// A leaf's fill: white when empty, darker with log(1 + polygons), kFullGrey from Maxpoly on.
+double leafGrey(std::uint32_t polygons, std::uint32_t maxPoly) {
+  const double t = std::min(1.0, std::log1p(polygons) / std::log1p(std::max(maxPoly, 1u)));
+  return kEmptyGrey - (kEmptyGrey - kFullGrey) * t;
+}
+
+// Lambert shading in [0, 1] at a DEM cell under `light` (unit, frame coordinates), from the
+// central differences of its neighbours' positions in the frame's metres.
+double lambert(const LocalFrame& f, int c, int r, const Eigen::Vector3d& light) {
+  const auto at = [&](int cc, int rr) -> const Eigen::Vector3d& {
+    cc = std::clamp(cc, 0, f.width - 1), rr = std::clamp(rr, 0, f.height - 1);
+    return f.mesh.vertices[static_cast<std::size_t>(rr) * f.width + cc];
+  };
+  const Eigen::Vector3d east = at(c + 1, r) - at(c - 1, r), north = at(c, r - 1) - at(c, r + 1);
+  const Eigen::Vector3d n = east.cross(north);
+  return n.squaredNorm() > 0 ? std::max(0.0, n.normalized().dot(light)) : 1.0;
+}
+
+// A one-band Byte image encoded as PNG by GDAL's driver (a MEM dataset copied to an in-memory
+// file), then written to `to`.
+void encodePng(int width, int height, const std::vector<std::uint8_t>& grey, std::ostream& to) {
+  ensureGdalRegistered();
+  GDALDriver* mem = GetGDALDriverManager()->GetDriverByName("MEM");
+  GDALDriver* png = GetGDALDriverManager()->GetDriverByName("PNG");
+  if (!mem || !png) throw Error("this GDAL has no PNG driver");
+  std::unique_ptr<GDALDataset> ds(mem->Create("", width, height, 1, GDT_Byte, nullptr));
+  if (!ds) throw Error("cannot allocate a " + std::to_string(width) + " x " + std::to_string(height) + " image");
+  if (ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, width, height, const_cast<std::uint8_t*>(grey.data()),
+                                     width, height, GDT_Byte, 0, 0) != CE_None) {
+    throw Error("cannot fill the image");
+  }
+  static std::atomic<unsigned> serial{0};
+  const std::string name = "/vsimem/qota_render_tree_" + std::to_string(serial++) + ".png";
+  CPLPushErrorHandler(CPLQuietErrorHandler);
+  CPLErrorReset();
+  std::unique_ptr<GDALDataset> copy(png->CreateCopy(name.c_str(), ds.get(), FALSE, nullptr, GDALDummyProgress, nullptr));
+  const std::string gdalError = CPLGetLastErrorMsg();
+  CPLPopErrorHandler();
+  const bool ok = copy != nullptr;
+  copy.reset();  // flush and close before taking the bytes
+  vsi_l_offset length = 0;
+  GByte* bytes = ok ? VSIGetMemFileBuffer(name.c_str(), &length, TRUE) : nullptr;
+  VSIUnlink(name.c_str());
+  VSIUnlink((name + ".aux.xml").c_str());
+  if (!bytes) throw Error("cannot encode the PNG" + (gdalError.empty() ? std::string() : " (" + gdalError + ")"));
+  to.write(reinterpret_cast<const char*>(bytes), static_cast<std::streamsize>(length));
+  CPLFree(bytes);
+}
+
+bool hasPngExtension(const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  return ext == ".png";
+}
+
+}  // namespace
+
+int renderTree(const RenderTreeOptions& o, std::ostream& out, std::ostream& err) {
+  try {
+    if (o.output.empty()) throw Error("an output file is needed: -o OUT.png");
+    if (!hasPngExtension(o.output)) throw Error(o.output + ": the picture is a PNG; name it .png");
+    if (o.size < kMinSize || o.size > kMaxSize) {
+      throw Error("--size must be " + std::to_string(kMinSize) + ".." + std::to_string(kMaxSize) +
+                  " pixels, got " + std::to_string(o.size));
+    }
+    AtomicFile file(o.output);  // fails now, before the work, when the folder is not writable
+    const DemTerrain dem = loadDem(o.source);
+    const TerrainIndex index(dem.mesh, dem.mapping, o.terrain);
+    const Quadtree& tree = index.tree();
+    // The hillshade in metres (a raster without CRS: its own units, heights in the same unit).
+    const LocalFrame frame = localFrame(dem, true, std::hypot(dem.geotransform[1], dem.geotransform[4]));
+    const Eigen::Vector3d light = frame.towardSun(SunPosition{});  // gdaldem's 315, 45
+
+    // The image: the raster's pixel grid scaled so that its long side has o.size pixels.
+    const double scale = double(o.size) / std::max(dem.width, dem.height);
+    const int iw = std::max(1, int(std::lround(dem.width * scale)));
+    const int ih = std::max(1, int(std::lround(dem.height * scale)));
+    const double colsPer = double(dem.width) / iw, rowsPer = double(dem.height) / ih;
+    // Fractional raster (col, row) of an image pixel's centre, and the leaf there.
+    const auto rasterAt = [&](int i, int j) { return std::array<double, 2>{(i + 0.5) * colsPer, (j + 0.5) * rowsPer}; };
+    const auto leafRow = [&](int j, std::vector<std::int64_t>& ids) {
+      for (int i = 0; i < iw; ++i) {
+        const auto [col, row] = rasterAt(i, j);
+        const auto world = dem.pixelCentre(col - 0.5, row - 0.5);
+        const Eigen::Vector3d m = dem.mapping.toMapped(Eigen::Vector3d(world[0], world[1], 0));
+        ids[i] = leafAt(tree, m.x(), m.y());
+      }
+    };
+
+    std::vector<std::uint8_t> grey(static_cast<std::size_t>(iw) * ih);
+    std::vector<std::int64_t> ids(iw), below(iw);
+    leafRow(0, ids);
+    for (int j = 0; j < ih; ++j) {
+      if (j + 1 < ih) leafRow(j + 1, below);
+      for (int i = 0; i < iw; ++i) {
+        std::uint8_t& px = grey[static_cast<std::size_t>(j) * iw + i];
+        // An edge pixel: the leaf changes to the right or below (so each edge is one pixel wide).
+        if ((i + 1 < iw && ids[i + 1] != ids[i]) || (j + 1 < ih && below[i] != ids[i])) {
+          px = kEdgeGrey;
+          continue;
+        }
+        const double fill = ids[i] < 0 ? kEmptyGrey
+                                       : leafGrey(Quadtree::leafSize(tree.nodes()[ids[i]]), o.terrain.tree.maxPoly);
+        const auto [col, row] = rasterAt(i, j);
+        const int c = std::clamp(int(col), 0, dem.width - 1), r = std::clamp(int(row), 0, dem.height - 1);
+        const double shade = frame.valid[static_cast<std::size_t>(r) * dem.width + c] ? lambert(frame, c, r, light) : 1.0;
+        px = static_cast<std::uint8_t>(std::lround(fill * (1 - kShadeDepth + kShadeDepth * shade)));
+      }
+      std::swap(ids, below);
+    }
+
+    encodePng(iw, ih, grey, file.stream());
+    file.commit();
+    if (!o.quiet) {
+      const QuadtreeStats& t = index.stats().tree;
+      out << "qota render-tree: " << o.source << " -> " << o.output << '\n'
+          << "tree: " << t.nodes << " nodes, " << t.leaves << " leaves (" << t.emptyLeaves
+          << " empty), depth " << t.depth << " (max poly " << o.terrain.tree.maxPoly << ", max depth "
+          << o.terrain.tree.maxDepth << ")\n"
+          << "image: " << iw << " x " << ih << " pixels; white: empty leaf, grey " << int(kFullGrey)
+          << ": " << o.terrain.tree.maxPoly << " polygons or more (log scale), black: leaf edges\n"
+          << "written: " << o.output << '\n';
+    }
+    return 0;
+  } catch (const Error& e) {
+    err << "qota render-tree: " << e.what() << '\n';
+    return 2;
+  }
+}
+
+}  // namespace qota::tools
