@@ -29,6 +29,9 @@
 #include "qota/globe.hpp"
 #include "qota/synthetic.hpp"
 #include "qota/terrain.hpp"
+#include "qota/treefile.hpp"
+#include "qota/dem.hpp"
+#include <filesystem>
 
 namespace {
 
@@ -175,6 +178,23 @@ struct LineParts {
 
 }  // namespace
 
+// Tree files: build, write and load times of an index, and the file's size.
+template <class Build>
+void treeFileRow(const char* name, Build&& build) {
+  const auto path = std::filesystem::temp_directory_path() / "planet_bench.qota";
+  const auto t0 = Clock::now();
+  const auto index = build();
+  const auto t1 = Clock::now();
+  qota::saveTree(path.string(), index);
+  const auto t2 = Clock::now();
+  const qota::TreeFile loaded = qota::loadTree(path.string());
+  const auto t3 = Clock::now();
+  const double mb = static_cast<double>(std::filesystem::file_size(path)) / 1e6;
+  std::filesystem::remove(path);
+  std::printf("%-34s %8.3f %8.3f %8.3f %9.1fx %9.1f\n", name, seconds(t0, t1), seconds(t1, t2),
+              seconds(t2, t3), seconds(t0, t1) / seconds(t2, t3), mb);
+}
+
 int main(int argc, char** argv) {
   bool quick = false;
   for (int i = 1; i < argc; ++i) {
@@ -263,7 +283,19 @@ int main(int argc, char** argv) {
     row.brute = seconds(b0, Clock::now()) * 1e9 / bruteCount;
     printRow(row);
   }
+  std::printf("\n%-34s %8s %8s %8s %10s %9s\n", "tree file (index only, terrain read)", "build s",
+              "write s", "load s", "build/load", "MB");
+  {
+    const qota::PlanetTerrain planet = qota::loadPlanet(QOTA_DATA_DIR "/etopo20.tif");
+    treeFileRow("spherical etopo20 planet",
+                [&] { return qota::SphericalIndex(planet.dem.mesh, planet.mapping); });
+  }
   if (quick) return 0;
+  {
+    const qota::DemTerrain dem = qota::loadDem(QOTA_DATA_DIR "/mt_rainier_90m.tif");
+    treeFileRow("cartesian SRTM Rainier", [&] { return qota::TerrainIndex(dem.mesh, dem.mapping); });
+  }
+  std::printf("\n");
 
   // Geodetic: the SRTM tile on WGS84, random points on the tile and a walk along a row.
   {

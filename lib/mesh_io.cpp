@@ -1,7 +1,5 @@
 #include "qota/mesh_io.hpp"
 
-#include <Eigen/Geometry>
-#include <assimp/Importer.hpp>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 #include <cpl_error.h>
@@ -10,8 +8,10 @@
 #include <ogr_spatialref.h>
 #include <ogrsf_frmts.h>
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <array>
+#include <assimp/Importer.hpp>
 #include <bit>
 #include <cctype>
 #include <charconv>
@@ -67,9 +67,12 @@ struct Projection {
   int drop = 2;  // the axis left out: 0 keeps (y, z), 1 keeps (z, x), 2 keeps (x, y)
   Point2 operator()(const Eigen::Vector3d& p) const {
     switch (drop) {
-      case 0: return {p.y(), p.z()};
-      case 1: return {p.z(), p.x()};
-      default: return {p.x(), p.y()};
+      case 0:
+        return {p.y(), p.z()};
+      case 1:
+        return {p.z(), p.x()};
+      default:
+        return {p.x(), p.y()};
     }
   }
 };
@@ -78,7 +81,8 @@ struct Projection {
 // triangles' unsigned normals (summed relative to its first corner, so that map-sized coordinates
 // do not swamp the small differences). Unsigned, so that a ring that crosses itself (whose signed
 // normal can cancel out) still gets a plane in which the crossing shows.
-Projection projectionFor(std::span<const std::uint32_t> ring, const std::vector<Eigen::Vector3d>& v) {
+Projection projectionFor(std::span<const std::uint32_t> ring,
+                         const std::vector<Eigen::Vector3d>& v) {
   Eigen::Vector3d n = Eigen::Vector3d::Zero();
   const Eigen::Vector3d o = v[ring[0]];
   for (std::size_t i = 1; i + 1 < ring.size(); ++i) {
@@ -89,8 +93,9 @@ Projection projectionFor(std::span<const std::uint32_t> ring, const std::vector<
   return p;
 }
 
-// Twice the signed area of a projected ring (shoelace, relative to its first corner). Only its
-// sign is used, to orient rings; a ring whose sign this gets wrong has no area worth the name.
+// Twice the signed area of a projected ring (shoelace, relative to its first corner), rounded:
+// its sign orients rings (a ring whose sign this gets wrong has no area worth the name) and its
+// size checks triangulations.
 double signedArea2(const std::vector<Point2>& pts) {
   double a = 0;
   for (std::size_t i = 1; i + 1 < pts.size(); ++i) {
@@ -122,7 +127,7 @@ bool convexCcw(const std::vector<Point2>& p) {
     const int turn = orient2dSign(a, b, c);
     if (turn < 0) return false;
     const int du = sgn(c.u - b.u), dv = sgn(c.v - b.v);  // exact signs of the edge b -> c
-    if (du == 0 && dv == 0) return false;  // two corners on one point in this plane
+    if (du == 0 && dv == 0) return false;                // two corners on one point in this plane
     if (turn == 0 && (sgn(b.u - a.u) != du || sgn(b.v - a.v) != dv)) return false;  // U-turn
     if (du != 0) {
       if (lastU != 0 && du != lastU) ++changesU;
@@ -231,7 +236,8 @@ bool joinHoles(std::vector<Node>& outer, std::vector<std::vector<Node>> holes) {
       const double du = outer[i].p.u - m.p.u, dv = outer[i].p.v - m.p.v;
       return du * du + dv * dv;
     };
-    std::sort(cand.begin(), cand.end(), [&](std::size_t a, std::size_t b) { return dist2(a) < dist2(b); });
+    std::sort(cand.begin(), cand.end(),
+              [&](std::size_t a, std::size_t b) { return dist2(a) < dist2(b); });
     const std::size_t on = outer.size();
     // A corner the hole shares with the joined ring (holes that touch) is a last resort: a bridge
     // to it would visit that point three times, which ear clipping handles badly.
@@ -253,7 +259,8 @@ bool joinHoles(std::vector<Node>& outer, std::vector<std::vector<Node>> holes) {
       splice.reserve(hn + 2);
       for (std::size_t j = 0; j <= hn; ++j) splice.push_back(hole[(mi + j) % hn]);
       splice.push_back(p);
-      outer.insert(outer.begin() + static_cast<std::ptrdiff_t>(i + 1), splice.begin(), splice.end());
+      outer.insert(outer.begin() + static_cast<std::ptrdiff_t>(i + 1), splice.begin(),
+                   splice.end());
       joined = true;
       break;
     }
@@ -262,11 +269,13 @@ bool joinHoles(std::vector<Node>& outer, std::vector<std::vector<Node>> holes) {
   return true;
 }
 
-// Ear clipping of a counter-clockwise ring (possibly with bridges, whose corners appear twice),
-// with exact tests. An ear is a strictly convex corner whose triangle holds no other corner (on
-// its boundary included, so that no corner is left on an edge of a triangle: a T-junction). When a
-// whole round finds no ear, a corner that is straight ahead or a U-turn is removed; when there is
-// none, the ring is not simple and false is returned.
+// Ear clipping of a counter-clockwise ring (possibly with bridges, whose corners appear twice,
+// and holes that touch), with exact tests. An ear is a strictly convex corner whose triangle holds
+// no other corner (on its boundary included, so that no corner is left on an edge of a triangle:
+// a T-junction). When a whole round finds no ear, a corner that is straight ahead is removed (a
+// T-junction, but the only way on); when there is none, the ring is not simple and false is
+// returned. Quadratic in the corners (cubic at worst): fine for building and parcel outlines, slow
+// for outlines of tens of thousands of corners.
 bool earClip(const std::vector<Node>& ring, std::vector<std::array<std::uint32_t, 3>>& out) {
   const std::size_t n = ring.size();
   std::vector<std::size_t> prev(n), next(n);
@@ -371,7 +380,8 @@ bool earClip(const std::vector<Node>& ring, std::vector<std::array<std::uint32_t
   }
   if (remaining == 3) {
     const std::size_t a = prev[cur], c = next[cur];
-    if (orient2dSign(ring[a].p, ring[cur].p, ring[c].p) > 0) out.push_back({ring[a].id, ring[cur].id, ring[c].id});
+    if (orient2dSign(ring[a].p, ring[cur].p, ring[c].p) > 0)
+      out.push_back({ring[a].id, ring[cur].id, ring[c].id});
   }
   return true;
 }
@@ -386,8 +396,8 @@ class Builder {
   Builder(MeshFile& out, const MeshFileOptions& options) : out_(out), options_(options) {}
 
   std::uint32_t vertex(const Eigen::Vector3d& p) {
-    const auto [it, added] =
-        ids_.try_emplace(PointKey{p.x(), p.y(), p.z()}, static_cast<std::uint32_t>(out_.mesh.vertices.size()));
+    const auto [it, added] = ids_.try_emplace(
+        PointKey{p.x(), p.y(), p.z()}, static_cast<std::uint32_t>(out_.mesh.vertices.size()));
     if (added) {
       if (out_.mesh.vertices.size() >= std::numeric_limits<std::uint32_t>::max() - 1) {
         throw Error(out_.path + ": more than 2^32 - 2 vertices; split the file");
@@ -397,7 +407,9 @@ class Builder {
     return it->second;
   }
 
-  std::uint32_t material(const std::string& name) { return named(name, materialIds_, out_.materials); }
+  std::uint32_t material(const std::string& name) {
+    return named(name, materialIds_, out_.materials);
+  }
   std::uint32_t object(const std::string& name) { return named(name, objectIds_, out_.objects); }
 
   // rings[0] is the outline, any further rings are holes. Corners are mesh vertex indices.
@@ -446,8 +458,9 @@ class Builder {
     std::vector<std::vector<Node>> holeNodes;
     for (const auto& h : holes) holeNodes.push_back(nodes(h, false));
     if (!holeNodes.empty() && !joinHoles(outer, std::move(holeNodes))) {
-      throw Error(where() + ": cannot join the polygon's holes to its outline (a hole outside it, "
-                            "or rings that cross)");
+      throw Error(where() +
+                  ": cannot join the polygon's holes to its outline (a hole outside it, "
+                  "or rings that cross)");
     }
     std::vector<std::array<std::uint32_t, 3>> tris;
     if (!earClip(outer, tris) || !coversArea(tris, outline, holes, proj)) {
@@ -463,7 +476,8 @@ class Builder {
   // area then differs from the polygon's (a bow tie's signed area is nothing at all).
   bool coversArea(const std::vector<std::array<std::uint32_t, 3>>& tris,
                   const std::vector<std::uint32_t>& outline,
-                  const std::vector<std::vector<std::uint32_t>>& holes, const Projection& proj) const {
+                  const std::vector<std::vector<std::uint32_t>>& holes,
+                  const Projection& proj) const {
     const auto& v = out_.mesh.vertices;
     auto area = [&](const std::vector<std::uint32_t>& ring) {
       std::vector<Point2> pts;
@@ -473,7 +487,20 @@ class Builder {
     double polygon = area(outline), cut = 0;
     for (const auto& h : holes) polygon -= area(h);
     for (const auto& t : tris) cut += area({t[0], t[1], t[2]});
-    return !tris.empty() && std::fabs(cut - polygon) <= 1e-9 * (cut + std::fabs(polygon));
+    // Both sums are rounded; allow for that, also in long thin polygons whose area is small next
+    // to their squared size (the scale of each rounding error).
+    Point2 lo{INFINITY, INFINITY}, hi{-INFINITY, -INFINITY};
+    for (std::uint32_t id : outline) {
+      const Point2 q = proj(v[id]);
+      lo = {std::min(lo.u, q.u), std::min(lo.v, q.v)},
+      hi = {std::max(hi.u, q.u), std::max(hi.v, q.v)};
+    }
+    const double size2 = (hi.u - lo.u) * (hi.u - lo.u) + (hi.v - lo.v) * (hi.v - lo.v);
+    std::size_t corners = outline.size();
+    for (const auto& h : holes) corners += h.size();
+    const double tolerance =
+        1e-9 * (cut + std::fabs(polygon)) + 1e-14 * static_cast<double>(corners) * size2;
+    return !tris.empty() && std::fabs(cut - polygon) <= tolerance;
   }
 
   // The origin, and the one check every reader shares: there is something to query.
@@ -491,7 +518,8 @@ class Builder {
   }
 
  private:
-  static std::uint32_t named(const std::string& name, std::unordered_map<std::string, std::uint32_t>& ids,
+  static std::uint32_t named(const std::string& name,
+                             std::unordered_map<std::string, std::uint32_t>& ids,
                              std::vector<std::string>& names) {
     const auto [it, added] = ids.try_emplace(name, static_cast<std::uint32_t>(names.size()));
     if (added) names.push_back(name);
@@ -668,7 +696,8 @@ class ObjReader {
   }
 
   void statement(std::string_view line, std::uint64_t lineNo) {
-    if (const std::size_t hash = line.find('#'); hash != std::string_view::npos) line = line.substr(0, hash);
+    if (const std::size_t hash = line.find('#'); hash != std::string_view::npos)
+      line = line.substr(0, hash);
     line = trim(line);
     if (line.empty()) return;
     const std::size_t sp = std::min(line.size(), line.find_first_of(" \t"));
@@ -678,7 +707,8 @@ class ObjReader {
     if (key == "v") {
       const auto t = tokens(rest);
       if (t.size() < 3) {
-        fail(lineNo, "a vertex needs three coordinates x y z, this one has " + std::to_string(t.size()));
+        fail(lineNo,
+             "a vertex needs three coordinates x y z, this one has " + std::to_string(t.size()));
       }
       // A w or vertex colour may follow; they must be numbers too but are not used.
       for (std::size_t i = 3; i < t.size(); ++i) number(t[i], lineNo);
@@ -686,7 +716,8 @@ class ObjReader {
     } else if (key == "f" || key == "fo") {
       const auto t = tokens(rest);
       if (t.size() < 3) {
-        fail(lineNo, "a face needs at least three corners, this one has " + std::to_string(t.size()));
+        fail(lineNo,
+             "a face needs at least three corners, this one has " + std::to_string(t.size()));
       }
       if (t.size() > std::numeric_limits<std::uint32_t>::max()) fail(lineNo, "face too large");
       // Faces before any usemtl / o / g get the name "", made here so that it exists only when
@@ -713,7 +744,6 @@ class ObjReader {
   std::vector<std::int64_t> corners_;
   std::uint32_t material_ = kUnset, object_ = kUnset;
   static constexpr std::uint32_t kUnset = 0xffffffffu;
-
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -729,8 +759,8 @@ void readAssimp(MeshFile& out, const MeshFileOptions& options, const std::string
   // No triangulation (Mesh takes convex polygons, and Builder cuts the others), no other
   // clean-up: Builder joins vertices by exact position across meshes, which JoinIdenticalVertices
   // (per mesh, and only when normals and texture coordinates agree too) cannot do alone.
-  const aiScene* scene =
-      importer.ReadFile(out.path, aiProcess_JoinIdenticalVertices | aiProcess_ValidateDataStructure);
+  const aiScene* scene = importer.ReadFile(
+      out.path, aiProcess_JoinIdenticalVertices | aiProcess_ValidateDataStructure);
   if (!scene) throw Error(assimpError(out.path, importer));
   if (scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE || !scene->mRootNode) {
     throw Error(out.path + ": Assimp read an incomplete scene (no geometry)");
@@ -739,47 +769,49 @@ void readAssimp(MeshFile& out, const MeshFileOptions& options, const std::string
   out.singlePrecision = kAssimpSinglePrecision;
   Builder builder(out, options);
 
-  std::function<void(const aiNode*, const Eigen::Matrix4d&)> walk = [&](const aiNode* node,
-                                                                        const Eigen::Matrix4d& parent) {
-    const aiMatrix4x4& t = node->mTransformation;
-    Eigen::Matrix4d local;
-    local << t.a1, t.a2, t.a3, t.a4, t.b1, t.b2, t.b3, t.b4, t.c1, t.c2, t.c3, t.c4, t.d1, t.d2, t.d3, t.d4;
-    const Eigen::Matrix4d world = parent * local;
-    for (unsigned k = 0; k < node->mNumMeshes; ++k) {
-      const aiMesh* mesh = scene->mMeshes[node->mMeshes[k]];
-      std::string materialName;
-      if (mesh->mMaterialIndex < scene->mNumMaterials) {
-        aiString name;
-        if (scene->mMaterials[mesh->mMaterialIndex]->Get(AI_MATKEY_NAME, name) == AI_SUCCESS) {
-          materialName = name.C_Str();
+  std::function<void(const aiNode*, const Eigen::Matrix4d&)> walk =
+      [&](const aiNode* node, const Eigen::Matrix4d& parent) {
+        const aiMatrix4x4& t = node->mTransformation;
+        Eigen::Matrix4d local;
+        local << t.a1, t.a2, t.a3, t.a4, t.b1, t.b2, t.b3, t.b4, t.c1, t.c2, t.c3, t.c4, t.d1, t.d2,
+            t.d3, t.d4;
+        const Eigen::Matrix4d world = parent * local;
+        for (unsigned k = 0; k < node->mNumMeshes; ++k) {
+          const aiMesh* mesh = scene->mMeshes[node->mMeshes[k]];
+          std::string materialName;
+          if (mesh->mMaterialIndex < scene->mNumMaterials) {
+            aiString name;
+            if (scene->mMaterials[mesh->mMaterialIndex]->Get(AI_MATKEY_NAME, name) == AI_SUCCESS) {
+              materialName = name.C_Str();
+            }
+          }
+          const std::string objectName =
+              node->mName.length ? node->mName.C_Str() : mesh->mName.C_Str();
+          const std::uint32_t material = builder.material(materialName);
+          const std::uint32_t object = builder.object(objectName);
+          std::vector<std::uint32_t> id(mesh->mNumVertices);
+          for (unsigned i = 0; i < mesh->mNumVertices; ++i) {
+            const aiVector3D& q = mesh->mVertices[i];
+            const Eigen::Vector3d p = world.topLeftCorner<3, 3>() * Eigen::Vector3d(q.x, q.y, q.z) +
+                                      world.topRightCorner<3, 1>();
+            if (!p.allFinite()) {
+              throw Error(out.path + ": mesh '" + mesh->mName.C_Str() + "' vertex " +
+                          std::to_string(i) + " has a non-finite coordinate");
+            }
+            id[i] = builder.vertex(p);
+          }
+          for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
+            const aiFace& face = mesh->mFaces[f];
+            if (face.mNumIndices < 3) continue;  // points and lines carry no surface
+            std::vector<std::uint32_t> ring(face.mNumIndices);
+            for (unsigned c = 0; c < face.mNumIndices; ++c) ring[c] = id[face.mIndices[c]];
+            builder.addFace({std::move(ring)}, material, object, f, [&] {
+              return out.path + ": mesh '" + mesh->mName.C_Str() + "' face " + std::to_string(f);
+            });
+          }
         }
-      }
-      const std::string objectName = node->mName.length ? node->mName.C_Str() : mesh->mName.C_Str();
-      const std::uint32_t material = builder.material(materialName);
-      const std::uint32_t object = builder.object(objectName);
-      std::vector<std::uint32_t> id(mesh->mNumVertices);
-      for (unsigned i = 0; i < mesh->mNumVertices; ++i) {
-        const aiVector3D& q = mesh->mVertices[i];
-        const Eigen::Vector3d p =
-            world.topLeftCorner<3, 3>() * Eigen::Vector3d(q.x, q.y, q.z) + world.topRightCorner<3, 1>();
-        if (!p.allFinite()) {
-          throw Error(out.path + ": mesh '" + mesh->mName.C_Str() + "' vertex " + std::to_string(i) +
-                      " has a non-finite coordinate");
-        }
-        id[i] = builder.vertex(p);
-      }
-      for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
-        const aiFace& face = mesh->mFaces[f];
-        if (face.mNumIndices < 3) continue;  // points and lines carry no surface
-        std::vector<std::uint32_t> ring(face.mNumIndices);
-        for (unsigned c = 0; c < face.mNumIndices; ++c) ring[c] = id[face.mIndices[c]];
-        builder.addFace({std::move(ring)}, material, object, f, [&] {
-          return out.path + ": mesh '" + mesh->mName.C_Str() + "' face " + std::to_string(f);
-        });
-      }
-    }
-    for (unsigned c = 0; c < node->mNumChildren; ++c) walk(node->mChildren[c], world);
-  };
+        for (unsigned c = 0; c < node->mNumChildren; ++c) walk(node->mChildren[c], world);
+      };
   walk(scene->mRootNode, Eigen::Matrix4d::Identity());
   builder.finish();
 }
@@ -822,7 +854,8 @@ class OgrReader {
       OGRLayer* layer = ds.GetLayerByName(options_.layer.c_str());
       if (!layer) {
         std::string names;
-        for (OGRLayer* l : ds.GetLayers()) names += (names.empty() ? "" : ", ") + std::string(l->GetName());
+        for (OGRLayer* l : ds.GetLayers())
+          names += (names.empty() ? "" : ", ") + std::string(l->GetName());
         throw Error(out_.path + ": no layer '" + options_.layer + "' (layers: " + names + ")");
       }
       layers.push_back(layer);
@@ -859,7 +892,8 @@ class OgrReader {
       if (field < 0) {
         std::string fields;
         for (int i = 0; i < layer.GetLayerDefn()->GetFieldCount(); ++i) {
-          fields += (i ? ", " : "") + std::string(layer.GetLayerDefn()->GetFieldDefn(i)->GetNameRef());
+          fields +=
+              (i ? ", " : "") + std::string(layer.GetLayerDefn()->GetFieldDefn(i)->GetNameRef());
         }
         throw Error(out_.path + ": layer '" + name + "' has no field '" + options_.materialField +
                     "' (fields: " + fields + ")");
@@ -874,14 +908,17 @@ class OgrReader {
       ++sequence;
       const OGRGeometry* g = feature->GetGeometryRef();
       if (!g || g->IsEmpty()) continue;
-      const auto where = [&] { return out_.path + ": layer '" + name + "' feature " + std::to_string(id); };
+      const auto where = [&] {
+        return out_.path + ": layer '" + name + "' feature " + std::to_string(id);
+      };
       if (!g->Is3D()) {
         throw Error(where() + ": " + OGRGeometryTypeToName(g->getGeometryType()) +
                     " has no Z coordinates; a terrain needs heights");
       }
       std::uint32_t material = layerMaterial;
       if (field >= 0) {
-        material = builder_.material(feature->IsFieldSetAndNotNull(field) ? feature->GetFieldAsString(field) : "");
+        material = builder_.material(
+            feature->IsFieldSetAndNotNull(field) ? feature->GetFieldAsString(field) : "");
       }
       const std::uint32_t object = builder_.object(name + ":" + std::to_string(id));
       addGeometry(*g, material, object, id, where);
@@ -904,13 +941,15 @@ class OgrReader {
       case wkbMultiPolygon:
       case wkbMultiSurface:
       case wkbGeometryCollection:
-        for (const OGRGeometry* part : *g.toGeometryCollection()) addGeometry(*part, material, object, id, where);
+        for (const OGRGeometry* part : *g.toGeometryCollection())
+          addGeometry(*part, material, object, id, where);
         return;
       case wkbPolyhedralSurface:
       case wkbTIN: {
         // Each patch is a polygon; patches share corners, which Builder joins into shared vertices.
         const OGRPolyhedralSurface* s = g.toPolyhedralSurface();
-        for (int i = 0; i < s->getNumGeometries(); ++i) addPolygon(*s->getGeometryRef(i), material, object, id, where);
+        for (int i = 0; i < s->getNumGeometries(); ++i)
+          addPolygon(*s->getGeometryRef(i), material, object, id, where);
         return;
       }
       default:
@@ -986,7 +1025,8 @@ MeshFile loadMeshFile(const std::string& path, const MeshFileOptions& options) {
   {
     QuietGdalErrors quiet;
     // A file a GDAL vector driver recognises goes to OGR first: doubles, and the CRS.
-    const bool gdalKnows = !exists || GDALIdentifyDriverEx(path.c_str(), GDAL_OF_VECTOR, nullptr, nullptr);
+    const bool gdalKnows =
+        !exists || GDALIdentifyDriverEx(path.c_str(), GDAL_OF_VECTOR, nullptr, nullptr);
     if (gdalKnows) {
       std::unique_ptr<GDALDataset> ds(GDALDataset::Open(
           path.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY | GDAL_OF_VERBOSE_ERROR));
@@ -1001,8 +1041,9 @@ MeshFile loadMeshFile(const std::string& path, const MeshFileOptions& options) {
     readAssimp(out, options, ext);
     return out;
   }
-  throw Error(path + ": unknown format: not OBJ, not a mesh format Assimp reads (by extension), "
-                     "not a vector dataset GDAL recognises");
+  throw Error(path +
+              ": unknown format: not OBJ, not a mesh format Assimp reads (by extension), "
+              "not a vector dataset GDAL recognises");
 }
 
 }  // namespace qota

@@ -36,13 +36,26 @@ using qota::TerrainIndex;
 
 const std::string kTestArea = QOTA_DATA_DIR "/testarea.obj";
 
-// A directory of this process's own (tests may run in parallel processes).
-std::filesystem::path scratch(const std::string& name) {
-  const auto dir = std::filesystem::temp_directory_path() /
-                   ("qota_mesh_io_" + std::to_string(static_cast<long>(::getpid())));
-  std::filesystem::create_directories(dir);
-  return dir / name;
+// A directory of this process's own (tests may run in parallel processes), removed at the end.
+std::filesystem::path scratchDir() {
+  return std::filesystem::temp_directory_path() /
+         ("qota_mesh_io_" + std::to_string(static_cast<long>(::getpid())));
 }
+
+std::filesystem::path scratch(const std::string& name) {
+  std::filesystem::create_directories(scratchDir());
+  return scratchDir() / name;
+}
+
+class RemoveScratch : public ::testing::Environment {
+ public:
+  void TearDown() override {
+    std::error_code ec;
+    std::filesystem::remove_all(scratchDir(), ec);
+  }
+};
+[[maybe_unused]] const auto* const kRemoveScratch =
+    ::testing::AddGlobalTestEnvironment(new RemoveScratch);
 
 std::string writeText(const std::string& name, const std::string& text) {
   const auto path = scratch(name);
@@ -67,8 +80,8 @@ const MeshFile& testArea() {
 }
 
 const TerrainIndex& testAreaIndex() {
-  static const TerrainIndex index(testArea().mesh,
-                                  qota::CartesianMapping(Eigen::Vector3d(0, 0, -1), testArea().origin));
+  static const TerrainIndex index(
+      testArea().mesh, qota::CartesianMapping(Eigen::Vector3d(0, 0, -1), testArea().origin));
   return index;
 }
 
@@ -165,7 +178,8 @@ TEST(MeshIo, TestAreaKeepsFullPrecision) {
     if (line.rfind("v ", 0) == 0) last = line;
   }
   double x = 0, y = 0, z = 0;
-  ASSERT_EQ(std::sscanf(last.c_str(), "v %lf %lf %lf", &x, &y, &z), 3);  // strtod: correctly rounded
+  ASSERT_EQ(std::sscanf(last.c_str(), "v %lf %lf %lf", &x, &y, &z),
+            3);  // strtod: correctly rounded
   EXPECT_EQ(f.mesh.vertices.back(), Eigen::Vector3d(x, y, z)) << last;
 }
 
@@ -200,9 +214,12 @@ TEST(MeshIo, TestAreaWallsAreVerticalAndLeftOutOfTheIndex) {
     if (m.size() < 4 || m.compare(m.size() - 4, 4, "Wall") != 0) continue;
     ++walls;
     const auto idx = f.mesh.polygon(p);
-    const auto xy = [&](std::uint32_t i) { return qota::Point2{f.mesh.vertices[i].x(), f.mesh.vertices[i].y()}; };
+    const auto xy = [&](std::uint32_t i) {
+      return qota::Point2{f.mesh.vertices[i].x(), f.mesh.vertices[i].y()};
+    };
     // Vertical: the shadow on the ground has no area, exactly.
-    EXPECT_EQ(qota::orient2dSign(xy(idx[0]), xy(idx[1]), xy(idx[2])), 0) << "line " << f.polygonSource[p];
+    EXPECT_EQ(qota::orient2dSign(xy(idx[0]), xy(idx[1]), xy(idx[2])), 0)
+        << "line " << f.polygonSource[p];
     buildingWalls += m == "BuildingWall";
   }
   EXPECT_EQ(buildingWalls, 3066u);
@@ -232,8 +249,9 @@ std::size_t findProbe(const MeshFile& f, const std::string& material, bool alone
   for (const auto& [p, centroid] : candidates) {
     const auto r = qota::test::bruteForce(f.mesh, Eigen::Vector3d(0, 0, -1), f.origin, centroid);
     if (r.nearestEdge < 0.05 || (alone && r.hits.size() != 1)) continue;
-    const auto top = std::max_element(r.hits.begin(), r.hits.end(),
-                                      [](const auto& x, const auto& y) { return x.height < y.height; });
+    const auto top =
+        std::max_element(r.hits.begin(), r.hits.end(),
+                         [](const auto& x, const auto& y) { return x.height < y.height; });
     if (top == r.hits.end() || top->polygon != p) continue;
     at = centroid;
     return p;
@@ -339,7 +357,8 @@ TEST(MeshIo, ObjSyntax) {
   EXPECT_EQ(f.mesh.polygon(0).size(), 4u);
   EXPECT_EQ(f.triangulated, 1u);
   EXPECT_EQ(std::vector<std::uint32_t>(f.mesh.polygon(1).begin(), f.mesh.polygon(1).end()),
-            (std::vector<std::uint32_t>{3, 1, 4})) << "-3 -1 -2 of v 0 1 0, v 1 0 0 (joined), v 2 0 1";
+            (std::vector<std::uint32_t>{3, 1, 4}))
+      << "-3 -1 -2 of v 0 1 0, v 1 0 0 (joined), v 2 0 1";
   EXPECT_EQ(f.materials, (std::vector<std::string>{"", "Roof"}));
   EXPECT_EQ(f.objects, (std::vector<std::string>{"", "second", "third"}));
   EXPECT_EQ(f.objectOf(4), "third");
@@ -349,7 +368,8 @@ TEST(MeshIo, ObjSyntax) {
   // The dart's triangles cover it exactly: area 2 + 2 - 1 - ... = its shoelace area, 3.
   double area = 0;
   for (std::size_t p = 2; p < 5; ++p) {
-    area += 0.5 * (corner(f, p, 1) - corner(f, p, 0)).cross(corner(f, p, 2) - corner(f, p, 0)).norm();
+    area +=
+        0.5 * (corner(f, p, 1) - corner(f, p, 0)).cross(corner(f, p, 2) - corner(f, p, 0)).norm();
   }
   EXPECT_DOUBLE_EQ(area, 3.0);
 }
@@ -372,7 +392,8 @@ TEST(MeshIo, ObjErrorsNameFileAndLine) {
       {"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3 2 1 3\n", ""},  // a bow tie of repeats: see below
       {"v 0 0 0\n", "bad.obj: no polygons"},
       {"v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n", "bad.obj: no polygons (all 1 faces are degenerate"},
-      {"v 0 0 0\nv 2 0 0\nv 2 2 0\nv 0 2 0\nf 1 3 2 4\n", "bad.obj:5: cannot cut the 4-corner polygon"},
+      {"v 0 0 0\nv 2 0 0\nv 2 2 0\nv 0 2 0\nf 1 3 2 4\n",
+       "bad.obj:5: cannot cut the 4-corner polygon"},
   };
   for (const auto& c : cases) {
     const std::string path = writeText("bad.obj", c.text);
@@ -419,8 +440,8 @@ TEST(MeshIo, AssimpStlJoinsRepeatedCorners) {
 TEST(MeshIo, AssimpOffKeepsConvexPolygons) {
   const std::string path = writeText("shapes.off",
                                      "OFF\n12 3 0\n"
-                                     "0 0 0\n2 0 0\n2 2 0\n0 2 0\n"        // a square
-                                     "2 0 0\n3 0 1\n2 2 0\n"               // a triangle on its edge
+                                     "0 0 0\n2 0 0\n2 2 0\n0 2 0\n"  // a square
+                                     "2 0 0\n3 0 1\n2 2 0\n"         // a triangle on its edge
                                      "5 0 0\n7 0 0\n7 2 0\n6 1 0\n5 2 0\n"  // a dart
                                      "4 0 1 2 3\n3 4 5 6\n5 7 8 9 10 11\n");
   const MeshFile f = qota::loadMeshFile(path);
@@ -456,14 +477,16 @@ TEST(MeshIo, AssimpGltfMaterialsNodesAndTransforms) {
   const std::string gltf =
       R"({"asset":{"version":"2.0"},"scene":0,"scenes":[{"nodes":[0]}],)"
       R"("nodes":[{"name":"house","mesh":0,"translation":[1000,2000,10],"scale":[2,2,2]}],)"
-      R"("meshes":[{"name":"roofmesh","primitives":[{"attributes":{"POSITION":0},"indices":1,"material":0}]}],)"
+      R"("meshes":[{"name":"roofmesh","primitives":[)"
+      R"({"attributes":{"POSITION":0},"indices":1,"material":0}]}],)"
       R"("materials":[{"name":"Roof"}],)"
       R"("buffers":[{"byteLength":44,"uri":"data:application/octet-stream;base64,)" +
       base64(buffer) +
       R"("}],"bufferViews":[{"buffer":0,"byteOffset":0,"byteLength":36},)"
       R"({"buffer":0,"byteOffset":36,"byteLength":6}],)"
       R"("accessors":[{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3",)"
-      R"("min":[0,0,0],"max":[1,1,0.5]},{"bufferView":1,"componentType":5123,"count":3,"type":"SCALAR"}]})";
+      R"("min":[0,0,0],"max":[1,1,0.5]},)"
+      R"({"bufferView":1,"componentType":5123,"count":3,"type":"SCALAR"}]})";
   const MeshFile f = qota::loadMeshFile(writeText("roof.gltf", gltf));
   EXPECT_EQ(f.format, "assimp:gltf");
   ASSERT_EQ(f.mesh.polygonCount(), 1u);
@@ -474,7 +497,8 @@ TEST(MeshIo, AssimpGltfMaterialsNodesAndTransforms) {
     for (const auto& v : f.mesh.vertices) s.insert({v.x(), v.y(), v.z()});
     return s;
   }();
-  EXPECT_EQ(got, (std::set<std::array<double, 3>>{{1000, 2000, 10}, {1002, 2000, 10}, {1000, 2002, 11}}));
+  EXPECT_EQ(
+      got, (std::set<std::array<double, 3>>{{1000, 2000, 10}, {1002, 2000, 10}, {1000, 2002, 11}}));
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -527,8 +551,9 @@ std::string makeGeoPackage() {
   };
   bool ok = true;
   // Feature 1: two planar patches sharing the edge B-C (z = Z0 + (dx + dy) / 40).
-  const std::array<double, 3> A{X0, Y0, Z0}, B{X0 + 10, Y0, Z0 + 0.25}, C{X0 + 10, Y0 + 10, Z0 + 0.5},
-      D{X0, Y0 + 10, Z0 + 0.25}, E{X0 + 20, Y0, Z0 + 0.5}, F{X0 + 20, Y0 + 10, Z0 + 0.75};
+  const std::array<double, 3> A{X0, Y0, Z0}, B{X0 + 10, Y0, Z0 + 0.25},
+      C{X0 + 10, Y0 + 10, Z0 + 0.5}, D{X0, Y0 + 10, Z0 + 0.25}, E{X0 + 20, Y0, Z0 + 0.5},
+      F{X0 + 20, Y0 + 10, Z0 + 0.75};
   OGRPolyhedralSurface surface;
   const OGRPolygon patch1 = polygon({ring({A, B, C, D})}), patch2 = polygon({ring({B, E, F, C})});
   surface.addGeometry(&patch1);
@@ -539,20 +564,29 @@ std::string makeGeoPackage() {
   ok &= add(roofs, polygon({ring({E, G, H, F})}), "terrace");
   // Feature 3: a level yard with a square hole in it.
   const double x3 = X0 + 40, z3 = Z0 - 1;
-  ok &= add(roofs,
-            polygon({ring({{x3, Y0, z3}, {x3 + 20, Y0, z3}, {x3 + 20, Y0 + 20, z3}, {x3, Y0 + 20, z3}}),
-                     ring({{x3 + 5, Y0 + 5, z3}, {x3 + 5, Y0 + 15, z3}, {x3 + 15, Y0 + 15, z3}, {x3 + 15, Y0 + 5, z3}})}),
-            "yard");
+  ok &= add(
+      roofs,
+      polygon({ring({{x3, Y0, z3}, {x3 + 20, Y0, z3}, {x3 + 20, Y0 + 20, z3}, {x3, Y0 + 20, z3}}),
+               ring({{x3 + 5, Y0 + 5, z3},
+                     {x3 + 5, Y0 + 15, z3},
+                     {x3 + 15, Y0 + 15, z3},
+                     {x3 + 15, Y0 + 5, z3}})}),
+      "yard");
   // Feature 4: an L-shaped (non-convex) yard.
   const double x4 = X0 + 70;
   ok &= add(roofs,
-            polygon({ring({{x4, Y0, z3}, {x4 + 20, Y0, z3}, {x4 + 20, Y0 + 5, z3}, {x4 + 5, Y0 + 5, z3},
-                           {x4 + 5, Y0 + 20, z3}, {x4, Y0 + 20, z3}})}),
+            polygon({ring({{x4, Y0, z3},
+                           {x4 + 20, Y0, z3},
+                           {x4 + 20, Y0 + 5, z3},
+                           {x4 + 5, Y0 + 5, z3},
+                           {x4 + 5, Y0 + 20, z3},
+                           {x4, Y0 + 20, z3}})}),
             "yard");
   // The TIN layer: two triangles sharing an edge, away from the rest.
   const double x5 = X0 + 100;
   OGRTriangulatedSurface triangles;
-  OGRPoint p0(x5, Y0, Z0), p1(x5 + 10, Y0, Z0 + 1), p2(x5 + 10, Y0 + 10, Z0 + 2), p3(x5, Y0 + 10, Z0 + 1);
+  OGRPoint p0(x5, Y0, Z0), p1(x5 + 10, Y0, Z0 + 1), p2(x5 + 10, Y0 + 10, Z0 + 2),
+      p3(x5, Y0 + 10, Z0 + 1);
   triangles.addGeometryDirectly(new OGRTriangle(p0, p1, p2));
   triangles.addGeometryDirectly(new OGRTriangle(p0, p2, p3));
   ok &= add(tin, triangles, nullptr);
@@ -571,7 +605,8 @@ TEST(MeshIo, GeoPackageEveryLayer) {
   EXPECT_FALSE(f.singlePrecision);
   // Materials are the layer names; objects the features.
   EXPECT_EQ(f.materials, (std::vector<std::string>{"roofs", "tin"}));
-  EXPECT_EQ(f.objects, (std::vector<std::string>{"roofs:1", "roofs:2", "roofs:3", "roofs:4", "tin:1"}));
+  EXPECT_EQ(f.objects,
+            (std::vector<std::string>{"roofs:1", "roofs:2", "roofs:3", "roofs:4", "tin:1"}));
   // 2 patches + 1 polygon + 8 triangles around the hole + 4 for the L + 2 TIN triangles.
   ASSERT_EQ(f.mesh.polygonCount(), 17u);
   EXPECT_EQ(f.triangulated, 2u);
@@ -641,10 +676,14 @@ TEST(MeshIo, GeoPackageOneLayerAndMaterialField) {
   EXPECT_EQ(roofs.materialOf(roofs.mesh.polygonCount() - 1), "yard");
 
   options.layer = "nope";
-  EXPECT_NE(errorOf([&] { qota::loadMeshFile(geoPackage(), options); }).find("no layer 'nope' (layers: roofs, tin)"),
+  EXPECT_NE(errorOf([&] {
+              qota::loadMeshFile(geoPackage(), options);
+            }).find("no layer 'nope' (layers: roofs, tin)"),
             std::string::npos);
   options.layer = "tin";  // has no "class" field
-  EXPECT_NE(errorOf([&] { qota::loadMeshFile(geoPackage(), options); }).find("layer 'tin' has no field 'class'"),
+  EXPECT_NE(errorOf([&] {
+              qota::loadMeshFile(geoPackage(), options);
+            }).find("layer 'tin' has no field 'class'"),
             std::string::npos);
 }
 
@@ -664,6 +703,31 @@ TEST(MeshIo, OgrRejectsFlatAndNonSurfaceGeometry) {
   EXPECT_NE(m2.find("feature 3: 3D Line String is not a surface"), std::string::npos) << m2;
 }
 
+TEST(MeshIo, OgrVerticalWallWithWindow) {
+  // A wall in the x-z plane with a window: cut in its own plane, it is all walls for the index.
+  const std::string path = writeText(
+      "wall.geojson",
+      R"({"type":"FeatureCollection","features":[{"type":"Feature","id":1,"properties":{},)"
+      R"("geometry":{"type":"Polygon","coordinates":[)"
+      R"([[0,5,0],[10,5,0],[10,5,6],[0,5,6],[0,5,0]],)"
+      R"([[2,5,2],[2,5,4],[5,5,4],[5,5,2],[2,5,2]]]}}]})");
+  const MeshFile f = qota::loadMeshFile(path);
+  ASSERT_EQ(f.mesh.polygonCount(), 8u);
+  EXPECT_EQ(f.triangulated, 1u);
+  double area = 0;
+  for (std::size_t p = 0; p < 8; ++p) {
+    area +=
+        0.5 * (corner(f, p, 1) - corner(f, p, 0)).cross(corner(f, p, 2) - corner(f, p, 0)).norm();
+  }
+  EXPECT_DOUBLE_EQ(area, 60.0 - 6.0);
+  const TerrainIndex index(f.mesh, qota::CartesianMapping(Eigen::Vector3d(0, 0, -1), f.origin));
+  EXPECT_EQ(index.stats().walls, 8u);
+  // Seen from the side (gravity along +y), the window is a hole.
+  const TerrainIndex side(f.mesh, qota::CartesianMapping(Eigen::Vector3d(0, 1, 0), f.origin));
+  EXPECT_EQ(side.stats().walls, 0u);
+  EXPECT_TRUE(side.topWorld(Eigen::Vector3d(1, 0, 1)));
+  EXPECT_FALSE(side.topWorld(Eigen::Vector3d(3.5, 0, 3)));
+}
 
 // Random star-shaped polygons, each with 0, 1 or 2 star-shaped holes, at map coordinates on a
 // tilted plane: every one is cut into triangles that cover exactly its area, and the index finds
@@ -697,7 +761,8 @@ double distanceToRing(const Ring2& r, double x, double y) {
   double best = 1e300;
   for (std::size_t i = 0, j = r.size() - 1; i < r.size(); j = i++) {
     const double ex = r[i][0] - r[j][0], ey = r[i][1] - r[j][1];
-    const double t = std::clamp(((x - r[j][0]) * ex + (y - r[j][1]) * ey) / (ex * ex + ey * ey), 0.0, 1.0);
+    const double t =
+        std::clamp(((x - r[j][0]) * ex + (y - r[j][1]) * ey) / (ex * ex + ey * ey), 0.0, 1.0);
     best = std::min(best, std::hypot(x - r[j][0] - t * ex, y - r[j][1] - t * ey));
   }
   return best;
@@ -758,12 +823,15 @@ TEST(MeshIo, RandomPolygonsWithHolesAreCutExactly) {
   for (std::size_t p = 0; p < f.mesh.polygonCount(); ++p) {
     const auto idx = f.mesh.polygon(p);
     for (std::size_t i = 1; i + 1 < idx.size(); ++i) {
-      const Eigen::Vector3d a = f.mesh.vertices[idx[0]], b = f.mesh.vertices[idx[i]], c = f.mesh.vertices[idx[i + 1]];
-      cut[f.polygonSource[p]] += std::fabs((b - a).x() * (c - a).y() - (b - a).y() * (c - a).x()) / 2;
+      const Eigen::Vector3d a = f.mesh.vertices[idx[0]], b = f.mesh.vertices[idx[i]],
+                            c = f.mesh.vertices[idx[i + 1]];
+      cut[f.polygonSource[p]] +=
+          std::fabs((b - a).x() * (c - a).y() - (b - a).y() * (c - a).x()) / 2;
     }
   }
   for (std::size_t k = 0; k < shapes.size(); ++k) {
-    EXPECT_NEAR(cut[k + 1], shapes[k].area, 1e-6 * shapes[k].area) << "seed " << seed << " polygon " << k + 1;
+    EXPECT_NEAR(cut[k + 1], shapes[k].area, 1e-6 * shapes[k].area)
+        << "seed " << seed << " polygon " << k + 1;
   }
 
   const TerrainIndex index(f.mesh, qota::CartesianMapping(Eigen::Vector3d(0, 0, -1), f.origin));
@@ -772,7 +840,8 @@ TEST(MeshIo, RandomPolygonsWithHolesAreCutExactly) {
   for (std::size_t k = 0; k < shapes.size(); ++k) {
     const double cx = X0 + 30.0 * (k % 10), cy = Y0 + 30.0 * (k / 10);
     for (int i = 0; i < 40; ++i) {
-      const double x = cx + (i % 2 ? offset(rng) : offset(rng) / 4), y = cy + offset(rng) / (i % 2 ? 1 : 4);
+      const double x = cx + (i % 2 ? offset(rng) : offset(rng) / 4),
+                   y = cy + offset(rng) / (i % 2 ? 1 : 4);
       bool in = insideRing(shapes[k].rings[0], x, y);
       double near = distanceToRing(shapes[k].rings[0], x, y);
       for (std::size_t h = 1; h < shapes[k].rings.size(); ++h) {

@@ -8,6 +8,7 @@
 
 #include "qota/dem.hpp"
 #include "qota/error.hpp"
+#include "qota/treefile.hpp"
 #include "qota_tools.hpp"
 #include "text_output.hpp"
 
@@ -46,10 +47,51 @@ void printCrs(const DemTerrain& dem, std::ostream& out) {
   }
 }
 
+// The quadtree's statistics (the paper's Table 4 and the tree's shape) and memory.
+void printTree(const QuadtreeStats& t, std::uint64_t memoryBytes, std::uint64_t triangles,
+               std::ostream& out) {
+  out << "nodes: " << t.nodes << '\n';
+  out << "leaves: " << t.leaves << '\n';
+  out << "empty leaves: " << t.emptyLeaves << '\n';
+  out << "depth: " << t.depth << '\n';
+  out << "leaf references: " << t.references << '\n';
+  out << "max polygons per leaf: " << t.maxLeafItems << '\n';
+  out << "mean polygons per leaf: " << formatNumber(t.meanLeafItems, 3) << '\n';
+  out << "average tests per query: " << formatNumber(t.averageTests, 3) << '\n';
+  out << "memory (bytes): " << memoryBytes << '\n';
+  out << "memory (MB): " << formatNumber(static_cast<double>(memoryBytes) / 1e6, 3) << '\n';
+  out << "bytes per triangle: "
+      << formatNumber(triangles ? static_cast<double>(memoryBytes) / static_cast<double>(triangles) : 0.0, 1)
+      << '\n';
+}
+
+// A tree file: what it was built from, its mapping and its tree, and how long loading took.
+int treeInfo(const InfoOptions& options, std::ostream& out) {
+  const auto start = std::chrono::steady_clock::now();
+  const TreeFile tree = loadTree(options.source);
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  out << "source: " << options.source << '\n';
+  out << "driver: qota tree file\n";
+  out << "built from: " << (tree.source.path.empty() ? std::string("unknown") : tree.source.path) << '\n';
+  if (tree.source.width > 0) out << "size: " << tree.source.width << " x " << tree.source.height << '\n';
+  std::visit(
+      [&](const auto& index) {
+        out << "mapping: " << index.mapping().describe() << '\n';
+        out << "polygons: " << index.stats().polygons << '\n';
+        out << "triangles: " << index.stats().triangles << '\n';
+        printTree(index.stats().tree, index.stats().memoryBytes, index.stats().triangles, out);
+      },
+      tree.index);
+  out << "load time (s): " << formatNumber(seconds, 3) << '\n';
+  return 0;
+}
+
 }  // namespace
 
 int info(const InfoOptions& options, std::ostream& out, std::ostream& err) {
   try {
+    if (isTreeFile(options.source)) return treeInfo(options, out);
     const DemTerrain dem = loadDem(options.source);
     const auto start = std::chrono::steady_clock::now();
     const TerrainIndex index(dem.mesh, dem.mapping, options.terrain);
@@ -73,19 +115,7 @@ int info(const InfoOptions& options, std::ostream& out, std::ostream& err) {
     out << "walls left out: " << s.walls << '\n';
     out << "max poly: " << options.terrain.tree.maxPoly << '\n';
     out << "max depth: " << options.terrain.tree.maxDepth << '\n';
-    out << "nodes: " << t.nodes << '\n';
-    out << "leaves: " << t.leaves << '\n';
-    out << "empty leaves: " << t.emptyLeaves << '\n';
-    out << "depth: " << t.depth << '\n';
-    out << "leaf references: " << t.references << '\n';
-    out << "max polygons per leaf: " << t.maxLeafItems << '\n';
-    out << "mean polygons per leaf: " << formatNumber(t.meanLeafItems, 3) << '\n';
-    out << "average tests per query: " << formatNumber(t.averageTests, 3) << '\n';
-    out << "memory (bytes): " << s.memoryBytes << '\n';
-    out << "memory (MB): " << formatNumber(static_cast<double>(s.memoryBytes) / 1e6, 3) << '\n';
-    out << "bytes per triangle: "
-        << formatNumber(s.triangles ? static_cast<double>(s.memoryBytes) / static_cast<double>(s.triangles) : 0.0, 1)
-        << '\n';
+    printTree(t, s.memoryBytes, s.triangles, out);
     out << "build time (s): " << formatNumber(seconds, 3) << '\n';
     return 0;
   } catch (const Error& e) {

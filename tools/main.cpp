@@ -45,7 +45,9 @@ int main(int argc, char** argv) {
       "below it) from stdin or --input-file and prints one line per input line: the height, "
       "'none' where there is no terrain, 'error' for a malformed line. Exit code 1 when a line "
       "was malformed or off the raster, 2 when the raster cannot be read.");
-  sampleCmd->add_option("source", sample.source, "Elevation raster (any GDAL format)")->required();
+  sampleCmd->add_option("source", sample.source,
+                        "Elevation raster (any GDAL format), tree file (qota build) or mesh file")
+      ->required();
   sampleCmd->add_option("-i,--input-file", sample.inputFile, "Read points from this file");
   sampleCmd->add_option("-o,--output-file", sample.outputFile,
                         "Write results to this file (replaced only when complete)");
@@ -59,8 +61,8 @@ int main(int argc, char** argv) {
                         "closed planet; lines 'lon lat [r]', prints the surface radius), geodetic "
                         "(a lon/lat raster on its ellipsoid; lines 'lon lat [h]', prints the "
                         "height along the normal), cylindrical (the raster as a station's relief; "
-                        "lines 'angle axial [h]', prints the distance from the axis)")
-      ->capture_default_str()
+                        "lines 'angle axial [h]', prints the distance from the axis); default: a "
+                        "tree file's own, else cartesian")
       ->check(CLI::IsMember({"cartesian", "spherical", "geodetic", "cylindrical"}));
   sampleCmd->add_option("--radius", sample.radius,
                         "spherical: the planet's reference radius in metres (default: from the "
@@ -76,7 +78,8 @@ int main(int argc, char** argv) {
   qota::tools::InfoOptions info;
   CLI::App* infoCmd =
       app.add_subcommand("info", "Raster, terrain and quadtree statistics (the paper's Table 4)");
-  infoCmd->add_option("source", info.source, "Elevation raster (any GDAL format)")->required();
+  infoCmd->add_option("source", info.source, "Elevation raster (any GDAL format) or tree file (qota build)")
+      ->required();
   addTreeOptions(infoCmd, info.terrain);
 
   qota::tools::ShadowOptions shadow;
@@ -120,6 +123,25 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   addTreeOptions(shadowCmd, shadow.terrain);
 
+  qota::tools::BuildOptions build;
+  CLI::App* buildCmd = app.add_subcommand(
+      "build",
+      "Build a terrain's QOTA index once and write it as a tree file (.qota), which sample, info "
+      "and render-tree load instead of rebuilding.");
+  buildCmd->add_option("source", build.source.source, "Raster (any GDAL format) or mesh file (OBJ, PLY, glTF, STL, GeoPackage...)")
+      ->required();
+  buildCmd->add_option("-o,--output", build.output, "Tree file to write (replaced only when complete)")
+      ->required();
+  buildCmd->add_option("--mapping", build.source.mapping,
+                       "cartesian (default), spherical, geodetic or cylindrical (see sample)")
+      ->check(CLI::IsMember({"cartesian", "spherical", "geodetic", "cylindrical"}));
+  buildCmd->add_option("--radius", build.source.radius, "spherical: planet radius; cylindrical: station radius")
+      ->check(CLI::PositiveNumber);
+  buildCmd->add_option("--length", build.source.length, "cylindrical: station length")
+      ->check(CLI::PositiveNumber);
+  buildCmd->add_flag("-q,--quiet", build.quiet, "No summary");
+  addTreeOptions(buildCmd, build.source.terrain);
+
   qota::tools::RenderTreeOptions renderTree;
   CLI::App* renderTreeCmd = app.add_subcommand(
       "render-tree",
@@ -145,6 +167,7 @@ int main(int argc, char** argv) {
     const int code = app.exit(e);
     return code == 0 ? 0 : 2;
   }
+  if (*buildCmd) return qota::tools::build(build, std::cout, std::cerr);
   if (*sampleCmd) return qota::tools::sample(sample, std::cin, std::cout, std::cerr);
   if (*infoCmd) return qota::tools::info(info, std::cout, std::cerr);
   if (*shadowCmd) {

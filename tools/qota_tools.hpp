@@ -10,11 +10,13 @@
 #include <string>
 #include <vector>
 
+#include "index_source.hpp"
 #include "qota/terrain.hpp"
 
 namespace qota::tools {
 
-// qota sample: terrain heights at points, one output line per input line.
+// qota sample: terrain heights at points, one output line per input line. The source may also be
+// a tree file (qota build) or, in the cartesian mapping, a mesh file.
 //
 // Input lines: "x y" (the topmost terrain) or "x y z" (the nearest terrain at or below z), in the
 // raster's CRS, or in `srs` when given (any string GDAL's SetFromUserInput takes: EPSG:4326, WKT,
@@ -40,7 +42,7 @@ struct SampleOptions {
   // "cylindrical" (the raster as the relief of a station of `radius` (default 250) and `length`
   // (default 1000) around the z axis; points "angle axial [h]", output the distance from the
   // axis, "below" meaning away from it).
-  std::string mapping = "cartesian";
+  std::string mapping;       // empty: a tree file's own mapping, else cartesian
   double radius = 0;
   double length = 0;
   bool swapXY = false;      // input lines are "y x" (lat lon), as GeographicLib's -w
@@ -104,5 +106,17 @@ struct RenderTreeOptions {
   TerrainOptions terrain;
 };
 int renderTree(const RenderTreeOptions& options, std::ostream& out, std::ostream& err);
+
+// qota build: the index of a terrain, built once and written as a tree file (treefile.hpp), which
+// `qota sample`, `qota info` and `qota render-tree` then take in place of the terrain. The source
+// is a raster or a mesh file in any mapping (index_source.hpp). Prints the tree's size and the
+// build and write times unless quiet. Exit code 0, or 2 on error (nothing is left under the
+// output name).
+struct BuildOptions {
+  SourceOptions source;
+  std::string output;
+  bool quiet = false;
+};
+int build(const BuildOptions& options, std::ostream& out, std::ostream& err);
 
 }  // namespace qota::tools

@@ -4,15 +4,18 @@
 #include <cpl_error.h>
 #include <cpl_vsi.h>
 #include <gdal_priv.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
 #include <cctype>
 #include <cmath>
+#include <cerrno>
 #include <cstdint>
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <system_error>
 
 #include "qota/dem.hpp"
 #include "qota/error.hpp"
@@ -100,6 +103,20 @@ void encodePng(int width, int height, const std::vector<std::uint8_t>& grey, std
   CPLFree(bytes);
 }
 
+// Fails early, before the work, when the output's folder is missing or not writable (the file
+// itself is only created, under a temporary name, once the image is ready).
+void requireWritableFolder(const std::string& path) {
+  std::filesystem::path folder = std::filesystem::path(path).parent_path();
+  if (folder.empty()) folder = ".";
+  std::error_code ec;
+  if (!std::filesystem::is_directory(folder, ec)) {
+    throw Error(path + ": cannot write (no folder " + folder.string() + ")");
+  }
+  if (::access(folder.c_str(), W_OK) != 0) {
+    throw Error(path + ": cannot write (" + std::generic_category().message(errno) + ")");
+  }
+}
+
 bool hasPngExtension(const std::string& path) {
   std::string ext = std::filesystem::path(path).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
@@ -116,7 +133,7 @@ int renderTree(const RenderTreeOptions& o, std::ostream& out, std::ostream& err)
       throw Error("--size must be " + std::to_string(kMinSize) + ".." + std::to_string(kMaxSize) +
                   " pixels, got " + std::to_string(o.size));
     }
-    AtomicFile file(o.output);  // fails now, before the work, when the folder is not writable
+    requireWritableFolder(o.output);
     const DemTerrain dem = loadDem(o.source);
     const TerrainIndex index(dem.mesh, dem.mapping, o.terrain);
     const Quadtree& tree = index.tree();
@@ -162,6 +179,7 @@ int renderTree(const RenderTreeOptions& o, std::ostream& out, std::ostream& err)
       std::swap(ids, below);
     }
 
+    AtomicFile file(o.output);
     encodePng(iw, ih, grey, file.stream());
     file.commit();
     if (!o.quiet) {

@@ -4,6 +4,7 @@
 #include <charconv>
 #include <fstream>
 #include <functional>
+#include <type_traits>
 #include <iostream>
 #include <memory>
 #include <optional>
@@ -13,7 +14,7 @@
 #include "qota/curved.hpp"
 #include "qota/dem.hpp"
 #include "qota/error.hpp"
-#include "qota/globe.hpp"
+#include "index_source.hpp"
 #include "qota_tools.hpp"
 #include "text_output.hpp"
 
@@ -82,69 +83,57 @@ struct Answer {
 // (x, y) in the input's order after -w; z: the query height, or null for the top surface.
 using Surface = std::function<Answer(double x, double y, const double* z)>;
 
-// The terrain of options.source in options.mapping, with its query. The index lives in the
-// returned closure.
+// The terrain of options.source (a tree file, or a raster or mesh in options.mapping), with its
+// query. The index lives in the returned closure.
 Surface openSurface(const SampleOptions& options) {
-  const std::string& mapping = options.mapping;
-  if (mapping == "cartesian") {
-    auto dem = std::make_shared<DemTerrain>(loadDem(options.source));
-    auto index = std::make_shared<TerrainIndex>(dem->mesh, dem->mapping, options.terrain);
-    std::shared_ptr<OGRCoordinateTransformation> transform = makeTransform(options.srs, *dem);
-    return [dem, index, transform, srs = options.srs](double x0, double y0, const double* z) {
+  SourceOptions so;
+  so.source = options.source;
+  so.mapping = options.mapping;
+  so.radius = options.radius;
+  so.length = options.length;
+  so.terrain = options.terrain;
+  auto tree = std::make_shared<TreeFile>(openIndex(so));
+  if (const TerrainIndex* index = std::get_if<TerrainIndex>(&tree->index)) {
+    // The raster's footprint and CRS, when the source was a raster.
+    auto grid = std::make_shared<DemTerrain>();
+    grid->path = tree->source.path.empty() ? options.source : tree->source.path;
+    grid->crsWkt = tree->source.crsWkt;
+    grid->width = tree->source.width, grid->height = tree->source.height;
+    grid->geotransform = tree->source.geotransform;
+    std::shared_ptr<OGRCoordinateTransformation> transform = makeTransform(options.srs, *grid);
+    return [tree, index, grid, transform, srs = options.srs](double x0, double y0, const double* z) {
       double x = x0, y = y0;
       if (transform && !transform->Transform(1, &x, &y)) {
         return Answer{std::nullopt, "error",
                       "cannot transform (" + formatNumber(x0) + ", " + formatNumber(y0) +
                           ") from " + srs + " to the raster's CRS"};
       }
-      if (!dem->onRaster(x, y)) {
+      if (grid->width > 0 && !grid->onRaster(x, y)) {
         return Answer{std::nullopt, "none",
                       "point (" + formatNumber(x) + ", " + formatNumber(y) + ") is off the raster"};
       }
-      const Eigen::Vector3d m = dem->mapping.toMapped(Eigen::Vector3d(x, y, z ? *z : 0.0));
+      const Eigen::Vector3d m = index->mapping().toMapped(Eigen::Vector3d(x, y, z ? *z : 0.0));
       return Answer{z ? index->below(m.x(), m.y(), m.z()) : index->top(m.x(), m.y()), "", ""};
     };
   }
   if (!options.srs.empty()) {
-    throw Error("--srs applies to the cartesian mapping only; the " + mapping +
+    throw Error("--srs applies to the cartesian mapping only; the " +
+                std::string(mappingNameOf(tree->index)) +
                 " mapping reads longitude/latitude (or angle/axial) coordinates");
   }
-  // The curved mappings share their query; only the terrain and the domain check differ.
-  auto curved = [](auto index, bool latitude) -> Surface {
-    return [index, latitude](double u, double v, const double* z) {
-      if (latitude && !(v >= -90.0 && v <= 90.0)) {
-        return Answer{std::nullopt, "error", "latitude " + formatNumber(v) + " is outside [-90, 90]"};
-      }
-      return Answer{z ? index->below(u, v, *z) : index->top(u, v), "", ""};
-    };
-  };
-  if (mapping == "spherical") {
-    PlanetOptions planetOptions;
-    planetOptions.radius = options.radius;
-    const PlanetTerrain planet = loadPlanet(options.source, planetOptions);
-    return curved(std::make_shared<SphericalIndex>(planet.dem.mesh, planet.mapping, options.terrain),
-                  true);
-  }
-  if (mapping == "geodetic") {
-    const EllipsoidTerrain terrain = loadOnEllipsoid(options.source);
-    return curved(std::make_shared<GeodeticIndex>(terrain.dem.mesh, terrain.mapping, options.terrain),
-                  true);
-  }
-  if (mapping == "cylindrical") {
-    // The raster is the station's relief: columns around the axis, rows along it.
-    const DemTerrain dem = loadDem(options.source);
-    Heightfield relief;
-    relief.nx = dem.width, relief.ny = dem.height;
-    relief.z.resize(dem.mesh.vertices.size());
-    for (std::size_t i = 0; i < relief.z.size(); ++i) relief.z[i] = dem.mesh.vertices[i].z();
-    StationOptions station;
-    if (options.radius > 0) station.radius = options.radius;
-    if (options.length > 0) station.length = options.length;
-    const Mesh mesh = stationMesh(relief, station);
-    return curved(std::make_shared<CylindricalIndex>(mesh, CylindricalMapping(), options.terrain),
-                  false);
-  }
-  throw Error("--mapping '" + mapping + "' is not one of cartesian, spherical, cylindrical, geodetic");
+  // The curved mappings share their query; only the domain check differs.
+  return std::visit(
+      [&](const auto& index) -> Surface {
+        const bool latitude = !std::is_same_v<std::decay_t<decltype(index)>, CylindricalIndex>;
+        return [tree, &index, latitude](double u, double v, const double* z) {
+          if (latitude && !(v >= -90.0 && v <= 90.0)) {
+            return Answer{std::nullopt, "error",
+                          "latitude " + formatNumber(v) + " is outside [-90, 90]"};
+          }
+          return Answer{z ? index.below(u, v, *z) : index.top(u, v), "", ""};
+        };
+      },
+      tree->index);
 }
 
 }  // namespace

@@ -1,9 +1,6 @@
 #include "text_output.hpp"
 
-#include <unistd.h>
-
 #include <charconv>
-#include <system_error>
 
 #include "qota/error.hpp"
 
@@ -15,34 +12,6 @@ std::string formatNumber(double value, int precision) {
                      ? std::to_chars(buf, buf + sizeof buf, value)
                      : std::to_chars(buf, buf + sizeof buf, value, std::chars_format::fixed, precision);
   return std::string(buf, r.ptr);
-}
-
-AtomicFile::AtomicFile(std::filesystem::path target) : target_(std::move(target)) {
-  temp_ = target_;
-  temp_ += ".tmp." + std::to_string(::getpid());
-  stream_.open(temp_, std::ios::out | std::ios::trunc | std::ios::binary);
-  if (!stream_) {
-    throw Error(target_.string() + ": cannot write (" + std::generic_category().message(errno) + ")");
-  }
-}
-
-AtomicFile::~AtomicFile() {
-  if (!committed_) {
-    stream_.close();
-    std::error_code ec;
-    std::filesystem::remove(temp_, ec);
-  }
-}
-
-void AtomicFile::commit() {
-  stream_.flush();
-  const bool ok = static_cast<bool>(stream_);
-  stream_.close();
-  if (!ok || stream_.fail()) throw Error(target_.string() + ": write failed");
-  std::error_code ec;
-  std::filesystem::rename(temp_, target_, ec);
-  if (ec) throw Error(target_.string() + ": cannot rename into place (" + ec.message() + ")");
-  committed_ = true;
 }
 
 }  // namespace qota::tools

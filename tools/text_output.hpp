@@ -6,29 +6,12 @@
 #include <fstream>
 #include <string>
 
+#include "qota/atomic_file.hpp"  // AtomicFile, shared with the library
+
 namespace qota::tools {
 
 // The shortest decimal that reads back as the same double (precision < 0), or fixed decimals.
 std::string formatNumber(double value, int precision = -1);
 
-// A file written under a temporary name and renamed into place by commit(), so that a failed or
-// interrupted run never leaves a half-written file under the requested name. Without commit() the
-// temporary is removed.
-class AtomicFile {
- public:
-  explicit AtomicFile(std::filesystem::path target);
-  ~AtomicFile();
-  AtomicFile(const AtomicFile&) = delete;
-  AtomicFile& operator=(const AtomicFile&) = delete;
-
-  std::ofstream& stream() { return stream_; }
-  const std::filesystem::path& temporary() const { return temp_; }
-  void commit();  // throws qota::Error when the data cannot be written or renamed
-
- private:
-  std::filesystem::path target_, temp_;
-  std::ofstream stream_;
-  bool committed_ = false;
-};
 
 }  // namespace qota::tools

@@ -117,6 +117,8 @@ class CurvedIndex {
   Line lineAt(double u, double v) const;
 
  private:
+  friend struct TreeFileAccess;  // the on-disk format (treefile.hpp)
+  CurvedIndex() = default;
   // One triangle, 128 bytes: its local vertices (for the edge tests and the exact fallback), the
   // plane n . x = na, the footprint box (float, rounded outward) and the source polygon.
   struct alignas(64) Tri {

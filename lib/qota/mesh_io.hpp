@@ -27,7 +27,9 @@
 // plane and has no holes. Repeated consecutive corners (and the closing point of OGR rings) are
 // removed first. A face that is not convex, or a polygon with holes (OGR), is cut into triangles
 // by ear clipping in the plane it is most nearly parallel to, with exact orientation tests; each
-// triangle keeps the face's material, object and source (counted in MeshFile::triangulated).
+// triangle keeps the face's material, object and source (counted in MeshFile::triangulated). A
+// face kept whole that is not planar may still look non-convex along some gravity, which
+// TerrainIndex refuses; MeshFileOptions::triangulate cuts every face and so avoids that.
 //
 // Degenerate faces: fewer than three distinct corners, or all corners exactly on one line in
 // double arithmetic. They cover no area, so dropping them never opens a crack; a sliver with any

@@ -158,6 +158,7 @@ class Quadtree {
   QuadtreeStats stats() const;
 
  private:
+  friend struct TreeFileAccess;  // the on-disk format (treefile.hpp)
   struct Half {
     double u, v;
   };

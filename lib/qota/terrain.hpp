@@ -142,6 +142,8 @@ class TerrainIndex {
   std::uint32_t testsAt(double u, double v) const;
 
  private:
+  friend struct TreeFileAccess;  // the on-disk format (treefile.hpp)
+  TerrainIndex() = default;
   // Hot per-triangle record, one per triangle, 128 bytes (two cache lines), in Morton order.
   // The plane is solved from corner 0 (h0 + a (u - u0) + b (v - v0)) rather than as a u + b v + c:
   // exact at that corner and with rounding proportional to the local relief, not to the size of

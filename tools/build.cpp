@@ -1,0 +1,40 @@
+// qota build: a terrain's index, built once and written as a tree file (see qota_tools.hpp).
+#include <chrono>
+#include <filesystem>
+#include <iostream>
+
+#include "index_source.hpp"
+#include "qota/error.hpp"
+#include "qota_tools.hpp"
+#include "text_output.hpp"
+
+namespace qota::tools {
+
+int build(const BuildOptions& options, std::ostream& out, std::ostream& err) {
+  try {
+    if (options.output.empty()) throw Error("no output file (-o)");
+    const auto t0 = std::chrono::steady_clock::now();
+    const TreeFile tree = openIndex(options.source);
+    const auto t1 = std::chrono::steady_clock::now();
+    saveTree(options.output, tree.index, tree.source);
+    const auto t2 = std::chrono::steady_clock::now();
+    if (!options.quiet) {
+      const auto secs = [](auto a, auto b) { return std::chrono::duration<double>(b - a).count(); };
+      std::visit(
+          [&](const auto& index) {
+            out << options.output << ": " << mappingNameOf(tree.index) << " tree of "
+                << index.stats().triangles << " triangles, " << index.stats().tree.nodes
+                << " nodes, " << std::filesystem::file_size(options.output) << " bytes\n"
+                << "built in " << formatNumber(secs(t0, t1), 3) << " s, written in "
+                << formatNumber(secs(t1, t2), 3) << " s\n";
+          },
+          tree.index);
+    }
+    return 0;
+  } catch (const Error& e) {
+    err << "qota build: " << e.what() << '\n';
+    return 2;
+  }
+}
+
+}  // namespace qota::tools

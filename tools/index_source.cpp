@@ -1,0 +1,89 @@
+#include "index_source.hpp"
+
+#include <gdal_priv.h>
+
+#include <filesystem>
+#include <memory>
+
+#include "qota/dem.hpp"
+#include "qota/error.hpp"
+#include "qota/globe.hpp"
+#include "qota/mesh_io.hpp"
+
+namespace qota::tools {
+namespace {
+
+bool isRaster(const std::string& path) {
+  ensureGdalRegistered();
+  CPLPushErrorHandler(CPLQuietErrorHandler);  // a mesh file is not an error here
+  std::unique_ptr<GDALDataset> ds(
+      static_cast<GDALDataset*>(GDALOpenEx(path.c_str(), GDAL_OF_RASTER, nullptr, nullptr, nullptr)));
+  CPLPopErrorHandler();
+  return ds != nullptr;
+}
+
+TreeSource sourceOf(const DemTerrain& dem) {
+  return {dem.path, dem.crsWkt, dem.width, dem.height, dem.geotransform};
+}
+
+}  // namespace
+
+const char* mappingNameOf(const AnyIndex& index) {
+  return std::visit([](const auto& i) { return i.mapping().name(); }, index);
+}
+
+TreeFile openIndex(const SourceOptions& o) {
+  // GDAL's virtual paths (/vsizip/, /vsicurl/...) are not on the file system.
+  if (o.source.rfind("/vsi", 0) != 0 && !std::filesystem::exists(o.source)) {
+    throw Error(o.source + ": cannot open: no such file");
+  }
+  if (isTreeFile(o.source)) {
+    TreeFile tf = loadTree(o.source);
+    if (!o.mapping.empty() && o.mapping != mappingNameOf(tf.index)) {
+      throw Error(o.source + ": the tree file was built in the " +
+                  std::string(mappingNameOf(tf.index)) + " mapping, not " + o.mapping +
+                  " (leave --mapping out or rebuild it)");
+    }
+    return tf;
+  }
+  if (o.mapping.empty() || o.mapping == "cartesian") {
+    if (!isRaster(o.source)) {
+      const MeshFile file = loadMeshFile(o.source);
+      TreeSource source;
+      source.path = o.source;
+      source.crsWkt = file.crsWkt;
+      return {TerrainIndex(file.mesh, CartesianMapping(Eigen::Vector3d(0, 0, -1), file.origin),
+                           o.terrain),
+              source};
+    }
+    const DemTerrain dem = loadDem(o.source);
+    return {TerrainIndex(dem.mesh, dem.mapping, o.terrain), sourceOf(dem)};
+  }
+  if (o.mapping == "spherical") {
+    PlanetOptions planetOptions;
+    planetOptions.radius = o.radius;
+    const PlanetTerrain planet = loadPlanet(o.source, planetOptions);
+    return {SphericalIndex(planet.dem.mesh, planet.mapping, o.terrain), sourceOf(planet.dem)};
+  }
+  if (o.mapping == "geodetic") {
+    const EllipsoidTerrain t = loadOnEllipsoid(o.source);
+    return {GeodeticIndex(t.dem.mesh, t.mapping, o.terrain), sourceOf(t.dem)};
+  }
+  if (o.mapping == "cylindrical") {
+    // The raster is the station's relief: columns around the axis, rows along it.
+    const DemTerrain dem = loadDem(o.source);
+    Heightfield relief;
+    relief.nx = dem.width, relief.ny = dem.height;
+    relief.z.resize(dem.mesh.vertices.size());
+    for (std::size_t i = 0; i < relief.z.size(); ++i) relief.z[i] = dem.mesh.vertices[i].z();
+    StationOptions station;
+    if (o.radius > 0) station.radius = o.radius;
+    if (o.length > 0) station.length = o.length;
+    TreeSource source = sourceOf(dem);
+    source.width = source.height = 0;  // not a map: no raster footprint to check points against
+    return {CylindricalIndex(stationMesh(relief, station), CylindricalMapping(), o.terrain), source};
+  }
+  throw Error("--mapping '" + o.mapping + "' is not one of cartesian, spherical, cylindrical, geodetic");
+}
+
+}  // namespace qota::tools

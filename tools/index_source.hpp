@@ -1,0 +1,31 @@
+// Where the tools get their index: a tree file (qota build's output), or a raster or mesh file
+// built in the mapping asked for. One place, so that `sample`, `info` and `build` accept the
+// same sources.
+#pragma once
+
+#include <string>
+
+#include "qota/treefile.hpp"
+
+namespace qota::tools {
+
+struct SourceOptions {
+  std::string source;                 // a .qota tree file, a raster, or a mesh file
+  // cartesian | spherical | geodetic | cylindrical; empty: a tree file's own, else cartesian
+  std::string mapping;
+  double radius = 0;                  // spherical: planet radius; cylindrical: station radius
+  double length = 0;                  // cylindrical: station length
+  TerrainOptions terrain;
+};
+
+// A tree file is loaded as it is (its own mapping; asking for another is an error). A raster
+// becomes: cartesian: the DEM as a map (loadDem); spherical: a planet (loadPlanet); geodetic: the
+// DEM on its ellipsoid (loadOnEllipsoid); cylindrical: the relief of a station around the z axis
+// (stationMesh). A file GDAL cannot open as a raster is read as a mesh (loadMeshFile: OBJ, PLY,
+// glTF, STL, ... or 3D polygons in any vector format), cartesian only. Throws qota::Error.
+TreeFile openIndex(const SourceOptions& options);
+
+// The mapping name of an index ("cartesian", ...).
+const char* mappingNameOf(const AnyIndex& index);
+
+}  // namespace qota::tools
