@@ -1,5 +1,7 @@
 #include "qota/quadtree.hpp"
 
+#include <algorithm>
+
 #include <cmath>
 
 namespace qota {
@@ -29,6 +31,47 @@ Quadtree::Node Quadtree::descend(double u, double v, Cursor& cursor) const {
   cursor.leaf = nd;
   cursor.box = {lu, lv, hu, hv};
   return nd;
+}
+
+void Quadtree::refreshJump(std::uint32_t n, std::uint32_t depth, const Box2& box) {
+  if (jumpDepth_ == 0 || depth > jumpDepth_) return;  // deeper: the table holds an ancestor
+  if (depth < jumpDepth_ && nodes_[n].count == kInner) {
+    // A node above the table's depth that is (now) inner: the table holds its descendants.
+    const Node nd = nodes_[n];
+    const double mu = box.ulo + half_[depth].u, mv = box.vlo + half_[depth].v;
+    refreshJump(nd.first, depth + 1, {box.ulo, box.vlo, mu, mv});
+    refreshJump(nd.first + 1, depth + 1, {mu, box.vlo, box.uhi, mv});
+    refreshJump(nd.first + 2, depth + 1, {box.ulo, mv, mu, box.vhi});
+    refreshJump(nd.first + 3, depth + 1, {mu, mv, box.uhi, box.vhi});
+    return;
+  }
+  // The node's box starts on a cut of the table exactly (the same sums), and spans
+  // 2^(jumpDepth - depth) cells each way.
+  const auto ix = static_cast<std::uint32_t>(
+      std::lower_bound(cutU_.begin(), cutU_.end(), box.ulo) - cutU_.begin());
+  const auto iy = static_cast<std::uint32_t>(
+      std::lower_bound(cutV_.begin(), cutV_.end(), box.vlo) - cutV_.begin());
+  const std::uint32_t span = 1u << (jumpDepth_ - depth);
+  for (std::uint32_t y = iy; y < iy + span && y < cutV_.size(); ++y) {
+    for (std::uint32_t x = ix; x < ix + span && x < cutU_.size(); ++x) {
+      jump_[(y << jumpDepth_) | x] = nodes_[n];
+    }
+  }
+}
+
+void Quadtree::compact() {
+  // Copy every leaf's live range into a fresh array, in node order.
+  BigVector<std::uint32_t> fresh;
+  fresh.reserve(refs_.size() - abandoned_);
+  for (Node& n : nodes_) {
+    if (n.count == kInner) continue;
+    const std::uint32_t first = static_cast<std::uint32_t>(fresh.size());
+    fresh.insert(fresh.end(), refs_.begin() + n.first, refs_.begin() + n.first + leafSize(n));
+    n.first = first;
+  }
+  refs_.swap(fresh);
+  abandoned_ = 0;
+  buildJumpTable();  // it holds copies of the leaves
 }
 
 void Quadtree::buildJumpTable() {

@@ -41,10 +41,6 @@ std::string describePoint(const Eigen::Vector3d& p) {
 }
 
 // A triangle waiting for the build: mapped corner indices (counter-clockwise) and its polygon.
-struct Pending {
-  std::uint32_t corner[3];
-  std::uint32_t polygon;
-};
 
 // True when the polygon's projection has an area below 1e-9 of its squared size: a wall seen
 // edge-on, whose corners rounding has scattered off their common line (a vertical wall under a
@@ -139,19 +135,8 @@ TerrainIndex::TerrainIndex(const Mesh& mesh, const CartesianMapping& mapping,
                     " has a non-finite coordinate " + describePoint(mesh.vertices[i]));
       }
     }
-    const int sign = idx.size() == 3
-                         ? orient2dSign(corners2_[idx[0]], corners2_[idx[1]], corners2_[idx[2]])
-                         : convexOrientation(idx, corners2_, p);
     const std::size_t before = pending.size();
-    if (sign != 0) {
-      for (std::size_t k = 1; k + 1 < idx.size(); ++k) {
-        const std::uint32_t a = idx[0], b = idx[k], c = idx[k + 1];
-        // Fan triangles over collinear corners have no area: the rest of the fan covers them.
-        if (idx.size() > 3 && orient2dSign(corners2_[a], corners2_[b], corners2_[c]) == 0) continue;
-        const auto poly = static_cast<std::uint32_t>(p);
-        pending.push_back(sign > 0 ? Pending{{a, b, c}, poly} : Pending{{a, c, b}, poly});
-      }
-    }
+    fanPolygon(idx, static_cast<std::uint32_t>(p), pending);
     if (pending.size() == before) ++stats_.walls;
   }
   stats_.triangles = pending.size();
@@ -196,43 +181,13 @@ TerrainIndex::TerrainIndex(const Mesh& mesh, const CartesianMapping& mapping,
   // Hot and cold records. The edge tolerance bounds the rounding error of A u + B v + C for every
   // (u, v) in the domain: the rounded A, B, C (one rounding each, two for C's products) and the
   // evaluation (three roundings) stay within 8 units of the magnitude sum; 16 leaves a margin.
-  const double umax = std::max(std::fabs(domain.ulo), std::fabs(domain.uhi));
-  const double vmax = std::max(std::fabs(domain.vlo), std::fabs(domain.vhi));
+  umax_ = std::max(std::fabs(domain.ulo), std::fabs(domain.uhi));
+  vmax_ = std::max(std::fabs(domain.vlo), std::fabs(domain.vhi));
   tris_.resize(pending.size());
   cold_.resize(pending.size());
   std::vector<Box2> boxes(pending.size());  // build only: bboxes for the overlap test
   for (std::size_t t = 0; t < pending.size(); ++t) {
-    const Pending& q = pending[t];
-    Tri& r = tris_[t];
-    cold_[t] = Cold{{q.corner[0], q.corner[1], q.corner[2]}, q.polygon};
-    double hlo = INFINITY, hhi = -INFINITY, tol = 0;
-    Box2& bb = boxes[t];
-    bb = Box2{INFINITY, INFINITY, -INFINITY, -INFINITY};
-    for (int k = 0; k < 3; ++k) {
-      const Eigen::Vector3d& p0 = mapped[q.corner[k]];
-      const Eigen::Vector3d& p1 = mapped[q.corner[(k + 1) % 3]];
-      r.A[k] = p0.y() - p1.y();
-      r.B[k] = p1.x() - p0.x();
-      r.C[k] = p0.x() * p1.y() - p1.x() * p0.y();
-      tol = std::max(tol, std::fabs(r.A[k]) * umax + std::fabs(r.B[k]) * vmax +
-                              std::fabs(p0.x() * p1.y()) + std::fabs(p1.x() * p0.y()));
-      bb.ulo = std::min(bb.ulo, p0.x()), bb.uhi = std::max(bb.uhi, p0.x());
-      bb.vlo = std::min(bb.vlo, p0.y()), bb.vhi = std::max(bb.vhi, p0.y());
-      hlo = std::min(hlo, p0.z()), hhi = std::max(hhi, p0.z());
-    }
-    r.tol = 16.0 * kUnitRoundoff * tol;
-    r.hlo = floatBelow(hlo), r.hhi = floatAbove(hhi);
-    const Eigen::Vector3d& p0 = mapped[q.corner[0]];
-    const Eigen::Vector3d n = (mapped[q.corner[1]] - p0).cross(mapped[q.corner[2]] - p0);
-    r.u0 = p0.x(), r.v0 = p0.y(), r.h0 = p0.z();
-    r.a = -n.x() / n.z();
-    r.b = -n.y() / n.z();
-    if (!(n.z() > 0) || !std::isfinite(r.a) || !std::isfinite(r.b)) {
-      // A sliver with nonzero exact area whose plane is vertical to within rounding. It stays in
-      // the index, or its neighbours would open a crack; its height is its corners' mid-range.
-      r.a = r.b = 0;
-      r.h0 = 0.5 * (hlo + hhi);
-    }
+    boxes[t] = makeRecord(static_cast<std::uint32_t>(t), pending[t]);
   }
 
   // The quadtree: a triangle is referenced from a leaf when its closed projection meets the closed
@@ -254,32 +209,12 @@ TerrainIndex::TerrainIndex(const Mesh& mesh, const CartesianMapping& mapping,
     floorV = 0.5 * dv[dv.size() / 2];
   }
   tree_.build(static_cast<std::uint32_t>(tris_.size()), domain, options.tree,
-              [this, &boxes](std::uint32_t t, const Box2& b) {
-                const Tri& r = tris_[t];
-                const Box2& tb = boxes[t];
-                if (tb.ulo > b.uhi || tb.uhi < b.ulo || tb.vlo > b.vhi || tb.vhi < b.vlo) return false;
-                for (int k = 0; k < 3; ++k) {
-                  const double u = r.A[k] >= 0 ? b.uhi : b.ulo;
-                  const double v = r.B[k] >= 0 ? b.vhi : b.vlo;
-                  if (r.A[k] * u + r.B[k] * v + r.C[k] < -r.tol) return false;
-                }
-                return true;
-              },
+              [this, &boxes](std::uint32_t t, const Box2& b) { return overlaps(t, boxes[t], b); },
               floorU, floorV);
   // Single-layer leaves: where no two of a leaf's triangles overlap, the first one containing a
   // point is the only surface there, and the query stops at it. Their items are put in polygon
   // order so that this first one is also the smallest polygon id, as the tie rule says.
-  tree_.markLeaves([this](std::span<std::uint32_t> items) {
-    for (std::size_t i = 0; i < items.size(); ++i) {
-      for (std::size_t j = i + 1; j < items.size(); ++j) {
-        if (!separated(items[i], items[j])) return false;
-      }
-    }
-    std::sort(items.begin(), items.end(), [this](std::uint32_t a, std::uint32_t b) {
-      return cold_[a].polygon != cold_[b].polygon ? cold_[a].polygon < cold_[b].polygon : a < b;
-    });
-    return true;
-  });
+  tree_.markLeaves([this](std::span<std::uint32_t> items) { return prepareLeaf(items); });
   stats_.tree = tree_.stats();
   stats_.memoryBytes = tris_.size() * sizeof(Tri) + cold_.size() * sizeof(Cold) +
                        corners2_.size() * (sizeof(Point2) + sizeof(double)) + stats_.tree.memoryBytes;
@@ -287,6 +222,103 @@ TerrainIndex::TerrainIndex(const Mesh& mesh, const CartesianMapping& mapping,
     hmin_ = std::min(hmin_, static_cast<double>(tris_[t].hlo));
     hmax_ = std::max(hmax_, static_cast<double>(tris_[t].hhi));
   }
+}
+
+void TerrainIndex::fanPolygon(std::span<const std::uint32_t> idx, std::uint32_t p,
+                              std::vector<Pending>& pending) const {
+  const int sign = idx.size() == 3
+                       ? orient2dSign(corners2_[idx[0]], corners2_[idx[1]], corners2_[idx[2]])
+                       : convexOrientation(idx, corners2_, p);
+  if (sign == 0) return;
+  for (std::size_t k = 1; k + 1 < idx.size(); ++k) {
+    const std::uint32_t a = idx[0], b = idx[k], c = idx[k + 1];
+    // Fan triangles over collinear corners have no area: the rest of the fan covers them.
+    if (idx.size() > 3 && orient2dSign(corners2_[a], corners2_[b], corners2_[c]) == 0) continue;
+    pending.push_back(sign > 0 ? Pending{{a, b, c}, p} : Pending{{a, c, b}, p});
+  }
+}
+
+// The hot and cold records of triangle t. The edge tolerance bounds the rounding error of
+// A u + B v + C for every (u, v) in the domain: the rounded A, B, C (one rounding each, two for
+// C's products) and the evaluation (three roundings) stay within 8 units of the magnitude sum;
+// 16 leaves a margin. Returns the triangle's bounding box.
+Box2 TerrainIndex::makeRecord(std::uint32_t t, const Pending& q) {
+  Tri& r = tris_[t];
+  cold_[t] = Cold{{q.corner[0], q.corner[1], q.corner[2]}, q.polygon};
+  double hlo = INFINITY, hhi = -INFINITY, tol = 0;
+  Box2 bb{INFINITY, INFINITY, -INFINITY, -INFINITY};
+  Eigen::Vector3d m[3];
+  for (int k = 0; k < 3; ++k) {
+    const std::uint32_t c = q.corner[k];
+    m[k] = Eigen::Vector3d(corners2_[c].u, corners2_[c].v, cornerH_[c]);
+  }
+  for (int k = 0; k < 3; ++k) {
+    const Eigen::Vector3d& p0 = m[k];
+    const Eigen::Vector3d& p1 = m[(k + 1) % 3];
+    r.A[k] = p0.y() - p1.y();
+    r.B[k] = p1.x() - p0.x();
+    r.C[k] = p0.x() * p1.y() - p1.x() * p0.y();
+    tol = std::max(tol, std::fabs(r.A[k]) * umax_ + std::fabs(r.B[k]) * vmax_ +
+                            std::fabs(p0.x() * p1.y()) + std::fabs(p1.x() * p0.y()));
+    bb.ulo = std::min(bb.ulo, p0.x()), bb.uhi = std::max(bb.uhi, p0.x());
+    bb.vlo = std::min(bb.vlo, p0.y()), bb.vhi = std::max(bb.vhi, p0.y());
+    hlo = std::min(hlo, p0.z()), hhi = std::max(hhi, p0.z());
+  }
+  r.tol = 16.0 * kUnitRoundoff * tol;
+  r.hlo = floatBelow(hlo), r.hhi = floatAbove(hhi);
+  const Eigen::Vector3d& p0 = m[0];
+  const Eigen::Vector3d n = (m[1] - p0).cross(m[2] - p0);
+  r.u0 = p0.x(), r.v0 = p0.y(), r.h0 = p0.z();
+  r.a = -n.x() / n.z();
+  r.b = -n.y() / n.z();
+  if (!(n.z() > 0) || !std::isfinite(r.a) || !std::isfinite(r.b)) {
+    // A sliver with nonzero exact area whose plane is vertical to within rounding. It stays in
+    // the index, or its neighbours would open a crack; its height is its corners' mid-range.
+    r.a = r.b = 0;
+    r.h0 = 0.5 * (hlo + hhi);
+  }
+  return bb;
+}
+
+// A triangle is referenced from a leaf when its closed projection meets the closed leaf box
+// (separating axes: the box axes, then each edge with its error bound, so that a triangle is
+// dropped only when the box is certainly outside it).
+bool TerrainIndex::overlaps(std::uint32_t t, const Box2& tb, const Box2& b) const {
+  const Tri& r = tris_[t];
+  if (tb.ulo > b.uhi || tb.uhi < b.ulo || tb.vlo > b.vhi || tb.vhi < b.vlo) return false;
+  for (int k = 0; k < 3; ++k) {
+    const double u = r.A[k] >= 0 ? b.uhi : b.ulo;
+    const double v = r.B[k] >= 0 ? b.vhi : b.vlo;
+    if (r.A[k] * u + r.B[k] * v + r.C[k] < -r.tol) return false;
+  }
+  return true;
+}
+
+Box2 TerrainIndex::boxOf(std::uint32_t t) const {
+  Box2 bb{INFINITY, INFINITY, -INFINITY, -INFINITY};
+  for (std::uint32_t c : cold_[t].corner) {
+    bb.ulo = std::min(bb.ulo, corners2_[c].u), bb.uhi = std::max(bb.uhi, corners2_[c].u);
+    bb.vlo = std::min(bb.vlo, corners2_[c].v), bb.vhi = std::max(bb.vhi, corners2_[c].v);
+  }
+  return bb;
+}
+
+// Single-layer leaves: where no two of a leaf's triangles overlap, the first one containing a
+// point is the only surface there, and the query stops at it. Their items are put in polygon
+// order so that this first one is also the smallest polygon id, as the tie rule says.
+bool TerrainIndex::prepareLeaf(std::span<std::uint32_t> items) const {
+  // The pairwise check is quadratic: a leaf this large (a large Maxpoly, or a stack no cut can
+  // part) is simply not marked, which only costs the early exit.
+  if (items.size() > 64) return false;
+  for (std::size_t i = 0; i < items.size(); ++i) {
+    for (std::size_t j = i + 1; j < items.size(); ++j) {
+      if (!separated(items[i], items[j])) return false;
+    }
+  }
+  std::sort(items.begin(), items.end(), [this](std::uint32_t a, std::uint32_t b) {
+    return cold_[a].polygon != cold_[b].polygon ? cold_[a].polygon < cold_[b].polygon : a < b;
+  });
+  return true;
 }
 
 bool TerrainIndex::separated(std::uint32_t a, std::uint32_t b) const {
@@ -643,6 +675,117 @@ std::vector<LineHit> TerrainIndex::alongLine(const Eigen::Vector3d& origin,
     return x.t != y.t ? x.t < y.t : x.hit.polygon < y.hit.polygon;
   });
   return out;
+}
+
+}  // namespace qota
+
+namespace qota {
+
+void TerrainIndex::rebuildTree(const Box2& domain) {
+  // The edge tolerances hold for points within the domain: recompute them for the new one.
+  umax_ = std::max(std::fabs(domain.ulo), std::fabs(domain.uhi));
+  vmax_ = std::max(std::fabs(domain.vlo), std::fabs(domain.vhi));
+  std::vector<Box2> boxes(tris_.size());
+  for (std::uint32_t t = 0; t < tris_.size(); ++t) {
+    const Cold c = cold_[t];
+    boxes[t] = makeRecord(t, Pending{{c.corner[0], c.corner[1], c.corner[2]}, c.polygon});
+  }
+  const QuadtreeOptions options = tree_.options();
+  const double minU = tree_.minSizeU(), minV = tree_.minSizeV();
+  tree_.build(static_cast<std::uint32_t>(tris_.size()), domain, options,
+              [this, &boxes](std::uint32_t t, const Box2& b) {
+                return !(cold_[t].polygon < removed_.size() && removed_[cold_[t].polygon]) &&
+                       overlaps(t, boxes[t], b);
+              },
+              minU, minV);
+  tree_.markLeaves([this](std::span<std::uint32_t> items) { return prepareLeaf(items); });
+  stats_.domain = domain;
+}
+
+std::uint32_t TerrainIndex::insertPolygon(std::span<const Eigen::Vector3d> corners) {
+  const auto id = static_cast<std::uint32_t>(stats_.polygons);
+  if (corners.size() < 3) {
+    throw Error("insertPolygon: a polygon needs at least 3 corners, got " +
+                std::to_string(corners.size()));
+  }
+  if (corners2_.size() + corners.size() >= std::numeric_limits<std::uint32_t>::max()) {
+    throw Error("insertPolygon: the index is full (32-bit vertex indices)");
+  }
+  std::vector<std::uint32_t> idx;
+  const std::size_t firstVertex = corners2_.size();
+  for (const Eigen::Vector3d& c : corners) {
+    const Eigen::Vector3d m = mapping_.toMapped(c);
+    if (!c.allFinite() || !m.allFinite()) {
+      corners2_.resize(firstVertex), cornerH_.resize(firstVertex);
+      throw Error("insertPolygon: corner " + describePoint(c) + " is not finite");
+    }
+    idx.push_back(static_cast<std::uint32_t>(corners2_.size()));
+    corners2_.push_back({m.x(), m.y()});
+    cornerH_.push_back(m.z());
+  }
+  std::vector<Pending> pending;
+  try {
+    fanPolygon(idx, id, pending);
+  } catch (const Error&) {
+    corners2_.resize(firstVertex), cornerH_.resize(firstVertex);
+    throw;
+  }
+  ++stats_.polygons;
+  stats_.vertices = corners2_.size();
+  if (pending.empty()) {
+    ++stats_.walls;
+    return id;
+  }
+  // Grow the box (and rebuild the tree) when the polygon reaches outside it.
+  Box2 domain = tree_.box().empty() ? Box2{INFINITY, INFINITY, -INFINITY, -INFINITY} : tree_.box();
+  bool grows = tree_.box().empty();
+  for (std::uint32_t v : idx) {
+    const Point2 c = corners2_[v];
+    if (!domain.contains(c.u, c.v)) grows = true;
+    domain.ulo = std::min(domain.ulo, c.u), domain.uhi = std::max(domain.uhi, c.u);
+    domain.vlo = std::min(domain.vlo, c.v), domain.vhi = std::max(domain.vhi, c.v);
+  }
+  const auto firstTri = static_cast<std::uint32_t>(tris_.size());
+  for (const Pending& q : pending) {
+    const auto t = static_cast<std::uint32_t>(tris_.size());
+    tris_.emplace_back();
+    cold_.emplace_back();
+    makeRecord(t, q);
+    hmin_ = std::min(hmin_, static_cast<double>(tris_[t].hlo));
+    hmax_ = std::max(hmax_, static_cast<double>(tris_[t].hhi));
+    if (!trianglesOf_.empty()) trianglesOf_.emplace(id, t);
+  }
+  stats_.triangles += pending.size();
+  if (grows) {
+    rebuildTree(domain);
+  } else {
+    for (auto t = firstTri; t < tris_.size(); ++t) {
+      tree_.insert(t, [this](std::uint32_t i, const Box2& b) { return overlaps(i, boxOf(i), b); },
+                   [this](std::span<std::uint32_t> items) { return prepareLeaf(items); });
+    }
+  }
+  treeStatsStale_ = true;
+  return id;
+}
+
+bool TerrainIndex::removePolygon(std::uint32_t polygon) {
+  if (polygon >= stats_.polygons) return false;
+  if (removed_.size() < stats_.polygons) removed_.resize(stats_.polygons, 0);
+  if (removed_[polygon]) return false;
+  if (trianglesOf_.empty()) {
+    trianglesOf_.reserve(cold_.size());
+    for (std::uint32_t t = 0; t < cold_.size(); ++t) trianglesOf_.emplace(cold_[t].polygon, t);
+  }
+  removed_[polygon] = 1;
+  const auto [first, last] = trianglesOf_.equal_range(polygon);
+  for (auto it = first; it != last; ++it) {
+    tree_.remove(it->second, [this](std::uint32_t i, const Box2& b) { return overlaps(i, boxOf(i), b); });
+    --stats_.triangles;
+  }
+  if (first == last) --stats_.walls;
+  trianglesOf_.erase(polygon);
+  treeStatsStale_ = true;
+  return true;
 }
 
 }  // namespace qota

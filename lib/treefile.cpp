@@ -204,24 +204,31 @@ struct TreeFileAccess {
   }
 
   static void write(Writer& w, const TerrainIndex& x) {
+    x.stats();  // brings the tree statistics up to date after edits
     w.pod(x.hmin_);
     w.pod(x.hmax_);
+    w.pod(x.umax_);
+    w.pod(x.vmax_);
     w.pod(x.stats_);
     w.array(x.tris_);
     w.array(x.cold_);
     w.array(x.corners2_);
     w.array(x.cornerH_);
+    w.array(x.removed_);
     write(w, x.tree_);
   }
 
   static void read(Reader& r, TerrainIndex& x) {
     x.hmin_ = r.pod<double>("heights");
     x.hmax_ = r.pod<double>("heights");
+    x.umax_ = r.pod<double>("domain");
+    x.vmax_ = r.pod<double>("domain");
     x.stats_ = r.pod<TerrainStats>("statistics");
     r.array(x.tris_, "triangles");
     r.array(x.cold_, "triangle corners");
     r.array(x.corners2_, "vertices");
     r.array(x.cornerH_, "vertex heights");
+    r.array(x.removed_, "removed polygons");
     read(r, x.tree_);
   }
 

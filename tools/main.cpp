@@ -147,9 +147,13 @@ int main(int argc, char** argv) {
       "render-tree",
       "A picture of the QOTA quadtree over a DEM (the paper's Figure 4): a grey PNG on the "
       "raster's grid, each leaf filled by its polygon count (white = empty, darker on a log scale "
-      "down to grey 120 at --max-poly polygons or more), leaf edges in black, over a faint "
-      "hillshade.");
-  renderTreeCmd->add_option("source", renderTree.source, "Elevation raster (any GDAL format)")->required();
+      "down to grey 160 at --max-poly polygons or more), leaf edges in dark grey (40), over a "
+      "faint hillshade.");
+  renderTreeCmd->add_option("source", renderTree.source,
+                            "Elevation raster (any GDAL format) or tree file (qota build; its "
+                            "own Maxpoly and Maxdepth; drawn over its raster when that is still "
+                            "there, else over its (u, v) box)")
+      ->required();
   renderTreeCmd->add_option("-o,--output", renderTree.output, "Output PNG")->required();
   renderTreeCmd->add_option("--size", renderTree.size, "Pixels along the image's long side")
       ->capture_default_str()

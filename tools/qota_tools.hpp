@@ -91,14 +91,14 @@ int shadow(const ShadowOptions& options, std::ostream& out, std::ostream& err);
 // north-up raster; not georeferenced).
 //
 // Each leaf is filled with a grey level by its polygon count n: 255 (white) when empty, then
-// darker on a log scale, 255 - 135 log(1 + n) / log(1 + Maxpoly), down to 120 at Maxpoly
-// polygons; leaves holding more (at Maxdepth, or where no cut parts the polygons) stay at 120.
-// The terrain shows through as a faint hillshade (light from azimuth 315, altitude 45), which
-// scales a fill by 0.8 (facing away) to 1 (facing the light); nodata cells are not shaded. Leaf
-// edges (and the edge of the tree's root box) are drawn 1 pixel wide in black (0), a value no
-// fill takes, so leaves smaller than a pixel merge into black. Written to a temporary file and
-// renamed into place. Exit code 0 on success, 2 on error (unreadable DEM, output not writable or
-// not named .png, size outside 16..16384).
+// darker on a log scale, 255 - 95 log(1 + n) / log(1 + Maxpoly), down to 160 at Maxpoly
+// polygons; leaves holding more (at Maxdepth, or where no cut parts the polygons) stay at 160.
+// The terrain shows through as a faint hillshade (Lambert, light from azimuth 315, altitude 45),
+// which scales a fill by 0.65 (facing away) to 1 (facing the light); nodata cells are not shaded.
+// Leaf edges (and the edge of the tree's root box) are 1 pixel wide, grey 40, darker than any
+// fill, so leaves smaller than a pixel merge into that grey. Written to a temporary file and
+// renamed into place. Exit code 0 on success, 2 on error (unreadable DEM, output folder missing
+// or not writable, output not named .png, size outside 16..16384).
 struct RenderTreeOptions {
   std::string source, output;
   int size = 1024;  // pixels along the image's long side

@@ -7,18 +7,21 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cctype>
 #include <cmath>
 #include <cerrno>
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <iostream>
 #include <memory>
 #include <system_error>
 
 #include "qota/dem.hpp"
 #include "qota/error.hpp"
+#include "qota/treefile.hpp"
 #include "qota/shadow.hpp"
 #include "qota_tools.hpp"
 #include "text_output.hpp"
@@ -29,7 +32,7 @@ namespace {
 constexpr int kMinSize = 16, kMaxSize = 16384;
 // The picture's grey levels (see RenderTreeOptions): the fill of an empty leaf, of a leaf with
 // Maxpoly polygons or more, the edge lines, and how much the hillshade may darken a fill.
-constexpr double kEmptyGrey = 255, kFullGrey = 150, kShadeDepth = 0.35;
+constexpr double kEmptyGrey = 255, kFullGrey = 160, kShadeDepth = 0.35;
 constexpr std::uint8_t kEdgeGrey = 40;
 
 // The leaf containing mapped (u, v), as an index into tree.nodes(), or -1 outside the root box.
@@ -134,26 +137,64 @@ int renderTree(const RenderTreeOptions& o, std::ostream& out, std::ostream& err)
                   " pixels, got " + std::to_string(o.size));
     }
     requireWritableFolder(o.output);
-    const DemTerrain dem = loadDem(o.source);
-    const TerrainIndex index(dem.mesh, dem.mapping, o.terrain);
-    const Quadtree& tree = index.tree();
+    // The tree: from a tree file (qota build) as it is, or built from a DEM. The picture lies on
+    // the raster's grid with a hillshade when there is a raster (the DEM, or the one a cartesian
+    // tree file was built from, if it is still there); otherwise on the tree's own (u, v) box
+    // (longitude and latitude for a planet), u to the right and v up.
+    std::optional<TreeFile> treeFile;
+    std::optional<DemTerrain> dem;
+    std::optional<TerrainIndex> built;
+    const Quadtree* treePtr = nullptr;
+    const CartesianMapping* mapping = nullptr;
+    std::uint32_t maxPoly = o.terrain.tree.maxPoly, maxDepth = o.terrain.tree.maxDepth;
+    if (isTreeFile(o.source)) {
+      treeFile.emplace(loadTree(o.source));
+      std::visit([&](const auto& index) { treePtr = &index.tree(); }, treeFile->index);
+      maxPoly = treePtr->options().maxPoly, maxDepth = treePtr->options().maxDepth;
+      const TreeSource& from = treeFile->source;
+      if (const auto* index = std::get_if<TerrainIndex>(&treeFile->index);
+          index && from.width > 0 && std::filesystem::exists(from.path)) {
+        dem.emplace(loadDem(from.path));
+        mapping = &index->mapping();
+      }
+    } else {
+      dem.emplace(loadDem(o.source));
+      built.emplace(dem->mesh, dem->mapping, o.terrain);
+      treePtr = &built->tree();
+      mapping = &built->mapping();
+    }
+    const Quadtree& tree = *treePtr;
+    const Box2 box = tree.box();
+    const int gridW = dem ? dem->width : 0, gridH = dem ? dem->height : 0;
     // The hillshade in metres (a raster without CRS: its own units, heights in the same unit).
-    const LocalFrame frame = localFrame(dem, true, std::hypot(dem.geotransform[1], dem.geotransform[4]));
-    const Eigen::Vector3d light = frame.towardSun(SunPosition{});  // gdaldem's 315, 45
+    std::optional<LocalFrame> frame;
+    Eigen::Vector3d light = Eigen::Vector3d::UnitZ();
+    if (dem) {
+      frame.emplace(localFrame(*dem, true, std::hypot(dem->geotransform[1], dem->geotransform[4])));
+      light = frame->towardSun(SunPosition{});  // gdaldem's 315, 45
+    }
 
-    // The image: the raster's pixel grid scaled so that its long side has o.size pixels.
-    const double scale = double(o.size) / std::max(dem.width, dem.height);
-    const int iw = std::max(1, int(std::lround(dem.width * scale)));
-    const int ih = std::max(1, int(std::lround(dem.height * scale)));
-    const double colsPer = double(dem.width) / iw, rowsPer = double(dem.height) / ih;
+    // The image: the raster's pixel grid (or the tree's box) scaled so that its long side has
+    // o.size pixels.
+    const double boxW = box.empty() ? 1 : box.uhi - box.ulo, boxH = box.empty() ? 1 : box.vhi - box.vlo;
+    const double aspectW = dem ? gridW : boxW, aspectH = dem ? gridH : boxH;
+    const double scale = double(o.size) / std::max(aspectW, aspectH);
+    const int iw = std::max(1, int(std::lround(aspectW * scale)));
+    const int ih = std::max(1, int(std::lround(aspectH * scale)));
+    const double colsPer = double(gridW) / iw, rowsPer = double(gridH) / ih;
     // Fractional raster (col, row) of an image pixel's centre, and the leaf there.
     const auto rasterAt = [&](int i, int j) { return std::array<double, 2>{(i + 0.5) * colsPer, (j + 0.5) * rowsPer}; };
     const auto leafRow = [&](int j, std::vector<std::int64_t>& ids) {
       for (int i = 0; i < iw; ++i) {
-        const auto [col, row] = rasterAt(i, j);
-        const auto world = dem.pixelCentre(col - 0.5, row - 0.5);
-        const Eigen::Vector3d m = dem.mapping.toMapped(Eigen::Vector3d(world[0], world[1], 0));
-        ids[i] = leafAt(tree, m.x(), m.y());
+        if (dem) {
+          const auto [col, row] = rasterAt(i, j);
+          const auto world = dem->pixelCentre(col - 0.5, row - 0.5);
+          const Eigen::Vector3d m = mapping->toMapped(Eigen::Vector3d(world[0], world[1], 0));
+          ids[i] = leafAt(tree, m.x(), m.y());
+        } else {
+          ids[i] = box.empty() ? -1
+                               : leafAt(tree, box.ulo + (i + 0.5) * boxW / iw, box.vhi - (j + 0.5) * boxH / ih);
+        }
       }
     };
 
@@ -170,10 +211,13 @@ int renderTree(const RenderTreeOptions& o, std::ostream& out, std::ostream& err)
           continue;
         }
         const double fill = ids[i] < 0 ? kEmptyGrey
-                                       : leafGrey(Quadtree::leafSize(tree.nodes()[ids[i]]), o.terrain.tree.maxPoly);
-        const auto [col, row] = rasterAt(i, j);
-        const int c = std::clamp(int(col), 0, dem.width - 1), r = std::clamp(int(row), 0, dem.height - 1);
-        const double shade = frame.valid[static_cast<std::size_t>(r) * dem.width + c] ? lambert(frame, c, r, light) : 1.0;
+                                       : leafGrey(Quadtree::leafSize(tree.nodes()[ids[i]]), maxPoly);
+        double shade = 1.0;
+        if (dem) {
+          const auto [col, row] = rasterAt(i, j);
+          const int c = std::clamp(int(col), 0, gridW - 1), r = std::clamp(int(row), 0, gridH - 1);
+          if (frame->valid[static_cast<std::size_t>(r) * gridW + c]) shade = lambert(*frame, c, r, light);
+        }
         px = static_cast<std::uint8_t>(std::lround(fill * (1 - kShadeDepth + kShadeDepth * shade)));
       }
       std::swap(ids, below);
@@ -183,13 +227,12 @@ int renderTree(const RenderTreeOptions& o, std::ostream& out, std::ostream& err)
     encodePng(iw, ih, grey, file.stream());
     file.commit();
     if (!o.quiet) {
-      const QuadtreeStats& t = index.stats().tree;
+      const QuadtreeStats t = tree.stats();
       out << "qota render-tree: " << o.source << " -> " << o.output << '\n'
           << "tree: " << t.nodes << " nodes, " << t.leaves << " leaves (" << t.emptyLeaves
-          << " empty), depth " << t.depth << " (max poly " << o.terrain.tree.maxPoly << ", max depth "
-          << o.terrain.tree.maxDepth << ")\n"
+          << " empty), depth " << t.depth << " (max poly " << maxPoly << ", max depth " << maxDepth << ")\n"
           << "image: " << iw << " x " << ih << " pixels; white: empty leaf, grey " << int(kFullGrey)
-          << ": " << o.terrain.tree.maxPoly << " polygons or more (log scale), black: leaf edges\n"
+          << ": " << maxPoly << " polygons or more (log scale), grey " << int(kEdgeGrey) << ": leaf edges\n"
           << "written: " << o.output << '\n';
     }
     return 0;

@@ -22,6 +22,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <span>
 #include <string>
 #include <vector>
@@ -88,6 +89,9 @@ class Quadtree {
              Overlaps&& overlaps, double minSizeU = 0, double minSizeV = 0);
 
   const Box2& box() const { return root_; }
+  const QuadtreeOptions& options() const { return options_; }
+  double minSizeU() const { return minSizeU_; }
+  double minSizeV() const { return minSizeV_; }
   bool contains(double u, double v) const { return root_.contains(u, v); }
 
   // The items of the leaf containing (u, v). Precondition: contains(u, v).
@@ -141,6 +145,20 @@ class Quadtree {
   template <class Visit>
   void forLeavesAlong(double u0, double v0, double u1, double v1, Visit&& visit) const;
 
+  // Dynamic edits. insert adds item to every leaf whose box it overlaps; a leaf that then holds
+  // more than Maxpoly items is split by the build's own rule (buildNode), so the tree stays as
+  // the build would shape it locally. prepare(items) is called on every leaf that changed, as
+  // markLeaves' visit (reorder, return the single-layer flag). remove takes the item out of
+  // every leaf whose box it overlaps (the same predicate must be given as at insertion). A leaf's
+  // old reference range is abandoned when it moves to the end of the array; compact() reclaims
+  // the space, and runs by itself when more than half the references are abandoned.
+  // Precondition: the item lies within box() (the owner rebuilds otherwise).
+  template <class Overlaps, class Prepare>
+  void insert(std::uint32_t item, Overlaps&& overlaps, Prepare&& prepare);
+  template <class Overlaps>
+  void remove(std::uint32_t item, Overlaps&& overlaps);
+  void compact();
+
   // Lets the owner reorder each leaf's items and flag it single-layer: visit(items) may permute
   // the span and returns whether to set kSingleLayer.
   template <class Visit>
@@ -174,6 +192,11 @@ class Quadtree {
     return static_cast<std::uint32_t>(g);
   }
   Node descend(double u, double v, Cursor& cursor) const;
+  // Copies node n (at depth, with box) into the jump table cells it covers (if it is at or above
+  // the table's depth).
+  void refreshJump(std::uint32_t n, std::uint32_t depth, const Box2& box);
+  template <class Visit>
+  void forOverlappingLeaves(const Visit& visitLeaf, const std::function<bool(const Box2&)>& meets);
   void buildJumpTable();
   template <class Overlaps>
   void buildNode(std::uint32_t node, const Box2& box, std::uint32_t depth,
@@ -192,6 +215,7 @@ class Quadtree {
   std::vector<double> cutU_, cutV_;
   BigVector<Node> jump_;
   std::uint64_t refBudget_ = 0;
+  std::uint64_t abandoned_ = 0;  // references left behind by edits (see compact)
   std::uint32_t itemCount_ = 0;
   double minSizeU_ = 0, minSizeV_ = 0;
 };
@@ -234,6 +258,78 @@ void Quadtree::forLeavesAlong(double u0, double v0, double u1, double v1, Visit&
     stack.push_back({nd.first + 2, it.depth + 1, it.lu, mv, mu, it.hv});
     stack.push_back({nd.first + 3, it.depth + 1, mu, mv, it.hu, it.hv});
   }
+}
+
+template <class Visit>
+void Quadtree::forOverlappingLeaves(const Visit& visitLeaf,
+                                    const std::function<bool(const Box2&)>& meets) {
+  struct Item {
+    std::uint32_t node, depth;
+    Box2 box;
+  };
+  std::vector<Item> stack{{0, 0, root_}};
+  while (!stack.empty()) {
+    const Item it = stack.back();
+    stack.pop_back();
+    if (!meets(it.box)) continue;
+    const Node nd = nodes_[it.node];
+    if (nd.count != kInner) {
+      visitLeaf(it.node, it.depth, it.box);
+      continue;
+    }
+    const Box2& b = it.box;
+    const double mu = b.ulo + half_[it.depth].u, mv = b.vlo + half_[it.depth].v;
+    stack.push_back({nd.first, it.depth + 1, {b.ulo, b.vlo, mu, mv}});
+    stack.push_back({nd.first + 1, it.depth + 1, {mu, b.vlo, b.uhi, mv}});
+    stack.push_back({nd.first + 2, it.depth + 1, {b.ulo, mv, mu, b.vhi}});
+    stack.push_back({nd.first + 3, it.depth + 1, {mu, mv, b.uhi, b.vhi}});
+  }
+}
+
+template <class Overlaps, class Prepare>
+void Quadtree::insert(std::uint32_t item, Overlaps&& overlaps, Prepare&& prepare) {
+  if (nodes_.empty() || half_.empty()) throw Error("quadtree: insert into a tree never built");
+  itemCount_ = std::max(itemCount_, item + 1);
+  refBudget_ = std::max<std::uint64_t>(refBudget_, 64ull * itemCount_ + (1ull << 22));
+  forOverlappingLeaves(
+      [&](std::uint32_t n, std::uint32_t depth, const Box2& box) {
+        const Node old = nodes_[n];
+        std::vector<std::uint32_t> items(refs_.begin() + old.first,
+                                         refs_.begin() + old.first + leafSize(old));
+        items.push_back(item);
+        abandoned_ += leafSize(old);
+        const std::size_t before = nodes_.size();
+        buildNode(n, box, depth, items, overlaps);  // appends the leaf (or its subtree)
+        auto mark = [&](std::uint32_t k) {
+          Node& leaf = nodes_[k];
+          if (leaf.count == kInner) return;
+          const std::span<std::uint32_t> range(refs_.data() + leaf.first, leafSize(leaf));
+          leaf.count = leafSize(leaf) | (prepare(range) ? kSingleLayer : 0u);
+        };
+        mark(n);
+        for (std::size_t k = before; k < nodes_.size(); ++k) mark(static_cast<std::uint32_t>(k));
+        refreshJump(n, depth, box);
+      },
+      [&](const Box2& b) { return overlaps(item, b); });
+  if (abandoned_ > refs_.size() / 2 + 1024) compact();
+}
+
+template <class Overlaps>
+void Quadtree::remove(std::uint32_t item, Overlaps&& overlaps) {
+  if (nodes_.empty() || half_.empty()) return;
+  forOverlappingLeaves(
+      [&](std::uint32_t n, std::uint32_t depth, const Box2& box) {
+        Node& leaf = nodes_[n];
+        auto* begin = refs_.data() + leaf.first;
+        auto* end = begin + leafSize(leaf);
+        auto* at = std::find(begin, end, item);
+        if (at == end) return;
+        std::copy(at + 1, end, at);  // keeps the leaf's order; single-layer stays true
+        leaf.count = (leafSize(leaf) - 1) | (leaf.count & kSingleLayer);
+        ++abandoned_;
+        refreshJump(n, depth, box);
+      },
+      [&](const Box2& b) { return overlaps(item, b); });
 }
 
 template <class Overlaps>

@@ -36,6 +36,7 @@
 #include <cstdint>
 #include <optional>
 #include <span>
+#include <unordered_map>
 #include <vector>
 
 #include "qota/cartesian.hpp"
@@ -129,13 +130,29 @@ class TerrainIndex {
   std::vector<LineHit> alongLine(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction,
                                  double tmin = -INFINITY, double tmax = INFINITY) const;
 
+  // Dynamic edits (the paper's dynamic insertion). insertPolygon adds a convex polygon given by
+  // its world corners (at least 3, finite; the same rules as the mesh's polygons) and returns its
+  // id, which continues after the mesh's (polygon ids are never reused). Its triangles go into
+  // every leaf they meet, and leaves that then exceed Maxpoly split as the build would split
+  // them; a polygon reaching outside the tree's box grows the box and rebuilds the tree (not
+  // the triangle records). Corners equal to existing ones map to the same mapped coordinates, so
+  // shared edges stay watertight. removePolygon takes a polygon (of the mesh or inserted) out of
+  // every leaf; false when there is no such live polygon. After any sequence of edits every
+  // query answers as an index built from scratch on the live polygons would (same heights, and
+  // the same polygons under the id order). Not thread-safe against concurrent queries.
+  std::uint32_t insertPolygon(std::span<const Eigen::Vector3d> corners);
+  bool removePolygon(std::uint32_t polygon);
+
   // Whether a triangle that does not have mesh vertex `vertex` as a corner contains (u, v) at a
   // height strictly above h: the shadow test of a point at that vertex, whose own triangles can
   // never shade it (they meet its line at the point itself).
   bool occludedAbove(double u, double v, double h, std::uint32_t vertex) const;
 
   const CartesianMapping& mapping() const { return mapping_; }
-  const TerrainStats& stats() const { return stats_; }
+  const TerrainStats& stats() const {
+    if (treeStatsStale_) stats_.tree = tree_.stats(), treeStatsStale_ = false;  // after edits
+    return stats_;
+  }
   const Quadtree& tree() const { return tree_; }
 
   // Polygon tests (bbox checks) the query at (u, v) performs: the size of its leaf.
@@ -163,6 +180,18 @@ class TerrainIndex {
     std::uint32_t polygon;    // source polygon
   };
 
+  // A triangle of a polygon's fan, before it gets its records.
+  struct Pending {
+    std::uint32_t corner[3];
+    std::uint32_t polygon;
+  };
+  void fanPolygon(std::span<const std::uint32_t> idx, std::uint32_t polygon,
+                  std::vector<Pending>& pending) const;
+  Box2 makeRecord(std::uint32_t t, const Pending& q);
+  bool overlaps(std::uint32_t t, const Box2& triangleBox, const Box2& box) const;
+  Box2 boxOf(std::uint32_t t) const;
+  bool prepareLeaf(std::span<std::uint32_t> items) const;
+
   bool inside(std::uint32_t t, double u, double v) const;
   double heightOf(const Tri& t, double u, double v) const;
   Hit makeHit(std::uint32_t t, double u, double v, double h) const;
@@ -183,8 +212,14 @@ class TerrainIndex {
   BigVector<Point2> corners2_;  // mapped (u, v) of each vertex, for the exact predicate
   BigVector<double> cornerH_;   // mapped h of each vertex (for lines not along gravity)
   double hmin_ = INFINITY, hmax_ = -INFINITY;  // the triangles' height range
+  double umax_ = 0, vmax_ = 0;  // largest |u|, |v| of the domain: sets the edge tolerances
+  // Edits: the triangles of each polygon (built on the first removal) and the removed polygons.
+  std::unordered_multimap<std::uint32_t, std::uint32_t> trianglesOf_;
+  std::vector<std::uint8_t> removed_;
+  void rebuildTree(const Box2& domain);
   Quadtree tree_;
-  TerrainStats stats_;
+  mutable TerrainStats stats_;
+  mutable bool treeStatsStale_ = false;
 };
 
 }  // namespace qota

@@ -1,0 +1,151 @@
+// Dynamic edits: after any random sequence of insertions and removals, every query answers as an
+// index built from scratch on the live polygons.
+#include <gtest/gtest.h>
+
+#include <numbers>
+#include <random>
+
+#include "qota/error.hpp"
+#include "qota/terrain.hpp"
+#include "random_terrain.hpp"
+
+namespace {
+
+using namespace qota;
+
+using Polygon = std::vector<Eigen::Vector3d>;
+
+double uniform(std::mt19937_64& rng, double lo, double hi) {
+  return std::uniform_real_distribution<double>(lo, hi)(rng);
+}
+
+// A random convex polygon (corners at sorted angles on an ellipse, on a tilted plane) around
+// (cx, cy), any winding.
+Polygon randomPlate(std::mt19937_64& rng, double cx, double cy, double size) {
+  const int n = 3 + static_cast<int>(rng() % 5);
+  std::vector<double> ang(n);
+  for (double& a : ang) a = uniform(rng, 0, 2 * std::numbers::pi);
+  std::sort(ang.begin(), ang.end());
+  const double rx = size * uniform(rng, 0.1, 1), ry = size * uniform(rng, 0.1, 1);
+  const double cz = uniform(rng, -8, 8), sx = uniform(rng, -0.5, 0.5), sy = uniform(rng, -0.5, 0.5);
+  Polygon p;
+  for (double a : ang) {
+    const double x = cx + rx * std::cos(a), y = cy + ry * std::sin(a);
+    p.emplace_back(x, y, cz + sx * (x - cx) + sy * (y - cy));
+  }
+  if (rng() % 2) std::reverse(p.begin(), p.end());
+  return p;
+}
+
+// Compares the edited index with one built from scratch on the live polygons (in id order).
+void expectMatchesScratch(const TerrainIndex& edited, const std::vector<std::optional<Polygon>>& polygons,
+                          const CartesianMapping& mapping, std::mt19937_64& rng) {
+  Mesh mesh;
+  std::vector<std::uint32_t> idOf;  // scratch polygon -> edited id
+  for (std::uint32_t id = 0; id < polygons.size(); ++id) {
+    if (!polygons[id]) continue;
+    std::vector<std::uint32_t> idx;
+    for (const auto& c : *polygons[id]) idx.push_back(mesh.addVertex(c));
+    mesh.addPolygon(idx);
+    idOf.push_back(id);
+  }
+  const TerrainIndex scratch(mesh, mapping);
+  EXPECT_EQ(edited.stats().triangles, scratch.stats().triangles);
+  EXPECT_EQ(edited.stats().walls, scratch.stats().walls);
+  const Box2 box = scratch.stats().domain;
+  // exact: a random point, where the answer is unambiguous (same polygon, same height bit for
+  // bit); else a point on shared corners, where equally near triangles differ by rounding (the
+  // same height within it, whichever of them answers).
+  auto check = [&](double u, double v, double h, bool exact) {
+    const auto a = edited.below(u, v, h), b = scratch.below(u, v, h);
+    ASSERT_EQ(a.has_value(), b.has_value()) << u << " " << v << " " << h;
+    if (a && exact) {
+      ASSERT_EQ(a->height, b->height);
+      ASSERT_EQ(a->polygon, idOf[b->polygon]);
+    } else if (a) {
+      ASSERT_NEAR(a->height, b->height, 1e-9 * (1 + std::fabs(b->height)));
+    }
+    const auto c = edited.above(u, v, h), d = scratch.above(u, v, h);
+    ASSERT_EQ(c.has_value(), d.has_value());
+    if (c && exact) ASSERT_EQ(c->polygon, idOf[d->polygon]);
+  };
+  for (int i = 0; i < 3000; ++i) {
+    check(uniform(rng, box.ulo - 1, box.uhi + 1), uniform(rng, box.vlo - 1, box.vhi + 1),
+          uniform(rng, -10, 10), true);
+  }
+  // Exactly at corners (from just above them: a point exactly on the surface is below or above
+  // it within rounding): shared edges and vertices must not fall through.
+  for (const auto& v : mesh.vertices) {
+    const Eigen::Vector3d m = mapping.toMapped(v);
+    check(m.x(), m.y(), m.z() + 1e-6, false);
+  }
+}
+
+TEST(Edits, RandomSequencesMatchARebuild) {
+  for (std::uint64_t seed = 1; seed <= 4; ++seed) {
+    std::mt19937_64 rng(seed);
+    test::RandomTerrainSpec spec;
+    spec.grid = 25;
+    spec.plates = 20;
+    spec.offsetX = seed == 3 ? 4e5 : 0;  // map coordinates in one run
+    const Mesh base = test::randomTerrain(spec, seed);
+    const CartesianMapping mapping(seed == 2 ? Eigen::Vector3d(0.2, -0.1, -1) : Eigen::Vector3d(0, 0, -1),
+                                   Eigen::Vector3d(spec.offsetX, 0, 0));
+    TerrainIndex index(base, mapping, TerrainOptions{{4, 12}});  // small leaves: many splits
+    std::vector<std::optional<Polygon>> polygons;
+    for (std::size_t p = 0; p < base.polygonCount(); ++p) {
+      Polygon corners;
+      for (std::uint32_t i : base.polygon(p)) corners.push_back(base.vertices[i]);
+      polygons.emplace_back(corners);
+    }
+    const double extent = (spec.grid - 1) * spec.cell;
+    for (int step = 1; step <= 300; ++step) {
+      const double r = uniform(rng, 0, 1);
+      if (r < 0.45) {
+        Polygon p;
+        if (r < 0.05) {
+          p = randomPlate(rng, spec.offsetX + uniform(rng, -10, extent + 10), uniform(rng, -10, extent + 10), 6);
+        } else if (r < 0.12) {
+          // A copy of a live polygon: exact overlap and shared edges.
+          const std::size_t k = rng() % polygons.size();
+          if (!polygons[k]) continue;
+          p = *polygons[k];
+        } else {
+          p = randomPlate(rng, spec.offsetX + uniform(rng, 0, extent), uniform(rng, 0, extent), 2);
+        }
+        const std::uint32_t id = index.insertPolygon(p);
+        ASSERT_EQ(id, polygons.size());
+        polygons.emplace_back(p);
+      } else if (r < 0.95) {
+        const std::uint32_t id = static_cast<std::uint32_t>(rng() % polygons.size());
+        ASSERT_EQ(index.removePolygon(id), polygons[id].has_value());
+        polygons[id].reset();
+      } else {
+        EXPECT_FALSE(index.removePolygon(static_cast<std::uint32_t>(polygons.size() + 5)));
+      }
+      if (step % 100 == 0) {
+        expectMatchesScratch(index, polygons, mapping, rng);
+        ASSERT_FALSE(::testing::Test::HasFailure()) << "seed " << seed << ", step " << step;
+      }
+    }
+    // A non-convex polygon is refused and leaves the index as it was.
+    const Polygon bad{{0, 0, 0}, {4, 0, 0}, {1, 1, 0}, {0, 4, 0}};
+    EXPECT_THROW(index.insertPolygon(bad), Error);
+    EXPECT_THROW(index.insertPolygon(Polygon{{0, 0, 0}, {1, 1, 1}}), Error);
+    expectMatchesScratch(index, polygons, mapping, rng);
+  }
+}
+
+TEST(Edits, InsertIntoAnEmptyIndex) {
+  TerrainIndex index(Mesh{}, CartesianMapping());
+  EXPECT_FALSE(index.top(0.5, 0.5));
+  const std::uint32_t id = index.insertPolygon(Polygon{{0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}});
+  EXPECT_EQ(id, 0u);
+  ASSERT_TRUE(index.top(0.5, 0.5));
+  EXPECT_EQ(index.top(0.5, 0.5)->height, 1.0);
+  EXPECT_TRUE(index.removePolygon(id));
+  EXPECT_FALSE(index.top(0.5, 0.5));
+  EXPECT_FALSE(index.removePolygon(id));
+}
+
+}  // namespace
