@@ -9,6 +9,7 @@
 #include "qota/follow.hpp"
 #include "qota/scene.hpp"
 #include "qota/globe.hpp"
+#include "qota/mesh_io.hpp"
 #include "qota/synthetic.hpp"
 #include "qota/terrain.hpp"
 #include "random_terrain.hpp"
@@ -337,6 +338,46 @@ TEST(Scene, MovingAndTiltingPartsMatchARebuild) {
   }
   EXPECT_EQ(misses, 0);
   EXPECT_THROW(scene.setTransform(7, Eigen::Isometry3d::Identity()), Error);
+}
+
+}  // namespace
+
+namespace {
+
+// The Delft city block: vertical walls are left out of the index (they have no area along
+// gravity), so walking into a building finds no ground within a step and stops at its wall;
+// water stops a walker by its material.
+TEST(Move, CityBlockWallsAndWater) {
+  const MeshFile city = loadMeshFile(QOTA_DATA_DIR "/testarea.obj");
+  const TerrainIndex index(city.mesh, CartesianMapping({0, 0, -1}, city.origin));
+  MoveOptions walk;
+  walk.wholePath = true;
+  walk.step = 0.25;
+  walk.clearance = 0.5;
+  walk.maxStep = 0.3;
+  walk.impassable = [&](std::uint32_t p) { return city.materialOf(p) == "Water"; };
+  // West along y = 447540 from open ground into the building whose wall is near x = 84865.5.
+  const MoveResult wall = checkMove(index, {84872, 447540, 0.5}, {84856, 447540, 0.5}, walk);
+  EXPECT_EQ(wall.block, MoveBlock::Hole);
+  EXPECT_NEAR(wall.last.x(), 84866, 0.6);
+  ASSERT_TRUE(wall.ground);
+  EXPECT_EQ(city.materialOf(wall.ground->polygon), "Terrain");
+  // The roof is found from above, and the ground under the avatar is below it.
+  const auto roof = groundUnder(index, Eigen::Vector3d(84860, 447540, 50));
+  ASSERT_TRUE(roof);
+  EXPECT_EQ(city.materialOf(roof->polygon), "Building");
+  EXPECT_GT(roof->height, wall.ground->height + 5);
+  // East from the road into the canal.
+  const MoveResult wet = checkMove(index, {84903, 447480, 0.5}, {84920, 447480, 0.5}, walk);
+  EXPECT_EQ(wet.block, MoveBlock::Impassable);
+  EXPECT_NEAR(wet.last.x(), 84910.5, 0.6);
+  // Along the road: allowed; the endpoint check alone lets the building walk "teleport" onto
+  // nothing, which it refuses too (no ground under the roof within the clearance).
+  EXPECT_TRUE(checkMove(index, {84937, 447480, 0.5}, {84952, 447480, 0.5}, walk).allowed());
+  MoveOptions endpoint = walk;
+  endpoint.wholePath = false;
+  EXPECT_EQ(checkMove(index, {84872, 447540, 0.5}, {84856, 447540, 0.5}, endpoint).block,
+            MoveBlock::Hole);
 }
 
 }  // namespace
