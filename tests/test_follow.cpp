@@ -381,3 +381,26 @@ TEST(Move, CityBlockWallsAndWater) {
 }
 
 }  // namespace
+
+namespace {
+
+// Containment on a planet: the locale between the ground (floor) and a shell 10 km above the
+// reference sphere (ceiling), two spherical indexes.
+TEST(Locale, BetweenAPlanetAndAShell) {
+  const PlanetTerrain planet = loadPlanet(QOTA_DATA_DIR "/etopo20.tif");
+  const SphericalIndex ground(planet.dem.mesh, planet.mapping);
+  Mesh shell = planet.dem.mesh;
+  for (auto& v : shell.vertices) v = v.normalized() * (planet.radius + 10000);
+  const SphericalIndex sky(shell, planet.mapping);
+  std::mt19937_64 rng(8);
+  for (int i = 0; i < 2000; ++i) {
+    const double lon = uniform(rng, -180, 180), lat = uniform(rng, -89, 89);
+    const double r = planet.radius + uniform(rng, -12000, 12000);
+    const Eigen::Vector3d p = planet.mapping.toWorld({lon, lat, r});
+    const double groundR = *ground.height(lon, lat), skyR = *sky.height(lon, lat);
+    const bool expect = r >= groundR && r <= skyR;
+    ASSERT_EQ(inLocale(ground, sky, p), expect) << lon << " " << lat << " " << r;
+  }
+}
+
+}  // namespace

@@ -46,16 +46,25 @@ TreeFile openIndex(const SourceOptions& o) {
     }
     return tf;
   }
-  if (o.mapping.empty() || o.mapping == "cartesian") {
-    if (!isRaster(o.source)) {
-      const MeshFile file = loadMeshFile(o.source);
-      TreeSource source;
-      source.path = o.source;
-      source.crsWkt = file.crsWkt;
+  if (!isRaster(o.source)) {
+    // A mesh file, in world coordinates: the mapping's default frame (a sphere or cylinder
+    // about the origin's z axis, the WGS84 ellipsoid with ECEF coordinates).
+    const MeshFile file = loadMeshFile(o.source);
+    TreeSource source;
+    source.path = o.source;
+    source.crsWkt = file.crsWkt;
+    if (o.mapping.empty() || o.mapping == "cartesian") {
       return {TerrainIndex(file.mesh, CartesianMapping(Eigen::Vector3d(0, 0, -1), file.origin),
                            o.terrain),
               source};
     }
+    if (o.mapping == "spherical") return {SphericalIndex(file.mesh, SphericalMapping(), o.terrain), source};
+    if (o.mapping == "geodetic") return {GeodeticIndex(file.mesh, GeodeticMapping(), o.terrain), source};
+    if (o.mapping == "cylindrical") {
+      return {CylindricalIndex(file.mesh, CylindricalMapping(), o.terrain), source};
+    }
+  }
+  if (o.mapping.empty() || o.mapping == "cartesian") {
     const DemTerrain dem = loadDem(o.source);
     return {TerrainIndex(dem.mesh, dem.mapping, o.terrain), sourceOf(dem)};
   }

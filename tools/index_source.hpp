@@ -22,7 +22,9 @@ struct SourceOptions {
 // becomes: cartesian: the DEM as a map (loadDem); spherical: a planet (loadPlanet); geodetic: the
 // DEM on its ellipsoid (loadOnEllipsoid); cylindrical: the relief of a station around the z axis
 // (stationMesh). A file GDAL cannot open as a raster is read as a mesh (loadMeshFile: OBJ, PLY,
-// glTF, STL, ... or 3D polygons in any vector format), cartesian only. Throws qota::Error.
+// glTF, STL, ... or 3D polygons in any vector format) in world coordinates: cartesian with
+// gravity -Z, or the mapping's default frame (sphere or cylinder about the origin and z axis,
+// WGS84 with ECEF coordinates). Throws qota::Error.
 TreeFile openIndex(const SourceOptions& options);
 
 // The mapping name of an index ("cartesian", ...).
