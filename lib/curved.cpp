@@ -27,9 +27,6 @@ using GeographicLib::Math;
 template <class M>
 constexpr bool kAngularV = !std::is_same_v<M, CylindricalMapping>;  // v is a latitude
 
-struct FootBox {
-  double ulo, uhi, vlo, vhi;  // ulo in [-180, 180), uhi <= ulo + 360
-};
 
 // The angle range around the z axis of a triangle whose edges each sweep the shorter arc between
 // their ends (a great-circle arc seen from the centre, a straight edge seen from the axis).
@@ -133,84 +130,15 @@ CurvedIndex<M>::CurvedIndex(const Mesh& mesh, const M& mapping, const TerrainOpt
     for (std::size_t k = 1; k + 1 < corners.size(); ++k) {
       const std::uint32_t id[3] = {corners[0], corners[k], corners[k + 1]};
       const Eigen::Vector3d p[3] = {local[id[0]], local[id[1]], local[id[2]]};
-      const Eigen::Vector3d n = (p[1] - p[0]).cross(p[2] - p[0]);
-      if (n.squaredNorm() == 0.0) {
+      const double h[3] = {vertexHeight.empty() ? 0.0 : vertexHeight[id[0]],
+                           vertexHeight.empty() ? 0.0 : vertexHeight[id[1]],
+                           vertexHeight.empty() ? 0.0 : vertexHeight[id[2]]};
+      Tri t{};
+      FootBox box;
+      if (!makeTriangle(p, h, static_cast<std::uint32_t>(poly), t, box)) {
         ++stats_.degenerate;
         continue;
       }
-      Tri t{};
-      for (int i = 0; i < 3; ++i) {
-        for (int j = 0; j < 3; ++j) t.p[i][j] = p[i][j];
-        t.n[i] = n[i];
-      }
-      t.na = n.dot(p[0]);
-      t.polygon = static_cast<std::uint32_t>(poly);
-
-      FootBox box;
-      const bool allAngles =
-          !angleRange(p, box.ulo, box.uhi) || box.uhi - box.ulo > 360.0 - 2 * kPadDegrees;
-      if (allAngles) {
-        box.ulo = -180.0, box.uhi = 180.0;
-      } else {
-        box.ulo -= kPadDegrees, box.uhi += kPadDegrees;
-        const double shift = 360.0 * std::floor((box.ulo + 180.0) / 360.0);
-        box.ulo -= shift, box.uhi -= shift;
-      }
-      if constexpr (std::is_same_v<M, SphericalMapping>) {
-        latitudeRange(p, box.vlo, box.vhi);
-      } else if constexpr (std::is_same_v<M, GeodeticMapping>) {
-        // On the scaled points (x, y, z / (1 - e^2)) the geocentric latitude chi of a surface
-        // point is its geodetic latitude phi, and a straight edge stays straight, so the arc
-        // extrema bound chi exactly. Off the surface, tan(chi) = k tan(phi) with
-        // k = 1 + e^2 h / ((1 - e^2)(N + h)), N in [a, a / sqrt(1 - e^2)]; phi is monotone in
-        // chi and in k, so the corners of the chi and k ranges bound it. The triangle's heights
-        // lie between its lowest vertex minus its sag below the ellipsoid (edge^2 / (8 radius of
-        // curvature), doubled) and its highest vertex (height is convex).
-        const double e2 = mapping_.e2(), a = mapping_.a();
-        Eigen::Vector3d q[3];
-        double hlo = kInf, hhi = -kInf, edge2 = 0;
-        for (int i = 0; i < 3; ++i) {
-          q[i] = Eigen::Vector3d(p[i].x(), p[i].y(), p[i].z() / (1.0 - e2));
-          hlo = std::min(hlo, vertexHeight[id[i]]), hhi = std::max(hhi, vertexHeight[id[i]]);
-          edge2 = std::max(edge2, (p[i] - p[(i + 1) % 3]).squaredNorm());
-        }
-        hlo -= edge2 / (4.0 * a * (1.0 - e2)) + 1e-9 * a;
-        hhi += 1e-9 * a;
-        double chiLo, chiHi;
-        latitudeRange(q, chiLo, chiHi);
-        if (hlo <= -0.5 * a) {
-          box.vlo = -90.0, box.vhi = 90.0;  // deep inside the ellipsoid: no useful bound
-        } else {
-          double kmin = kInf, kmax = -kInf;
-          for (double h : {hlo, hhi}) {
-            for (double nn : {a, a / std::sqrt(1.0 - e2)}) {
-              const double k = 1.0 + e2 * h / ((1.0 - e2) * (nn + h));
-              kmin = std::min(kmin, k), kmax = std::max(kmax, k);
-            }
-          }
-          box.vlo = std::min(geodeticFromScaled(chiLo, kmin), geodeticFromScaled(chiLo, kmax));
-          box.vhi = std::max(geodeticFromScaled(chiHi, kmin), geodeticFromScaled(chiHi, kmax));
-        }
-      } else {
-        box.vlo = std::min({p[0].z(), p[1].z(), p[2].z()});
-        box.vhi = std::max({p[0].z(), p[1].z(), p[2].z()});
-      }
-      if constexpr (kAngularV<M>) {
-        // A triangle around the axis may contain a pole, which no vertex or edge reaches.
-        double tp;
-        if (allAngles && hits(t, lineAt(0.0, 90.0), tp)) box.vhi = 90.0;
-        if (allAngles && hits(t, lineAt(0.0, -90.0), tp)) box.vlo = -90.0;
-        box.vlo = std::max(-90.0, box.vlo - kPadDegrees);
-        box.vhi = std::min(90.0, box.vhi + kPadDegrees);
-      } else {
-        const double pad = 1e-12 * (std::fabs(box.vlo) + std::fabs(box.vhi) + scale_);
-        box.vlo -= pad, box.vhi += pad;
-      }
-      // Rounded outward to float for the record's quick reject.
-      t.ulo = std::nextafter(static_cast<float>(box.ulo), -INFINITY);
-      t.uhi = std::nextafter(static_cast<float>(box.uhi), INFINITY);
-      t.vlo = std::nextafter(static_cast<float>(box.vlo), -INFINITY);
-      t.vhi = std::nextafter(static_cast<float>(box.vhi), INFINITY);
       tris.push_back(t);
       boxes.push_back(box);
     }
@@ -275,12 +203,8 @@ CurvedIndex<M>::CurvedIndex(const Mesh& mesh, const M& mapping, const TerrainOpt
     std::nth_element(sv.begin(), sv.begin() + count / 2, sv.end());
     minU = 0.5 * su[count / 2], minV = 0.5 * sv[count / 2];
   }
-  const auto overlaps = [&boxes](std::uint32_t i, const Box2& b) {
-    const FootBox& f = boxes[i];
-    if (f.vlo > b.vhi || f.vhi < b.vlo) return false;
-    return (f.ulo <= b.uhi && f.uhi >= b.ulo) || (f.ulo - 360.0 <= b.uhi && f.uhi - 360.0 >= b.ulo);
-  };
-  tree_.build(count, root, options.tree, overlaps, minU, minV);
+  tree_.build(count, root, options.tree,
+              [this](std::uint32_t i, const Box2& b) { return overlaps(i, b); }, minU, minV);
 
   stats_.polygons = np;
   stats_.triangles = count;
@@ -291,6 +215,88 @@ CurvedIndex<M>::CurvedIndex(const Mesh& mesh, const M& mapping, const TerrainOpt
   stats_.tree = tree_.stats();
   stats_.memoryBytes = stats_.tree.memoryBytes + tris_.size() * sizeof(Tri) +
                        (polarNorth_.size() + polarSouth_.size()) * sizeof(std::uint32_t);
+}
+
+// The record and footprint box of the triangle with local corners p (vertexHeight: the corners'
+// ellipsoid heights, geodetic only). False for a triangle of zero area.
+template <class M>
+bool CurvedIndex<M>::makeTriangle(const Eigen::Vector3d p[3], const double vertexHeight[3],
+                                  std::uint32_t poly, Tri& t, FootBox& box) const {
+  const Eigen::Vector3d n = (p[1] - p[0]).cross(p[2] - p[0]);
+  if (n.squaredNorm() == 0.0) return false;
+  t = Tri{};
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) t.p[i][j] = p[i][j];
+    t.n[i] = n[i];
+  }
+  t.na = n.dot(p[0]);
+  t.polygon = poly;
+
+  const bool allAngles =
+      !angleRange(p, box.ulo, box.uhi) || box.uhi - box.ulo > 360.0 - 2 * kPadDegrees;
+  if (allAngles) {
+    box.ulo = -180.0, box.uhi = 180.0;
+  } else {
+    box.ulo -= kPadDegrees, box.uhi += kPadDegrees;
+    const double shift = 360.0 * std::floor((box.ulo + 180.0) / 360.0);
+    box.ulo -= shift, box.uhi -= shift;
+  }
+  if constexpr (std::is_same_v<M, SphericalMapping>) {
+    latitudeRange(p, box.vlo, box.vhi);
+  } else if constexpr (std::is_same_v<M, GeodeticMapping>) {
+    // On the scaled points (x, y, z / (1 - e^2)) the geocentric latitude chi of a surface
+    // point is its geodetic latitude phi, and a straight edge stays straight, so the arc
+    // extrema bound chi exactly. Off the surface, tan(chi) = k tan(phi) with
+    // k = 1 + e^2 h / ((1 - e^2)(N + h)), N in [a, a / sqrt(1 - e^2)]; phi is monotone in
+    // chi and in k, so the corners of the chi and k ranges bound it. The triangle's heights
+    // lie between its lowest vertex minus its sag below the ellipsoid (edge^2 / (8 radius of
+    // curvature), doubled) and its highest vertex (height is convex).
+    const double e2 = mapping_.e2(), a = mapping_.a();
+    Eigen::Vector3d q[3];
+    double hlo = kInf, hhi = -kInf, edge2 = 0;
+    for (int i = 0; i < 3; ++i) {
+      q[i] = Eigen::Vector3d(p[i].x(), p[i].y(), p[i].z() / (1.0 - e2));
+      hlo = std::min(hlo, vertexHeight[i]), hhi = std::max(hhi, vertexHeight[i]);
+      edge2 = std::max(edge2, (p[i] - p[(i + 1) % 3]).squaredNorm());
+    }
+    hlo -= edge2 / (4.0 * a * (1.0 - e2)) + 1e-9 * a;
+    hhi += 1e-9 * a;
+    double chiLo, chiHi;
+    latitudeRange(q, chiLo, chiHi);
+    if (hlo <= -0.5 * a) {
+      box.vlo = -90.0, box.vhi = 90.0;  // deep inside the ellipsoid: no useful bound
+    } else {
+      double kmin = kInf, kmax = -kInf;
+      for (double h : {hlo, hhi}) {
+        for (double nn : {a, a / std::sqrt(1.0 - e2)}) {
+          const double k = 1.0 + e2 * h / ((1.0 - e2) * (nn + h));
+          kmin = std::min(kmin, k), kmax = std::max(kmax, k);
+        }
+      }
+      box.vlo = std::min(geodeticFromScaled(chiLo, kmin), geodeticFromScaled(chiLo, kmax));
+      box.vhi = std::max(geodeticFromScaled(chiHi, kmin), geodeticFromScaled(chiHi, kmax));
+    }
+  } else {
+    box.vlo = std::min({p[0].z(), p[1].z(), p[2].z()});
+    box.vhi = std::max({p[0].z(), p[1].z(), p[2].z()});
+  }
+  if constexpr (kAngularV<M>) {
+    // A triangle around the axis may contain a pole, which no vertex or edge reaches.
+    double tp;
+    if (allAngles && hits(t, lineAt(0.0, 90.0), tp)) box.vhi = 90.0;
+    if (allAngles && hits(t, lineAt(0.0, -90.0), tp)) box.vlo = -90.0;
+    box.vlo = std::max(-90.0, box.vlo - kPadDegrees);
+    box.vhi = std::min(90.0, box.vhi + kPadDegrees);
+  } else {
+    const double pad = 1e-12 * (std::fabs(box.vlo) + std::fabs(box.vhi) + scale_);
+    box.vlo -= pad, box.vhi += pad;
+  }
+  // Rounded outward to float for the record's quick reject.
+  t.ulo = std::nextafter(static_cast<float>(box.ulo), -INFINITY);
+  t.uhi = std::nextafter(static_cast<float>(box.uhi), INFINITY);
+  t.vlo = std::nextafter(static_cast<float>(box.vlo), -INFINITY);
+  t.vhi = std::nextafter(static_cast<float>(box.vhi), INFINITY);
+  return true;
 }
 
 template <class M>
@@ -653,6 +659,101 @@ std::uint32_t CurvedIndex<M>::testsAt(double u, double v) const {
   (void)u;
   n = static_cast<std::uint32_t>(tree_.leafItems(u, v).size());
   return n;
+}
+
+template <class M>
+void CurvedIndex<M>::rebuildTree(Box2 root) {
+  const QuadtreeOptions options = tree_.options();
+  const double minU = tree_.minSizeU(), minV = tree_.minSizeV();
+  tree_.build(static_cast<std::uint32_t>(tris_.size()), root, options,
+              [this](std::uint32_t i, const Box2& b) { return live(i) && overlaps(i, b); }, minU,
+              minV);
+  stats_.domain = root;
+}
+
+template <class M>
+std::uint32_t CurvedIndex<M>::insertPolygon(std::span<const Eigen::Vector3d> corners) {
+  const auto id = static_cast<std::uint32_t>(stats_.polygons);
+  if (corners.size() < 3) {
+    throw Error("insertPolygon: a polygon needs at least 3 corners, got " +
+                std::to_string(corners.size()));
+  }
+  std::vector<Eigen::Vector3d> local;
+  std::vector<double> heights;
+  for (const Eigen::Vector3d& c : corners) {
+    local.push_back(worldToLocal(c));
+    if (!c.allFinite() || !local.back().allFinite()) {
+      throw Error("insertPolygon: a corner is not finite");
+    }
+    heights.push_back(std::is_same_v<M, GeodeticMapping> ? mapping_.toMapped(c).z() : 0.0);
+  }
+  for (const auto& p : local) scale_ = std::max(scale_, p.lpNorm<1>());
+  ++stats_.polygons;
+  stats_.vertices += corners.size();
+  const Box2 old = tree_.box();
+  Box2 root = old.empty() ? Box2{kInf, kInf, -kInf, -kInf} : old;
+  bool grows = old.empty();
+  const auto first = static_cast<std::uint32_t>(tris_.size());
+  for (std::size_t k = 1; k + 1 < local.size(); ++k) {
+    const Eigen::Vector3d p[3] = {local[0], local[k], local[k + 1]};
+    const double h[3] = {heights[0], heights[k], heights[k + 1]};
+    Tri t;
+    FootBox box;
+    if (!makeTriangle(p, h, id, t, box)) {
+      ++stats_.degenerate;
+      continue;
+    }
+    const auto i = static_cast<std::uint32_t>(tris_.size());
+    tris_.push_back(t);
+    if (!trianglesOf_.empty()) trianglesOf_.emplace(id, i);
+    ++stats_.triangles;
+    if constexpr (kAngularV<M>) {
+      double tp;
+      if (box.vhi >= 90.0 && hits(t, lineAt(0.0, 90.0), tp)) polarNorth_.push_back(i);
+      if (box.vlo <= -90.0 && hits(t, lineAt(0.0, -90.0), tp)) polarSouth_.push_back(i);
+    }
+    // Grow the tree's box to the footprint (all of u when it crosses the seam).
+    if (box.vlo < root.vlo || box.vhi > root.vhi) grows = true;
+    root.vlo = std::min(root.vlo, box.vlo), root.vhi = std::max(root.vhi, box.vhi);
+    if (box.uhi > 180.0 || box.ulo < root.ulo || box.uhi > root.uhi) {
+      grows = grows || !(root.ulo == -180.0 && root.uhi == 180.0);
+      root.ulo = box.uhi > 180.0 ? -180.0 : std::min(root.ulo, box.ulo);
+      root.uhi = box.uhi > 180.0 ? 180.0 : std::max(root.uhi, box.uhi);
+    }
+  }
+  if (grows) {
+    rebuildTree(root);
+  } else {
+    for (auto i = first; i < tris_.size(); ++i) {
+      tree_.insert(i, [this](std::uint32_t j, const Box2& b) { return overlaps(j, b); },
+                   [](std::span<std::uint32_t>) { return false; });
+    }
+  }
+  treeStatsStale_ = true;
+  return id;
+}
+
+template <class M>
+bool CurvedIndex<M>::removePolygon(std::uint32_t polygon) {
+  if (polygon >= stats_.polygons) return false;
+  if (removed_.size() < stats_.polygons) removed_.resize(stats_.polygons, 0);
+  if (removed_[polygon]) return false;
+  if (trianglesOf_.empty()) {
+    trianglesOf_.reserve(tris_.size());
+    for (std::uint32_t i = 0; i < tris_.size(); ++i) trianglesOf_.emplace(tris_[i].polygon, i);
+  }
+  removed_[polygon] = 1;
+  const auto [first, last] = trianglesOf_.equal_range(polygon);
+  for (auto it = first; it != last; ++it) {
+    tree_.remove(it->second, [this](std::uint32_t j, const Box2& b) { return overlaps(j, b); });
+    --stats_.triangles;
+  }
+  for (auto* list : {&polarNorth_, &polarSouth_}) {
+    std::erase_if(*list, [&](std::uint32_t i) { return tris_[i].polygon == polygon; });
+  }
+  trianglesOf_.erase(polygon);
+  treeStatsStale_ = true;
+  return true;
 }
 
 template class CurvedIndex<SphericalMapping>;

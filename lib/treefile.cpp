@@ -245,11 +245,13 @@ struct TreeFileAccess {
 
   template <class M>
   static void write(Writer& w, const CurvedIndex<M>& x) {
+    x.stats();  // brings the tree statistics up to date after edits
     w.pod(x.scale_);
     w.pod(x.stats_);
     w.array(x.tris_);
     w.array(x.polarNorth_);
     w.array(x.polarSouth_);
+    w.array(x.removed_);
     write(w, x.tree_);
   }
 
@@ -260,6 +262,7 @@ struct TreeFileAccess {
     r.array(x.tris_, "triangles");
     r.array(x.polarNorth_, "north polar list");
     r.array(x.polarSouth_, "south polar list");
+    r.array(x.removed_, "removed polygons");
     read(r, x.tree_);
   }
 

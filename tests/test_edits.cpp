@@ -149,3 +149,97 @@ TEST(Edits, InsertIntoAnEmptyIndex) {
 }
 
 }  // namespace
+
+#include "qota/curved.hpp"
+#include "random_globe.hpp"
+
+namespace {
+
+// The same property on a planet: random small plates above and below a bumpy sphere, some
+// across the seam or on a pole, inserted and removed; the answers equal a rebuild's.
+TEST(Edits, PlanetSequencesMatchARebuild) {
+  std::mt19937_64 rng(21);
+  Mesh base = test::unitIcosphere(4, rng, false);  // 5120 triangles, vertices on the poles
+  for (auto& v : base.vertices) v *= 1000 * (1 + 0.01 * uniform(rng, -1, 1));
+  const SphericalMapping mapping;
+  SphericalIndex index(base, mapping);
+  std::vector<std::optional<Polygon>> polygons;
+  for (std::size_t p = 0; p < base.polygonCount(); ++p) {
+    Polygon c;
+    for (std::uint32_t i : base.polygon(p)) c.push_back(base.vertices[i]);
+    polygons.emplace_back(c);
+  }
+  auto plate = [&]() {
+    // A small triangle around a random direction (sometimes the pole or the seam), at a random
+    // radius.
+    double lon = uniform(rng, -180, 180), lat = std::asin(uniform(rng, -1, 1)) * 180 / std::numbers::pi;
+    if (rng() % 8 == 0) lat = 90;
+    if (rng() % 8 == 0) lon = 180;
+    const double r = 1000 * uniform(rng, 0.97, 1.03), size = uniform(rng, 5, 60);
+    const Eigen::Vector3d c = mapping.toWorld({lon, lat, r});
+    const Eigen::Vector3d e1 = c.unitOrthogonal(), e2 = c.normalized().cross(e1);
+    Polygon p;
+    for (int k = 0; k < 3; ++k) {
+      const double a = 2 * std::numbers::pi * k / 3 + uniform(rng, -0.3, 0.3);
+      p.push_back(c + size * (std::cos(a) * e1 + std::sin(a) * e2));
+    }
+    return p;
+  };
+  auto compare = [&]() {
+    Mesh mesh;
+    std::vector<std::uint32_t> idOf;
+    for (std::uint32_t id = 0; id < polygons.size(); ++id) {
+      if (!polygons[id]) continue;
+      std::vector<std::uint32_t> idx;
+      for (const auto& c : *polygons[id]) idx.push_back(mesh.addVertex(c));
+      mesh.addPolygon(idx);
+      idOf.push_back(id);
+    }
+    const SphericalIndex scratch(mesh, mapping);
+    EXPECT_EQ(index.stats().triangles, scratch.stats().triangles);
+    for (int i = 0; i < 3000; ++i) {
+      const double u = uniform(rng, -180, 180), v = i % 100 == 0 ? 90.0 : uniform(rng, -90, 90);
+      const double h = 1000 * uniform(rng, 0.95, 1.05);
+      const auto a = index.below(u, v, h), b = scratch.below(u, v, h);
+      ASSERT_EQ(a.has_value(), b.has_value()) << u << " " << v;
+      if (a) {
+        ASSERT_EQ(a->height, b->height);
+        ASSERT_EQ(a->polygon, idOf[b->polygon]);
+      }
+    }
+  };
+  for (int step = 1; step <= 300; ++step) {
+    if (uniform(rng, 0, 1) < 0.5) {
+      const Polygon p = plate();
+      ASSERT_EQ(index.insertPolygon(p), polygons.size());
+      polygons.emplace_back(p);
+    } else {
+      const auto id = static_cast<std::uint32_t>(rng() % polygons.size());
+      ASSERT_EQ(index.removePolygon(id), polygons[id].has_value());
+      polygons[id].reset();
+    }
+    if (step % 100 == 0) compare();
+  }
+}
+
+// A station whose relief is dug out and rebuilt, and a tube extended past its end (the tree's
+// box grows).
+TEST(Edits, StationGrows) {
+  std::mt19937_64 rng(22);
+  const Mesh base = test::bumpyTube(60, 11, 100.0, 100.0, 0.02, rng);
+  CylindricalIndex index(base, CylindricalMapping());
+  // A floor panel at radius 100 from angle 30 to 60, 55 to 65 m along the axis: past the end.
+  auto at = [](double deg, double z) {
+    return Eigen::Vector3d(100 * std::cos(deg * std::numbers::pi / 180),
+                           100 * std::sin(deg * std::numbers::pi / 180), z);
+  };
+  EXPECT_FALSE(index.top(45, 60).has_value());
+  const std::uint32_t id = index.insertPolygon(Polygon{at(30, 55), at(60, 55), at(60, 65), at(30, 65)});
+  ASSERT_TRUE(index.top(45, 60).has_value());
+  EXPECT_EQ(index.top(45, 60)->polygon, id);
+  EXPECT_TRUE(index.removePolygon(id));
+  EXPECT_FALSE(index.top(45, 60).has_value());
+  EXPECT_TRUE(index.top(45, 0).has_value());
+}
+
+}  // namespace

@@ -42,6 +42,7 @@
 #include <cstdint>
 #include <optional>
 #include <span>
+#include <unordered_map>
 #include <vector>
 
 #include "qota/cylindrical.hpp"
@@ -100,8 +101,19 @@ class CurvedIndex {
   std::optional<Hit> aboveWorld(const Eigen::Vector3d& p) const;
   Bracket bracketWorld(const Eigen::Vector3d& p) const;
 
+  // Dynamic edits, as TerrainIndex's: insertPolygon adds a polygon by its world corners (ids
+  // continue after the mesh's), into every leaf its footprint meets (leaves split by the build's
+  // rule; a footprint outside the tree's box grows it and rebuilds the tree); removePolygon takes
+  // one out (false when there is no such live polygon). The answers then equal an index built
+  // from scratch on the live polygons. Not thread-safe against concurrent queries.
+  std::uint32_t insertPolygon(std::span<const Eigen::Vector3d> corners);
+  bool removePolygon(std::uint32_t polygon);
+
   const M& mapping() const { return mapping_; }
-  const CurvedStats& stats() const { return stats_; }
+  const CurvedStats& stats() const {
+    if (treeStatsStale_) stats_.tree = tree_.stats(), treeStatsStale_ = false;  // after edits
+    return stats_;
+  }
   const Quadtree& tree() const { return tree_; }
   // Candidate triangles a query at (u, v) looks at.
   std::uint32_t testsAt(double u, double v) const;
@@ -130,6 +142,24 @@ class CurvedIndex {
   };
   static_assert(sizeof(Tri) == 128);
   static constexpr std::uint32_t kNone = 0xffffffffu;
+  // A footprint box in (u, v); ulo in [-180, 180), uhi <= ulo + 360 (past 180 across the seam).
+  struct FootBox {
+    double ulo, uhi, vlo, vhi;
+  };
+  bool makeTriangle(const Eigen::Vector3d p[3], const double vertexHeight[3], std::uint32_t poly,
+                    Tri& t, FootBox& box) const;
+  // The tree's overlap test: the record's float box (rounded outward) against a node's box, with
+  // the seam; the same at build and on edits.
+  bool overlaps(std::uint32_t i, const Box2& b) const {
+    const Tri& f = tris_[i];
+    if (f.vlo > b.vhi || f.vhi < b.vlo) return false;
+    return (f.ulo <= b.uhi && f.uhi >= b.ulo) ||
+           (f.ulo - 360.0 <= b.uhi && f.uhi - 360.0 >= b.ulo);
+  }
+  bool live(std::uint32_t i) const {
+    return !(tris_[i].polygon < removed_.size() && removed_[tris_[i].polygon]);
+  }
+  void rebuildTree(Box2 root);
 
   double normalizeU(double u) const;
   bool polar(double v) const;
@@ -162,7 +192,10 @@ class CurvedIndex {
   std::vector<std::uint32_t> polarNorth_, polarSouth_;
   Quadtree tree_;
   double scale_ = 0;  // max L1 norm of a local vertex: sets the edge tests' error bound
-  CurvedStats stats_;
+  std::unordered_multimap<std::uint32_t, std::uint32_t> trianglesOf_;  // edits: polygon -> tris
+  std::vector<std::uint8_t> removed_;                                  // edits: removed polygons
+  mutable CurvedStats stats_;
+  mutable bool treeStatsStale_ = false;
 };
 
 using SphericalIndex = CurvedIndex<SphericalMapping>;
