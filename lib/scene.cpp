@@ -7,12 +7,6 @@
 
 namespace qota {
 
-std::size_t Scene::add(const TerrainIndex& index, const Eigen::Isometry3d& partToWorld,
-                       std::string name) {
-  parts_.push_back({&index, partToWorld, partToWorld.inverse(), std::move(name)});
-  return parts_.size() - 1;
-}
-
 void Scene::setTransform(std::size_t part, const Eigen::Isometry3d& partToWorld) {
   if (part >= parts_.size()) {
     throw Error("scene: no part " + std::to_string(part) + " (the scene has " +
@@ -25,44 +19,65 @@ void Scene::setTransform(std::size_t part, const Eigen::Isometry3d& partToWorld)
   parts_[part].fromWorld = partToWorld.inverse();
 }
 
-std::optional<SceneHit> Scene::nearest(const Eigen::Vector3d& p, bool below, bool top) const {
-  const Eigen::Vector3d g = world_.gravity();
-  const double hq = world_.toMapped(p).z();
+namespace {
+
+// Every hit of a part on the line (local point p, local down d), in the part's frame.
+std::vector<Hit> partHits(const TerrainIndex& index, const Eigen::Vector3d& p,
+                          const Eigen::Vector3d& d, std::size_t) {
+  const Eigen::Vector3d own = index.mapping().gravity();
+  if (d.cross(own).norm() <= 1e-15 && d.dot(own) > 0) return index.allWorld(p);
+  std::vector<Hit> hits;
+  for (const LineHit& lh : index.alongLine(p, d)) hits.push_back(lh.hit);
+  return hits;
+}
+
+template <class M>
+std::vector<Hit> partHits(const CurvedIndex<M>& index, const Eigen::Vector3d& p,
+                          const Eigen::Vector3d& d, std::size_t part) {
+  const Eigen::Vector3d m = index.mapping().toMapped(p);
+  const MappedLine own = index.mapping().line(m.x(), m.y());
+  if (d.cross(own.down).norm() > 1e-12 || d.dot(own.down) <= 0) {
+    throw Error("scene: part " + std::to_string(part) +
+                " is curved and its transform takes the world's line off its own lines (a "
+                "curved part may only turn about its own axis or centre)");
+  }
+  return index.all(m.x(), m.y());
+}
+
+}  // namespace
+
+std::optional<SceneHit> Scene::nearest(const Eigen::Vector3d& p, Want want) const {
+  const bool up = std::visit([](const auto& m) { return m.kHeightUp; }, world_);
+  const Eigen::Vector3d mp = toMapped(world_, p);
+  const Eigen::Vector3d down = lineOf(world_, mp.x(), mp.y()).down;
+  const double ep = up ? mp.z() : -mp.z();  // elevation: grows against down
   std::optional<SceneHit> best;
+  double bestE = 0;
   for (std::size_t k = 0; k < parts_.size(); ++k) {
     const Part& part = parts_[k];
-    const TerrainIndex& index = *part.index;
     const Eigen::Vector3d local = part.fromWorld * p;
-    const Eigen::Vector3d localDown = part.fromWorld.linear() * g;
-    // The part's candidates on the world line through p, as (part-frame hit, parameter along
-    // the world's down from p).
-    std::vector<Hit> hits;
-    const Eigen::Vector3d own = index.mapping().gravity();
-    if (localDown.cross(own).norm() <= 1e-15 && localDown.dot(own) > 0) {
-      // Gravity kept: the part's own quadtree, with its own "all" (top to bottom).
-      hits = index.allWorld(local);
-    } else {
-      for (const LineHit& lh : index.alongLine(local, localDown)) hits.push_back(lh.hit);
-    }
+    const Eigen::Vector3d localDown = part.fromWorld.linear() * down;
+    const std::vector<Hit> hits =
+        std::visit([&](const auto* index) { return partHits(*index, local, localDown, k); }, part.index);
     for (const Hit& h : hits) {
       SceneHit s;
       s.part = k;
       s.hit = h;
       s.hit.world = part.toWorld * h.world;
       s.hit.normal = (part.toWorld.linear() * h.normal).normalized();
-      if (s.hit.normal.dot(g) > 0) s.hit.normal = -s.hit.normal;
-      s.hit.height = world_.toMapped(s.hit.world).z();
-      if (!top && (below ? !(s.hit.height <= hq) : !(s.hit.height >= hq))) continue;
-      const bool better = !best || ((below || top) ? s.hit.height > best->hit.height
-                                                   : s.hit.height < best->hit.height);
-      if (better) best = s;  // ties keep the earlier part (and the part's own tie rule)
+      if (s.hit.normal.dot(down) > 0) s.hit.normal = -s.hit.normal;
+      s.hit.height = toMapped(world_, s.hit.world).z();
+      const double e = up ? s.hit.height : -s.hit.height;
+      if ((want == Want::Below && !(e <= ep)) || (want == Want::Above && !(e >= ep))) continue;
+      const bool better = !best || (want == Want::Above ? e < bestE : e > bestE);
+      if (better) best = s, bestE = e;  // ties keep the earlier part (and the part's own order)
     }
   }
   return best;
 }
 
-std::optional<SceneHit> Scene::below(const Eigen::Vector3d& p) const { return nearest(p, true, false); }
-std::optional<SceneHit> Scene::above(const Eigen::Vector3d& p) const { return nearest(p, false, false); }
-std::optional<SceneHit> Scene::top(const Eigen::Vector3d& p) const { return nearest(p, true, true); }
+std::optional<SceneHit> Scene::below(const Eigen::Vector3d& p) const { return nearest(p, Want::Below); }
+std::optional<SceneHit> Scene::above(const Eigen::Vector3d& p) const { return nearest(p, Want::Above); }
+std::optional<SceneHit> Scene::top(const Eigen::Vector3d& p) const { return nearest(p, Want::Top); }
 
 }  // namespace qota

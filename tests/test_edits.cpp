@@ -67,7 +67,9 @@ void expectMatchesScratch(const TerrainIndex& edited, const std::vector<std::opt
     }
     const auto c = edited.above(u, v, h), d = scratch.above(u, v, h);
     ASSERT_EQ(c.has_value(), d.has_value());
-    if (c && exact) ASSERT_EQ(c->polygon, idOf[d->polygon]);
+    if (c && exact) {
+      ASSERT_EQ(c->polygon, idOf[d->polygon]);
+    }
   };
   for (int i = 0; i < 3000; ++i) {
     check(uniform(rng, box.ulo - 1, box.uhi + 1), uniform(rng, box.vlo - 1, box.vhi + 1),

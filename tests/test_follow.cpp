@@ -297,7 +297,9 @@ void expectSceneMatchesRebuild(const Scene& scene, const std::vector<const Mesh*
     const auto up = scene.above(p);
     const auto upRef = rebuilt.aboveWorld(p);
     ASSERT_EQ(up.has_value(), upRef.has_value());
-    if (up) ASSERT_NEAR(up->hit.height, upRef->height, 1e-9);
+    if (up) {
+      ASSERT_NEAR(up->hit.height, upRef->height, 1e-9);
+    }
   }
   EXPECT_GT(hits, 1000);
 }
@@ -401,6 +403,93 @@ TEST(Locale, BetweenAPlanetAndAShell) {
     const bool expect = r >= groundR && r <= skyR;
     ASSERT_EQ(inLocale(ground, sky, p), expect) << lon << " " << lat << " " << r;
   }
+}
+
+}  // namespace
+
+namespace {
+
+// A scene in a curved world: a planet that spins, and a raft (a Cartesian part) riding on it,
+// checked against one spherical index built from scratch on the moved meshes.
+TEST(Scene, CurvedWorldMatchesARebuild) {
+  std::mt19937_64 rng(31);
+  Mesh planetMesh;
+  {
+    // A bumpy sphere of radius 1000 from a lon/lat grid with closed caps.
+    const int nlon = 72, nlat = 35;
+    for (int j = 0; j < nlat; ++j) {
+      for (int i = 0; i < nlon; ++i) {
+        const double lon = -180 + 5.0 * i + 2.5, lat = -85 + 5.0 * j;
+        planetMesh.addVertex((1000 + uniform(rng, -5, 5)) * SphericalMapping::up(lon, lat));
+      }
+    }
+    const auto north = planetMesh.addVertex({0, 0, 1000}), south = planetMesh.addVertex({0, 0, -1000});
+    for (int j = 0; j + 1 < nlat; ++j) {
+      for (int i = 0; i < nlon; ++i) {
+        const auto a = static_cast<std::uint32_t>(j * nlon + i), b = static_cast<std::uint32_t>(j * nlon + (i + 1) % nlon);
+        planetMesh.addTriangle(a, b, b + nlon);
+        planetMesh.addTriangle(a, b + nlon, a + nlon);
+      }
+    }
+    for (int i = 0; i < nlon; ++i) {
+      planetMesh.addTriangle(static_cast<std::uint32_t>((nlat - 1) * nlon + i),
+                             static_cast<std::uint32_t>((nlat - 1) * nlon + (i + 1) % nlon), north);
+      planetMesh.addTriangle(static_cast<std::uint32_t>(i), static_cast<std::uint32_t>((i + 1) % nlon), south);
+    }
+  }
+  const Mesh raftMesh = fractalHeightfield(11, 11, 2.0, 0.3, 4).toMesh();  // 20 x 20 m deck
+  const SphericalMapping world;
+  const SphericalIndex planet(planetMesh, world);
+  const TerrainIndex raft(raftMesh, CartesianMapping());
+  Scene scene{AnyMapping(world)};
+  const std::size_t spinning = scene.add(planet, Eigen::Isometry3d::Identity(), "planet");
+  const std::size_t boat = scene.add(raft, Eigen::Isometry3d::Identity(), "raft");
+  for (int frame = 0; frame < 3; ++frame) {
+    Eigen::Isometry3d spin = Eigen::Isometry3d::Identity();
+    spin.rotate(Eigen::AngleAxisd(0.1 * frame, Eigen::Vector3d::UnitZ()));
+    scene.setTransform(spinning, spin);
+    // The raft 30 m above the ground at 20 N 40 E, its z along the radial, turned and tilted.
+    const Eigen::Vector3d upDir = SphericalMapping::up(40, 20);
+    Eigen::Isometry3d place = Eigen::Isometry3d::Identity();
+    place.translate(1030 * upDir);
+    place.rotate(Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), upDir));
+    place.rotate(Eigen::AngleAxisd(0.3 * frame, Eigen::Vector3d::UnitZ()));
+    place.rotate(Eigen::AngleAxisd(0.05 * frame, Eigen::Vector3d::UnitX()));
+    place.translate(Eigen::Vector3d(-10, -10, 0));
+    scene.setTransform(boat, place);
+    // The oracle: both meshes moved into the world, one spherical index.
+    Mesh all = transformed(planetMesh, spin);
+    const std::size_t raftFirst = all.polygonCount();
+    const Mesh moved = transformed(raftMesh, place);
+    const auto base = static_cast<std::uint32_t>(all.vertices.size());
+    all.vertices.insert(all.vertices.end(), moved.vertices.begin(), moved.vertices.end());
+    for (std::size_t p = 0; p < moved.polygonCount(); ++p) {
+      const auto t = moved.polygon(p);
+      all.addTriangle(base + t[0], base + t[1], base + t[2]);
+    }
+    const SphericalIndex oracle(all, world);
+    int onRaft = 0;
+    for (int i = 0; i < 4000; ++i) {
+      // Around the raft, and anywhere.
+      const double lon = i % 2 ? uniform(rng, 39.95, 40.05) : uniform(rng, -180, 180);
+      const double lat = i % 2 ? uniform(rng, 19.95, 20.05) : uniform(rng, -80, 80);
+      const Eigen::Vector3d p = world.toWorld({lon, lat, uniform(rng, 990, 1040)});
+      const auto a = scene.below(p);
+      const Eigen::Vector3d m = world.toMapped(p);
+      const auto b = oracle.below(m.x(), m.y(), m.z());
+      ASSERT_EQ(a.has_value(), b.has_value()) << lon << " " << lat;
+      if (!a) continue;
+      ASSERT_NEAR(a->hit.height, b->height, 1e-9 * b->height);
+      ASSERT_EQ(a->part, b->polygon >= raftFirst ? boat : spinning);
+      onRaft += a->part == boat;
+    }
+    EXPECT_GT(onRaft, 100);
+  }
+  // A curved part tilted off its axis cannot answer along the world's lines.
+  Eigen::Isometry3d tilt = Eigen::Isometry3d::Identity();
+  tilt.translate(Eigen::Vector3d(5, 0, 0));
+  scene.setTransform(spinning, tilt);
+  EXPECT_THROW(scene.below(world.toWorld({10, 10, 1000})), Error);
 }
 
 }  // namespace
