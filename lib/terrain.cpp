@@ -1,5 +1,7 @@
 #include "qota/terrain.hpp"
 
+#include <array>
+
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
@@ -222,6 +224,80 @@ TerrainIndex::TerrainIndex(const Mesh& mesh, const CartesianMapping& mapping,
     hmin_ = std::min(hmin_, static_cast<double>(tris_[t].hlo));
     hmax_ = std::max(hmax_, static_cast<double>(tris_[t].hhi));
   }
+  if (options.gridFastPath) detectGrid(mesh);
+  stats_.memoryBytes += cellTri_.size() * sizeof(std::uint32_t);
+}
+
+void TerrainIndex::detectGrid(const Mesh& mesh) {
+  // A regular grid of w x h vertices, two triangles per cell split along the diagonal from
+  // vertex x to x + w + 1 (loadDem's and Heightfield's layout). w from the first triangle, then
+  // every triangle must be one half of a cell.
+  const std::size_t nv = corners2_.size();
+  if (cold_.empty() || !mesh.offsets.empty()) return;
+  auto sorted = [](const Cold& c) {
+    std::array<std::uint32_t, 3> k{c.corner[0], c.corner[1], c.corner[2]};
+    std::sort(k.begin(), k.end());
+    return k;
+  };
+  const auto k0 = sorted(cold_[0]);
+  const std::uint64_t w = k0[2] - k0[0] - 1;
+  if (w < 2 || nv % w != 0 || nv / w < 2) return;
+  const std::uint64_t h = nv / w;
+  if (w > 0xffffffffu || h > 0xffffffffu || 2 * (w - 1) * (h - 1) >= 0xffffffffu) return;
+  BigVector<std::uint32_t> cells(2 * (w - 1) * (h - 1), kNone);
+  for (std::uint32_t t = 0; t < cold_.size(); ++t) {
+    const auto k = sorted(cold_[t]);
+    const std::uint64_t x = k[0], col = x % w, row = x / w;
+    if (k[2] != x + w + 1 || col == w - 1 || row >= h - 1 || (k[1] != x + w && k[1] != x + 1)) return;
+    const std::uint64_t slot = 2 * (row * (w - 1) + col) + (k[1] == x + w ? 0 : 1);
+    if (cells[slot] != kNone) return;  // the same half twice: overlapping, not a grid
+    cells[slot] = t;
+  }
+  // The vertices must lie on the affine grid (u, v) = o + col * a + row * b, to well within a
+  // cell, so that the cell found by arithmetic is the cell (or a neighbour, near its edges).
+  const Point2 o = corners2_[0], pa = corners2_[1], pb = corners2_[w];
+  const double au = pa.u - o.u, av = pa.v - o.v, bu = pb.u - o.u, bv = pb.v - o.v;
+  const double det = au * bv - av * bu;
+  if (!std::isfinite(det) || det == 0) return;
+  const double cellSize = std::min(std::hypot(au, av), std::hypot(bu, bv));
+  for (std::uint64_t i = 0; i < nv; ++i) {
+    const double c = static_cast<double>(i % w), r = static_cast<double>(i / w);
+    const Point2 p = corners2_[i];
+    const double eu = o.u + c * au + r * bu - p.u, ev = o.v + c * av + r * bv - p.v;
+    if (!(std::hypot(eu, ev) <= 1e-6 * cellSize)) return;
+  }
+  gridW_ = static_cast<std::uint32_t>(w);
+  gridH_ = static_cast<std::uint32_t>(h);
+  gridU0_ = o.u, gridV0_ = o.v;
+  gridInv_[0] = bv / det, gridInv_[1] = -bu / det, gridInv_[2] = -av / det, gridInv_[3] = au / det;
+  cellTri_.swap(cells);
+}
+
+void TerrainIndex::clearGridSlot(std::uint32_t t) {
+  std::array<std::uint32_t, 3> k{cold_[t].corner[0], cold_[t].corner[1], cold_[t].corner[2]};
+  std::sort(k.begin(), k.end());
+  const std::uint64_t x = k[0], col = x % gridW_, row = x / gridW_;
+  const std::uint64_t slot = 2 * (row * (gridW_ - 1) + col) + (k[1] == x + gridW_ ? 0 : 1);
+  if (slot < cellTri_.size() && cellTri_[slot] == t) cellTri_[slot] = kNone;
+}
+
+std::uint32_t TerrainIndex::gridTriangle(double u, double v) const {
+  const double du = u - gridU0_, dv = v - gridV0_;
+  const double fc = gridInv_[0] * du + gridInv_[1] * dv, fr = gridInv_[2] * du + gridInv_[3] * dv;
+  if (!(fc >= 0 && fr >= 0 && fc < gridW_ - 1 && fr < gridH_ - 1)) return kNone;
+  const auto col = static_cast<std::uint32_t>(fc), row = static_cast<std::uint32_t>(fr);
+  // The half of the cell with corner (col, row + 1) lies where the row fraction exceeds the
+  // column fraction.
+  const std::uint32_t half = fr - row > fc - col ? 0 : 1;
+  const std::uint32_t t = cellTri_[2 * (static_cast<std::uint64_t>(row) * (gridW_ - 1) + col) + half];
+  if (t == kNone) return kNone;
+  // Clearly inside, beyond twice the edge tests' error bound: no other triangle of a grid can
+  // hold the point, and the quadtree would find exactly this one.
+  const Tri& r = tris_[t];
+  for (int k = 0; k < 3; ++k) {
+    if (!(r.A[k] * u + r.B[k] * v + r.C[k] > 2 * r.tol)) return kNone;
+  }
+  return t;
 }
 
 void TerrainIndex::fanPolygon(std::span<const std::uint32_t> idx, std::uint32_t p,
@@ -375,6 +451,13 @@ inline double TerrainIndex::heightOf(const Tri& t, double u, double v) const {
 template <bool Below>
 std::uint32_t TerrainIndex::nearest(double u, double v, double z, double& h,
                                     Quadtree::Cursor* cursor) const {
+  if (gridW_) {
+    const std::uint32_t t = gridTriangle(u, v);
+    if (t != kNone) {
+      h = heightOf(tris_[t], u, v);
+      return (Below ? h <= z : h >= z) ? t : kNone;
+    }
+  }
   if (!tree_.contains(u, v)) return kNone;  // also rejects NaN
   const Quadtree::Node leaf = cursor ? tree_.leafNode(u, v, *cursor) : tree_.leafNode(u, v);
   const auto items = tree_.leafRange(leaf);
@@ -478,6 +561,37 @@ void TerrainIndex::heightsBelow(std::span<const Point2> points, double z,
   constexpr std::size_t kGroup = 16;
   Quadtree::Node leaf[kGroup];
   bool on[kGroup];
+  if (gridW_) {
+    // The grid fast path: the cells' triangle ids, then their records, then the answers; the
+    // points it cannot answer go through the quadtree one by one.
+    std::uint32_t tri[kGroup];
+    for (std::size_t g = 0; g < points.size(); g += kGroup) {
+      const std::size_t n = std::min(kGroup, points.size() - g);
+      for (std::size_t i = 0; i < n; ++i) {
+        const Point2 p = points[g + i];
+        const double du = p.u - gridU0_, dv = p.v - gridV0_;
+        const double fc = gridInv_[0] * du + gridInv_[1] * dv, fr = gridInv_[2] * du + gridInv_[3] * dv;
+        if (fc >= 0 && fr >= 0 && fc < gridW_ - 1 && fr < gridH_ - 1) {
+          const auto col = static_cast<std::uint64_t>(fc), row = static_cast<std::uint64_t>(fr);
+          __builtin_prefetch(&cellTri_[2 * (row * (gridW_ - 1) + col)]);
+        }
+      }
+      for (std::size_t i = 0; i < n; ++i) {
+        tri[i] = gridTriangle(points[g + i].u, points[g + i].v);
+        if (tri[i] != kNone) __builtin_prefetch(&tris_[tri[i]]);
+      }
+      for (std::size_t i = 0; i < n; ++i) {
+        const Point2 p = points[g + i];
+        if (tri[i] == kNone) {
+          heights[g + i] = heightBelow(p.u, p.v, z);
+          continue;
+        }
+        const double h = heightOf(tris_[tri[i]], p.u, p.v);
+        heights[g + i] = h <= z ? std::optional<double>(h) : std::nullopt;
+      }
+    }
+    return;
+  }
   for (std::size_t g = 0; g < points.size(); g += kGroup) {
     const std::size_t n = std::min(kGroup, points.size() - g);
     for (std::size_t i = 0; i < n; ++i) {
@@ -756,6 +870,8 @@ std::uint32_t TerrainIndex::insertPolygon(std::span<const Eigen::Vector3d> corne
     if (!trianglesOf_.empty()) trianglesOf_.emplace(id, t);
   }
   stats_.triangles += pending.size();
+  gridW_ = 0;  // an inserted polygon may overlap the grid: the quadtree answers from now on
+  BigVector<std::uint32_t>().swap(cellTri_);
   if (grows) {
     rebuildTree(domain);
   } else {
@@ -781,6 +897,7 @@ bool TerrainIndex::removePolygon(std::uint32_t polygon) {
   for (auto it = first; it != last; ++it) {
     tree_.remove(it->second, [this](std::uint32_t i, const Box2& b) { return overlaps(i, boxOf(i), b); });
     --stats_.triangles;
+    if (gridW_) clearGridSlot(it->second);
   }
   if (first == last) --stats_.walls;
   trianglesOf_.erase(polygon);

@@ -215,6 +215,12 @@ struct TreeFileAccess {
     w.array(x.corners2_);
     w.array(x.cornerH_);
     w.array(x.removed_);
+    w.pod(x.gridW_);
+    w.pod(x.gridH_);
+    w.pod(x.gridU0_);
+    w.pod(x.gridV0_);
+    w.pod(x.gridInv_);
+    w.array(x.cellTri_);
     write(w, x.tree_);
   }
 
@@ -229,10 +235,28 @@ struct TreeFileAccess {
     r.array(x.corners2_, "vertices");
     r.array(x.cornerH_, "vertex heights");
     r.array(x.removed_, "removed polygons");
+    x.gridW_ = r.pod<std::uint32_t>("grid");
+    x.gridH_ = r.pod<std::uint32_t>("grid");
+    x.gridU0_ = r.pod<double>("grid");
+    x.gridV0_ = r.pod<double>("grid");
+    for (double& g : x.gridInv_) g = r.pod<double>("grid");
+    r.array(x.cellTri_, "grid cells");
     read(r, x.tree_);
   }
 
   static void validate(const Reader& r, const TerrainIndex& x) {
+    if (x.gridW_) {
+      if (x.gridW_ < 2 || x.gridH_ < 2 ||
+          x.cellTri_.size() != 2ull * (x.gridW_ - 1) * (x.gridH_ - 1)) {
+        r.fail("the grid's cell table has the wrong size");
+      }
+      for (std::uint32_t t : x.cellTri_) {
+        if (t != TerrainIndex::kNone && t >= x.tris_.size()) r.fail("a grid cell references a missing triangle");
+      }
+      for (double g : {x.gridU0_, x.gridV0_, x.gridInv_[0], x.gridInv_[1], x.gridInv_[2], x.gridInv_[3]}) {
+        if (!std::isfinite(g)) r.fail("the grid's geometry is not finite");
+      }
+    }
     if (x.cold_.size() != x.tris_.size()) r.fail("triangle tables differ in length");
     if (x.cornerH_.size() != x.corners2_.size()) r.fail("vertex tables differ in length");
     for (const auto& c : x.cold_) {

@@ -15,6 +15,7 @@ packages=(
   libpng-dev                    # PNG previews
   libnova-dev                   # solar position (VSOP87) for qota shadow
   libassimp-dev                 # mesh files (OBJ, PLY, glTF, STL, ...)
+  libembree-dev                 # bench/embree_bench: the general ray tracer qota is measured against
 )
 
 missing=()

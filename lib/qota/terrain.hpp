@@ -49,6 +49,11 @@ namespace qota {
 
 struct TerrainOptions {
   QuadtreeOptions tree;
+  // The direct-indexing fast path for regular grids (a raster from loadDem, a Heightfield): when
+  // the mesh is found to be one, a query first finds its cell by arithmetic and answers from the
+  // cell's triangle if it lies clearly inside it (the same record, so the same answer as the
+  // quadtree's); points within rounding of an edge, holes and anything else take the quadtree.
+  bool gridFastPath = true;
 };
 
 // Where the line through a mapped point meets the terrain.
@@ -149,6 +154,9 @@ class TerrainIndex {
   bool occludedAbove(double u, double v, double h, std::uint32_t vertex) const;
 
   const CartesianMapping& mapping() const { return mapping_; }
+  // True while the grid fast path is active (TerrainOptions::gridFastPath, a regular grid, no
+  // insertion since).
+  bool gridFastPath() const { return gridW_ != 0; }
   const TerrainStats& stats() const {
     if (treeStatsStale_) stats_.tree = tree_.stats(), treeStatsStale_ = false;  // after edits
     return stats_;
@@ -217,6 +225,15 @@ class TerrainIndex {
   std::unordered_multimap<std::uint32_t, std::uint32_t> trianglesOf_;
   std::vector<std::uint8_t> removed_;
   void rebuildTree(const Box2& domain);
+  // The grid fast path (TerrainOptions::gridFastPath): gridW_ vertices per row (0: none), the
+  // inverse of the affine map (col, row) -> mapped (u, v), and per cell the triangle of each half
+  // (the half with corner (col, row + 1) first), kNone where the raster has none.
+  void detectGrid(const Mesh& mesh);
+  std::uint32_t gridTriangle(double u, double v) const;  // kNone: take the quadtree
+  void clearGridSlot(std::uint32_t t);                   // a removed triangle
+  std::uint32_t gridW_ = 0, gridH_ = 0;
+  double gridU0_ = 0, gridV0_ = 0, gridInv_[4] = {0, 0, 0, 0};
+  BigVector<std::uint32_t> cellTri_;
   Quadtree tree_;
   mutable TerrainStats stats_;
   mutable bool treeStatsStale_ = false;
