@@ -158,7 +158,10 @@ TerrainIndex::TerrainIndex(const Mesh& mesh, const CartesianMapping& mapping,
   stats_.domain = domain;
 
   // Store triangles in Morton order of their centroids, so that the triangles of one leaf (and of
-  // neighbouring leaves) sit next to each other in memory.
+  // neighbouring leaves) sit next to each other in memory; a regular grid's in row order instead,
+  // so that a walk along a row reads memory in order.
+  const std::vector<std::uint32_t> slots =
+      options.gridFastPath ? gridSlots(pending) : std::vector<std::uint32_t>();
   if (!pending.empty()) {
     const double su = domain.uhi > domain.ulo ? 65535.0 / (domain.uhi - domain.ulo) : 0.0;
     const double sv = domain.vhi > domain.vlo ? 65535.0 / (domain.vhi - domain.vlo) : 0.0;
@@ -171,13 +174,19 @@ TerrainIndex::TerrainIndex(const Mesh& mesh, const CartesianMapping& mapping,
       }
       const auto iu = static_cast<std::uint32_t>(std::clamp((cu - domain.ulo) * su, 0.0, 65535.0));
       const auto iv = static_cast<std::uint32_t>(std::clamp((cv - domain.vlo) * sv, 0.0, 65535.0));
-      const std::uint64_t code = spreadBits16(iu) | (spreadBits16(iv) << 1);
+      const std::uint64_t code = slots.empty() ? spreadBits16(iu) | (spreadBits16(iv) << 1) : slots[t];
       keyed[t] = code << 32 | t;
     }
     std::sort(keyed.begin(), keyed.end());
     std::vector<Pending> sorted(pending.size());
     for (std::size_t t = 0; t < keyed.size(); ++t) sorted[t] = pending[keyed[t] & 0xffffffffu];
     pending.swap(sorted);
+    if (!slots.empty()) {
+      cellTri_.assign(2ull * (gridW_ - 1) * (gridH_ - 1), kNone);
+      for (std::size_t t = 0; t < keyed.size(); ++t) {
+        cellTri_[keyed[t] >> 32] = static_cast<std::uint32_t>(t);
+      }
+    }
   }
 
   // Hot and cold records. The edge tolerance bounds the rounding error of A u + B v + C for every
@@ -224,53 +233,55 @@ TerrainIndex::TerrainIndex(const Mesh& mesh, const CartesianMapping& mapping,
     hmin_ = std::min(hmin_, static_cast<double>(tris_[t].hlo));
     hmax_ = std::max(hmax_, static_cast<double>(tris_[t].hhi));
   }
-  if (options.gridFastPath) detectGrid(mesh);
   stats_.memoryBytes += cellTri_.size() * sizeof(std::uint32_t);
 }
 
-void TerrainIndex::detectGrid(const Mesh& mesh) {
+std::vector<std::uint32_t> TerrainIndex::gridSlots(std::span<const Pending> pending) {
   // A regular grid of w x h vertices, two triangles per cell split along the diagonal from
   // vertex x to x + w + 1 (loadDem's and Heightfield's layout). w from the first triangle, then
-  // every triangle must be one half of a cell.
+  // every triangle must be one half of a cell, each half once. Returns each triangle's slot,
+  // 2 * cell + half (the half with corner x + w first), or nothing when the mesh is not a grid.
   const std::size_t nv = corners2_.size();
-  if (cold_.empty() || !mesh.offsets.empty()) return;
-  auto sorted = [](const Cold& c) {
-    std::array<std::uint32_t, 3> k{c.corner[0], c.corner[1], c.corner[2]};
+  if (pending.empty()) return {};
+  auto sorted = [](const Pending& q) {
+    std::array<std::uint32_t, 3> k{q.corner[0], q.corner[1], q.corner[2]};
     std::sort(k.begin(), k.end());
     return k;
   };
-  const auto k0 = sorted(cold_[0]);
+  const auto k0 = sorted(pending[0]);
   const std::uint64_t w = k0[2] - k0[0] - 1;
-  if (w < 2 || nv % w != 0 || nv / w < 2) return;
+  if (w < 2 || nv % w != 0 || nv / w < 2) return {};
   const std::uint64_t h = nv / w;
-  if (w > 0xffffffffu || h > 0xffffffffu || 2 * (w - 1) * (h - 1) >= 0xffffffffu) return;
-  BigVector<std::uint32_t> cells(2 * (w - 1) * (h - 1), kNone);
-  for (std::uint32_t t = 0; t < cold_.size(); ++t) {
-    const auto k = sorted(cold_[t]);
+  if (w > 0xffffffffu || 2 * (w - 1) * (h - 1) >= 0xffffffffu) return {};
+  std::vector<std::uint8_t> taken(2 * (w - 1) * (h - 1), 0);
+  std::vector<std::uint32_t> slots(pending.size());
+  for (std::size_t t = 0; t < pending.size(); ++t) {
+    const auto k = sorted(pending[t]);
     const std::uint64_t x = k[0], col = x % w, row = x / w;
-    if (k[2] != x + w + 1 || col == w - 1 || row >= h - 1 || (k[1] != x + w && k[1] != x + 1)) return;
+    if (k[2] != x + w + 1 || col == w - 1 || row >= h - 1 || (k[1] != x + w && k[1] != x + 1)) return {};
     const std::uint64_t slot = 2 * (row * (w - 1) + col) + (k[1] == x + w ? 0 : 1);
-    if (cells[slot] != kNone) return;  // the same half twice: overlapping, not a grid
-    cells[slot] = t;
+    if (taken[slot]) return {};  // the same half twice: overlapping, not a grid
+    taken[slot] = 1;
+    slots[t] = static_cast<std::uint32_t>(slot);
   }
   // The vertices must lie on the affine grid (u, v) = o + col * a + row * b, to well within a
   // cell, so that the cell found by arithmetic is the cell (or a neighbour, near its edges).
   const Point2 o = corners2_[0], pa = corners2_[1], pb = corners2_[w];
   const double au = pa.u - o.u, av = pa.v - o.v, bu = pb.u - o.u, bv = pb.v - o.v;
   const double det = au * bv - av * bu;
-  if (!std::isfinite(det) || det == 0) return;
+  if (!std::isfinite(det) || det == 0) return {};
   const double cellSize = std::min(std::hypot(au, av), std::hypot(bu, bv));
   for (std::uint64_t i = 0; i < nv; ++i) {
     const double c = static_cast<double>(i % w), r = static_cast<double>(i / w);
     const Point2 p = corners2_[i];
     const double eu = o.u + c * au + r * bu - p.u, ev = o.v + c * av + r * bv - p.v;
-    if (!(std::hypot(eu, ev) <= 1e-6 * cellSize)) return;
+    if (!(std::hypot(eu, ev) <= 1e-6 * cellSize)) return {};
   }
   gridW_ = static_cast<std::uint32_t>(w);
   gridH_ = static_cast<std::uint32_t>(h);
   gridU0_ = o.u, gridV0_ = o.v;
   gridInv_[0] = bv / det, gridInv_[1] = -bu / det, gridInv_[2] = -av / det, gridInv_[3] = au / det;
-  cellTri_.swap(cells);
+  return slots;
 }
 
 void TerrainIndex::clearGridSlot(std::uint32_t t) {
@@ -284,20 +295,44 @@ void TerrainIndex::clearGridSlot(std::uint32_t t) {
 std::uint32_t TerrainIndex::gridTriangle(double u, double v) const {
   const double du = u - gridU0_, dv = v - gridV0_;
   const double fc = gridInv_[0] * du + gridInv_[1] * dv, fr = gridInv_[2] * du + gridInv_[3] * dv;
-  if (!(fc >= 0 && fr >= 0 && fc < gridW_ - 1 && fr < gridH_ - 1)) return kNone;
-  const auto col = static_cast<std::uint32_t>(fc), row = static_cast<std::uint32_t>(fr);
-  // The half of the cell with corner (col, row + 1) lies where the row fraction exceeds the
-  // column fraction.
-  const std::uint32_t half = fr - row > fc - col ? 0 : 1;
-  const std::uint32_t t = cellTri_[2 * (static_cast<std::uint64_t>(row) * (gridW_ - 1) + col) + half];
-  if (t == kNone) return kNone;
-  // Clearly inside, beyond twice the edge tests' error bound: no other triangle of a grid can
-  // hold the point, and the quadtree would find exactly this one.
-  const Tri& r = tris_[t];
-  for (int k = 0; k < 3; ++k) {
-    if (!(r.A[k] * u + r.B[k] * v + r.C[k] > 2 * r.tol)) return kNone;
+  // Beyond a cell off the grid nothing can hold the point; NaN lands here too.
+  if (!(fc >= -1 && fr >= -1 && fc <= gridW_ && fr <= gridH_)) return kOffGrid;
+  const double cellsU = gridW_ - 1, cellsV = gridH_ - 1;
+  const std::int64_t col = static_cast<std::int64_t>(std::floor(std::clamp(fc, 0.0, cellsU - 0.5)));
+  const std::int64_t row = static_cast<std::int64_t>(std::floor(std::clamp(fr, 0.0, cellsV - 0.5)));
+  if (fc >= 0 && fr >= 0 && fc < cellsU && fr < cellsV) {
+    // The half of the cell with corner (col, row + 1) lies where the row fraction exceeds the
+    // column fraction.
+    const std::uint32_t half = fr - row > fc - col ? 0 : 1;
+    const std::uint32_t t = cellTri_[2 * (static_cast<std::uint64_t>(row) * (gridW_ - 1) + col) + half];
+    if (t != kNone) {
+      // Clearly inside, beyond twice the edge tests' error bound: no other triangle of a grid
+      // can hold the point.
+      const Tri& r = tris_[t];
+      bool clear = true;
+      for (int k = 0; k < 3; ++k) clear = clear && r.A[k] * u + r.B[k] * v + r.C[k] > 2 * r.tol;
+      if (clear) return t;
+    }
   }
-  return t;
+  // On or near an edge (a pixel centre, a cell side), in a hole, or just off the grid: every
+  // triangle that can hold the point is in the estimated cell or in a neighbour across a side the
+  // point is within 1e-5 cell of (the vertices lie on the affine grid to within 1e-6 of a cell).
+  // The exact closed test decides, and the smallest polygon id among those holding the point
+  // answers, as in the quadtree's single-layer leaves.
+  constexpr double kNear = 1e-5;
+  const std::int64_t c0 = col - (fc - col < kNear), c1 = col + (col + 1 - fc < kNear);
+  const std::int64_t r0 = row - (fr - row < kNear), r1 = row + (row + 1 - fr < kNear);
+  std::uint32_t best = kNone;
+  for (std::int64_t r = std::max<std::int64_t>(r0, 0); r <= std::min<std::int64_t>(r1, gridH_ - 2); ++r) {
+    for (std::int64_t c = std::max<std::int64_t>(c0, 0); c <= std::min<std::int64_t>(c1, gridW_ - 2); ++c) {
+      for (int half = 0; half < 2; ++half) {
+        const std::uint32_t t = cellTri_[2 * (static_cast<std::uint64_t>(r) * (gridW_ - 1) + c) + half];
+        if (t == kNone || !contains(tris_[t], t, u, v)) continue;
+        if (best == kNone || cold_[t].polygon < cold_[best].polygon) best = t;
+      }
+    }
+  }
+  return best == kNone ? kOffGrid : best;
 }
 
 void TerrainIndex::fanPolygon(std::span<const std::uint32_t> idx, std::uint32_t p,
@@ -453,10 +488,9 @@ std::uint32_t TerrainIndex::nearest(double u, double v, double z, double& h,
                                     Quadtree::Cursor* cursor) const {
   if (gridW_) {
     const std::uint32_t t = gridTriangle(u, v);
-    if (t != kNone) {
-      h = heightOf(tris_[t], u, v);
-      return (Below ? h <= z : h >= z) ? t : kNone;
-    }
+    if (t == kOffGrid) return kNone;
+    h = heightOf(tris_[t], u, v);
+    return (Below ? h <= z : h >= z) ? t : kNone;
   }
   if (!tree_.contains(u, v)) return kNone;  // also rejects NaN
   const Quadtree::Node leaf = cursor ? tree_.leafNode(u, v, *cursor) : tree_.leafNode(u, v);
@@ -578,12 +612,12 @@ void TerrainIndex::heightsBelow(std::span<const Point2> points, double z,
       }
       for (std::size_t i = 0; i < n; ++i) {
         tri[i] = gridTriangle(points[g + i].u, points[g + i].v);
-        if (tri[i] != kNone) __builtin_prefetch(&tris_[tri[i]]);
+        if (tri[i] != kOffGrid) __builtin_prefetch(&tris_[tri[i]]);
       }
       for (std::size_t i = 0; i < n; ++i) {
         const Point2 p = points[g + i];
-        if (tri[i] == kNone) {
-          heights[g + i] = heightBelow(p.u, p.v, z);
+        if (tri[i] == kOffGrid) {
+          heights[g + i] = std::nullopt;
           continue;
         }
         const double h = heightOf(tris_[tri[i]], p.u, p.v);

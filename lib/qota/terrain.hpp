@@ -50,9 +50,11 @@ namespace qota {
 struct TerrainOptions {
   QuadtreeOptions tree;
   // The direct-indexing fast path for regular grids (a raster from loadDem, a Heightfield): when
-  // the mesh is found to be one, a query first finds its cell by arithmetic and answers from the
-  // cell's triangle if it lies clearly inside it (the same record, so the same answer as the
-  // quadtree's); points within rounding of an edge, holes and anything else take the quadtree.
+  // the mesh is found to be one, a query finds its cell by arithmetic and answers from the cell's
+  // triangle when the point lies clearly inside it; a point on or near an edge (a pixel centre)
+  // is decided by the exact test over the triangles of the 3 x 3 cells around it, the smallest
+  // polygon id holding it answering, as in the quadtree's single-layer leaves. The same records,
+  // so the same answers as the quadtree (tested); the quadtree stays for edits.
   bool gridFastPath = true;
 };
 
@@ -228,8 +230,10 @@ class TerrainIndex {
   // The grid fast path (TerrainOptions::gridFastPath): gridW_ vertices per row (0: none), the
   // inverse of the affine map (col, row) -> mapped (u, v), and per cell the triangle of each half
   // (the half with corner (col, row + 1) first), kNone where the raster has none.
-  void detectGrid(const Mesh& mesh);
-  std::uint32_t gridTriangle(double u, double v) const;  // kNone: take the quadtree
+  std::vector<std::uint32_t> gridSlots(std::span<const Pending> pending);
+  // The triangle holding (u, v) by the grid's rule, or kOffGrid for none (a hole, off the grid).
+  std::uint32_t gridTriangle(double u, double v) const;
+  static constexpr std::uint32_t kOffGrid = 0xfffffffeu;
   void clearGridSlot(std::uint32_t t);                   // a removed triangle
   std::uint32_t gridW_ = 0, gridH_ = 0;
   double gridU0_ = 0, gridV0_ = 0, gridInv_[4] = {0, 0, 0, 0};
