@@ -295,12 +295,8 @@ void TerrainIndex::clearGridSlot(std::uint32_t t) {
 std::uint32_t TerrainIndex::gridTriangle(double u, double v) const {
   const double du = u - gridU0_, dv = v - gridV0_;
   const double fc = gridInv_[0] * du + gridInv_[1] * dv, fr = gridInv_[2] * du + gridInv_[3] * dv;
-  // Beyond a cell off the grid nothing can hold the point; NaN lands here too.
-  if (!(fc >= -1 && fr >= -1 && fc <= gridW_ && fr <= gridH_)) return kOffGrid;
-  const double cellsU = gridW_ - 1, cellsV = gridH_ - 1;
-  const std::int64_t col = static_cast<std::int64_t>(std::floor(std::clamp(fc, 0.0, cellsU - 0.5)));
-  const std::int64_t row = static_cast<std::int64_t>(std::floor(std::clamp(fr, 0.0, cellsV - 0.5)));
-  if (fc >= 0 && fr >= 0 && fc < cellsU && fr < cellsV) {
+  if (fc >= 0 && fr >= 0 && fc < gridW_ - 1 && fr < gridH_ - 1) [[likely]] {
+    const auto col = static_cast<std::uint32_t>(fc), row = static_cast<std::uint32_t>(fr);
     // The half of the cell with corner (col, row + 1) lies where the row fraction exceeds the
     // column fraction.
     const std::uint32_t half = fr - row > fc - col ? 0 : 1;
@@ -309,11 +305,21 @@ std::uint32_t TerrainIndex::gridTriangle(double u, double v) const {
       // Clearly inside, beyond twice the edge tests' error bound: no other triangle of a grid
       // can hold the point.
       const Tri& r = tris_[t];
-      bool clear = true;
-      for (int k = 0; k < 3; ++k) clear = clear && r.A[k] * u + r.B[k] * v + r.C[k] > 2 * r.tol;
-      if (clear) return t;
+      if (r.A[0] * u + r.B[0] * v + r.C[0] > 2 * r.tol && r.A[1] * u + r.B[1] * v + r.C[1] > 2 * r.tol &&
+          r.A[2] * u + r.B[2] * v + r.C[2] > 2 * r.tol) {
+        return t;
+      }
     }
   }
+  return gridTriangleNearEdge(u, v, fc, fr);
+}
+
+std::uint32_t TerrainIndex::gridTriangleNearEdge(double u, double v, double fc, double fr) const {
+  // Beyond a cell off the grid nothing can hold the point; NaN lands here too.
+  if (!(fc >= -1 && fr >= -1 && fc <= gridW_ && fr <= gridH_)) return kOffGrid;
+  const double cellsU = gridW_ - 1, cellsV = gridH_ - 1;
+  const auto col = static_cast<std::int64_t>(std::floor(std::clamp(fc, 0.0, cellsU - 0.5)));
+  const auto row = static_cast<std::int64_t>(std::floor(std::clamp(fr, 0.0, cellsV - 0.5)));
   // On or near an edge (a pixel centre, a cell side), in a hole, or just off the grid: every
   // triangle that can hold the point is in the estimated cell or in a neighbour across a side the
   // point is within 1e-5 cell of (the vertices lie on the affine grid to within 1e-6 of a cell).

@@ -233,6 +233,8 @@ class TerrainIndex {
   std::vector<std::uint32_t> gridSlots(std::span<const Pending> pending);
   // The triangle holding (u, v) by the grid's rule, or kOffGrid for none (a hole, off the grid).
   std::uint32_t gridTriangle(double u, double v) const;
+  // Its rare path, kept out of line: points on or near an edge, in holes, off the grid.
+  [[gnu::noinline]] std::uint32_t gridTriangleNearEdge(double u, double v, double fc, double fr) const;
   static constexpr std::uint32_t kOffGrid = 0xfffffffeu;
   void clearGridSlot(std::uint32_t t);                   // a removed triangle
   std::uint32_t gridW_ = 0, gridH_ = 0;
