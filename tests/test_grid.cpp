@@ -34,7 +34,9 @@ void expectSame(const TerrainIndex& fast, const TerrainIndex& slow, double u, do
   }
   const auto c = fast.above(u, v, z), d = slow.above(u, v, z);
   ASSERT_EQ(c.has_value(), d.has_value());
-  if (c) ASSERT_EQ(c->polygon, d->polygon);
+  if (c) {
+    ASSERT_EQ(c->polygon, d->polygon);
+  }
   ASSERT_EQ(fast.heightBelow(u, v, 1e300), slow.heightBelow(u, v, 1e300));
 }
 
