@@ -219,21 +219,27 @@ TerrainIndex::TerrainIndex(const Mesh& mesh, const CartesianMapping& mapping,
     floorU = 0.5 * du[du.size() / 2];
     floorV = 0.5 * dv[dv.size() / 2];
   }
-  tree_.build(static_cast<std::uint32_t>(tris_.size()), domain, options.tree,
-              [this, &boxes](std::uint32_t t, const Box2& b) { return overlaps(t, boxes[t], b); },
-              floorU, floorV);
-  // Single-layer leaves: where no two of a leaf's triangles overlap, the first one containing a
-  // point is the only surface there, and the query stops at it. Their items are put in polygon
-  // order so that this first one is also the smallest polygon id, as the tie rule says.
-  tree_.markLeaves([this](std::span<std::uint32_t> items) { return prepareLeaf(items); });
-  stats_.tree = tree_.stats();
-  stats_.memoryBytes = tris_.size() * sizeof(Tri) + cold_.size() * sizeof(Cold) +
-                       corners2_.size() * (sizeof(Point2) + sizeof(double)) + stats_.tree.memoryBytes;
+  floorU_ = floorU, floorV_ = floorV;
+  deferredOptions_ = options.tree;
+  baseMemoryBytes_ = tris_.size() * sizeof(Tri) + cold_.size() * sizeof(Cold) +
+                     corners2_.size() * (sizeof(Point2) + sizeof(double)) +
+                     cellTri_.size() * sizeof(std::uint32_t);
+  if (gridW_) {
+    // The grid answers every height query: the tree waits until something needs it.
+    deferredTree_ = true;
+    stats_.memoryBytes = baseMemoryBytes_;
+  } else {
+    tree_.build(static_cast<std::uint32_t>(tris_.size()), domain, options.tree,
+                [this, &boxes](std::uint32_t t, const Box2& b) { return overlaps(t, boxes[t], b); },
+                floorU, floorV);
+    tree_.markLeaves([this](std::span<std::uint32_t> items) { return prepareLeaf(items); });
+    stats_.tree = tree_.stats();
+    stats_.memoryBytes = baseMemoryBytes_ + stats_.tree.memoryBytes;
+  }
   for (std::uint32_t t = 0; t < tris_.size(); ++t) {
     hmin_ = std::min(hmin_, static_cast<double>(tris_[t].hlo));
     hmax_ = std::max(hmax_, static_cast<double>(tris_[t].hhi));
   }
-  stats_.memoryBytes += cellTri_.size() * sizeof(std::uint32_t);
 }
 
 std::vector<std::uint32_t> TerrainIndex::gridSlots(std::span<const Pending> pending) {
@@ -438,6 +444,18 @@ bool TerrainIndex::prepareLeaf(std::span<std::uint32_t> items) const {
   return true;
 }
 
+void TerrainIndex::buildDeferredTree() const {
+  tree_.build(static_cast<std::uint32_t>(tris_.size()), stats_.domain, deferredOptions_,
+              [this](std::uint32_t t, const Box2& b) {
+                return !(cold_[t].polygon < removed_.size() && removed_[cold_[t].polygon]) &&
+                       overlaps(t, boxOf(t), b);
+              },
+              floorU_, floorV_);
+  tree_.markLeaves([this](std::span<std::uint32_t> items) { return prepareLeaf(items); });
+  treeStatsStale_ = true;
+  deferred_->built = true;
+}
+
 bool TerrainIndex::separated(std::uint32_t a, std::uint32_t b) const {
   // Two counter-clockwise triangles have disjoint interiors exactly when an edge line of one has
   // all corners of the other on its outer side or on it (separating axis theorem). The edge
@@ -498,6 +516,7 @@ std::uint32_t TerrainIndex::nearest(double u, double v, double z, double& h,
     h = heightOf(tris_[t], u, v);
     return (Below ? h <= z : h >= z) ? t : kNone;
   }
+  ensureTree();
   if (!tree_.contains(u, v)) return kNone;  // also rejects NaN
   const Quadtree::Node leaf = cursor ? tree_.leafNode(u, v, *cursor) : tree_.leafNode(u, v);
   const auto items = tree_.leafRange(leaf);
@@ -690,6 +709,7 @@ std::optional<Hit> TerrainIndex::top(double u, double v) const {
 }
 
 std::vector<Hit> TerrainIndex::all(double u, double v) const {
+  ensureTree();
   std::vector<Hit> hits;
   if (!tree_.contains(u, v)) return hits;
   for (std::uint32_t t : tree_.leafItems(u, v)) {
@@ -732,6 +752,7 @@ std::vector<Hit> TerrainIndex::allWorld(const Eigen::Vector3d& p) const {
 }
 
 bool TerrainIndex::occludedAbove(double u, double v, double h, std::uint32_t vertex) const {
+  ensureTree();
   if (!tree_.contains(u, v)) return false;
   for (std::uint32_t t : tree_.leafItems(u, v)) {
     const Tri& r = tris_[t];
@@ -744,6 +765,7 @@ bool TerrainIndex::occludedAbove(double u, double v, double h, std::uint32_t ver
 }
 
 std::uint32_t TerrainIndex::testsAt(double u, double v) const {
+  ensureTree();
   if (!tree_.contains(u, v)) return 0;
   return static_cast<std::uint32_t>(tree_.leafItems(u, v).size());
 }
@@ -755,6 +777,7 @@ namespace qota {
 std::vector<LineHit> TerrainIndex::alongLine(const Eigen::Vector3d& origin,
                                              const Eigen::Vector3d& direction, double tmin,
                                              double tmax) const {
+  ensureTree();
   std::vector<LineHit> out;
   if (!origin.allFinite() || !direction.allFinite() || direction.squaredNorm() == 0) {
     throw Error("alongLine: the origin and direction must be finite and the direction nonzero");
@@ -857,6 +880,7 @@ void TerrainIndex::rebuildTree(const Box2& domain) {
 }
 
 std::uint32_t TerrainIndex::insertPolygon(std::span<const Eigen::Vector3d> corners) {
+  ensureTree();
   const auto id = static_cast<std::uint32_t>(stats_.polygons);
   if (corners.size() < 3) {
     throw Error("insertPolygon: a polygon needs at least 3 corners, got " +
@@ -925,6 +949,7 @@ std::uint32_t TerrainIndex::insertPolygon(std::span<const Eigen::Vector3d> corne
 }
 
 bool TerrainIndex::removePolygon(std::uint32_t polygon) {
+  ensureTree();
   if (polygon >= stats_.polygons) return false;
   if (removed_.size() < stats_.polygons) removed_.resize(stats_.polygons, 0);
   if (removed_[polygon]) return false;

@@ -34,6 +34,9 @@
 #include <Eigen/Core>
 #include <cmath>
 #include <cstdint>
+#include <atomic>
+#include <memory>
+#include <mutex>
 #include <optional>
 #include <span>
 #include <unordered_map>
@@ -160,10 +163,22 @@ class TerrainIndex {
   // insertion since).
   bool gridFastPath() const { return gridW_ != 0; }
   const TerrainStats& stats() const {
-    if (treeStatsStale_) stats_.tree = tree_.stats(), treeStatsStale_ = false;  // after edits
+    ensureTree();
+    if (treeStatsStale_) {  // after edits, or after the deferred build
+      stats_.tree = tree_.stats();
+      stats_.memoryBytes = baseMemoryBytes_ + stats_.tree.memoryBytes;
+      treeStatsStale_ = false;
+    }
     return stats_;
   }
-  const Quadtree& tree() const { return tree_; }
+  const Quadtree& tree() const {
+    ensureTree();
+    return tree_;
+  }
+  // The memory the index holds right now: without the tree while a grid has not needed it.
+  std::uint64_t memoryBytesNow() const {
+    return deferredTree_ && !deferred_->built.load() ? baseMemoryBytes_ : stats().memoryBytes;
+  }
 
   // Polygon tests (bbox checks) the query at (u, v) performs: the size of its leaf.
   std::uint32_t testsAt(double u, double v) const;
@@ -240,7 +255,22 @@ class TerrainIndex {
   std::uint32_t gridW_ = 0, gridH_ = 0;
   double gridU0_ = 0, gridV0_ = 0, gridInv_[4] = {0, 0, 0, 0};
   BigVector<std::uint32_t> cellTri_;
-  Quadtree tree_;
+  // The quadtree. On a regular grid the fast path answers every height query without it, so it
+  // is built on first need (statistics, all(), edits, shadows, tree files), once, thread-safely.
+  mutable Quadtree tree_;
+  void ensureTree() const {
+    if (deferredTree_) std::call_once(deferred_->once, [this] { buildDeferredTree(); });
+  }
+  void buildDeferredTree() const;
+  bool deferredTree_ = false;
+  struct Deferred {  // behind a pointer: once_flag and atomic do not move
+    std::once_flag once;
+    std::atomic<bool> built{false};
+  };
+  std::unique_ptr<Deferred> deferred_ = std::make_unique<Deferred>();
+  QuadtreeOptions deferredOptions_;
+  double floorU_ = 0, floorV_ = 0;
+  std::uint64_t baseMemoryBytes_ = 0;  // everything but the tree
   mutable TerrainStats stats_;
   mutable bool treeStatsStale_ = false;
 };
