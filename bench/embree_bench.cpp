@@ -238,6 +238,18 @@ void run(const Terrain& t, std::size_t n) {
   const Timing qm = timeQueries(miss, qotaOne), em = timeQueries(miss, embreeOneF);
   const Timing qw = timeQueries(walk, qotaOne), ew = timeQueries(walk, embreeOneF);
   std::optional<Timing> gh, gw;
+  std::optional<Timing> ch;
+  double compactBytes = 0;
+  if (index.gridFastPath()) {
+    qota::TerrainOptions o;
+    o.compactGrid = true;
+    const qota::TerrainIndex compact(t.mesh, t.mapping, o);
+    compactBytes = static_cast<double>(compact.memoryBytesNow());
+    ch = timeQueries(hit, [&](double u, double v) {
+      const auto h = compact.heightBelow(u, v, INFINITY);
+      return h ? static_cast<float>(*h) : NAN;
+    });
+  }
   if (t.grid) {
     auto g = [&](double u, double v) {
       double h = 0;
@@ -262,6 +274,11 @@ void run(const Terrain& t, std::size_t n) {
               eh16.ns);
   std::printf("  %-22s %9.1f %9.1f %8.1fx\n", "random miss", qm.ns, em.ns, em.ns / qm.ns);
   std::printf("  %-22s %9.1f %9.1f %8.1fx\n", "coherent walk", qw.ns, ew.ns, ew.ns / qw.ns);
+  if (ch) {
+    std::printf("  %-22s %9.1f ns random hit, %.0f bytes per triangle (identical heights: %s)\n",
+                "qota compactGrid", ch->ns, compactBytes / tris,
+                agree(qh, *ch, 0).differ == 0 && agree(qh, *ch, 0).onlyOne == 0 ? "yes" : "NO");
+  }
   if (gh) {
     std::printf("  %-22s %9.1f (hit)  %9.1f (walk): qota/grid %.1fx hit, %.1fx walk\n",
                 "direct grid indexing", gh->ns, gw->ns, qh.ns / gh->ns, qw.ns / gw->ns);

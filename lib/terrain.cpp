@@ -194,11 +194,31 @@ TerrainIndex::TerrainIndex(const Mesh& mesh, const CartesianMapping& mapping,
   // evaluation (three roundings) stay within 8 units of the magnitude sum; 16 leaves a margin.
   umax_ = std::max(std::fabs(domain.ulo), std::fabs(domain.uhi));
   vmax_ = std::max(std::fabs(domain.vlo), std::fabs(domain.vhi));
-  tris_.resize(pending.size());
   cold_.resize(pending.size());
-  std::vector<Box2> boxes(pending.size());  // build only: bboxes for the overlap test
   for (std::size_t t = 0; t < pending.size(); ++t) {
-    boxes[t] = makeRecord(static_cast<std::uint32_t>(t), pending[t]);
+    const Pending& q = pending[t];
+    cold_[t] = Cold{{q.corner[0], q.corner[1], q.corner[2]}, q.polygon};
+  }
+  // A grid whose cells all store their corners in the same order keeps no records at all: the
+  // fast path computes a cell's record from its corners (the same arithmetic, so the same bits),
+  // and the records are made with the tree when something needs them.
+  if (gridW_ && options.compactGrid) gridCompact_ = findGridCorners();
+  std::vector<Box2> boxes(pending.size());  // build only: bboxes for the overlap test
+  if (gridCompact_) {
+    planes_.resize(cold_.size());
+    for (std::uint32_t t = 0; t < cold_.size(); ++t) {
+      boxes[t] = boxOf(t);
+      Tri r;
+      r.h0 = NAN;
+      planeRecord(cold_[t].corner, r);
+      const bool sliver = !std::isnan(r.h0);  // planeRecord set the mid-range height
+      planes_[t] = Plane{sliver ? NAN : r.a, r.b, r.hlo, r.hhi};
+    }
+  } else {
+    tris_.resize(pending.size());
+    for (std::size_t t = 0; t < pending.size(); ++t) {
+      boxes[t] = makeRecord(static_cast<std::uint32_t>(t), pending[t]);
+    }
   }
 
   // The quadtree: a triangle is referenced from a leaf when its closed projection meets the closed
@@ -221,25 +241,50 @@ TerrainIndex::TerrainIndex(const Mesh& mesh, const CartesianMapping& mapping,
   }
   floorU_ = floorU, floorV_ = floorV;
   deferredOptions_ = options.tree;
-  baseMemoryBytes_ = tris_.size() * sizeof(Tri) + cold_.size() * sizeof(Cold) +
+  baseMemoryBytes_ = cold_.size() * sizeof(Cold) + planes_.size() * sizeof(Plane) +
                      corners2_.size() * (sizeof(Point2) + sizeof(double)) +
                      cellTri_.size() * sizeof(std::uint32_t);
   if (gridW_) {
     // The grid answers every height query: the tree waits until something needs it.
     deferredTree_ = true;
-    stats_.memoryBytes = baseMemoryBytes_;
+    stats_.memoryBytes = baseMemoryBytes_ + tris_.size() * sizeof(Tri);
   } else {
-    tree_.build(static_cast<std::uint32_t>(tris_.size()), domain, options.tree,
+    tree_.build(static_cast<std::uint32_t>(cold_.size()), domain, options.tree,
                 [this, &boxes](std::uint32_t t, const Box2& b) { return overlaps(t, boxes[t], b); },
                 floorU, floorV);
     tree_.markLeaves([this](std::span<std::uint32_t> items) { return prepareLeaf(items); });
     stats_.tree = tree_.stats();
-    stats_.memoryBytes = baseMemoryBytes_ + stats_.tree.memoryBytes;
+    stats_.memoryBytes = baseMemoryBytes_ + tris_.size() * sizeof(Tri) + stats_.tree.memoryBytes;
   }
-  for (std::uint32_t t = 0; t < tris_.size(); ++t) {
-    hmin_ = std::min(hmin_, static_cast<double>(tris_[t].hlo));
-    hmax_ = std::max(hmax_, static_cast<double>(tris_[t].hhi));
+  for (std::uint32_t t = 0; t < cold_.size(); ++t) {
+    double lo = INFINITY, hi = -INFINITY;
+    for (std::uint32_t c : cold_[t].corner) lo = std::min(lo, cornerH_[c]), hi = std::max(hi, cornerH_[c]);
+    hmin_ = std::min(hmin_, static_cast<double>(floatBelow(lo)));
+    hmax_ = std::max(hmax_, static_cast<double>(floatAbove(hi)));
   }
+}
+
+bool TerrainIndex::findGridCorners() {
+  // Each half of a cell stores its corners (after fanPolygon's orientation) at fixed offsets from
+  // the cell's first vertex x = row * w + col: find them from the first triangle of each half and
+  // check every triangle.
+  bool seen[2] = {false, false};
+  for (std::uint32_t slot = 0; slot < cellTri_.size(); ++slot) {
+    const std::uint32_t t = cellTri_[slot];
+    if (t == kNone) continue;
+    const std::uint64_t cell = slot / 2, half = slot % 2;
+    const std::uint64_t x = (cell / (gridW_ - 1)) * gridW_ + cell % (gridW_ - 1);
+    for (int k = 0; k < 3; ++k) {
+      const std::int64_t offset = static_cast<std::int64_t>(cold_[t].corner[k]) - static_cast<std::int64_t>(x);
+      if (!seen[half]) {
+        gridCorner_[half][k] = static_cast<std::uint32_t>(offset);
+      } else if (gridCorner_[half][k] != static_cast<std::uint32_t>(offset)) {
+        return false;
+      }
+    }
+    seen[half] = true;
+  }
+  return true;
 }
 
 std::vector<std::uint32_t> TerrainIndex::gridSlots(std::span<const Pending> pending) {
@@ -298,7 +343,26 @@ void TerrainIndex::clearGridSlot(std::uint32_t t) {
   if (slot < cellTri_.size() && cellTri_[slot] == t) cellTri_[slot] = kNone;
 }
 
-std::uint32_t TerrainIndex::gridTriangle(double u, double v) const {
+const TerrainIndex::Tri& TerrainIndex::gridRecord(std::uint64_t slot, std::uint32_t t,
+                                                 Tri& scratch) const {
+  if (!gridCompact_) return tris_[t];
+  const std::uint64_t cell = slot / 2, half = slot % 2;
+  const auto x = static_cast<std::uint32_t>((cell / (gridW_ - 1)) * gridW_ + cell % (gridW_ - 1));
+  const std::uint32_t corner[3] = {x + gridCorner_[half][0], x + gridCorner_[half][1],
+                                   x + gridCorner_[half][2]};
+  Tri& r = scratch;
+  edgeRecord(corner, r);
+  const Plane& p = planes_[t];
+  r.a = p.a, r.b = p.b, r.hlo = p.hlo, r.hhi = p.hhi;
+  if (std::isnan(p.a)) planeRecord(corner, r);  // a sliver (see planeRecord): rare, recomputed
+  return r;
+}
+
+TerrainIndex::Tri TerrainIndex::recordOf(std::uint32_t t) const {
+  return t < tris_.size() ? tris_[t] : computeRecord(cold_[t].corner);
+}
+
+std::uint32_t TerrainIndex::gridTriangle(double u, double v, Tri& scratch, const Tri*& rec) const {
   const double du = u - gridU0_, dv = v - gridV0_;
   const double fc = gridInv_[0] * du + gridInv_[1] * dv, fr = gridInv_[2] * du + gridInv_[3] * dv;
   if (fc >= 0 && fr >= 0 && fc < gridW_ - 1 && fr < gridH_ - 1) [[likely]] {
@@ -306,21 +370,24 @@ std::uint32_t TerrainIndex::gridTriangle(double u, double v) const {
     // The half of the cell with corner (col, row + 1) lies where the row fraction exceeds the
     // column fraction.
     const std::uint32_t half = fr - row > fc - col ? 0 : 1;
-    const std::uint32_t t = cellTri_[2 * (static_cast<std::uint64_t>(row) * (gridW_ - 1) + col) + half];
+    const std::uint64_t slot = 2 * (static_cast<std::uint64_t>(row) * (gridW_ - 1) + col) + half;
+    const std::uint32_t t = cellTri_[slot];
     if (t != kNone) {
       // Clearly inside, beyond twice the edge tests' error bound: no other triangle of a grid
       // can hold the point.
-      const Tri& r = tris_[t];
+      const Tri& r = gridRecord(slot, t, scratch);
+      rec = &r;
       if (r.A[0] * u + r.B[0] * v + r.C[0] > 2 * r.tol && r.A[1] * u + r.B[1] * v + r.C[1] > 2 * r.tol &&
           r.A[2] * u + r.B[2] * v + r.C[2] > 2 * r.tol) {
         return t;
       }
     }
   }
-  return gridTriangleNearEdge(u, v, fc, fr);
+  return gridTriangleNearEdge(u, v, fc, fr, scratch, rec);
 }
 
-std::uint32_t TerrainIndex::gridTriangleNearEdge(double u, double v, double fc, double fr) const {
+std::uint32_t TerrainIndex::gridTriangleNearEdge(double u, double v, double fc, double fr,
+                                                 Tri& scratch, const Tri*& rec) const {
   // Beyond a cell off the grid nothing can hold the point; NaN lands here too.
   if (!(fc >= -1 && fr >= -1 && fc <= gridW_ && fr <= gridH_)) return kOffGrid;
   const double cellsU = gridW_ - 1, cellsV = gridH_ - 1;
@@ -338,12 +405,17 @@ std::uint32_t TerrainIndex::gridTriangleNearEdge(double u, double v, double fc, 
   for (std::int64_t r = std::max<std::int64_t>(r0, 0); r <= std::min<std::int64_t>(r1, gridH_ - 2); ++r) {
     for (std::int64_t c = std::max<std::int64_t>(c0, 0); c <= std::min<std::int64_t>(c1, gridW_ - 2); ++c) {
       for (int half = 0; half < 2; ++half) {
-        const std::uint32_t t = cellTri_[2 * (static_cast<std::uint64_t>(r) * (gridW_ - 1) + c) + half];
-        if (t == kNone || !contains(tris_[t], t, u, v)) continue;
-        if (best == kNone || cold_[t].polygon < cold_[best].polygon) best = t;
+        const std::uint64_t slot = 2 * (static_cast<std::uint64_t>(r) * (gridW_ - 1) + c) + half;
+        const std::uint32_t t = cellTri_[slot];
+        if (t == kNone) continue;
+        Tri candidateScratch;
+        const Tri& candidate = gridRecord(slot, t, candidateScratch);
+        if (!contains(candidate, t, u, v)) continue;
+        if (best == kNone || cold_[t].polygon < cold_[best].polygon) best = t, scratch = candidate;
       }
     }
   }
+  rec = &scratch;
   return best == kNone ? kOffGrid : best;
 }
 
@@ -366,32 +438,45 @@ void TerrainIndex::fanPolygon(std::span<const std::uint32_t> idx, std::uint32_t 
 // C's products) and the evaluation (three roundings) stay within 8 units of the magnitude sum;
 // 16 leaves a margin. Returns the triangle's bounding box.
 Box2 TerrainIndex::makeRecord(std::uint32_t t, const Pending& q) {
-  Tri& r = tris_[t];
   cold_[t] = Cold{{q.corner[0], q.corner[1], q.corner[2]}, q.polygon};
-  double hlo = INFINITY, hhi = -INFINITY, tol = 0;
-  Box2 bb{INFINITY, INFINITY, -INFINITY, -INFINITY};
-  Eigen::Vector3d m[3];
+  tris_[t] = computeRecord(q.corner);
+  return boxOf(t);
+}
+
+TerrainIndex::Tri TerrainIndex::computeRecord(const std::uint32_t corner[3]) const {
+  Tri r;
+  edgeRecord(corner, r);
+  planeRecord(corner, r);
+  return r;
+}
+
+// The edge equations, their tolerance and corner 0: cheap, recomputed per query on a compact
+// grid.
+void TerrainIndex::edgeRecord(const std::uint32_t corner[3], Tri& r) const {
+  double tol = 0;
   for (int k = 0; k < 3; ++k) {
-    const std::uint32_t c = q.corner[k];
-    m[k] = Eigen::Vector3d(corners2_[c].u, corners2_[c].v, cornerH_[c]);
-  }
-  for (int k = 0; k < 3; ++k) {
-    const Eigen::Vector3d& p0 = m[k];
-    const Eigen::Vector3d& p1 = m[(k + 1) % 3];
-    r.A[k] = p0.y() - p1.y();
-    r.B[k] = p1.x() - p0.x();
-    r.C[k] = p0.x() * p1.y() - p1.x() * p0.y();
+    const Point2 p0 = corners2_[corner[k]], p1 = corners2_[corner[(k + 1) % 3]];
+    r.A[k] = p0.v - p1.v;
+    r.B[k] = p1.u - p0.u;
+    r.C[k] = p0.u * p1.v - p1.u * p0.v;
     tol = std::max(tol, std::fabs(r.A[k]) * umax_ + std::fabs(r.B[k]) * vmax_ +
-                            std::fabs(p0.x() * p1.y()) + std::fabs(p1.x() * p0.y()));
-    bb.ulo = std::min(bb.ulo, p0.x()), bb.uhi = std::max(bb.uhi, p0.x());
-    bb.vlo = std::min(bb.vlo, p0.y()), bb.vhi = std::max(bb.vhi, p0.y());
-    hlo = std::min(hlo, p0.z()), hhi = std::max(hhi, p0.z());
+                            std::fabs(p0.u * p1.v) + std::fabs(p1.u * p0.v));
   }
   r.tol = 16.0 * kUnitRoundoff * tol;
+  r.u0 = corners2_[corner[0]].u, r.v0 = corners2_[corner[0]].v, r.h0 = cornerH_[corner[0]];
+}
+
+// The plane's slopes and the height range: two divisions, kept per triangle on a compact grid.
+void TerrainIndex::planeRecord(const std::uint32_t corner[3], Tri& r) const {
+  Eigen::Vector3d m[3];
+  double hlo = INFINITY, hhi = -INFINITY;
+  for (int k = 0; k < 3; ++k) {
+    const std::uint32_t c = corner[k];
+    m[k] = Eigen::Vector3d(corners2_[c].u, corners2_[c].v, cornerH_[c]);
+    hlo = std::min(hlo, m[k].z()), hhi = std::max(hhi, m[k].z());
+  }
   r.hlo = floatBelow(hlo), r.hhi = floatAbove(hhi);
-  const Eigen::Vector3d& p0 = m[0];
-  const Eigen::Vector3d n = (m[1] - p0).cross(m[2] - p0);
-  r.u0 = p0.x(), r.v0 = p0.y(), r.h0 = p0.z();
+  const Eigen::Vector3d n = (m[1] - m[0]).cross(m[2] - m[0]);
   r.a = -n.x() / n.z();
   r.b = -n.y() / n.z();
   if (!(n.z() > 0) || !std::isfinite(r.a) || !std::isfinite(r.b)) {
@@ -400,7 +485,6 @@ Box2 TerrainIndex::makeRecord(std::uint32_t t, const Pending& q) {
     r.a = r.b = 0;
     r.h0 = 0.5 * (hlo + hhi);
   }
-  return bb;
 }
 
 // A triangle is referenced from a leaf when its closed projection meets the closed leaf box
@@ -445,7 +529,11 @@ bool TerrainIndex::prepareLeaf(std::span<std::uint32_t> items) const {
 }
 
 void TerrainIndex::buildDeferredTree() const {
-  tree_.build(static_cast<std::uint32_t>(tris_.size()), stats_.domain, deferredOptions_,
+  if (tris_.size() != cold_.size()) {
+    tris_.resize(cold_.size());
+    for (std::uint32_t t = 0; t < cold_.size(); ++t) tris_[t] = computeRecord(cold_[t].corner);
+  }
+  tree_.build(static_cast<std::uint32_t>(cold_.size()), stats_.domain, deferredOptions_,
               [this](std::uint32_t t, const Box2& b) {
                 return !(cold_[t].polygon < removed_.size() && removed_[cold_[t].polygon]) &&
                        overlaps(t, boxOf(t), b);
@@ -511,9 +599,11 @@ template <bool Below>
 std::uint32_t TerrainIndex::nearest(double u, double v, double z, double& h,
                                     Quadtree::Cursor* cursor) const {
   if (gridW_) {
-    const std::uint32_t t = gridTriangle(u, v);
+    Tri scratch;
+    const Tri* rec = nullptr;
+    const std::uint32_t t = gridTriangle(u, v, scratch, rec);
     if (t == kOffGrid) return kNone;
-    h = heightOf(tris_[t], u, v);
+    h = heightOf(*rec, u, v);
     return (Below ? h <= z : h >= z) ? t : kNone;
   }
   ensureTree();
@@ -584,7 +674,7 @@ std::uint32_t TerrainIndex::nearestIn(std::span<const std::uint32_t> items, bool
 }
 
 Hit TerrainIndex::makeHit(std::uint32_t t, double u, double v, double h) const {
-  const Tri& r = tris_[t];
+  const Tri r = recordOf(t);
   Hit hit;
   hit.height = h;
   hit.world = mapping_.toWorld(Eigen::Vector3d(u, v, h));
@@ -632,20 +722,24 @@ void TerrainIndex::heightsBelow(std::span<const Point2> points, double z,
         const double fc = gridInv_[0] * du + gridInv_[1] * dv, fr = gridInv_[2] * du + gridInv_[3] * dv;
         if (fc >= 0 && fr >= 0 && fc < gridW_ - 1 && fr < gridH_ - 1) {
           const auto col = static_cast<std::uint64_t>(fc), row = static_cast<std::uint64_t>(fr);
+          const std::uint64_t x = row * gridW_ + col;
           __builtin_prefetch(&cellTri_[2 * (row * (gridW_ - 1) + col)]);
+          __builtin_prefetch(&corners2_[x]);
+          __builtin_prefetch(&corners2_[x + gridW_]);
+          __builtin_prefetch(&cornerH_[x]);
+          __builtin_prefetch(&cornerH_[x + gridW_]);
         }
       }
       for (std::size_t i = 0; i < n; ++i) {
-        tri[i] = gridTriangle(points[g + i].u, points[g + i].v);
-        if (tri[i] != kOffGrid) __builtin_prefetch(&tris_[tri[i]]);
-      }
-      for (std::size_t i = 0; i < n; ++i) {
         const Point2 p = points[g + i];
+        Tri scratch;
+        const Tri* rec = nullptr;
+        tri[i] = gridTriangle(p.u, p.v, scratch, rec);
         if (tri[i] == kOffGrid) {
           heights[g + i] = std::nullopt;
           continue;
         }
-        const double h = heightOf(tris_[tri[i]], p.u, p.v);
+        const double h = heightOf(*rec, p.u, p.v);
         heights[g + i] = h <= z ? std::optional<double>(h) : std::nullopt;
       }
     }

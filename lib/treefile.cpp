@@ -220,7 +220,10 @@ struct TreeFileAccess {
     w.pod(x.gridU0_);
     w.pod(x.gridV0_);
     w.pod(x.gridInv_);
+    w.pod(x.gridCompact_);
+    w.pod(x.gridCorner_);
     w.array(x.cellTri_);
+    w.array(x.planes_);
     write(w, x.tree_);
   }
 
@@ -240,7 +243,12 @@ struct TreeFileAccess {
     x.gridU0_ = r.pod<double>("grid");
     x.gridV0_ = r.pod<double>("grid");
     for (double& g : x.gridInv_) g = r.pod<double>("grid");
+    x.gridCompact_ = r.pod<bool>("grid");
+    for (auto& half : x.gridCorner_) {
+      for (std::uint32_t& c : half) c = r.pod<std::uint32_t>("grid");
+    }
     r.array(x.cellTri_, "grid cells");
+    r.array(x.planes_, "grid planes");
     read(r, x.tree_);
   }
 
@@ -255,6 +263,13 @@ struct TreeFileAccess {
       }
       for (double g : {x.gridU0_, x.gridV0_, x.gridInv_[0], x.gridInv_[1], x.gridInv_[2], x.gridInv_[3]}) {
         if (!std::isfinite(g)) r.fail("the grid's geometry is not finite");
+      }
+      if (std::uint64_t{x.gridW_} * x.gridH_ != x.corners2_.size()) r.fail("the grid does not match its vertices");
+      if (x.gridCompact_ && x.planes_.size() != x.cold_.size()) r.fail("the grid's plane table has the wrong size");
+      for (const auto& half : x.gridCorner_) {
+        for (std::uint32_t c : half) {
+          if (c != 0 && c != 1 && c != x.gridW_ && c != x.gridW_ + 1) r.fail("a grid corner offset is out of its cell");
+        }
       }
     }
     if (x.cold_.size() != x.tris_.size()) r.fail("triangle tables differ in length");

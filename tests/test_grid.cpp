@@ -42,9 +42,13 @@ void expectSame(const TerrainIndex& fast, const TerrainIndex& slow, double u, do
 
 void expectGridMatchesQuadtree(const Mesh& mesh, const CartesianMapping& mapping, int randomQueries,
                                std::uint64_t seed) {
-  const TerrainIndex fast(mesh, mapping), slow(mesh, mapping, quadtreeOnly());
+  TerrainOptions compactOptions;
+  compactOptions.compactGrid = true;
+  const TerrainIndex fast(mesh, mapping), slow(mesh, mapping, quadtreeOnly()),
+      compact(mesh, mapping, compactOptions);
   ASSERT_TRUE(fast.gridFastPath());
   ASSERT_FALSE(slow.gridFastPath());
+  EXPECT_LT(compact.memoryBytesNow(), fast.memoryBytesNow() / 2);
   const Box2 box = fast.stats().domain;
   std::mt19937_64 rng(seed);
   std::vector<Point2> points;
@@ -63,13 +67,20 @@ void expectGridMatchesQuadtree(const Mesh& mesh, const CartesianMapping& mapping
     points.push_back({0.5 * (box.ulo + box.uhi), uniform(rng, box.vlo, box.vhi)});
   }
   for (const Point2& p : points) {
-    expectSame(fast, slow, p.u, p.v, uniform(rng, -1e4, 1e4));
+    const double z = uniform(rng, -1e4, 1e4);
+    expectSame(fast, slow, p.u, p.v, z);
+    expectSame(compact, slow, p.u, p.v, z);
     if (::testing::Test::HasFatalFailure()) return;
   }
   std::vector<std::optional<double>> a(points.size()), b(points.size());
+  std::vector<std::optional<double>> c(points.size());
   fast.heightsBelow(points, 1e300, a);
   slow.heightsBelow(points, 1e300, b);
-  for (std::size_t i = 0; i < points.size(); ++i) ASSERT_EQ(a[i], b[i]) << i;
+  compact.heightsBelow(points, 1e300, c);
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    ASSERT_EQ(a[i], b[i]) << i;
+    ASSERT_EQ(c[i], b[i]) << i;
+  }
 }
 
 TEST(GridFastPath, RainierMatchesTheQuadtree) {
