@@ -714,22 +714,45 @@ void TerrainIndex::heightsBelow(std::span<const Point2> points, double z,
     // The grid fast path: the cells' triangle ids, then their records, then the answers; the
     // points it cannot answer go through the quadtree one by one.
     std::uint32_t tri[kGroup];
+    std::uint64_t slot[kGroup];
+    constexpr std::uint64_t kOut = ~std::uint64_t{0};
     for (std::size_t g = 0; g < points.size(); g += kGroup) {
       const std::size_t n = std::min(kGroup, points.size() - g);
+      // Stage 1: each point's cell, and its entry in the cell table (and, on a compact grid,
+      // the cell's corners).
       for (std::size_t i = 0; i < n; ++i) {
         const Point2 p = points[g + i];
         const double du = p.u - gridU0_, dv = p.v - gridV0_;
         const double fc = gridInv_[0] * du + gridInv_[1] * dv, fr = gridInv_[2] * du + gridInv_[3] * dv;
+        slot[i] = kOut;
         if (fc >= 0 && fr >= 0 && fc < gridW_ - 1 && fr < gridH_ - 1) {
           const auto col = static_cast<std::uint64_t>(fc), row = static_cast<std::uint64_t>(fr);
-          const std::uint64_t x = row * gridW_ + col;
-          __builtin_prefetch(&cellTri_[2 * (row * (gridW_ - 1) + col)]);
-          __builtin_prefetch(&corners2_[x]);
-          __builtin_prefetch(&corners2_[x + gridW_]);
-          __builtin_prefetch(&cornerH_[x]);
-          __builtin_prefetch(&cornerH_[x + gridW_]);
+          slot[i] = 2 * (row * (gridW_ - 1) + col);
+          __builtin_prefetch(&cellTri_[slot[i]]);
+          if (gridCompact_) {
+            const std::uint64_t x = row * gridW_ + col;
+            __builtin_prefetch(&corners2_[x]);
+            __builtin_prefetch(&corners2_[x + gridW_]);
+            __builtin_prefetch(&cornerH_[x]);
+            __builtin_prefetch(&cornerH_[x + gridW_]);
+          }
         }
       }
+      // Stage 2: the records (or planes) of the cell's triangles.
+      for (std::size_t i = 0; i < n; ++i) {
+        if (slot[i] == kOut) continue;
+        for (int half = 0; half < 2; ++half) {
+          const std::uint32_t t = cellTri_[slot[i] + half];
+          if (t == kNone) continue;
+          if (gridCompact_) {
+            __builtin_prefetch(&planes_[t]);
+          } else {
+            __builtin_prefetch(&tris_[t]);
+            __builtin_prefetch(reinterpret_cast<const char*>(&tris_[t]) + 64);
+          }
+        }
+      }
+      // Stage 3: the answers.
       for (std::size_t i = 0; i < n; ++i) {
         const Point2 p = points[g + i];
         Tri scratch;
