@@ -216,6 +216,8 @@ void run(const Terrain& t, std::size_t n) {
     const auto h = index.heightBelow(u, v, INFINITY);
     return h ? static_cast<float>(*h) : NAN;
   };
+  double parallelNs = 0;
+  bool parallelSame = false;
   auto qotaBatch = [&](const std::vector<Query>& q) {
     std::vector<qota::Point2> p(q.size());
     for (std::size_t i = 0; i < q.size(); ++i) p[i] = {q[i].u, q[i].v};
@@ -227,6 +229,15 @@ void run(const Terrain& t, std::size_t n) {
       index.heightsBelow(std::span(p.data() + i, k), INFINITY, std::span(out.data() + i, k));
     }
     t2.ns = seconds(b0, Clock::now()) * 1e9 / static_cast<double>(p.size());
+    // Both cores: the same batches on two threads.
+    std::vector<std::optional<double>> out2(q.size());
+    const auto p0 = Clock::now();
+    for (std::size_t i = 0; i < p.size(); i += 65536) {
+      const std::size_t k = std::min<std::size_t>(65536, p.size() - i);
+      index.heightsBelowParallel(std::span(p.data() + i, k), INFINITY, std::span(out2.data() + i, k), 2);
+    }
+    parallelNs = seconds(p0, Clock::now()) * 1e9 / static_cast<double>(p.size());
+    parallelSame = out2 == out;
     t2.heights.resize(q.size());
     for (std::size_t i = 0; i < q.size(); ++i) t2.heights[i] = out[i] ? static_cast<float>(*out[i]) : NAN;
     return t2;
@@ -274,6 +285,8 @@ void run(const Terrain& t, std::size_t n) {
               eh16.ns);
   std::printf("  %-22s %9.1f %9.1f %8.1fx\n", "random miss", qm.ns, em.ns, em.ns / qm.ns);
   std::printf("  %-22s %9.1f %9.1f %8.1fx\n", "coherent walk", qw.ns, ew.ns, ew.ns / qw.ns);
+  std::printf("  %-22s %9.1f ns random hit, 2 threads (same answers: %s)\n", "qota batched, both cores",
+              parallelNs, parallelSame ? "yes" : "NO");
   if (ch) {
     std::printf("  %-22s %9.1f ns random hit, %.0f bytes per triangle (identical heights: %s)\n",
                 "qota compactGrid", ch->ns, compactBytes / tris,

@@ -1,6 +1,7 @@
 #include "qota/terrain.hpp"
 
 #include <array>
+#include <thread>
 
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -786,6 +787,28 @@ void TerrainIndex::heightsBelow(std::span<const Point2> points, double z,
       heights[g + i] = t == kNone ? std::nullopt : std::optional<double>(h);
     }
   }
+}
+
+void TerrainIndex::heightsBelowParallel(std::span<const Point2> points, double z,
+                                        std::span<std::optional<double>> heights,
+                                        unsigned threads) const {
+  if (heights.size() < points.size()) {
+    throw Error("heightsBelowParallel: " + std::to_string(points.size()) + " points but room for " +
+                std::to_string(heights.size()) + " heights");
+  }
+  ensureTree();  // built once here, not raced for by the workers (a grid may need it at holes)
+  if (threads == 0) threads = std::max(1u, std::thread::hardware_concurrency());
+  threads = static_cast<unsigned>(std::min<std::size_t>(threads, points.size() / 4096 + 1));
+  if (threads <= 1) return heightsBelow(points, z, heights);
+  std::vector<std::jthread> workers;
+  const std::size_t slice = (points.size() + threads - 1) / threads;
+  for (unsigned k = 1; k < threads; ++k) {
+    const std::size_t lo = std::min(points.size(), k * slice), hi = std::min(points.size(), lo + slice);
+    workers.emplace_back([=, this] {
+      heightsBelow(points.subspan(lo, hi - lo), z, heights.subspan(lo, hi - lo));
+    });
+  }
+  heightsBelow(points.first(std::min(points.size(), slice)), z, heights.first(std::min(points.size(), slice)));
 }
 
 std::optional<double> TerrainIndex::heightBelow(double u, double v, double z) const {

@@ -77,6 +77,11 @@ void expectGridMatchesQuadtree(const Mesh& mesh, const CartesianMapping& mapping
   fast.heightsBelow(points, 1e300, a);
   slow.heightsBelow(points, 1e300, b);
   compact.heightsBelow(points, 1e300, c);
+  std::vector<std::optional<double>> d(points.size());
+  fast.heightsBelowParallel(points, 1e300, d, 2);
+  ASSERT_EQ(d, a);
+  slow.heightsBelowParallel(points, 1e300, d, 2);
+  ASSERT_EQ(d, b);
   for (std::size_t i = 0; i < points.size(); ++i) {
     ASSERT_EQ(a[i], b[i]) << i;
     ASSERT_EQ(c[i], b[i]) << i;

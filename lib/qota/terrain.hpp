@@ -129,6 +129,10 @@ class TerrainIndex {
   // cache). heights must have room for every point.
   void heightsBelow(std::span<const Point2> points, double z,
                     std::span<std::optional<double>> heights) const;
+  // The same on several threads (0: one per hardware thread), each taking an equal slice of the
+  // points; worth it from some ten thousand points. The answers do not depend on the threads.
+  void heightsBelowParallel(std::span<const Point2> points, double z,
+                            std::span<std::optional<double>> heights, unsigned threads = 0) const;
 
   // Temporal coherence: the same queries starting from a per-object cursor, which remembers the
   // last leaf so that a query a small step from the last one skips the tree descent. Answers are
