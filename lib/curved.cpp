@@ -544,51 +544,51 @@ Hit CurvedIndex<M>::makeHit(std::uint32_t i, const Line& line, double tHit) cons
 }
 
 template <class M>
-std::optional<Hit> CurvedIndex<M>::below(double u, double v, double h) const {
+template <bool Below>
+std::optional<Hit> CurvedIndex<M>::hitAt(double u, double v, double h,
+                                         Quadtree::Cursor* cursor) const {
   double hh, t;
   Line line;
-  const std::uint32_t i = nearest<true>(u, v, h, hh, line, t);
+  const std::uint32_t i = nearest<Below>(u, v, h, hh, line, t, cursor);
   if (i == kNone) return std::nullopt;
   return makeHit(i, line, t);
 }
 
 template <class M>
-std::optional<Hit> CurvedIndex<M>::below(Quadtree::Cursor& cursor, double u, double v,
-                                         double h) const {
+std::optional<double> CurvedIndex<M>::heightAt(double u, double v, Quadtree::Cursor* cursor) const {
   double hh, t;
   Line line;
-  const std::uint32_t i = nearest<true>(u, v, h, hh, line, t, &cursor);
-  if (i == kNone) return std::nullopt;
-  return makeHit(i, line, t);
-}
-
-template <class M>
-std::optional<Hit> CurvedIndex<M>::above(Quadtree::Cursor& cursor, double u, double v,
-                                         double h) const {
-  double hh, t;
-  Line line;
-  const std::uint32_t i = nearest<false>(u, v, h, hh, line, t, &cursor);
-  if (i == kNone) return std::nullopt;
-  return makeHit(i, line, t);
-}
-
-template <class M>
-std::optional<double> CurvedIndex<M>::height(Quadtree::Cursor& cursor, double u, double v) const {
-  double hh, t;
-  Line line;
-  if (nearest<true>(u, v, M::kHeightUp ? kInf : -kInf, hh, line, t, &cursor) == kNone) {
+  if (nearest<true>(u, v, M::kHeightUp ? kInf : -kInf, hh, line, t, cursor) == kNone) {
     return std::nullopt;
   }
   return hh;
 }
 
 template <class M>
+std::optional<Hit> CurvedIndex<M>::below(double u, double v, double h) const {
+  return hitAt<true>(u, v, h, nullptr);
+}
+
+template <class M>
 std::optional<Hit> CurvedIndex<M>::above(double u, double v, double h) const {
-  double hh, t;
-  Line line;
-  const std::uint32_t i = nearest<false>(u, v, h, hh, line, t);
-  if (i == kNone) return std::nullopt;
-  return makeHit(i, line, t);
+  return hitAt<false>(u, v, h, nullptr);
+}
+
+template <class M>
+std::optional<Hit> CurvedIndex<M>::below(Quadtree::Cursor& cursor, double u, double v,
+                                         double h) const {
+  return hitAt<true>(u, v, h, &cursor);
+}
+
+template <class M>
+std::optional<Hit> CurvedIndex<M>::above(Quadtree::Cursor& cursor, double u, double v,
+                                         double h) const {
+  return hitAt<false>(u, v, h, &cursor);
+}
+
+template <class M>
+std::optional<double> CurvedIndex<M>::height(Quadtree::Cursor& cursor, double u, double v) const {
+  return heightAt(u, v, &cursor);
 }
 
 template <class M>
@@ -603,10 +603,7 @@ std::optional<Hit> CurvedIndex<M>::top(double u, double v) const {
 
 template <class M>
 std::optional<double> CurvedIndex<M>::height(double u, double v) const {
-  double hh, t;
-  Line line;
-  if (nearest<true>(u, v, M::kHeightUp ? kInf : -kInf, hh, line, t) == kNone) return std::nullopt;
-  return hh;
+  return heightAt(u, v, nullptr);
 }
 
 template <class M>
@@ -652,13 +649,10 @@ Bracket CurvedIndex<M>::bracketWorld(const Eigen::Vector3d& p) const {
 
 template <class M>
 std::uint32_t CurvedIndex<M>::testsAt(double u, double v) const {
-  std::uint32_t n = 0;
   u = normalizeU(u);
   if (polar(v)) return static_cast<std::uint32_t>((v > 0 ? polarNorth_ : polarSouth_).size());
   if (!tree_.contains(u, v)) return 0;
-  (void)u;
-  n = static_cast<std::uint32_t>(tree_.leafItems(u, v).size());
-  return n;
+  return static_cast<std::uint32_t>(tree_.leafItems(u, v).size());
 }
 
 template <class M>

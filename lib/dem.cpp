@@ -12,27 +12,15 @@
 #include <sstream>
 #include <vector>
 
+#include "gdal_errors.hpp"
 #include "qota/error.hpp"
 #include "qota/terrain.hpp"
 
 namespace qota {
 namespace {
 
-// Keeps GDAL from printing its own errors while we turn them into a qota::Error.
-struct QuietGdalErrors {
-  QuietGdalErrors() {
-    CPLPushErrorHandler(CPLQuietErrorHandler);
-    CPLErrorReset();
-  }
-  ~QuietGdalErrors() { CPLPopErrorHandler(); }
-  QuietGdalErrors(const QuietGdalErrors&) = delete;
-  QuietGdalErrors& operator=(const QuietGdalErrors&) = delete;
-};
-
-std::string gdalMessage() {
-  const char* m = CPLGetLastErrorMsg();
-  return (m && *m) ? std::string(": ") + m : std::string();
-}
+using detail::QuietGdalErrors;
+using detail::gdalMessage;
 
 std::string gib(std::uint64_t bytes) {
   std::ostringstream s;

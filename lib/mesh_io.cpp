@@ -27,6 +27,7 @@
 #include <unordered_map>
 
 #include "qota/dem.hpp"  // ensureGdalRegistered
+#include "gdal_errors.hpp"
 #include "qota/error.hpp"
 #include "qota/predicates.hpp"
 
@@ -819,21 +820,8 @@ void readAssimp(MeshFile& out, const MeshFileOptions& options, const std::string
 // ---------------------------------------------------------------------------------------------
 // GDAL/OGR.
 
-// Keeps GDAL from printing its own errors while we turn them into a qota::Error.
-struct QuietGdalErrors {
-  QuietGdalErrors() {
-    CPLPushErrorHandler(CPLQuietErrorHandler);
-    CPLErrorReset();
-  }
-  ~QuietGdalErrors() { CPLPopErrorHandler(); }
-  QuietGdalErrors(const QuietGdalErrors&) = delete;
-  QuietGdalErrors& operator=(const QuietGdalErrors&) = delete;
-};
-
-std::string gdalMessage() {
-  const char* m = CPLGetLastErrorMsg();
-  return (m && *m) ? std::string(": ") + m : std::string();
-}
+using detail::QuietGdalErrors;
+using detail::gdalMessage;
 
 // Layer geometry types that can hold surfaces (the others are skipped when no layer is named).
 bool surfaceLayer(OGRwkbGeometryType type) {

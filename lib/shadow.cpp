@@ -10,6 +10,7 @@
 #include <thread>
 
 #include "qota/error.hpp"
+#include "qota/globe.hpp"
 #include "qota/predicates.hpp"
 
 namespace qota {
@@ -26,17 +27,6 @@ OGRSpatialReference rasterCrs(const DemTerrain& dem) {
   }
   srs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
   return srs;
-}
-
-void ellipsoidOf(const OGRSpatialReference& srs, double& a, double& f) {
-  OGRErr e1 = OGRERR_NONE, e2 = OGRERR_NONE;
-  a = srs.GetSemiMajor(&e1);
-  const double invf = srs.GetInvFlattening(&e2);
-  f = invf > 0 ? 1.0 / invf : 0.0;
-  if (e1 != OGRERR_NONE || e2 != OGRERR_NONE || !(a > 0)) {
-    a = GeographicLib::Constants::WGS84_a();
-    f = GeographicLib::Constants::WGS84_f();
-  }
 }
 
 // Fills NaN heights from their neighbours, rim inwards (onion peeling, as gdal_fillnodata does in
@@ -128,7 +118,7 @@ LocalFrame localFrame(const DemTerrain& dem, bool flat, double pixelSize) {
     const OGRSpatialReference srs = rasterCrs(dem);
     if (srs.IsGeographic()) {
       double a = 0, fl = 0;
-      ellipsoidOf(srs, a, fl);
+      demEllipsoid(dem, a, fl);
       const double lon0 = centre[0], lat0 = centre[1];
       f.geographicLocation = true;
       f.centreLon = lon0;

@@ -684,18 +684,20 @@ Hit TerrainIndex::makeHit(std::uint32_t t, double u, double v, double h) const {
   return hit;
 }
 
-std::optional<Hit> TerrainIndex::below(double u, double v, double z) const {
+template <bool Below>
+std::optional<Hit> TerrainIndex::hitAt(double u, double v, double z, Quadtree::Cursor* cursor) const {
   double h = 0;
-  const std::uint32_t t = nearest<true>(u, v, z, h);
-  if (t == std::numeric_limits<std::uint32_t>::max()) return std::nullopt;
+  const std::uint32_t t = nearest<Below>(u, v, z, h, cursor);
+  if (t == kNone) return std::nullopt;
   return makeHit(t, u, v, h);
 }
 
+std::optional<Hit> TerrainIndex::below(double u, double v, double z) const {
+  return hitAt<true>(u, v, z, nullptr);
+}
+
 std::optional<Hit> TerrainIndex::above(double u, double v, double z) const {
-  double h = 0;
-  const std::uint32_t t = nearest<false>(u, v, z, h);
-  if (t == std::numeric_limits<std::uint32_t>::max()) return std::nullopt;
-  return makeHit(t, u, v, h);
+  return hitAt<false>(u, v, z, nullptr);
 }
 
 void TerrainIndex::heightsBelow(std::span<const Point2> points, double z,
@@ -811,33 +813,30 @@ void TerrainIndex::heightsBelowParallel(std::span<const Point2> points, double z
   heightsBelow(points.first(std::min(points.size(), slice)), z, heights.first(std::min(points.size(), slice)));
 }
 
-std::optional<double> TerrainIndex::heightBelow(double u, double v, double z) const {
+std::optional<double> TerrainIndex::heightAt(double u, double v, double z,
+                                             Quadtree::Cursor* cursor) const {
   double h = 0;
-  if (nearest<true>(u, v, z, h) == std::numeric_limits<std::uint32_t>::max()) return std::nullopt;
+  if (nearest<true>(u, v, z, h, cursor) == kNone) return std::nullopt;
   return h;
+}
+
+std::optional<double> TerrainIndex::heightBelow(double u, double v, double z) const {
+  return heightAt(u, v, z, nullptr);
 }
 
 std::optional<double> TerrainIndex::heightBelow(Quadtree::Cursor& cursor, double u, double v,
                                                 double z) const {
-  double h = 0;
-  if (nearest<true>(u, v, z, h, &cursor) == kNone) return std::nullopt;
-  return h;
+  return heightAt(u, v, z, &cursor);
 }
 
 std::optional<Hit> TerrainIndex::below(Quadtree::Cursor& cursor, double u, double v,
                                        double z) const {
-  double h = 0;
-  const std::uint32_t t = nearest<true>(u, v, z, h, &cursor);
-  if (t == kNone) return std::nullopt;
-  return makeHit(t, u, v, h);
+  return hitAt<true>(u, v, z, &cursor);
 }
 
 std::optional<Hit> TerrainIndex::above(Quadtree::Cursor& cursor, double u, double v,
                                        double z) const {
-  double h = 0;
-  const std::uint32_t t = nearest<false>(u, v, z, h, &cursor);
-  if (t == kNone) return std::nullopt;
-  return makeHit(t, u, v, h);
+  return hitAt<false>(u, v, z, &cursor);
 }
 
 Bracket TerrainIndex::bracket(double u, double v, double h) const {

@@ -37,11 +37,10 @@ Polygon randomPlate(std::mt19937_64& rng, double cx, double cy, double size) {
   return p;
 }
 
-// Compares the edited index with one built from scratch on the live polygons (in id order).
-void expectMatchesScratch(const TerrainIndex& edited, const std::vector<std::optional<Polygon>>& polygons,
-                          const CartesianMapping& mapping, std::mt19937_64& rng) {
+// The live polygons (in id order) as a mesh, and for each of its polygons the edited id.
+Mesh liveMesh(const std::vector<std::optional<Polygon>>& polygons, std::vector<std::uint32_t>& idOf) {
   Mesh mesh;
-  std::vector<std::uint32_t> idOf;  // scratch polygon -> edited id
+  idOf.clear();
   for (std::uint32_t id = 0; id < polygons.size(); ++id) {
     if (!polygons[id]) continue;
     std::vector<std::uint32_t> idx;
@@ -49,6 +48,14 @@ void expectMatchesScratch(const TerrainIndex& edited, const std::vector<std::opt
     mesh.addPolygon(idx);
     idOf.push_back(id);
   }
+  return mesh;
+}
+
+// Compares the edited index with one built from scratch on the live polygons (in id order).
+void expectMatchesScratch(const TerrainIndex& edited, const std::vector<std::optional<Polygon>>& polygons,
+                          const CartesianMapping& mapping, std::mt19937_64& rng) {
+  std::vector<std::uint32_t> idOf;  // scratch polygon -> edited id
+  const Mesh mesh = liveMesh(polygons, idOf);
   const TerrainIndex scratch(mesh, mapping);
   EXPECT_EQ(edited.stats().triangles, scratch.stats().triangles);
   EXPECT_EQ(edited.stats().walls, scratch.stats().walls);
@@ -188,16 +195,8 @@ TEST(Edits, PlanetSequencesMatchARebuild) {
     return p;
   };
   auto compare = [&]() {
-    Mesh mesh;
     std::vector<std::uint32_t> idOf;
-    for (std::uint32_t id = 0; id < polygons.size(); ++id) {
-      if (!polygons[id]) continue;
-      std::vector<std::uint32_t> idx;
-      for (const auto& c : *polygons[id]) idx.push_back(mesh.addVertex(c));
-      mesh.addPolygon(idx);
-      idOf.push_back(id);
-    }
-    const SphericalIndex scratch(mesh, mapping);
+    const SphericalIndex scratch(liveMesh(polygons, idOf), mapping);
     EXPECT_EQ(index.stats().triangles, scratch.stats().triangles);
     for (int i = 0; i < 3000; ++i) {
       const double u = uniform(rng, -180, 180), v = i % 100 == 0 ? 90.0 : uniform(rng, -90, 90);

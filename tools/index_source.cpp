@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <memory>
 
+#include "gdal_errors.hpp"
 #include "qota/dem.hpp"
 #include "qota/error.hpp"
 #include "qota/globe.hpp"
@@ -15,10 +16,9 @@ namespace {
 
 bool isRaster(const std::string& path) {
   ensureGdalRegistered();
-  CPLPushErrorHandler(CPLQuietErrorHandler);  // a mesh file is not an error here
-  std::unique_ptr<GDALDataset> ds(
+  const detail::QuietGdalErrors quiet;  // a mesh file is not an error here
+  const std::unique_ptr<GDALDataset> ds(
       static_cast<GDALDataset*>(GDALOpenEx(path.c_str(), GDAL_OF_RASTER, nullptr, nullptr, nullptr)));
-  CPLPopErrorHandler();
   return ds != nullptr;
 }
 

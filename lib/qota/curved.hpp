@@ -183,6 +183,10 @@ class CurvedIndex {
   std::uint32_t nearest(double u, double v, double h, double& hOut, Line& line, double& tOut,
                         Quadtree::Cursor* cursor = nullptr) const;
   Hit makeHit(std::uint32_t t, const Line& line, double tHit) const;
+  // below/above/height with or without a cursor.
+  template <bool Below>
+  std::optional<Hit> hitAt(double u, double v, double h, Quadtree::Cursor* cursor) const;
+  std::optional<double> heightAt(double u, double v, Quadtree::Cursor* cursor) const;
   Eigen::Vector3d localToWorld(const Eigen::Vector3d& local) const;
   Eigen::Vector3d localDirToWorld(const Eigen::Vector3d& local) const;
   Eigen::Vector3d worldToLocal(const Eigen::Vector3d& world) const;

@@ -231,6 +231,10 @@ class TerrainIndex {
   bool inside(std::uint32_t t, double u, double v) const;
   double heightOf(const Tri& t, double u, double v) const;
   Hit makeHit(std::uint32_t t, double u, double v, double h) const;
+  // below/above/heightBelow with or without a cursor.
+  template <bool Below>
+  std::optional<Hit> hitAt(double u, double v, double z, Quadtree::Cursor* cursor) const;
+  std::optional<double> heightAt(double u, double v, double z, Quadtree::Cursor* cursor) const;
   static constexpr std::uint32_t kNone = 0xffffffffu;
   template <bool Below>
   std::uint32_t nearest(double u, double v, double z, double& h,
