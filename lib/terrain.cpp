@@ -38,6 +38,30 @@ std::uint32_t spreadBits16(std::uint32_t x) {
   return x;
 }
 
+// The plane of a triangle from its mapped corners: slopes a = dh/du and b = dh/dv, and the
+// height h0 it takes at corner 0. One body for the triangle records and the lean grid, so that
+// both give the same bits. (The records also keep the corners' height range, rounded outward to
+// floats, to clamp the plane with.)
+struct PlaneFit {
+  double a, b, h0;
+};
+inline PlaneFit fitPlane(const double u[3], const double v[3], const double h[3]) {
+  PlaneFit p;
+  const double d1u = u[1] - u[0], d1v = v[1] - v[0], d1h = h[1] - h[0];
+  const double d2u = u[2] - u[0], d2v = v[2] - v[0], d2h = h[2] - h[0];
+  const double nu = d1v * d2h - d1h * d2v, nv = d1h * d2u - d1u * d2h, nh = d1u * d2v - d1v * d2u;
+  p.a = -nu / nh;
+  p.b = -nv / nh;
+  p.h0 = h[0];
+  if (!(nh > 0) || !std::isfinite(p.a) || !std::isfinite(p.b)) [[unlikely]] {
+    // A sliver with nonzero exact area whose plane is vertical to within rounding. It stays in
+    // the index, or its neighbours would open a crack; its height is its corners' mid-range.
+    p.a = p.b = 0;
+    p.h0 = 0.5 * (std::min(h[0], std::min(h[1], h[2])) + std::max(h[0], std::max(h[1], h[2])));
+  }
+  return p;
+}
+
 std::string describePoint(const Eigen::Vector3d& p) {
   return "(" + std::to_string(p.x()) + ", " + std::to_string(p.y()) + ", " + std::to_string(p.z()) +
          ")";
@@ -201,20 +225,12 @@ TerrainIndex::TerrainIndex(const Mesh& mesh, const CartesianMapping& mapping,
     cold_[t] = Cold{{q.corner[0], q.corner[1], q.corner[2]}, q.polygon};
   }
   // A grid whose cells all store their corners in the same order keeps no records at all: the
-  // fast path computes a cell's record from its corners (the same arithmetic, so the same bits),
+  // fast path computes a cell's plane from its corners (the same arithmetic, so the same bits),
   // and the records are made with the tree when something needs them.
-  if (gridW_ && options.compactGrid) gridCompact_ = findGridCorners();
+  if (gridW_) setUpLeanGrid();
   std::vector<Box2> boxes(pending.size());  // build only: bboxes for the overlap test
-  if (gridCompact_) {
-    planes_.resize(cold_.size());
-    for (std::uint32_t t = 0; t < cold_.size(); ++t) {
-      boxes[t] = boxOf(t);
-      Tri r;
-      r.h0 = NAN;
-      planeRecord(cold_[t].corner, r);
-      const bool sliver = !std::isnan(r.h0);  // planeRecord set the mid-range height
-      planes_[t] = Plane{sliver ? NAN : r.a, r.b, r.hlo, r.hhi};
-    }
+  if (gridLean_) {
+    for (std::uint32_t t = 0; t < cold_.size(); ++t) boxes[t] = boxOf(t);
   } else {
     tris_.resize(pending.size());
     for (std::size_t t = 0; t < pending.size(); ++t) {
@@ -242,9 +258,10 @@ TerrainIndex::TerrainIndex(const Mesh& mesh, const CartesianMapping& mapping,
   }
   floorU_ = floorU, floorV_ = floorV;
   deferredOptions_ = options.tree;
-  baseMemoryBytes_ = cold_.size() * sizeof(Cold) + planes_.size() * sizeof(Plane) +
-                     corners2_.size() * (sizeof(Point2) + sizeof(double)) +
-                     cellTri_.size() * sizeof(std::uint32_t);
+  baseMemoryBytes_ = cold_.size() * sizeof(Cold) + corners2_.size() * (sizeof(Point2) + sizeof(double)) +
+                     cellTri_.size() * sizeof(std::uint32_t) + gridH32_.size() * sizeof(float) +
+                     (gridColU_.size() + gridRowV_.size()) * sizeof(double) +
+                     gridPresent_.size() * sizeof(std::uint64_t);
   if (gridW_) {
     // The grid answers every height query: the tree waits until something needs it.
     deferredTree_ = true;
@@ -265,27 +282,67 @@ TerrainIndex::TerrainIndex(const Mesh& mesh, const CartesianMapping& mapping,
   }
 }
 
-bool TerrainIndex::findGridCorners() {
+void TerrainIndex::setUpLeanGrid() {
+  gridLean_ = false;
+  gridColU_.clear(), gridRowV_.clear(), gridPresent_.clear();
+  BigVector<float>().swap(gridH32_);
   // Each half of a cell stores its corners (after fanPolygon's orientation) at fixed offsets from
   // the cell's first vertex x = row * w + col: find them from the first triangle of each half and
   // check every triangle.
+  const std::uint64_t w = gridW_;
   bool seen[2] = {false, false};
   for (std::uint32_t slot = 0; slot < cellTri_.size(); ++slot) {
     const std::uint32_t t = cellTri_[slot];
     if (t == kNone) continue;
     const std::uint64_t cell = slot / 2, half = slot % 2;
-    const std::uint64_t x = (cell / (gridW_ - 1)) * gridW_ + cell % (gridW_ - 1);
+    const std::uint64_t x = (cell / (w - 1)) * w + cell % (w - 1);
     for (int k = 0; k < 3; ++k) {
       const std::int64_t offset = static_cast<std::int64_t>(cold_[t].corner[k]) - static_cast<std::int64_t>(x);
       if (!seen[half]) {
         gridCorner_[half][k] = static_cast<std::uint32_t>(offset);
       } else if (gridCorner_[half][k] != static_cast<std::uint32_t>(offset)) {
-        return false;
+        return;
       }
     }
     seen[half] = true;
   }
-  return true;
+  for (int half = 0; half < 2; ++half) {
+    for (int k = 0; k < 3; ++k) {
+      const std::uint64_t off = gridCorner_[half][k];
+      if (off != 0 && off != 1 && off != w && off != w + 1) return;
+      gridDc_[half][k] = static_cast<std::uint8_t>(off % w);
+      gridDr_[half][k] = static_cast<std::uint8_t>(off / w);
+    }
+  }
+  gridLean_ = true;
+  // u by column and v by row, when the vertices' coordinates are exactly those (an axis-aligned
+  // grid under a vertical gravity): then a query reads no vertex coordinates.
+  const std::uint64_t h = gridH_;
+  std::vector<double> colU(w), rowV(h);
+  for (std::uint64_t c = 0; c < w; ++c) colU[c] = corners2_[c].u;
+  for (std::uint64_t r = 0; r < h; ++r) rowV[r] = corners2_[r * w].v;
+  bool axes = true;
+  for (std::uint64_t i = 0; i < corners2_.size() && axes; ++i) {
+    axes = corners2_[i].u == colU[i % w] && corners2_[i].v == rowV[i / w];
+  }
+  if (axes) gridColU_.swap(colU), gridRowV_.swap(rowV);
+  // Heights in float when every one is exact in float (Int16 and Float32 rasters): half the bytes
+  // a random query pulls through the cache.
+  bool exact = true;
+  for (std::size_t i = 0; i < cornerH_.size() && exact; ++i) {
+    exact = static_cast<double>(static_cast<float>(cornerH_[i])) == cornerH_[i];
+  }
+  if (exact) {
+    gridH32_.resize(cornerH_.size());
+    for (std::size_t i = 0; i < cornerH_.size(); ++i) gridH32_[i] = static_cast<float>(cornerH_[i]);
+  }
+  // Which slots hold a triangle, one bit each, unless every one does.
+  if (std::find(cellTri_.begin(), cellTri_.end(), kNone) != cellTri_.end()) {
+    gridPresent_.assign((cellTri_.size() + 63) / 64, 0);
+    for (std::uint64_t slot = 0; slot < cellTri_.size(); ++slot) {
+      if (cellTri_[slot] != kNone) gridPresent_[slot >> 6] |= std::uint64_t{1} << (slot & 63);
+    }
+  }
 }
 
 std::vector<std::uint32_t> TerrainIndex::gridSlots(std::span<const Pending> pending) {
@@ -329,10 +386,21 @@ std::vector<std::uint32_t> TerrainIndex::gridSlots(std::span<const Pending> pend
     const double eu = o.u + c * au + r * bu - p.u, ev = o.v + c * av + r * bv - p.v;
     if (!(std::hypot(eu, ev) <= 1e-6 * cellSize)) return {};
   }
+  // And within 1e-6 of their column and row as the query computes them (the fast path's
+  // "clearly inside" margin of 1e-5 cell rests on this).
+  const double inv[4] = {bv / det, -bu / det, -av / det, au / det};
+  for (std::uint64_t i = 0; i < nv; ++i) {
+    const double du = corners2_[i].u - o.u, dv = corners2_[i].v - o.v;
+    const double fc = inv[0] * du + inv[1] * dv, fr = inv[2] * du + inv[3] * dv;
+    if (!(std::fabs(fc - static_cast<double>(i % w)) <= 1e-6 &&
+          std::fabs(fr - static_cast<double>(i / w)) <= 1e-6)) {
+      return {};
+    }
+  }
   gridW_ = static_cast<std::uint32_t>(w);
   gridH_ = static_cast<std::uint32_t>(h);
   gridU0_ = o.u, gridV0_ = o.v;
-  gridInv_[0] = bv / det, gridInv_[1] = -bu / det, gridInv_[2] = -av / det, gridInv_[3] = au / det;
+  for (int k = 0; k < 4; ++k) gridInv_[k] = inv[k];
   return slots;
 }
 
@@ -341,26 +409,89 @@ void TerrainIndex::clearGridSlot(std::uint32_t t) {
   std::sort(k.begin(), k.end());
   const std::uint64_t x = k[0], col = x % gridW_, row = x / gridW_;
   const std::uint64_t slot = 2 * (row * (gridW_ - 1) + col) + (k[1] == x + gridW_ ? 0 : 1);
-  if (slot < cellTri_.size() && cellTri_[slot] == t) cellTri_[slot] = kNone;
+  if (slot < cellTri_.size() && cellTri_[slot] == t) {
+    cellTri_[slot] = kNone;
+    if (gridLean_) {
+      if (gridPresent_.empty()) gridPresent_.assign((cellTri_.size() + 63) / 64, ~std::uint64_t{0});
+      gridPresent_[slot >> 6] &= ~(std::uint64_t{1} << (slot & 63));
+    }
+  }
 }
 
-const TerrainIndex::Tri& TerrainIndex::gridRecord(std::uint64_t slot, std::uint32_t t,
-                                                 Tri& scratch) const {
-  if (!gridCompact_) return tris_[t];
-  const std::uint64_t cell = slot / 2, half = slot % 2;
-  const auto x = static_cast<std::uint32_t>((cell / (gridW_ - 1)) * gridW_ + cell % (gridW_ - 1));
-  const std::uint32_t corner[3] = {x + gridCorner_[half][0], x + gridCorner_[half][1],
-                                   x + gridCorner_[half][2]};
-  Tri& r = scratch;
-  edgeRecord(corner, r);
-  const Plane& p = planes_[t];
-  r.a = p.a, r.b = p.b, r.hlo = p.hlo, r.hhi = p.hhi;
-  if (std::isnan(p.a)) planeRecord(corner, r);  // a sliver (see planeRecord): rare, recomputed
-  return r;
+const TerrainIndex::Tri& TerrainIndex::gridRecord(std::uint32_t t, Tri& scratch) const {
+  // A lean grid never reads the records, not even once the tree has made them: they may be
+  // being made on another thread.
+  if (!gridLean_) return tris_[t];
+  scratch = computeRecord(cold_[t].corner);
+  return scratch;
 }
 
 TerrainIndex::Tri TerrainIndex::recordOf(std::uint32_t t) const {
-  return t < tris_.size() ? tris_[t] : computeRecord(cold_[t].corner);
+  return gridLean_ || t >= tris_.size() ? computeRecord(cold_[t].corner) : tris_[t];
+}
+
+[[gnu::always_inline]] inline double TerrainIndex::leanHeight(std::uint64_t col, std::uint64_t row, std::uint32_t half,
+                                       double u, double v) const {
+  double cu[3], cv[3], ch[3];
+  const std::uint64_t w = gridW_;
+  for (int k = 0; k < 3; ++k) {
+    const std::uint64_t c = col + gridDc_[half][k], r = row + gridDr_[half][k], x = r * w + c;
+    if (gridColU_.empty()) {
+      cu[k] = corners2_[x].u, cv[k] = corners2_[x].v;
+    } else {
+      cu[k] = gridColU_[c], cv[k] = gridRowV_[r];
+    }
+    ch[k] = gridH32_.empty() ? cornerH_[x] : static_cast<double>(gridH32_[x]);
+  }
+  const PlaneFit p = fitPlane(cu, cv, ch);
+  // heightOf's expression on the record these corners make. The clamp to the corners' height
+  // range rounded outward to floats changes nothing for a value inside the range itself, the
+  // common case.
+  const double h = p.h0 + p.a * (u - cu[0]) + p.b * (v - cv[0]);
+  const double lo = std::min(ch[0], std::min(ch[1], ch[2])), hi = std::max(ch[0], std::max(ch[1], ch[2]));
+  if (h >= lo && h <= hi) [[likely]] return h;
+  return std::clamp(h, static_cast<double>(floatBelow(lo)), static_cast<double>(floatAbove(hi)));
+}
+
+template <bool NeedId>
+std::uint32_t TerrainIndex::gridAnswer(double u, double v, double& h) const {
+  const double du = u - gridU0_, dv = v - gridV0_;
+  const double fc = gridInv_[0] * du + gridInv_[1] * dv, fr = gridInv_[2] * du + gridInv_[3] * dv;
+  if (gridLean_) {
+    if (fc >= 0 && fr >= 0 && fc < gridW_ - 1 && fr < gridH_ - 1) [[likely]] {
+      const auto col = static_cast<std::uint64_t>(fc), row = static_cast<std::uint64_t>(fr);
+      // The half of the cell with corner (col, row + 1) lies where the row fraction exceeds the
+      // column fraction.
+      const double xc = fc - static_cast<double>(col), xr = fr - static_cast<double>(row);
+      const std::uint32_t half = xr > xc ? 0 : 1;
+      const std::uint64_t slot = 2 * (row * (gridW_ - 1) + col) + half;
+      // Clearly inside: farther than 1e-5 cell from the half's sides, with the vertices within
+      // 1e-6 cell of their grid positions (gridSlots), so no other triangle can hold the point.
+      const double margin = std::min(std::min(std::min(xc, xr), std::min(1 - xc, 1 - xr)), std::fabs(xr - xc));
+      std::uint32_t t = kFound;
+      bool present;
+      if constexpr (NeedId) {
+        t = cellTri_[slot];
+        present = t != kNone;
+      } else {
+        present = gridPresent_.empty() || ((gridPresent_[slot >> 6] >> (slot & 63)) & 1);
+      }
+      if (margin > 1e-5 && present) [[likely]] {
+        h = leanHeight(col, row, half, u, v);
+        return t;
+      }
+    }
+    Tri scratch;
+    const Tri* rec = nullptr;
+    const std::uint32_t t = gridTriangleNearEdge(u, v, fc, fr, scratch, rec);
+    if (t != kOffGrid) h = heightOf(*rec, u, v);
+    return t;
+  }
+  Tri scratch;
+  const Tri* rec = nullptr;
+  const std::uint32_t t = gridTriangle(u, v, scratch, rec);
+  if (t != kOffGrid) h = heightOf(*rec, u, v);
+  return t;
 }
 
 std::uint32_t TerrainIndex::gridTriangle(double u, double v, Tri& scratch, const Tri*& rec) const {
@@ -376,7 +507,7 @@ std::uint32_t TerrainIndex::gridTriangle(double u, double v, Tri& scratch, const
     if (t != kNone) {
       // Clearly inside, beyond twice the edge tests' error bound: no other triangle of a grid
       // can hold the point.
-      const Tri& r = gridRecord(slot, t, scratch);
+      const Tri& r = gridRecord(t, scratch);
       rec = &r;
       if (r.A[0] * u + r.B[0] * v + r.C[0] > 2 * r.tol && r.A[1] * u + r.B[1] * v + r.C[1] > 2 * r.tol &&
           r.A[2] * u + r.B[2] * v + r.C[2] > 2 * r.tol) {
@@ -410,7 +541,7 @@ std::uint32_t TerrainIndex::gridTriangleNearEdge(double u, double v, double fc, 
         const std::uint32_t t = cellTri_[slot];
         if (t == kNone) continue;
         Tri candidateScratch;
-        const Tri& candidate = gridRecord(slot, t, candidateScratch);
+        const Tri& candidate = gridRecord(t, candidateScratch);
         if (!contains(candidate, t, u, v)) continue;
         if (best == kNone || cold_[t].polygon < cold_[best].polygon) best = t, scratch = candidate;
       }
@@ -469,23 +600,14 @@ void TerrainIndex::edgeRecord(const std::uint32_t corner[3], Tri& r) const {
 
 // The plane's slopes and the height range: two divisions, kept per triangle on a compact grid.
 void TerrainIndex::planeRecord(const std::uint32_t corner[3], Tri& r) const {
-  Eigen::Vector3d m[3];
-  double hlo = INFINITY, hhi = -INFINITY;
+  double u[3], v[3], h[3];
   for (int k = 0; k < 3; ++k) {
-    const std::uint32_t c = corner[k];
-    m[k] = Eigen::Vector3d(corners2_[c].u, corners2_[c].v, cornerH_[c]);
-    hlo = std::min(hlo, m[k].z()), hhi = std::max(hhi, m[k].z());
+    u[k] = corners2_[corner[k]].u, v[k] = corners2_[corner[k]].v, h[k] = cornerH_[corner[k]];
   }
-  r.hlo = floatBelow(hlo), r.hhi = floatAbove(hhi);
-  const Eigen::Vector3d n = (m[1] - m[0]).cross(m[2] - m[0]);
-  r.a = -n.x() / n.z();
-  r.b = -n.y() / n.z();
-  if (!(n.z() > 0) || !std::isfinite(r.a) || !std::isfinite(r.b)) {
-    // A sliver with nonzero exact area whose plane is vertical to within rounding. It stays in
-    // the index, or its neighbours would open a crack; its height is its corners' mid-range.
-    r.a = r.b = 0;
-    r.h0 = 0.5 * (hlo + hhi);
-  }
+  const PlaneFit p = fitPlane(u, v, h);
+  r.a = p.a, r.b = p.b, r.h0 = p.h0;
+  r.hlo = floatBelow(std::min(h[0], std::min(h[1], h[2])));
+  r.hhi = floatAbove(std::max(h[0], std::max(h[1], h[2])));
 }
 
 // A triangle is referenced from a leaf when its closed projection meets the closed leaf box
@@ -600,11 +722,8 @@ template <bool Below>
 std::uint32_t TerrainIndex::nearest(double u, double v, double z, double& h,
                                     Quadtree::Cursor* cursor) const {
   if (gridW_) {
-    Tri scratch;
-    const Tri* rec = nullptr;
-    const std::uint32_t t = gridTriangle(u, v, scratch, rec);
+    const std::uint32_t t = gridAnswer<true>(u, v, h);
     if (t == kOffGrid) return kNone;
-    h = heightOf(*rec, u, v);
     return (Below ? h <= z : h >= z) ? t : kNone;
   }
   ensureTree();
@@ -714,15 +833,12 @@ void TerrainIndex::heightsBelow(std::span<const Point2> points, double z,
   Quadtree::Node leaf[kGroup];
   bool on[kGroup];
   if (gridW_) {
-    // The grid fast path: the cells' triangle ids, then their records, then the answers; the
-    // points it cannot answer go through the quadtree one by one.
-    std::uint32_t tri[kGroup];
+    // The grid fast path: first every point's cell and the cache lines of its corners (or, on a
+    // grid with records, its triangle ids and then their records), then the answers.
     std::uint64_t slot[kGroup];
     constexpr std::uint64_t kOut = ~std::uint64_t{0};
     for (std::size_t g = 0; g < points.size(); g += kGroup) {
       const std::size_t n = std::min(kGroup, points.size() - g);
-      // Stage 1: each point's cell, and its entry in the cell table (and, on a compact grid,
-      // the cell's corners).
       for (std::size_t i = 0; i < n; ++i) {
         const Point2 p = points[g + i];
         const double du = p.u - gridU0_, dv = p.v - gridV0_;
@@ -731,42 +847,41 @@ void TerrainIndex::heightsBelow(std::span<const Point2> points, double z,
         if (fc >= 0 && fr >= 0 && fc < gridW_ - 1 && fr < gridH_ - 1) {
           const auto col = static_cast<std::uint64_t>(fc), row = static_cast<std::uint64_t>(fr);
           slot[i] = 2 * (row * (gridW_ - 1) + col);
-          __builtin_prefetch(&cellTri_[slot[i]]);
-          if (gridCompact_) {
+          if (gridLean_) {
             const std::uint64_t x = row * gridW_ + col;
-            __builtin_prefetch(&corners2_[x]);
-            __builtin_prefetch(&corners2_[x + gridW_]);
-            __builtin_prefetch(&cornerH_[x]);
-            __builtin_prefetch(&cornerH_[x + gridW_]);
+            if (!gridPresent_.empty()) __builtin_prefetch(&gridPresent_[slot[i] >> 6]);
+            if (!gridH32_.empty()) {
+              __builtin_prefetch(&gridH32_[x]), __builtin_prefetch(&gridH32_[x + 1]);
+              __builtin_prefetch(&gridH32_[x + gridW_]), __builtin_prefetch(&gridH32_[x + gridW_ + 1]);
+            } else {
+              __builtin_prefetch(&cornerH_[x]), __builtin_prefetch(&cornerH_[x + 1]);
+              __builtin_prefetch(&cornerH_[x + gridW_]), __builtin_prefetch(&cornerH_[x + gridW_ + 1]);
+            }
+            if (gridColU_.empty()) {
+              __builtin_prefetch(&corners2_[x]), __builtin_prefetch(&corners2_[x + gridW_ + 1]);
+            }
+          } else {
+            __builtin_prefetch(&cellTri_[slot[i]]);
           }
         }
       }
-      // Stage 2: the records (or planes) of the cell's triangles.
-      for (std::size_t i = 0; i < n; ++i) {
-        if (slot[i] == kOut) continue;
-        for (int half = 0; half < 2; ++half) {
-          const std::uint32_t t = cellTri_[slot[i] + half];
-          if (t == kNone) continue;
-          if (gridCompact_) {
-            __builtin_prefetch(&planes_[t]);
-          } else {
+      if (!gridLean_) {
+        for (std::size_t i = 0; i < n; ++i) {
+          if (slot[i] == kOut) continue;
+          for (int half = 0; half < 2; ++half) {
+            const std::uint32_t t = cellTri_[slot[i] + half];
+            if (t == kNone) continue;
             __builtin_prefetch(&tris_[t]);
             __builtin_prefetch(reinterpret_cast<const char*>(&tris_[t]) + 64);
           }
         }
       }
-      // Stage 3: the answers.
       for (std::size_t i = 0; i < n; ++i) {
         const Point2 p = points[g + i];
-        Tri scratch;
-        const Tri* rec = nullptr;
-        tri[i] = gridTriangle(p.u, p.v, scratch, rec);
-        if (tri[i] == kOffGrid) {
-          heights[g + i] = std::nullopt;
-          continue;
-        }
-        const double h = heightOf(*rec, p.u, p.v);
-        heights[g + i] = h <= z ? std::optional<double>(h) : std::nullopt;
+        double h = 0;
+        heights[g + i] = gridAnswer<false>(p.u, p.v, h) != kOffGrid && h <= z
+                             ? std::optional<double>(h)
+                             : std::nullopt;
       }
     }
     return;
@@ -816,6 +931,10 @@ void TerrainIndex::heightsBelowParallel(std::span<const Point2> points, double z
 std::optional<double> TerrainIndex::heightAt(double u, double v, double z,
                                              Quadtree::Cursor* cursor) const {
   double h = 0;
+  if (gridW_) {  // no need for the triangle's id
+    if (gridAnswer<false>(u, v, h) == kOffGrid || !(h <= z)) return std::nullopt;
+    return h;
+  }
   if (nearest<true>(u, v, z, h, cursor) == kNone) return std::nullopt;
   return h;
 }

@@ -13,7 +13,7 @@ namespace qota {
 namespace {
 
 constexpr char kMagic[8] = {'Q', 'O', 'T', 'A', 'T', 'R', 'E', 'E'};
-constexpr std::uint32_t kVersion = 1;
+constexpr std::uint32_t kVersion = 2;  // 2: the grid keeps no plane table
 
 // The payload checksum: 8-byte words folded with a multiply-xor step (a few GB/s), the tail
 // bytes as one zero-padded word, the length last.
@@ -220,10 +220,7 @@ struct TreeFileAccess {
     w.pod(x.gridU0_);
     w.pod(x.gridV0_);
     w.pod(x.gridInv_);
-    w.pod(x.gridCompact_);
-    w.pod(x.gridCorner_);
     w.array(x.cellTri_);
-    w.array(x.planes_);
     write(w, x.tree_);
   }
 
@@ -243,14 +240,16 @@ struct TreeFileAccess {
     x.gridU0_ = r.pod<double>("grid");
     x.gridV0_ = r.pod<double>("grid");
     for (double& g : x.gridInv_) g = r.pod<double>("grid");
-    x.gridCompact_ = r.pod<bool>("grid");
-    for (auto& half : x.gridCorner_) {
-      for (std::uint32_t& c : half) c = r.pod<std::uint32_t>("grid");
-    }
     r.array(x.cellTri_, "grid cells");
-    r.array(x.planes_, "grid planes");
     read(r, x.tree_);
   }
+
+  // What a valid file's arrays determine: the lean grid's tables.
+  static void derive(TerrainIndex& x) {
+    if (x.gridW_) x.setUpLeanGrid();
+  }
+  template <class M>
+  static void derive(CurvedIndex<M>&) {}
 
   static void validate(const Reader& r, const TerrainIndex& x) {
     if (x.gridW_) {
@@ -265,12 +264,6 @@ struct TreeFileAccess {
         if (!std::isfinite(g)) r.fail("the grid's geometry is not finite");
       }
       if (std::uint64_t{x.gridW_} * x.gridH_ != x.corners2_.size()) r.fail("the grid does not match its vertices");
-      if (x.gridCompact_ && x.planes_.size() != x.cold_.size()) r.fail("the grid's plane table has the wrong size");
-      for (const auto& half : x.gridCorner_) {
-        for (std::uint32_t c : half) {
-          if (c != 0 && c != 1 && c != x.gridW_ && c != x.gridW_ + 1) r.fail("a grid corner offset is out of its cell");
-        }
-      }
     }
     if (x.cold_.size() != x.tris_.size()) r.fail("triangle tables differ in length");
     if (x.cornerH_.size() != x.corners2_.size()) r.fail("vertex tables differ in length");
@@ -430,6 +423,7 @@ TreeFile loadTree(const std::string& path) {
   std::visit(
       [&](auto& index) {
         TreeFileAccess::validate(r, index);
+        TreeFileAccess::derive(index);
         TreeFileAccess::rebuildJumpTable(TreeFileAccess::tree(index));
       },
       tf.index);

@@ -42,13 +42,12 @@ void expectSame(const TerrainIndex& fast, const TerrainIndex& slow, double u, do
 
 void expectGridMatchesQuadtree(const Mesh& mesh, const CartesianMapping& mapping, int randomQueries,
                                std::uint64_t seed) {
-  TerrainOptions compactOptions;
-  compactOptions.compactGrid = true;
-  const TerrainIndex fast(mesh, mapping), slow(mesh, mapping, quadtreeOnly()),
-      compact(mesh, mapping, compactOptions);
+  const TerrainIndex fast(mesh, mapping), slow(mesh, mapping, quadtreeOnly());
   ASSERT_TRUE(fast.gridFastPath());
   ASSERT_FALSE(slow.gridFastPath());
-  EXPECT_LT(compact.memoryBytesNow(), fast.memoryBytesNow() / 2);
+  // No triangle records until something needs the tree: under Embree's 80 bytes a triangle.
+  const std::uint64_t leanBytes = fast.memoryBytesNow();
+  EXPECT_LT(leanBytes, 40 * fast.stats().triangles);
   const Box2 box = fast.stats().domain;
   std::mt19937_64 rng(seed);
   std::vector<Point2> points;
@@ -69,14 +68,11 @@ void expectGridMatchesQuadtree(const Mesh& mesh, const CartesianMapping& mapping
   for (const Point2& p : points) {
     const double z = uniform(rng, -1e4, 1e4);
     expectSame(fast, slow, p.u, p.v, z);
-    expectSame(compact, slow, p.u, p.v, z);
     if (::testing::Test::HasFatalFailure()) return;
   }
   std::vector<std::optional<double>> a(points.size()), b(points.size());
-  std::vector<std::optional<double>> c(points.size());
   fast.heightsBelow(points, 1e300, a);
   slow.heightsBelow(points, 1e300, b);
-  compact.heightsBelow(points, 1e300, c);
   std::vector<std::optional<double>> d(points.size());
   fast.heightsBelowParallel(points, 1e300, d, 2);
   ASSERT_EQ(d, a);
@@ -84,7 +80,6 @@ void expectGridMatchesQuadtree(const Mesh& mesh, const CartesianMapping& mapping
   ASSERT_EQ(d, b);
   for (std::size_t i = 0; i < points.size(); ++i) {
     ASSERT_EQ(a[i], b[i]) << i;
-    ASSERT_EQ(c[i], b[i]) << i;
   }
 }
 

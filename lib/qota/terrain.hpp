@@ -53,18 +53,17 @@ namespace qota {
 struct TerrainOptions {
   QuadtreeOptions tree;
   // The direct-indexing fast path for regular grids (a raster from loadDem, a Heightfield): when
-  // the mesh is found to be one, a query finds its cell by arithmetic and answers from the cell's
-  // triangle when the point lies clearly inside it; a point on or near an edge (a pixel centre)
-  // is decided by the exact test over the triangles of the 3 x 3 cells around it, the smallest
-  // polygon id holding it answering, as in the quadtree's single-layer leaves. The same records,
-  // so the same answers as the quadtree (tested); the quadtree stays for edits.
+  // the mesh is found to be one, a query finds its cell by arithmetic. A point clearly inside
+  // one of the cell's two triangles (farther than 1e-5 cell from its sides) is answered from the
+  // cell's corners alone: the plane is solved from them with the same arithmetic as the
+  // triangle records, so the same bits. A point on or near an edge (a pixel centre) is decided by
+  // the exact test over the triangles of the 3 x 3 cells around it, the smallest polygon id
+  // holding it answering, as in the quadtree's single-layer leaves. So the same answers as the
+  // quadtree (tested), from about 34 bytes per triangle: no triangle records are kept, and
+  // heights that are exact in float (any Int16 or Float32 raster) are read from a float copy.
+  // The records and the quadtree are made when something needs them (edits, shadows,
+  // statistics, tree files).
   bool gridFastPath = true;
-  // With the fast path on a grid: keep no 128-byte triangle records, only each triangle's plane
-  // slopes and height range (24 bytes); the edge equations are recomputed per query from the
-  // cell's corners, with the same arithmetic, so the answers are the same bits. About 56 bytes
-  // per triangle instead of 160, and queries about twice as slow. The records are made when the
-  // quadtree is (edits, shadows, statistics, tree files).
-  bool compactGrid = false;
 };
 
 // Where the line through a mapped point meets the terrain.
@@ -268,22 +267,34 @@ class TerrainIndex {
   // Its rare path, kept out of line: points on or near an edge, in holes, off the grid.
   [[gnu::noinline]] std::uint32_t gridTriangleNearEdge(double u, double v, double fc, double fr,
                                                        Tri& scratch, const Tri*& record) const;
-  // The record of the triangle in grid slot `slot`: computed into scratch from the cell's corners
-  // when the grid is compact (no records kept), else the stored one.
-  const Tri& gridRecord(std::uint64_t slot, std::uint32_t t, Tri& scratch) const;
+  // The record of triangle t of the grid: the stored one, or computed into scratch from its
+  // corners while no records are kept.
+  const Tri& gridRecord(std::uint32_t t, Tri& scratch) const;
   Tri recordOf(std::uint32_t t) const;    // stored, or computed from its corners
   Tri computeRecord(const std::uint32_t corner[3]) const;
   void edgeRecord(const std::uint32_t corner[3], Tri& r) const;
   void planeRecord(const std::uint32_t corner[3], Tri& r) const;
-  // A compact grid's per-triangle plane (the record's divisions and rounded height range).
-  struct Plane {
-    double a, b;  // a is NaN for a sliver, whose record is recomputed whole
-    float hlo, hhi;
-  };
-  BigVector<Plane> planes_;
+  // The lean grid's answer at (u, v): the height, and the triangle (kOffGrid: none; with
+  // NeedId false, kFound stands for any triangle, whose id is not looked up).
+  static constexpr std::uint32_t kFound = 0xfffffffdu;
+  template <bool NeedId>
+  std::uint32_t gridAnswer(double u, double v, double& h) const;
+  // The height at (u, v) of the triangle in half `half` of cell (col, row), from its corners.
+  double leanHeight(std::uint64_t col, std::uint64_t row, std::uint32_t half, double u, double v) const;
+  // (Re)derives the lean grid's tables (below) from the vertices and the cell table.
+  void setUpLeanGrid();
   bool findGridCorners();
-  bool gridCompact_ = false;
+  // The lean grid: every cell's halves keep their corners at fixed offsets from the cell's first
+  // vertex (false: the grid path reads the triangle records). Per half and corner, the column
+  // and row offset (0 or 1); the vertices' u per column and v per row when those are exact (else
+  // empty: read corners2_); the heights as floats when exact (else empty: read cornerH_); one
+  // bit per slot that holds a triangle (empty: all do).
+  bool gridLean_ = false;
   std::uint32_t gridCorner_[2][3] = {{0, 0, 0}, {0, 0, 0}};  // per half: corner offsets from x
+  std::uint8_t gridDc_[2][3] = {}, gridDr_[2][3] = {};
+  std::vector<double> gridColU_, gridRowV_;
+  BigVector<float> gridH32_;
+  std::vector<std::uint64_t> gridPresent_;
   static constexpr std::uint32_t kOffGrid = 0xfffffffeu;
   void clearGridSlot(std::uint32_t t);                   // a removed triangle
   std::uint32_t gridW_ = 0, gridH_ = 0;
