@@ -248,6 +248,12 @@ void run(const Terrain& t, std::size_t n) {
                eh16 = embree16(e, hit, top);
   const Timing qm = timeQueries(miss, qotaOne), em = timeQueries(miss, embreeOneF);
   const Timing qw = timeQueries(walk, qotaOne), ew = timeQueries(walk, embreeOneF);
+  // The same walk through a cursor, qota's way of following a moving object (temporal coherence).
+  qota::Quadtree::Cursor cursor;
+  const Timing qwc = timeQueries(walk, [&](double u, double v) {
+    const auto h = index.heightBelow(cursor, u, v, INFINITY);
+    return h ? static_cast<float>(*h) : NAN;
+  });
   std::optional<Timing> gh, gw;
   // The general path on the same terrain: the quadtree alone, as for any mesh that is not a grid.
   std::optional<Timing> qt;
@@ -286,6 +292,8 @@ void run(const Terrain& t, std::size_t n) {
               eh16.ns);
   std::printf("  %-22s %9.1f %9.1f %8.1fx\n", "random miss", qm.ns, em.ns, em.ns / qm.ns);
   std::printf("  %-22s %9.1f %9.1f %8.1fx\n", "coherent walk", qw.ns, ew.ns, ew.ns / qw.ns);
+  std::printf("  %-22s %9.1f %9.1f %8.1fx   (same heights: %s)\n", "walk with a cursor", qwc.ns, ew.ns,
+              ew.ns / qwc.ns, agree(qw, qwc, 0).differ == 0 && agree(qw, qwc, 0).onlyOne == 0 ? "yes" : "NO");
   std::printf("  %-22s %9.1f ns random hit, 2 threads (same answers: %s)\n", "qota batched, both cores",
               parallelNs, parallelSame ? "yes" : "NO");
   if (qt) {
@@ -294,8 +302,8 @@ void run(const Terrain& t, std::size_t n) {
                 agree(qh, *qt, 0).differ == 0 && agree(qh, *qt, 0).onlyOne == 0 ? "yes" : "NO");
   }
   if (gh) {
-    std::printf("  %-22s %9.1f (hit)  %9.1f (walk): qota/grid %.1fx hit, %.1fx walk\n",
-                "direct grid indexing", gh->ns, gw->ns, qh.ns / gh->ns, qw.ns / gw->ns);
+    std::printf("  %-22s %9.1f (hit)  %9.1f (walk): qota/grid %.1fx hit, %.1fx walk, %.1fx walk with a cursor\n",
+                "direct grid indexing", gh->ns, gw->ns, qh.ns / gh->ns, qw.ns / gw->ns, qwc.ns / gw->ns);
   }
   std::printf("  agreement: %zu hits compared, %zu differ by more than %.2g (worst %.2g), %zu answered "
               "by one side only; rtcIntersect16: %zu differ, %zu one side; walk: %zu differ, %zu one "

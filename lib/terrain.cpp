@@ -430,8 +430,8 @@ TerrainIndex::Tri TerrainIndex::recordOf(std::uint32_t t) const {
   return gridLean_ || t >= tris_.size() ? computeRecord(cold_[t].corner) : tris_[t];
 }
 
-[[gnu::always_inline]] inline double TerrainIndex::leanHeight(std::uint64_t col, std::uint64_t row, std::uint32_t half,
-                                       double u, double v) const {
+[[gnu::always_inline]] inline TerrainIndex::LeanPlane TerrainIndex::leanPlane(
+    std::uint64_t col, std::uint64_t row, std::uint32_t half) const {
   double cu[3], cv[3], ch[3];
   const std::uint64_t w = gridW_;
   for (int k = 0; k < 3; ++k) {
@@ -444,17 +444,21 @@ TerrainIndex::Tri TerrainIndex::recordOf(std::uint32_t t) const {
     ch[k] = gridH32_.empty() ? cornerH_[x] : static_cast<double>(gridH32_[x]);
   }
   const PlaneFit p = fitPlane(cu, cv, ch);
-  // heightOf's expression on the record these corners make. The clamp to the corners' height
-  // range rounded outward to floats changes nothing for a value inside the range itself, the
-  // common case.
-  const double h = p.h0 + p.a * (u - cu[0]) + p.b * (v - cv[0]);
-  const double lo = std::min(ch[0], std::min(ch[1], ch[2])), hi = std::max(ch[0], std::max(ch[1], ch[2]));
-  if (h >= lo && h <= hi) [[likely]] return h;
-  return std::clamp(h, static_cast<double>(floatBelow(lo)), static_cast<double>(floatAbove(hi)));
+  return {p.a, p.b, p.h0, cu[0], cv[0], std::min(ch[0], std::min(ch[1], ch[2])),
+          std::max(ch[0], std::max(ch[1], ch[2]))};
+}
+
+// heightOf's expression on the record the same corners make. The clamp to the corners' height
+// range rounded outward to floats changes nothing for a value inside the range itself, the common
+// case.
+[[gnu::always_inline]] inline double TerrainIndex::leanHeight(const LeanPlane& p, double u, double v) {
+  const double h = p.h0 + p.a * (u - p.u0) + p.b * (v - p.v0);
+  if (h >= p.lo && h <= p.hi) [[likely]] return h;
+  return std::clamp(h, static_cast<double>(floatBelow(p.lo)), static_cast<double>(floatAbove(p.hi)));
 }
 
 template <bool NeedId>
-std::uint32_t TerrainIndex::gridAnswer(double u, double v, double& h) const {
+std::uint32_t TerrainIndex::gridAnswer(double u, double v, double& h, Quadtree::Cursor* cursor) const {
   const double du = u - gridU0_, dv = v - gridV0_;
   const double fc = gridInv_[0] * du + gridInv_[1] * dv, fr = gridInv_[2] * du + gridInv_[3] * dv;
   if (gridLean_) {
@@ -468,6 +472,12 @@ std::uint32_t TerrainIndex::gridAnswer(double u, double v, double& h) const {
       // Clearly inside: farther than 1e-5 cell from the half's sides, with the vertices within
       // 1e-6 cell of their grid positions (gridSlots), so no other triangle can hold the point.
       const double margin = std::min(std::min(std::min(xc, xr), std::min(1 - xc, 1 - xr)), std::fabs(xr - xc));
+      if (cursor && cursor->memo.key == slot && cursor->memo.owner == this &&
+          cursor->memo.generation == generation_ && margin > 1e-5) {
+        const double* m = cursor->memo.value;
+        h = leanHeight({m[0], m[1], m[2], m[3], m[4], m[5], m[6]}, u, v);
+        return NeedId ? cursor->memo.item : kFound;
+      }
       std::uint32_t t = kFound;
       bool present;
       if constexpr (NeedId) {
@@ -477,7 +487,15 @@ std::uint32_t TerrainIndex::gridAnswer(double u, double v, double& h) const {
         present = gridPresent_.empty() || ((gridPresent_[slot >> 6] >> (slot & 63)) & 1);
       }
       if (margin > 1e-5 && present) [[likely]] {
-        h = leanHeight(col, row, half, u, v);
+        const LeanPlane p = leanPlane(col, row, half);
+        h = leanHeight(p, u, v);
+        if (cursor) {
+          auto& m = cursor->memo;
+          m.owner = this, m.generation = generation_, m.key = slot;
+          m.item = NeedId ? t : cellTri_[slot];
+          const double value[7] = {p.a, p.b, p.h0, p.u0, p.v0, p.lo, p.hi};
+          std::copy(value, value + 7, m.value);
+        }
         return t;
       }
     }
@@ -722,7 +740,7 @@ template <bool Below>
 std::uint32_t TerrainIndex::nearest(double u, double v, double z, double& h,
                                     Quadtree::Cursor* cursor) const {
   if (gridW_) {
-    const std::uint32_t t = gridAnswer<true>(u, v, h);
+    const std::uint32_t t = gridAnswer<true>(u, v, h, cursor);
     if (t == kOffGrid) return kNone;
     return (Below ? h <= z : h >= z) ? t : kNone;
   }
@@ -932,7 +950,7 @@ std::optional<double> TerrainIndex::heightAt(double u, double v, double z,
                                              Quadtree::Cursor* cursor) const {
   double h = 0;
   if (gridW_) {  // no need for the triangle's id
-    if (gridAnswer<false>(u, v, h) == kOffGrid || !(h <= z)) return std::nullopt;
+    if (gridAnswer<false>(u, v, h, cursor) == kOffGrid || !(h <= z)) return std::nullopt;
     return h;
   }
   if (nearest<true>(u, v, z, h, cursor) == kNone) return std::nullopt;
@@ -1139,6 +1157,7 @@ void TerrainIndex::rebuildTree(const Box2& domain) {
 
 std::uint32_t TerrainIndex::insertPolygon(std::span<const Eigen::Vector3d> corners) {
   ensureTree();
+  ++generation_;
   const auto id = static_cast<std::uint32_t>(stats_.polygons);
   if (corners.size() < 3) {
     throw Error("insertPolygon: a polygon needs at least 3 corners, got " +
@@ -1193,6 +1212,7 @@ std::uint32_t TerrainIndex::insertPolygon(std::span<const Eigen::Vector3d> corne
   }
   stats_.triangles += pending.size();
   gridW_ = 0;  // an inserted polygon may overlap the grid: the quadtree answers from now on
+  gridLean_ = false;
   BigVector<std::uint32_t>().swap(cellTri_);
   if (grows) {
     rebuildTree(domain);
@@ -1208,6 +1228,7 @@ std::uint32_t TerrainIndex::insertPolygon(std::span<const Eigen::Vector3d> corne
 
 bool TerrainIndex::removePolygon(std::uint32_t polygon) {
   ensureTree();
+  ++generation_;
   if (polygon >= stats_.polygons) return false;
   if (removed_.size() < stats_.polygons) removed_.resize(stats_.polygons, 0);
   if (removed_[polygon]) return false;

@@ -128,3 +128,35 @@ TEST(GridFastPath, OnlyForGridsAndUntilAnInsertion) {
 }
 
 }  // namespace
+
+namespace {
+
+// A cursor remembers the last triangle's plane: a walk through it answers as the plain queries,
+// also when the same cursor moves to another index or the index is edited under it.
+TEST(GridFastPath, CursorMemoAnswersAsPlainQueries) {
+  const Heightfield f = fractalHeightfield(40, 40, 1.0, 8.0, 9);
+  const Heightfield g = fractalHeightfield(40, 40, 1.0, 8.0, 10);
+  TerrainIndex a(f.toMesh(), CartesianMapping()), b(g.toMesh(), CartesianMapping());
+  ASSERT_TRUE(a.gridFastPath());
+  Quadtree::Cursor cursor;
+  std::mt19937_64 rng(11);
+  double u = 3.3, v = 4.1;
+  for (int i = 0; i < 20000; ++i) {
+    u = std::clamp(u + uniform(rng, -0.05, 0.07), 0.0, 39.0);
+    v = std::clamp(v + uniform(rng, -0.05, 0.06), 0.0, 39.0);
+    const TerrainIndex& index = i % 1000 < 500 ? a : b;  // the cursor changes hands
+    ASSERT_EQ(index.heightBelow(cursor, u, v, 1e300), index.heightBelow(u, v, 1e300)) << i;
+    const auto hit = index.below(cursor, u, v, 1e300), plain = index.below(u, v, 1e300);
+    ASSERT_EQ(hit.has_value(), plain.has_value());
+    if (hit) {
+      ASSERT_EQ(hit->polygon, plain->polygon);
+    }
+    if (i == 10000) {
+      // Remove the triangle under the cursor: its memo must not answer for it any more.
+      ASSERT_TRUE(a.below(u, v, 1e300).has_value());
+      a.removePolygon(a.below(u, v, 1e300)->polygon);
+    }
+  }
+}
+
+}  // namespace

@@ -277,10 +277,17 @@ class TerrainIndex {
   // The lean grid's answer at (u, v): the height, and the triangle (kOffGrid: none; with
   // NeedId false, kFound stands for any triangle, whose id is not looked up).
   static constexpr std::uint32_t kFound = 0xfffffffdu;
+  // A cursor remembers the last triangle's plane (Quadtree::Cursor::memo).
   template <bool NeedId>
-  std::uint32_t gridAnswer(double u, double v, double& h) const;
-  // The height at (u, v) of the triangle in half `half` of cell (col, row), from its corners.
-  double leanHeight(std::uint64_t col, std::uint64_t row, std::uint32_t half, double u, double v) const;
+  std::uint32_t gridAnswer(double u, double v, double& h, Quadtree::Cursor* cursor = nullptr) const;
+  // The plane of the triangle in half `half` of cell (col, row), from its corners: slopes, the
+  // height at corner 0 and corner 0, and the corners' height range.
+  struct LeanPlane {
+    double a, b, h0, u0, v0, lo, hi;
+  };
+  LeanPlane leanPlane(std::uint64_t col, std::uint64_t row, std::uint32_t half) const;
+  static double leanHeight(const LeanPlane& p, double u, double v);
+  std::uint64_t generation_ = 0;  // edits so far (invalidates cursors' memos)
   // (Re)derives the lean grid's tables (below) from the vertices and the cell table.
   void setUpLeanGrid();
   bool findGridCorners();
