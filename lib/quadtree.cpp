@@ -6,11 +6,61 @@
 
 namespace qota {
 
+std::uint32_t Quadtree::leafIndex(double u, double v) const {
+  std::uint32_t n = 0;
+  double lu = root_.ulo, lv = root_.vlo;
+  for (std::uint32_t d = 0; nodes_[n].count == kInner; ++d) {
+    const Point2 c = cutOf(n, d, lu, lv);
+    const bool hu = u >= c.u, hv = v >= c.v;
+    lu = hu ? c.u : lu;
+    lv = hv ? c.v : lv;
+    n = nodes_[n].first + (static_cast<std::uint32_t>(hv) << 1 | static_cast<std::uint32_t>(hu));
+  }
+  return n;
+}
+
+// The cost model's cut of a node (QuadtreeOptions::Cuts::CostModel). Along each axis separately,
+// the items' bounding boxes are binned into 16 slices; a cut at slice boundary j leaves on the
+// low side the items starting before it and on the high side those ending at or after it, and
+// costs j * low + (16 - j) * high (expected tests, by area share). The cheapest of the 9
+// boundaries in the middle half wins; ties keep the midpoint.
+Point2 Quadtree::costCut(const Box2& box, std::uint32_t depth, std::span<const std::uint32_t> items) const {
+  constexpr int kBins = 16;
+  std::uint32_t startU[kBins] = {}, endU[kBins] = {}, startV[kBins] = {}, endV[kBins] = {};
+  const double su = box.uhi - box.ulo, sv = box.vhi - box.vlo;
+  const double scaleU = kBins / su, scaleV = kBins / sv;
+  auto bin = [](double x, double lo, double scale) {
+    const double b = (x - lo) * scale;  // NaN-safe: a NaN lands in bin 0
+    return !(b > 0) ? 0 : b >= kBins - 1 ? kBins - 1 : static_cast<int>(b);
+  };
+  for (std::uint32_t it : items) {
+    const Box2 b = boxOf_(it);
+    ++startU[bin(b.ulo, box.ulo, scaleU)], ++endU[bin(b.uhi, box.ulo, scaleU)];
+    ++startV[bin(b.vlo, box.vlo, scaleV)], ++endV[bin(b.vhi, box.vlo, scaleV)];
+  }
+  auto best = [&](const std::uint32_t* start, const std::uint32_t* end, double lo, double size, double mid) {
+    std::uint64_t low[kBins + 1] = {}, high[kBins + 1] = {};
+    for (int j = 1; j <= kBins; ++j) low[j] = low[j - 1] + start[j - 1];
+    for (int j = kBins - 1; j >= 0; --j) high[j] = high[j + 1] + end[j];
+    int pick = kBins / 2;
+    auto cost = [&](int j) { return j * low[j] + (kBins - j) * high[j]; };
+    // Within the middle half of the box: a cut nearer the side leaves a sliver of a child that
+    // the size floor and Maxdepth then cannot split usefully.
+    for (int j = kBins / 4; j <= 3 * kBins / 4; ++j) {
+      if (cost(j) < cost(pick)) pick = j;
+    }
+    const double cut = lo + size * pick / kBins;
+    return pick == kBins / 2 || !(cut > lo && cut < lo + size) ? mid : cut;
+  };
+  return {best(startU, endU, box.ulo, su, box.ulo + half_[depth].u),
+          best(startV, endV, box.vlo, sv, box.vlo + half_[depth].v)};
+}
+
 Quadtree::Node Quadtree::descend(double u, double v, Cursor& cursor) const {
   // leafNode's descent, also tracking the high edges of the box: a low child's high edge is the
   // cut itself, a high child's is its parent's.
   Node nd = nodes_[0];
-  std::uint32_t d = 0;
+  std::uint32_t d = 0, n = 0;
   double lu = root_.ulo, lv = root_.vlo, hu = root_.uhi, hv = root_.vhi;
   if (jumpDepth_) {
     const std::uint32_t ix = jumpColumn(u, cutU_, jumpScaleU_, root_.ulo);
@@ -22,11 +72,14 @@ Quadtree::Node Quadtree::descend(double u, double v, Cursor& cursor) const {
     d = jumpDepth_;
   }
   for (; nd.count == kInner; ++d) {
-    const double mu = lu + half_[d].u, mv = lv + half_[d].v;
+    // (With stored cuts there is no jump table, so n is the node's index throughout.)
+    const Point2 c = cutOf(n, d, lu, lv);
+    const double mu = c.u, mv = c.v;
     const bool highU = u >= mu, highV = v >= mv;
     (highU ? lu : hu) = mu;
     (highV ? lv : hv) = mv;
-    nd = nodes_[nd.first + (static_cast<std::uint32_t>(highV) << 1 | static_cast<std::uint32_t>(highU))];
+    n = nd.first + (static_cast<std::uint32_t>(highV) << 1 | static_cast<std::uint32_t>(highU));
+    nd = nodes_[n];
   }
   cursor.leaf = nd;
   cursor.box = {lu, lv, hu, hv};
@@ -77,6 +130,7 @@ void Quadtree::compact() {
 void Quadtree::buildJumpTable() {
   jumpDepth_ = 0;
   cutU_.clear(), cutV_.clear(), jump_.clear();
+  if (!cut_.empty()) return;  // the table's uniform cells are the midpoint cuts' alone
   // Depth of the tree, and its leaf count, decide the table's depth: about one cell per leaf (so
   // most queries land on their leaf at once), at most 4^11 cells (16 MiB).
   std::uint32_t depth = 0, leaves = 0;
@@ -153,20 +207,28 @@ QuadtreeStats Quadtree::stats() const {
   s.nodes = nodes_.size();
   s.references = refs_.size();
   s.memoryBytes = nodes_.size() * sizeof(Node) + refs_.size() * sizeof(std::uint32_t) +
-                  half_.size() * sizeof(Half) + jump_.size() * sizeof(Node) +
+                  half_.size() * sizeof(Half) + jump_.size() * sizeof(Node) + cut_.size() * sizeof(Point2) +
                   (cutU_.size() + cutV_.size()) * sizeof(double);
   // Walk the tree to learn each leaf's depth; a leaf at depth d covers 4^-d of the domain.
+  // With stored cuts a leaf's share is its box's area over the root's.
   struct Item {
     std::uint32_t node, depth;
+    Box2 box;
   };
-  std::vector<Item> stack{{0, 0}};
+  std::vector<Item> stack{{0, 0, root_}};
   double weighted = 0;
+  const double rootArea = (root_.uhi - root_.ulo) * (root_.vhi - root_.vlo);
   while (!stack.empty()) {
     const Item it = stack.back();
     stack.pop_back();
     const Node& n = nodes_[it.node];
     if (n.count == kInner) {
-      for (std::uint32_t c = 0; c < 4; ++c) stack.push_back({n.first + c, it.depth + 1});
+      const Box2& b = it.box;
+      const Point2 c = cutOf(it.node, it.depth, b.ulo, b.vlo);
+      stack.push_back({n.first, it.depth + 1, {b.ulo, b.vlo, c.u, c.v}});
+      stack.push_back({n.first + 1, it.depth + 1, {c.u, b.vlo, b.uhi, c.v}});
+      stack.push_back({n.first + 2, it.depth + 1, {b.ulo, c.v, c.u, b.vhi}});
+      stack.push_back({n.first + 3, it.depth + 1, {c.u, c.v, b.uhi, b.vhi}});
       continue;
     }
     const std::uint32_t count = leafSize(n);
@@ -174,7 +236,9 @@ QuadtreeStats Quadtree::stats() const {
     if (count == 0) ++s.emptyLeaves;
     s.depth = std::max(s.depth, it.depth);
     s.maxLeafItems = std::max(s.maxLeafItems, count);
-    weighted += std::ldexp(static_cast<double>(count), -2 * static_cast<int>(it.depth));
+    weighted += cut_.empty() || !(rootArea > 0)
+                    ? std::ldexp(static_cast<double>(count), -2 * static_cast<int>(it.depth))
+                    : count * ((it.box.uhi - it.box.ulo) * (it.box.vhi - it.box.vlo) / rootArea);
   }
   s.meanLeafItems = s.leaves ? static_cast<double>(s.references) / static_cast<double>(s.leaves) : 0;
   s.averageTests = weighted;

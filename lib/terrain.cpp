@@ -307,7 +307,7 @@ TerrainIndex::TerrainIndex(const Mesh& mesh, const CartesianMapping& mapping,
   } else {
     tree_.build(static_cast<std::uint32_t>(cold_.size()), domain, options.tree,
                 [this, &boxes](std::uint32_t t, const Box2& b) { return overlaps(t, boxes[t], b); },
-                floorU, floorV);
+                floorU, floorV, [&boxes](std::uint32_t t) { return boxes[t]; });
     tree_.markLeaves([this](std::span<std::uint32_t> items) { return prepareLeaf(items); });
     stats_.tree = tree_.stats();
     stats_.memoryBytes = baseMemoryBytes_ + tris_.size() * sizeof(Tri) + stats_.tree.memoryBytes;
@@ -717,7 +717,7 @@ void TerrainIndex::buildDeferredTree() const {
                 return !(cold_[t].polygon < removed_.size() && removed_[cold_[t].polygon]) &&
                        overlaps(t, boxOf(t), b);
               },
-              floorU_, floorV_);
+              floorU_, floorV_, [this](std::uint32_t t) { return boxOf(t); });
   tree_.markLeaves([this](std::span<std::uint32_t> items) { return prepareLeaf(items); });
   treeStatsStale_ = true;
   deferred_->built = true;
@@ -1235,7 +1235,7 @@ void TerrainIndex::rebuildTree(const Box2& domain) {
                 return !(cold_[t].polygon < removed_.size() && removed_[cold_[t].polygon]) &&
                        overlaps(t, boxes[t], b);
               },
-              minU, minV);
+              minU, minV, [&boxes](std::uint32_t t) { return boxes[t]; });
   tree_.markLeaves([this](std::span<std::uint32_t> items) { return prepareLeaf(items); });
   stats_.domain = domain;
 }

@@ -147,6 +147,7 @@ struct TreeFileAccess {
     w.pod(t.minSizeU_);
     w.pod(t.minSizeV_);
     w.array(t.half_);
+    w.array(t.cut_);
     w.array(t.nodes_);
     w.array(t.refs_);
   }
@@ -159,6 +160,7 @@ struct TreeFileAccess {
     t.minSizeU_ = r.pod<double>("quadtree");
     t.minSizeV_ = r.pod<double>("quadtree");
     r.array(t.half_, "quadtree cut sizes");
+    r.array(t.cut_, "quadtree cuts");
     r.array(t.nodes_, "quadtree nodes");
     r.array(t.refs_, "quadtree references");
   }
@@ -176,6 +178,10 @@ struct TreeFileAccess {
     }
     for (const auto& h : t.half_) {
       if (!std::isfinite(h.u) || !std::isfinite(h.v)) r.fail("a quadtree cut size is not finite");
+    }
+    if (!t.cut_.empty() && t.cut_.size() != t.nodes_.size()) r.fail("the quadtree's cut table has the wrong size");
+    for (const auto& c : t.cut_) {
+      if (!std::isfinite(c.u) || !std::isfinite(c.v)) r.fail("a quadtree cut is not finite");
     }
     struct Item {
       std::uint64_t node, depth;

@@ -36,25 +36,8 @@ constexpr double kEmptyGrey = 255, kFullGrey = 160, kShadeDepth = 0.35;
 constexpr std::uint8_t kEdgeGrey = 40;
 
 // The leaf containing mapped (u, v), as an index into tree.nodes(), or -1 outside the root box.
-// The same descent as Quadtree::leafNode: the cut of a node at depth d is lo + size * 2^-(d+1)
-// (computed as the build computes it, so the two agree bit for bit), and a point on a cut goes
-// to the high side; the children are (low u, low v), (high u, low v), (low u, high v), (high u,
-// high v).
 std::int64_t leafAt(const Quadtree& tree, double u, double v) {
-  if (!tree.contains(u, v)) return -1;
-  const auto nodes = tree.nodes();
-  const Box2& root = tree.box();
-  const double su = root.uhi - root.ulo, sv = root.vhi - root.vlo;
-  double lu = root.ulo, lv = root.vlo;
-  std::uint32_t i = 0;
-  for (int d = 0; nodes[i].count == Quadtree::kInner; ++d) {
-    const double mu = lu + std::ldexp(su, -d - 1), mv = lv + std::ldexp(sv, -d - 1);
-    const bool hu = u >= mu, hv = v >= mv;
-    lu = hu ? mu : lu;
-    lv = hv ? mv : lv;
-    i = nodes[i].first + (static_cast<std::uint32_t>(hv) << 1 | static_cast<std::uint32_t>(hu));
-  }
-  return i;
+  return tree.contains(u, v) ? static_cast<std::int64_t>(tree.leafIndex(u, v)) : -1;
 }
 
 // A leaf's fill: white when empty, darker with log(1 + polygons), kFullGrey from Maxpoly on.
