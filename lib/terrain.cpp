@@ -468,19 +468,43 @@ TerrainIndex::Tri TerrainIndex::recordOf(std::uint32_t t) const {
   return gridLean_ || t >= tris_.size() ? computeRecord(cold_[t].corner) : tris_[t];
 }
 
+[[gnu::always_inline]] inline TerrainIndex::GridCell TerrainIndex::gridCell(double u, double v) const {
+  GridCell g{};
+  const double du = u - gridU0_, dv = v - gridV0_;
+  g.fc = gridInv_[0] * du + gridInv_[1] * dv, g.fr = gridInv_[2] * du + gridInv_[3] * dv;
+  g.inGrid = g.fc >= 0 && g.fr >= 0 && g.fc < gridW_ - 1 && g.fr < gridH_ - 1;
+  if (!g.inGrid) return g;  // also NaN
+  g.col = static_cast<std::uint64_t>(g.fc), g.row = static_cast<std::uint64_t>(g.fr);
+  // The half of the cell with corner (col, row + 1) lies where the row fraction exceeds the
+  // column fraction.
+  const double xc = g.fc - static_cast<double>(g.col), xr = g.fr - static_cast<double>(g.row);
+  g.half = xr > xc ? 0 : 1;
+  g.slot = 2 * (g.row * (gridW_ - 1) + g.col) + g.half;
+  // Clearly inside: farther than 1e-5 cell from the half's sides, with the vertices within 1e-6
+  // cell of their grid positions (gridSlots), so no other triangle can hold the point.
+  g.clear = std::min(std::min(std::min(xc, xr), std::min(1 - xc, 1 - xr)), std::fabs(xr - xc)) > 1e-5;
+  return g;
+}
+
+[[gnu::always_inline]] inline void TerrainIndex::leanCorners(std::uint64_t col, std::uint64_t row,
+                                                             std::uint32_t half, double* cu,
+                                                             double* cv, double* ch,
+                                                             std::size_t stride) const {
+  for (int k = 0; k < 3; ++k) {
+    const std::uint64_t c = col + gridDc_[half][k], r = row + gridDr_[half][k], x = r * gridW_ + c;
+    if (gridColU_.empty()) {
+      cu[k * stride] = corners2_[x].u, cv[k * stride] = corners2_[x].v;
+    } else {
+      cu[k * stride] = gridColU_[c], cv[k * stride] = gridRowV_[r];
+    }
+    ch[k * stride] = gridH32_.empty() ? cornerH_[x] : static_cast<double>(gridH32_[x]);
+  }
+}
+
 [[gnu::always_inline]] inline TerrainIndex::LeanPlane TerrainIndex::leanPlane(
     std::uint64_t col, std::uint64_t row, std::uint32_t half) const {
   double cu[3], cv[3], ch[3];
-  const std::uint64_t w = gridW_;
-  for (int k = 0; k < 3; ++k) {
-    const std::uint64_t c = col + gridDc_[half][k], r = row + gridDr_[half][k], x = r * w + c;
-    if (gridColU_.empty()) {
-      cu[k] = corners2_[x].u, cv[k] = corners2_[x].v;
-    } else {
-      cu[k] = gridColU_[c], cv[k] = gridRowV_[r];
-    }
-    ch[k] = gridH32_.empty() ? cornerH_[x] : static_cast<double>(gridH32_[x]);
-  }
+  leanCorners(col, row, half, cu, cv, ch, 1);
   const PlaneFit p = fitPlane(cu, cv, ch);
   return {p.a, p.b, p.h0, cu[0], cv[0], std::min(ch[0], std::min(ch[1], ch[2])),
           std::max(ch[0], std::max(ch[1], ch[2]))};
@@ -497,21 +521,12 @@ TerrainIndex::Tri TerrainIndex::recordOf(std::uint32_t t) const {
 
 template <bool NeedId>
 std::uint32_t TerrainIndex::gridAnswer(double u, double v, double& h, Quadtree::Cursor* cursor) const {
-  const double du = u - gridU0_, dv = v - gridV0_;
-  const double fc = gridInv_[0] * du + gridInv_[1] * dv, fr = gridInv_[2] * du + gridInv_[3] * dv;
   if (gridLean_) {
-    if (fc >= 0 && fr >= 0 && fc < gridW_ - 1 && fr < gridH_ - 1) [[likely]] {
-      const auto col = static_cast<std::uint64_t>(fc), row = static_cast<std::uint64_t>(fr);
-      // The half of the cell with corner (col, row + 1) lies where the row fraction exceeds the
-      // column fraction.
-      const double xc = fc - static_cast<double>(col), xr = fr - static_cast<double>(row);
-      const std::uint32_t half = xr > xc ? 0 : 1;
-      const std::uint64_t slot = 2 * (row * (gridW_ - 1) + col) + half;
-      // Clearly inside: farther than 1e-5 cell from the half's sides, with the vertices within
-      // 1e-6 cell of their grid positions (gridSlots), so no other triangle can hold the point.
-      const double margin = std::min(std::min(std::min(xc, xr), std::min(1 - xc, 1 - xr)), std::fabs(xr - xc));
+    const GridCell g = gridCell(u, v);
+    if (g.inGrid && g.clear) [[likely]] {
+      const std::uint64_t slot = g.slot;
       if (cursor && cursor->memo.key == slot && cursor->memo.owner == this &&
-          cursor->memo.generation == generation_ && margin > 1e-5) {
+          cursor->memo.generation == generation_) {
         const double* m = cursor->memo.value;
         h = leanHeight({m[0], m[1], m[2], m[3], m[4], m[5], m[6]}, u, v);
         return NeedId ? cursor->memo.item : kFound;
@@ -522,10 +537,10 @@ std::uint32_t TerrainIndex::gridAnswer(double u, double v, double& h, Quadtree::
         t = cellTri_[slot];
         present = t != kNone;
       } else {
-        present = gridPresent_.empty() || ((gridPresent_[slot >> 6] >> (slot & 63)) & 1);
+        present = slotPresent(slot);
       }
-      if (margin > 1e-5 && present) [[likely]] {
-        const LeanPlane p = leanPlane(col, row, half);
+      if (present) [[likely]] {
+        const LeanPlane p = leanPlane(g.col, g.row, g.half);
         h = leanHeight(p, u, v);
         if (cursor) {
           auto& m = cursor->memo;
@@ -539,7 +554,7 @@ std::uint32_t TerrainIndex::gridAnswer(double u, double v, double& h, Quadtree::
     }
     Tri scratch;
     const Tri* rec = nullptr;
-    const std::uint32_t t = gridTriangleNearEdge(u, v, fc, fr, scratch, rec);
+    const std::uint32_t t = gridTriangleNearEdge(u, v, g.fc, g.fr, scratch, rec);
     if (t != kOffGrid) h = heightOf(*rec, u, v);
     return t;
   }
@@ -894,66 +909,48 @@ void TerrainIndex::heightsBelow(std::span<const Point2> points, double z,
     // grid the points clearly inside a triangle get their planes and heights in SIMD, sixteen at
     // a time, the rest one by one.
     static_assert(kGroup == kLanes);
-    std::uint64_t slot[kGroup];
-    constexpr std::uint64_t kOut = ~std::uint64_t{0};
     alignas(32) double cu[3 * kLanes], cv[3 * kLanes], ch[3 * kLanes], pu[kLanes], pv[kLanes], ph[kLanes];
     bool lane[kGroup], ok[kLanes];
-    std::uint64_t cellCol[kGroup], cellRow[kGroup];
+    // The points' cells, field by field (an array of GridCell makes the compiler keep every field
+    // in memory).
+    std::uint64_t cellCol[kGroup], cellRow[kGroup], cellSlot[kGroup];
     std::uint32_t cellHalf[kGroup];
+    bool inGrid[kGroup];
     for (std::size_t g = 0; g < points.size(); g += kGroup) {
       const std::size_t n = std::min(kGroup, points.size() - g);
       for (std::size_t i = 0; i < n; ++i) {
         const Point2 p = points[g + i];
-        const double du = p.u - gridU0_, dv = p.v - gridV0_;
-        const double fc = gridInv_[0] * du + gridInv_[1] * dv, fr = gridInv_[2] * du + gridInv_[3] * dv;
-        slot[i] = kOut;
-        lane[i] = false;
-        if (fc >= 0 && fr >= 0 && fc < gridW_ - 1 && fr < gridH_ - 1) {
-          const auto col = static_cast<std::uint64_t>(fc), row = static_cast<std::uint64_t>(fr);
-          slot[i] = 2 * (row * (gridW_ - 1) + col);
-          if (gridLean_) {
-            // gridAnswer's test for "clearly inside"; the presence bit is checked below.
-            const double xc = fc - static_cast<double>(col), xr = fr - static_cast<double>(row);
-            cellHalf[i] = xr > xc ? 0 : 1;
-            cellCol[i] = col, cellRow[i] = row;
-            lane[i] = std::min(std::min(std::min(xc, xr), std::min(1 - xc, 1 - xr)), std::fabs(xr - xc)) > 1e-5;
-            const std::uint64_t x = row * gridW_ + col;
-            if (!gridPresent_.empty()) __builtin_prefetch(&gridPresent_[slot[i] >> 6]);
-            if (!gridH32_.empty()) {
-              __builtin_prefetch(&gridH32_[x]), __builtin_prefetch(&gridH32_[x + 1]);
-              __builtin_prefetch(&gridH32_[x + gridW_]), __builtin_prefetch(&gridH32_[x + gridW_ + 1]);
-            } else {
-              __builtin_prefetch(&cornerH_[x]), __builtin_prefetch(&cornerH_[x + 1]);
-              __builtin_prefetch(&cornerH_[x + gridW_]), __builtin_prefetch(&cornerH_[x + gridW_ + 1]);
-            }
-            if (gridColU_.empty()) {
-              __builtin_prefetch(&corners2_[x]), __builtin_prefetch(&corners2_[x + gridW_ + 1]);
-            }
+        const GridCell c = gridCell(p.u, p.v);
+        inGrid[i] = c.inGrid, lane[i] = false;
+        cellCol[i] = c.col, cellRow[i] = c.row, cellHalf[i] = c.half, cellSlot[i] = c.slot;
+        if (!c.inGrid) continue;
+        const std::uint64_t col = c.col, row = c.row;
+        if (gridLean_) {
+          lane[i] = c.clear;  // its slot's presence is checked below
+          const std::uint64_t x = row * gridW_ + col;
+          if (!gridPresent_.empty()) __builtin_prefetch(&gridPresent_[c.slot >> 6]);
+          if (!gridH32_.empty()) {
+            __builtin_prefetch(&gridH32_[x]), __builtin_prefetch(&gridH32_[x + 1]);
+            __builtin_prefetch(&gridH32_[x + gridW_]), __builtin_prefetch(&gridH32_[x + gridW_ + 1]);
           } else {
-            __builtin_prefetch(&cellTri_[slot[i]]);
+            __builtin_prefetch(&cornerH_[x]), __builtin_prefetch(&cornerH_[x + 1]);
+            __builtin_prefetch(&cornerH_[x + gridW_]), __builtin_prefetch(&cornerH_[x + gridW_ + 1]);
           }
+          if (gridColU_.empty()) {
+            __builtin_prefetch(&corners2_[x]), __builtin_prefetch(&corners2_[x + gridW_ + 1]);
+          }
+        } else {
+          __builtin_prefetch(&cellTri_[2 * (row * (gridW_ - 1) + col)]);
         }
       }
       if (gridLean_) {
         // Gather the lanes' corners (a lane whose slot holds no triangle, and the group's unused
-        // lanes, compute on a copy of lane data that is thrown away).
+        // lanes, compute on the corners of cell 0 and are thrown away).
         for (std::size_t i = 0; i < kLanes; ++i) {
-          if (i < n && lane[i]) {
-            const std::uint64_t s = slot[i] + cellHalf[i];
-            lane[i] = gridPresent_.empty() || ((gridPresent_[s >> 6] >> (s & 63)) & 1);
-          }
+          if (i < n && lane[i]) lane[i] = slotPresent(cellSlot[i]);
           const bool use = i < n && lane[i];
-          const std::uint64_t col = use ? cellCol[i] : 0, row = use ? cellRow[i] : 0;
-          const std::uint32_t half = use ? cellHalf[i] : 0;
-          for (int k = 0; k < 3; ++k) {
-            const std::uint64_t c = col + gridDc_[half][k], r = row + gridDr_[half][k], x = r * gridW_ + c;
-            if (gridColU_.empty()) {
-              cu[k * kLanes + i] = corners2_[x].u, cv[k * kLanes + i] = corners2_[x].v;
-            } else {
-              cu[k * kLanes + i] = gridColU_[c], cv[k * kLanes + i] = gridRowV_[r];
-            }
-            ch[k * kLanes + i] = gridH32_.empty() ? cornerH_[x] : static_cast<double>(gridH32_[x]);
-          }
+          leanCorners(use ? cellCol[i] : 0, use ? cellRow[i] : 0, use ? cellHalf[i] : 0, cu + i, cv + i,
+                      ch + i, kLanes);
           pu[i] = use ? points[g + i].u : cu[i];
           pv[i] = use ? points[g + i].v : cv[i];
         }
@@ -968,15 +965,14 @@ void TerrainIndex::heightsBelow(std::span<const Point2> points, double z,
         }
         continue;
       }
-      if (!gridLean_) {
-        for (std::size_t i = 0; i < n; ++i) {
-          if (slot[i] == kOut) continue;
-          for (int half = 0; half < 2; ++half) {
-            const std::uint32_t t = cellTri_[slot[i] + half];
-            if (t == kNone) continue;
-            __builtin_prefetch(&tris_[t]);
-            __builtin_prefetch(reinterpret_cast<const char*>(&tris_[t]) + 64);
-          }
+      for (std::size_t i = 0; i < n; ++i) {
+        if (!inGrid[i]) continue;
+        const std::uint64_t first = cellSlot[i] - cellHalf[i];  // the cell's two halves
+        for (int half = 0; half < 2; ++half) {
+          const std::uint32_t t = cellTri_[first + half];
+          if (t == kNone) continue;
+          __builtin_prefetch(&tris_[t]);
+          __builtin_prefetch(reinterpret_cast<const char*>(&tris_[t]) + 64);
         }
       }
       for (std::size_t i = 0; i < n; ++i) {

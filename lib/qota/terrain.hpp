@@ -286,6 +286,21 @@ class TerrainIndex {
     double a, b, h0, u0, v0, lo, hi;
   };
   LeanPlane leanPlane(std::uint64_t col, std::uint64_t row, std::uint32_t half) const;
+  // The three corners of that triangle, corner k at [k * stride].
+  void leanCorners(std::uint64_t col, std::uint64_t row, std::uint32_t half, double* u, double* v,
+                   double* h, std::size_t stride) const;
+  // Where (u, v) falls on the grid: its cell and half, and whether it is clearly inside that
+  // half's triangle (farther than 1e-5 cell from its sides); inGrid false off the cells.
+  struct GridCell {
+    double fc, fr;  // column and row, fractional
+    bool inGrid, clear;
+    std::uint64_t col, row, slot;  // slot: 2 * cell + half
+    std::uint32_t half;
+  };
+  GridCell gridCell(double u, double v) const;
+  bool slotPresent(std::uint64_t slot) const {
+    return gridPresent_.empty() || ((gridPresent_[slot >> 6] >> (slot & 63)) & 1);
+  }
   static double leanHeight(const LeanPlane& p, double u, double v);
   std::uint64_t generation_ = 0;  // edits so far (invalidates cursors' memos)
   // (Re)derives the lean grid's tables (below) from the vertices and the cell table.
