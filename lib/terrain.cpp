@@ -11,24 +11,13 @@
 #include <numeric>
 #include <string>
 
+#include "float_bounds.hpp"
 #include "qota/error.hpp"
 
 namespace qota {
 namespace {
 
 constexpr double kUnitRoundoff = 0x1p-53;
-
-// Float bounds that enclose the double value (round toward -inf / +inf).
-float floatBelow(double x) {
-  float f = static_cast<float>(x);
-  if (static_cast<double>(f) > x) f = std::nextafter(f, -std::numeric_limits<float>::infinity());
-  return f;
-}
-float floatAbove(double x) {
-  float f = static_cast<float>(x);
-  if (static_cast<double>(f) < x) f = std::nextafter(f, std::numeric_limits<float>::infinity());
-  return f;
-}
 
 std::uint32_t spreadBits16(std::uint32_t x) {
   x &= 0xffff;
@@ -46,21 +35,33 @@ std::uint32_t spreadBits16(std::uint32_t x) {
 struct PlaneFit {
   double a, b, h0;
 };
-inline PlaneFit fitPlane(const double u[3], const double v[3], const double h[3]) {
-  PlaneFit p;
-  const double d1u = u[1] - u[0], d1v = v[1] - v[0], d1h = h[1] - h[0];
-  const double d2u = u[2] - u[0], d2v = v[2] - v[0], d2h = h[2] - h[0];
+// The slopes alone, and the normal's h component: fitPlane without its sliver check.
+struct RawSlopes {
+  double a, b, nh;
+};
+[[gnu::always_inline]] inline RawSlopes rawSlopes(double u0, double v0, double h0, double u1, double v1,
+                                                  double h1, double u2, double v2, double h2) {
+  const double d1u = u1 - u0, d1v = v1 - v0, d1h = h1 - h0;
+  const double d2u = u2 - u0, d2v = v2 - v0, d2h = h2 - h0;
   const double nu = d1v * d2h - d1h * d2v, nv = d1h * d2u - d1u * d2h, nh = d1u * d2v - d1v * d2u;
-  p.a = -nu / nh;
-  p.b = -nv / nh;
-  p.h0 = h[0];
-  if (!(nh > 0) || !std::isfinite(p.a) || !std::isfinite(p.b)) [[unlikely]] {
+  // One division for both slopes, not two; -x * q is x * -q.
+  const double q = -1.0 / nh;
+  return {nu * q, nv * q, nh};
+}
+[[gnu::always_inline]] inline PlaneFit fitPlane(double u0, double v0, double h0, double u1, double v1,
+                                                double h1, double u2, double v2, double h2) {
+  const RawSlopes r = rawSlopes(u0, v0, h0, u1, v1, h1, u2, v2, h2);
+  PlaneFit p{r.a, r.b, h0};
+  if (!(r.nh > 0) || !std::isfinite(p.a) || !std::isfinite(p.b)) [[unlikely]] {
     // A sliver with nonzero exact area whose plane is vertical to within rounding. It stays in
     // the index, or its neighbours would open a crack; its height is its corners' mid-range.
     p.a = p.b = 0;
-    p.h0 = 0.5 * (std::min(h[0], std::min(h[1], h[2])) + std::max(h[0], std::max(h[1], h[2])));
+    p.h0 = 0.5 * (std::min(h0, std::min(h1, h2)) + std::max(h0, std::max(h1, h2)));
   }
   return p;
+}
+inline PlaneFit fitPlane(const double u[3], const double v[3], const double h[3]) {
+  return fitPlane(u[0], v[0], h[0], u[1], v[1], h[1], u[2], v[2], h[2]);
 }
 
 // fitPlane and the plane's height at (u, v) for kLanes points at once, in SIMD (AVX2 where the
@@ -88,7 +89,8 @@ using Mask4 = long long __attribute__((vector_size(32)));
     const Vec4 d1u = c[1][0] - c[0][0], d1v = c[1][1] - c[0][1], d1h = c[1][2] - c[0][2];
     const Vec4 d2u = c[2][0] - c[0][0], d2v = c[2][1] - c[0][1], d2h = c[2][2] - c[0][2];
     const Vec4 nu = d1v * d2h - d1h * d2v, nv = d1h * d2u - d1u * d2h, nh = d1u * d2v - d1v * d2u;
-    const Vec4 a = -nu / nh, b = -nv / nh;
+    const Vec4 minusOne = {-1, -1, -1, -1};
+    const Vec4 q = minusOne / nh, a = nu * q, b = nv * q;
     const Vec4 height = c[0][2] + a * (pu - c[0][0]) + b * (pv - c[0][1]);
     const Vec4 h1 = c[1][2] < c[2][2] ? c[1][2] : c[2][2], h2 = c[1][2] > c[2][2] ? c[1][2] : c[2][2];
     const Vec4 lo = h1 < c[0][2] ? h1 : c[0][2], hi = h2 > c[0][2] ? h2 : c[0][2];
@@ -225,7 +227,9 @@ TerrainIndex::TerrainIndex(const Mesh& mesh, const CartesianMapping& mapping,
   // so that a walk along a row reads memory in order.
   const std::vector<std::uint32_t> slots =
       options.gridFastPath ? gridSlots(pending) : std::vector<std::uint32_t>();
-  if (!pending.empty()) {
+  // A deferred tree over a mesh that is not a grid may never be built: the mesh's own order.
+  const bool keepOrder = slots.empty() && options.deferTree;
+  if (!pending.empty() && !keepOrder) {
     const double su = domain.uhi > domain.ulo ? 65535.0 / (domain.uhi - domain.ulo) : 0.0;
     const double sv = domain.vhi > domain.vlo ? 65535.0 / (domain.vhi - domain.vlo) : 0.0;
     std::vector<std::uint64_t> keyed(pending.size());
@@ -266,48 +270,30 @@ TerrainIndex::TerrainIndex(const Mesh& mesh, const CartesianMapping& mapping,
   // fast path computes a cell's plane from its corners (the same arithmetic, so the same bits),
   // and the records are made with the tree when something needs them.
   if (gridW_) setUpLeanGrid();
-  std::vector<Box2> boxes(pending.size());  // build only: bboxes for the overlap test
-  if (gridLean_) {
-    for (std::uint32_t t = 0; t < cold_.size(); ++t) boxes[t] = boxOf(t);
-  } else {
+  const bool deferred = gridW_ || options.deferTree;
+  std::vector<Box2> boxes(deferred ? 0 : pending.size());  // build only: bboxes for the overlap test
+  if (!gridLean_) {
     tris_.resize(pending.size());
     for (std::size_t t = 0; t < pending.size(); ++t) {
-      boxes[t] = makeRecord(static_cast<std::uint32_t>(t), pending[t]);
+      const Box2 box = makeRecord(static_cast<std::uint32_t>(t), pending[t]);
+      if (!deferred) boxes[t] = box;
     }
   }
-
-  // The quadtree: a triangle is referenced from a leaf when its closed projection meets the closed
-  // leaf box (separating axes: the box axes, then each edge with its error bound, so that a
-  // triangle is dropped only when the box is certainly outside it).
-  // The size floor of the tree: half the median triangle extent along each axis. Smaller nodes
-  // cannot part triangles that are larger than they are (a stack of surfaces seen along a
-  // grazing light, a fan), they only multiply references.
-  double floorU = 0, floorV = 0;
-  if (!boxes.empty()) {
-    std::vector<double> du(boxes.size()), dv(boxes.size());
-    for (std::size_t t = 0; t < boxes.size(); ++t) {
-      du[t] = boxes[t].uhi - boxes[t].ulo;
-      dv[t] = boxes[t].vhi - boxes[t].vlo;
-    }
-    std::nth_element(du.begin(), du.begin() + du.size() / 2, du.end());
-    std::nth_element(dv.begin(), dv.begin() + dv.size() / 2, dv.end());
-    floorU = 0.5 * du[du.size() / 2];
-    floorV = 0.5 * dv[dv.size() / 2];
-  }
-  floorU_ = floorU, floorV_ = floorV;
   deferredOptions_ = options.tree;
   baseMemoryBytes_ = cold_.size() * sizeof(Cold) + corners2_.size() * (sizeof(Point2) + sizeof(double)) +
                      cellTri_.size() * sizeof(std::uint32_t) + gridH32_.size() * sizeof(float) +
                      (gridColU_.size() + gridRowV_.size()) * sizeof(double) +
                      gridPresent_.size() * sizeof(std::uint64_t);
-  if (gridW_) {
-    // The grid answers every height query: the tree waits until something needs it.
+  if (deferred) {
+    // The grid answers every height query (or the caller finds its own candidates): the tree
+    // waits until something needs it.
     deferredTree_ = true;
     stats_.memoryBytes = baseMemoryBytes_ + tris_.size() * sizeof(Tri);
   } else {
+    setTreeFloor(boxes);
     tree_.build(static_cast<std::uint32_t>(cold_.size()), domain, options.tree,
                 [this, &boxes](std::uint32_t t, const Box2& b) { return overlaps(t, boxes[t], b); },
-                floorU, floorV, [&boxes](std::uint32_t t) { return boxes[t]; });
+                floorU_, floorV_, [&boxes](std::uint32_t t) { return boxes[t]; });
     tree_.markLeaves([this](std::span<std::uint32_t> items) { return prepareLeaf(items); });
     stats_.tree = tree_.stats();
     stats_.memoryBytes = baseMemoryBytes_ + tris_.size() * sizeof(Tri) + stats_.tree.memoryBytes;
@@ -321,7 +307,8 @@ TerrainIndex::TerrainIndex(const Mesh& mesh, const CartesianMapping& mapping,
 }
 
 void TerrainIndex::setUpLeanGrid() {
-  gridLean_ = false;
+  gridLean_ = gridAxesF32_ = false;
+  gridCellsU_ = gridW_ ? gridW_ - 1.0 : 0.0, gridCellsV_ = gridH_ ? gridH_ - 1.0 : 0.0;
   gridColU_.clear(), gridRowV_.clear(), gridPresent_.clear();
   BigVector<float>().swap(gridH32_);
   // Each half of a cell stores its corners (after fanPolygon's orientation) at fixed offsets from
@@ -374,6 +361,7 @@ void TerrainIndex::setUpLeanGrid() {
     gridH32_.resize(cornerH_.size());
     for (std::size_t i = 0; i < cornerH_.size(); ++i) gridH32_[i] = static_cast<float>(cornerH_[i]);
   }
+  gridAxesF32_ = !gridColU_.empty() && !gridH32_.empty();
   // Which slots hold a triangle, one bit each, unless every one does.
   if (std::find(cellTri_.begin(), cellTri_.end(), kNone) != cellTri_.end()) {
     gridPresent_.assign((cellTri_.size() + 63) / 64, 0);
@@ -472,42 +460,74 @@ TerrainIndex::Tri TerrainIndex::recordOf(std::uint32_t t) const {
   GridCell g{};
   const double du = u - gridU0_, dv = v - gridV0_;
   g.fc = gridInv_[0] * du + gridInv_[1] * dv, g.fr = gridInv_[2] * du + gridInv_[3] * dv;
-  g.inGrid = g.fc >= 0 && g.fr >= 0 && g.fc < gridW_ - 1 && g.fr < gridH_ - 1;
+  g.inGrid = g.fc >= 0 && g.fr >= 0 && g.fc < gridCellsU_ && g.fr < gridCellsV_;
   if (!g.inGrid) return g;  // also NaN
-  g.col = static_cast<std::uint64_t>(g.fc), g.row = static_cast<std::uint64_t>(g.fr);
+  // Signed conversions: in range here, and without the unsigned one's branch.
+  const auto col = static_cast<std::int64_t>(g.fc), row = static_cast<std::int64_t>(g.fr);
+  g.col = static_cast<std::uint64_t>(col), g.row = static_cast<std::uint64_t>(row);
   // The half of the cell with corner (col, row + 1) lies where the row fraction exceeds the
   // column fraction.
-  const double xc = g.fc - static_cast<double>(g.col), xr = g.fr - static_cast<double>(g.row);
+  const double xc = g.fc - static_cast<double>(col), xr = g.fr - static_cast<double>(row);
   g.half = xr > xc ? 0 : 1;
   g.slot = 2 * (g.row * (gridW_ - 1) + g.col) + g.half;
   // Clearly inside: farther than 1e-5 cell from the half's sides, with the vertices within 1e-6
   // cell of their grid positions (gridSlots), so no other triangle can hold the point.
-  g.clear = std::min(std::min(std::min(xc, xr), std::min(1 - xc, 1 - xr)), std::fabs(xr - xc)) > 1e-5;
+  g.clear = std::min(std::min(std::min(xc, xr), 1 - std::max(xc, xr)), std::fabs(xr - xc)) > 1e-5;
   return g;
+}
+
+[[gnu::always_inline]] inline void TerrainIndex::leanCorner(std::uint64_t col, std::uint64_t row,
+                                                            std::uint32_t half, int k, double& u,
+                                                            double& v, double& h) const {
+  const std::uint64_t x = row * gridW_ + col + gridCorner_[half][k];
+  if (gridAxesF32_) [[likely]] {  // the common DEM
+    u = gridColU_[col + gridDc_[half][k]], v = gridRowV_[row + gridDr_[half][k]];
+    h = static_cast<double>(gridH32_[x]);
+    return;
+  }
+  if (gridColU_.empty()) {
+    u = corners2_[x].u, v = corners2_[x].v;
+  } else {
+    u = gridColU_[col + gridDc_[half][k]], v = gridRowV_[row + gridDr_[half][k]];
+  }
+  h = gridH32_.empty() ? cornerH_[x] : static_cast<double>(gridH32_[x]);
 }
 
 [[gnu::always_inline]] inline void TerrainIndex::leanCorners(std::uint64_t col, std::uint64_t row,
                                                              std::uint32_t half, double* cu,
                                                              double* cv, double* ch,
                                                              std::size_t stride) const {
-  for (int k = 0; k < 3; ++k) {
-    const std::uint64_t c = col + gridDc_[half][k], r = row + gridDr_[half][k], x = r * gridW_ + c;
-    if (gridColU_.empty()) {
-      cu[k * stride] = corners2_[x].u, cv[k * stride] = corners2_[x].v;
-    } else {
-      cu[k * stride] = gridColU_[c], cv[k * stride] = gridRowV_[r];
-    }
-    ch[k * stride] = gridH32_.empty() ? cornerH_[x] : static_cast<double>(gridH32_[x]);
-  }
+  for (int k = 0; k < 3; ++k) leanCorner(col, row, half, k, cu[k * stride], cv[k * stride], ch[k * stride]);
 }
 
-[[gnu::always_inline]] inline TerrainIndex::LeanPlane TerrainIndex::leanPlane(
-    std::uint64_t col, std::uint64_t row, std::uint32_t half) const {
-  double cu[3], cv[3], ch[3];
-  leanCorners(col, row, half, cu, cv, ch, 1);
-  const PlaneFit p = fitPlane(cu, cv, ch);
-  return {p.a, p.b, p.h0, cu[0], cv[0], std::min(ch[0], std::min(ch[1], ch[2])),
-          std::max(ch[0], std::max(ch[1], ch[2]))};
+[[gnu::noinline]] TerrainIndex::LeanPlane TerrainIndex::leanPlane(std::uint64_t col, std::uint64_t row,
+                                                                  std::uint32_t half) const {
+  // Named scalars, not arrays: the corners stay in registers.
+  double u0, v0, h0, u1, v1, h1, u2, v2, h2;
+  leanCorner(col, row, half, 0, u0, v0, h0);
+  leanCorner(col, row, half, 1, u1, v1, h1);
+  leanCorner(col, row, half, 2, u2, v2, h2);
+  const PlaneFit p = fitPlane(u0, v0, h0, u1, v1, h1, u2, v2, h2);
+  return {p.a, p.b, p.h0, u0, v0, std::min(h0, std::min(h1, h2)), std::max(h0, std::max(h1, h2))};
+}
+
+// leanHeight(leanPlane(col, row, half), u, v), and that plane, without fitPlane's checks and the
+// clamp where they change nothing: finite slopes of an up-facing plane (nh > 0) give a finite
+// height, slopes that are not finite give none, so nh > 0 and a height within the corners' range
+// stand for all of them.
+[[gnu::always_inline]] inline double TerrainIndex::leanAnswer(std::uint64_t col, std::uint64_t row,
+                                                              std::uint32_t half, double u, double v,
+                                                              LeanPlane& p) const {
+  double u0, v0, h0, u1, v1, h1, u2, v2, h2;
+  leanCorner(col, row, half, 0, u0, v0, h0);
+  leanCorner(col, row, half, 1, u1, v1, h1);
+  leanCorner(col, row, half, 2, u2, v2, h2);
+  const RawSlopes r = rawSlopes(u0, v0, h0, u1, v1, h1, u2, v2, h2);
+  p = {r.a, r.b, h0, u0, v0, std::min(h0, std::min(h1, h2)), std::max(h0, std::max(h1, h2))};
+  const double h = h0 + r.a * (u - u0) + r.b * (v - v0);
+  if (r.nh > 0 && h >= p.lo && h <= p.hi) [[likely]] return h;
+  p = leanPlane(col, row, half);  // a sliver, or a height the clamp may move
+  return leanHeight(p, u, v);
 }
 
 // heightOf's expression on the record the same corners make. The clamp to the corners' height
@@ -520,7 +540,7 @@ TerrainIndex::Tri TerrainIndex::recordOf(std::uint32_t t) const {
 }
 
 template <bool NeedId>
-std::uint32_t TerrainIndex::gridAnswer(double u, double v, double& h, Quadtree::Cursor* cursor) const {
+[[gnu::always_inline]] inline std::uint32_t TerrainIndex::gridAnswer(double u, double v, double& h, Quadtree::Cursor* cursor) const {
   if (gridLean_) {
     const GridCell g = gridCell(u, v);
     if (g.inGrid && g.clear) [[likely]] {
@@ -540,27 +560,38 @@ std::uint32_t TerrainIndex::gridAnswer(double u, double v, double& h, Quadtree::
         present = slotPresent(slot);
       }
       if (present) [[likely]] {
-        const LeanPlane p = leanPlane(g.col, g.row, g.half);
-        h = leanHeight(p, u, v);
+        LeanPlane p;
+        h = leanAnswer(g.col, g.row, g.half, u, v, p);
         if (cursor) {
           auto& m = cursor->memo;
           m.owner = this, m.generation = generation_, m.key = slot;
           m.item = NeedId ? t : cellTri_[slot];
-          const double value[7] = {p.a, p.b, p.h0, p.u0, p.v0, p.lo, p.hi};
-          std::copy(value, value + 7, m.value);
+          // One store each: a copy through a local array made the compiler store it in halves and
+          // reload it whole, a store-forwarding stall on every query of a walk.
+          m.value[0] = p.a, m.value[1] = p.b, m.value[2] = p.h0, m.value[3] = p.u0;
+          m.value[4] = p.v0, m.value[5] = p.lo, m.value[6] = p.hi;
         }
         return t;
       }
     }
-    Tri scratch;
-    const Tri* rec = nullptr;
-    const std::uint32_t t = gridTriangleNearEdge(u, v, g.fc, g.fr, scratch, rec);
-    if (t != kOffGrid) h = heightOf(*rec, u, v);
-    return t;
+    return gridAnswerNearEdge(u, v, g.fc, g.fr, h);
   }
+  return gridAnswerFromRecords(u, v, h);
+}
+
+[[gnu::noinline]] std::uint32_t TerrainIndex::gridAnswerFromRecords(double u, double v, double& h) const {
   Tri scratch;
   const Tri* rec = nullptr;
   const std::uint32_t t = gridTriangle(u, v, scratch, rec);
+  if (t != kOffGrid) h = heightOf(*rec, u, v);
+  return t;
+}
+
+[[gnu::noinline]] std::uint32_t TerrainIndex::gridAnswerNearEdge(double u, double v, double fc, double fr,
+                                                                double& h) const {
+  Tri scratch;
+  const Tri* rec = nullptr;
+  const std::uint32_t t = gridTriangleNearEdge(u, v, fc, fr, scratch, rec);
   if (t != kOffGrid) h = heightOf(*rec, u, v);
   return t;
 }
@@ -722,10 +753,32 @@ bool TerrainIndex::prepareLeaf(std::span<std::uint32_t> items) const {
   return true;
 }
 
+void TerrainIndex::setTreeFloor(const std::vector<Box2>& boxes) const {
+  // The size floor of the tree: half the median triangle extent along each axis. Smaller nodes
+  // cannot part triangles that are larger than they are (a stack of surfaces seen along a
+  // grazing light, a fan), they only multiply references.
+  floorU_ = floorV_ = 0;
+  if (boxes.empty()) return;
+  std::vector<double> du(boxes.size()), dv(boxes.size());
+  for (std::size_t t = 0; t < boxes.size(); ++t) {
+    du[t] = boxes[t].uhi - boxes[t].ulo;
+    dv[t] = boxes[t].vhi - boxes[t].vlo;
+  }
+  std::nth_element(du.begin(), du.begin() + du.size() / 2, du.end());
+  std::nth_element(dv.begin(), dv.begin() + dv.size() / 2, dv.end());
+  floorU_ = 0.5 * du[du.size() / 2];
+  floorV_ = 0.5 * dv[dv.size() / 2];
+}
+
 void TerrainIndex::buildDeferredTree() const {
   if (tris_.size() != cold_.size()) {
     tris_.resize(cold_.size());
     for (std::uint32_t t = 0; t < cold_.size(); ++t) tris_[t] = computeRecord(cold_[t].corner);
+  }
+  {
+    std::vector<Box2> boxes(cold_.size());
+    for (std::uint32_t t = 0; t < cold_.size(); ++t) boxes[t] = boxOf(t);
+    setTreeFloor(boxes);
   }
   tree_.build(static_cast<std::uint32_t>(cold_.size()), stats_.domain, deferredOptions_,
               [this](std::uint32_t t, const Box2& b) {
@@ -1027,24 +1080,18 @@ void TerrainIndex::heightsBelowParallel(std::span<const Point2> points, double z
   heightsBelow(points.first(std::min(points.size(), slice)), z, heights.first(std::min(points.size(), slice)));
 }
 
-std::optional<double> TerrainIndex::heightAt(double u, double v, double z,
-                                             Quadtree::Cursor* cursor) const {
-  double h = 0;
-  if (gridW_) {  // no need for the triangle's id
-    if (gridAnswer<false>(u, v, h, cursor) == kOffGrid || !(h <= z)) return std::nullopt;
-    return h;
-  }
-  if (nearest<true>(u, v, z, h, cursor) == kNone) return std::nullopt;
+double TerrainIndex::heightAt(double u, double v, double z, Quadtree::Cursor* cursor) const {
+  if (!gridW_) return heightFromTree(u, v, z, cursor);
+  double h = 0;  // no need for the triangle's id
+  if (gridAnswer<false>(u, v, h, cursor) == kOffGrid || !(h <= z)) return NAN;
   return h;
 }
 
-std::optional<double> TerrainIndex::heightBelow(double u, double v, double z) const {
-  return heightAt(u, v, z, nullptr);
-}
-
-std::optional<double> TerrainIndex::heightBelow(Quadtree::Cursor& cursor, double u, double v,
-                                                double z) const {
-  return heightAt(u, v, z, &cursor);
+[[gnu::noinline]] double TerrainIndex::heightFromTree(double u, double v, double z,
+                                                      Quadtree::Cursor* cursor) const {
+  double h = 0;
+  if (nearest<true>(u, v, z, h, cursor) == kNone) return NAN;
+  return h;
 }
 
 std::optional<Hit> TerrainIndex::below(Quadtree::Cursor& cursor, double u, double v,
@@ -1119,6 +1166,29 @@ bool TerrainIndex::occludedAbove(double u, double v, double h, std::uint32_t ver
     if (heightOf(r, u, v) > h) return true;
   }
   return false;
+}
+
+bool TerrainIndex::triangleOccludesAbove(std::uint32_t t, double u, double v, double h,
+                                         std::uint32_t vertex) const {
+  const Cold& c = cold_[t];
+  if (c.corner[0] == vertex || c.corner[1] == vertex || c.corner[2] == vertex) return false;
+  if (c.polygon < removed_.size() && removed_[c.polygon]) return false;
+  Tri scratch;
+  const Tri& r = gridLean_ ? (scratch = computeRecord(c.corner)) : tris_[t];
+  return contains(r, t, u, v) && heightOf(r, u, v) > h;
+}
+
+TerrainIndex::PolygonTriangles TerrainIndex::trianglesOfPolygons() const {
+  PolygonTriangles p;
+  std::uint32_t polygons = static_cast<std::uint32_t>(stats_.polygons);
+  for (const Cold& c : cold_) polygons = std::max(polygons, c.polygon + 1);
+  p.start.assign(polygons + 1, 0);
+  for (const Cold& c : cold_) ++p.start[c.polygon + 1];
+  for (std::size_t i = 1; i < p.start.size(); ++i) p.start[i] += p.start[i - 1];
+  p.tris.resize(cold_.size());
+  std::vector<std::uint32_t> fill(p.start.begin(), p.start.end() - 1);
+  for (std::uint32_t t = 0; t < cold_.size(); ++t) p.tris[fill[cold_[t].polygon]++] = t;
+  return p;
 }
 
 std::uint32_t TerrainIndex::testsAt(double u, double v) const {

@@ -64,6 +64,9 @@ struct TerrainOptions {
   // The records and the quadtree are made when something needs them (edits, shadows,
   // statistics, tree files).
   bool gridFastPath = true;
+  // Build the quadtree on first need rather than now: for a caller that brings its own
+  // candidates to triangleOccludesAbove (the shadow mask's grid walk) and may never need it.
+  bool deferTree = false;
 };
 
 // Where the line through a mapped point meets the terrain.
@@ -122,7 +125,9 @@ class TerrainIndex {
 
   // Height-only fast path: the highest terrain height at (u, v) with h <= z, or std::nullopt for
   // no terrain. For samplers and benchmarks that do not need the normal or the polygon.
-  std::optional<double> heightBelow(double u, double v, double z) const;
+  std::optional<double> heightBelow(double u, double v, double z) const {
+    return unlessNaN(heightAt(u, v, z, nullptr));
+  }
   // heightBelow for many points at once (heights[i] for points[i]): the same answers, with the
   // memory latency of the points overlapped (several times faster on terrains larger than the
   // cache). heights must have room for every point.
@@ -138,7 +143,9 @@ class TerrainIndex {
   // identical to the plain queries. A cursor belongs to one object (and one thread).
   std::optional<Hit> below(Quadtree::Cursor& cursor, double u, double v, double h) const;
   std::optional<Hit> above(Quadtree::Cursor& cursor, double u, double v, double h) const;
-  std::optional<double> heightBelow(Quadtree::Cursor& cursor, double u, double v, double z) const;
+  std::optional<double> heightBelow(Quadtree::Cursor& cursor, double u, double v, double z) const {
+    return unlessNaN(heightAt(u, v, z, &cursor));
+  }
 
   // Every crossing of an arbitrary world line origin + t * direction, t in [tmin, tmax], nearest
   // t first (equal t: smaller polygon id): for lines not along gravity, such as the world's
@@ -166,6 +173,15 @@ class TerrainIndex {
   // height strictly above h: the shadow test of a point at that vertex, whose own triangles can
   // never shade it (they meet its line at the point itself).
   bool occludedAbove(double u, double v, double h, std::uint32_t vertex) const;
+  // The same test on one triangle t (this index's numbering, see trianglesOfPolygons): for a
+  // caller that finds the candidates itself and wants exactly the quadtree's answers.
+  bool triangleOccludesAbove(std::uint32_t t, double u, double v, double h, std::uint32_t vertex) const;
+  // Every polygon's triangles in this index's numbering, as offsets into one list: polygon p has
+  // tris[start[p]] .. tris[start[p + 1] - 1] (none for a wall).
+  struct PolygonTriangles {
+    std::vector<std::uint32_t> start, tris;
+  };
+  PolygonTriangles trianglesOfPolygons() const;
 
   const CartesianMapping& mapping() const { return mapping_; }
   // True while the grid fast path is active (TerrainOptions::gridFastPath, a regular grid, no
@@ -233,7 +249,15 @@ class TerrainIndex {
   // below/above/heightBelow with or without a cursor.
   template <bool Below>
   std::optional<Hit> hitAt(double u, double v, double z, Quadtree::Cursor* cursor) const;
-  std::optional<double> heightAt(double u, double v, double z, Quadtree::Cursor* cursor) const;
+  // NaN for no terrain (a height is never NaN). heightBelow wraps it inline: an optional made
+  // in the caller dissolves into its branch, one returned from a call goes through memory, where
+  // its flag byte stalls the load of the whole (a store-forwarding failure, a third of a walk).
+  double heightAt(double u, double v, double z, Quadtree::Cursor* cursor) const;
+  double heightFromTree(double u, double v, double z, Quadtree::Cursor* cursor) const;
+  static std::optional<double> unlessNaN(double h) {
+    if (h != h) return std::nullopt;
+    return h;
+  }
   static constexpr std::uint32_t kNone = 0xffffffffu;
   template <bool Below>
   std::uint32_t nearest(double u, double v, double z, double& h,
@@ -280,13 +304,21 @@ class TerrainIndex {
   // A cursor remembers the last triangle's plane (Quadtree::Cursor::memo).
   template <bool NeedId>
   std::uint32_t gridAnswer(double u, double v, double& h, Quadtree::Cursor* cursor = nullptr) const;
+  // Its answer near a triangle's side or off the lean grid (out of line: the hot path keeps a
+  // small frame).
+  std::uint32_t gridAnswerNearEdge(double u, double v, double fc, double fr, double& h) const;
+  std::uint32_t gridAnswerFromRecords(double u, double v, double& h) const;  // grid not lean
   // The plane of the triangle in half `half` of cell (col, row), from its corners: slopes, the
   // height at corner 0 and corner 0, and the corners' height range.
   struct LeanPlane {
     double a, b, h0, u0, v0, lo, hi;
   };
   LeanPlane leanPlane(std::uint64_t col, std::uint64_t row, std::uint32_t half) const;
+  double leanAnswer(std::uint64_t col, std::uint64_t row, std::uint32_t half, double u, double v,
+                    LeanPlane& p) const;
   // The three corners of that triangle, corner k at [k * stride].
+  void leanCorner(std::uint64_t col, std::uint64_t row, std::uint32_t half, int k, double& u, double& v,
+                  double& h) const;
   void leanCorners(std::uint64_t col, std::uint64_t row, std::uint32_t half, double* u, double* v,
                    double* h, std::size_t stride) const;
   // Where (u, v) falls on the grid: its cell and half, and whether it is clearly inside that
@@ -312,6 +344,8 @@ class TerrainIndex {
   // empty: read corners2_); the heights as floats when exact (else empty: read cornerH_); one
   // bit per slot that holds a triangle (empty: all do).
   bool gridLean_ = false;
+  bool gridAxesF32_ = false;                  // gridColU_ and gridH32_ both in use
+  double gridCellsU_ = 0, gridCellsV_ = 0;    // gridW_ - 1, gridH_ - 1
   std::uint32_t gridCorner_[2][3] = {{0, 0, 0}, {0, 0, 0}};  // per half: corner offsets from x
   std::uint8_t gridDc_[2][3] = {}, gridDr_[2][3] = {};
   std::vector<double> gridColU_, gridRowV_;
@@ -336,7 +370,8 @@ class TerrainIndex {
   };
   std::unique_ptr<Deferred> deferred_ = std::make_unique<Deferred>();
   QuadtreeOptions deferredOptions_;
-  double floorU_ = 0, floorV_ = 0;
+  mutable double floorU_ = 0, floorV_ = 0;  // the tree's node size floor (setTreeFloor)
+  void setTreeFloor(const std::vector<Box2>& boxes) const;
   std::uint64_t baseMemoryBytes_ = 0;  // everything but the tree and the triangle records
   mutable TerrainStats stats_;
   mutable bool treeStatsStale_ = false;
