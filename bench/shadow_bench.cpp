@@ -1,8 +1,9 @@
-// shadow_bench: the shadow mask of a 2000 x 2000 DEM at sun altitudes 30 and 10 degrees with the
-// QOTA shadow quadtree, next to the naive ray march measured in the same run (from each cell,
-// step toward the sun one pixel at a time until the ray is blocked or leaves the grid). Reports
-// seconds, cells per second and the ratio, and checks the mask against the brute-force oracle on
-// a sample of cells. Flags: --size N (default 2000), --oracle-cells K (default 60).
+// shadow_bench: the shadow mask of a 2000 x 2000 DEM at sun altitudes 30 and 10 degrees, with the
+// strip walk (the default) and with the QOTA shadow quadtree, next to the naive ray march measured
+// in the same run (from each cell, step toward the sun one pixel at a time until the ray is
+// blocked or leaves the grid). Reports seconds, cells per second and the ratio, checks that both
+// methods give the same mask on every cell, and checks it against the brute-force oracle on a
+// sample of cells. Flags: --size N (default 2000), --oracle-cells K (default 60).
 #include <Eigen/Geometry>
 #include <chrono>
 #include <cmath>
@@ -12,6 +13,7 @@
 #include <random>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "qota/shadow.hpp"
 #include "qota/synthetic.hpp"
@@ -128,35 +130,45 @@ int main(int argc, char** argv) {
     for (Light l : march) marchShadow += l == Light::Shadow;
     std::printf("%-6.0f %-22s %10.3f %14.0f %9s %10.2f %12s\n", alt, "naive ray march (1 th)", marchS,
                 cells / marchS, "1.00", 100.0 * marchShadow / cells, "-");
-    for (unsigned threads : {1u, 0u}) {
-      t0 = Clock::now();
-      const auto mask = qota::shadowMask(frame, light, {}, {}, threads);
-      t1 = Clock::now();
-      const double s = seconds(t0, t1);
-      std::size_t shadow = 0, agree = 0;
-      for (std::size_t i = 0; i < mask.size(); ++i) {
-        shadow += mask[i] == Light::Shadow;
-        agree += mask[i] == march[i];
-      }
-      const std::string name = threads == 1 ? "qota (1 thread)" : "qota (all cores)";
-      std::printf("%-6.0f %-22s %10.3f %14.0f %9.2f %10.2f %11.3f%%\n", alt, name.c_str(), s, cells / s,
-                  marchS / s, 100.0 * shadow / cells, 100.0 * agree / cells);
-      if (threads == 0 && oracleCells > 0) {
-        std::mt19937_64 rng(static_cast<std::uint64_t>(alt));
-        std::uniform_int_distribution<std::size_t> pick(0, mask.size() - 1);
-        int same = 0;
-        for (int k = 0; k < oracleCells; ++k) {
-          const std::size_t i = pick(rng);
-          const bool ok = (mask[i] == Light::Shadow) == oracleShadow(frame, i, light);
-          same += ok;
-          if (!ok) {
-            std::printf("  differs at cell %zu (col %zu, row %zu): qota %s\n", i, i % n, i / n,
-                        mask[i] == Light::Shadow ? "shadow" : "lit");
-          }
+    std::vector<Light> stripsMask;
+    for (const auto search : {qota::ShadowSearch::GridWalk, qota::ShadowSearch::Quadtree}) {
+      for (unsigned threads : {1u, 0u}) {
+        t0 = Clock::now();
+        const auto mask = qota::shadowMask(frame, light, {}, {}, threads, search);
+        t1 = Clock::now();
+        const double s = seconds(t0, t1);
+        std::size_t shadow = 0, agree = 0;
+        for (std::size_t i = 0; i < mask.size(); ++i) {
+          shadow += mask[i] == Light::Shadow;
+          agree += mask[i] == march[i];
         }
-        std::printf("%-6.0f oracle check: %d of %d random cells identical to the brute force\n", alt, same,
-                    oracleCells);
+        const bool walk = search == qota::ShadowSearch::GridWalk;
+        const std::string name = std::string(walk ? "qota strips" : "qota quadtree") +
+                                 (threads == 1 ? " (1 thread)" : " (all cores)");
+        std::printf("%-6.0f %-22s %10.3f %14.0f %9.2f %10.2f %11.3f%%\n", alt, name.c_str(), s, cells / s,
+                    marchS / s, 100.0 * shadow / cells, 100.0 * agree / cells);
+        if (walk && threads == 0) stripsMask = mask;
+        if (!walk && threads == 0) {
+          std::printf("%-6.0f strips and quadtree masks identical on every cell: %s\n", alt,
+                      mask == stripsMask ? "yes" : "NO");
+        }
       }
+    }
+    if (oracleCells > 0) {
+      std::mt19937_64 rng(static_cast<std::uint64_t>(alt));
+      std::uniform_int_distribution<std::size_t> pick(0, stripsMask.size() - 1);
+      int same = 0;
+      for (int k = 0; k < oracleCells; ++k) {
+        const std::size_t i = pick(rng);
+        const bool ok = (stripsMask[i] == Light::Shadow) == oracleShadow(frame, i, light);
+        same += ok;
+        if (!ok) {
+          std::printf("  differs at cell %zu (col %zu, row %zu): qota %s\n", i, i % n, i / n,
+                      stripsMask[i] == Light::Shadow ? "shadow" : "lit");
+        }
+      }
+      std::printf("%-6.0f oracle check: %d of %d random cells identical to the brute force\n", alt, same,
+                  oracleCells);
     }
   }
   return 0;

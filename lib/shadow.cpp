@@ -6,9 +6,13 @@
 
 #include <atomic>
 #include <cmath>
+#include <future>
 #include <memory>
+#include <optional>
+#include <span>
 #include <thread>
 
+#include "float_bounds.hpp"
 #include "qota/error.hpp"
 #include "qota/globe.hpp"
 #include "qota/predicates.hpp"
@@ -100,6 +104,7 @@ LocalFrame localFrame(const DemTerrain& dem, bool flat, double pixelSize) {
     }
   }
   f.mesh.vertices.resize(n);
+  f.gridMesh = true;
   const double cc = (dem.width - 1) / 2.0, cr = (dem.height - 1) / 2.0;
   const auto centre = dem.pixelCentre(cc, cr);
 
@@ -193,7 +198,23 @@ LocalFrame localFrame(const DemTerrain& dem, bool flat, double pixelSize) {
 
 namespace {
 
-// Triangles around each vertex, as offsets into one list (a vertex of a DEM has at most 6).
+// The triangles around vertex (r, c) of localFrame's grid mesh (two per cell, row-major, split
+// from the top-left corner), in increasing order: both of the cell up-left, the first of the
+// cell up, the second of the cell left, both of its own cell. Returns how many.
+int gridRing(const LocalFrame& f, std::size_t i, std::uint32_t ring[6]) {
+  const auto w = static_cast<std::size_t>(f.width), h = static_cast<std::size_t>(f.height);
+  const std::size_t r = i / w, c = i % w;
+  const auto first = [&](std::size_t rr, std::size_t cc) { return static_cast<std::uint32_t>(2 * (rr * (w - 1) + cc)); };
+  int n = 0;
+  if (r > 0 && c > 0) ring[n++] = first(r - 1, c - 1), ring[n++] = first(r - 1, c - 1) + 1;
+  if (r > 0 && c + 1 < w) ring[n++] = first(r - 1, c);
+  if (r + 1 < h && c > 0) ring[n++] = first(r, c - 1) + 1;
+  if (r + 1 < h && c + 1 < w) ring[n++] = first(r, c), ring[n++] = first(r, c) + 1;
+  return n;
+}
+
+// Triangles around each vertex, as offsets into one list (a vertex of a DEM has at most 6), for
+// a frame whose mesh is not localFrame's grid.
 struct VertexStar {
   std::vector<std::uint32_t> start, tris;
   VertexStar(const Mesh& mesh) : start(mesh.vertices.size() + 1, 0) {
@@ -212,12 +233,15 @@ struct VertexStar {
 // the one whose corner sector at i contains that direction); the vertex is in attached shadow when
 // the light rises more slowly than that triangle does in that direction. A light straight up, or
 // a direction leaving the terrain (across a void or the border), is not attached shadow.
-bool attachedShadow(const Mesh& mesh, const VertexStar& star, std::uint32_t i, const Eigen::Vector3d& light) {
+// ring: the triangles around i in increasing order (the first whose sector holds the direction
+// decides).
+bool attachedShadow(const Mesh& mesh, std::span<const std::uint32_t> ring, std::uint32_t i,
+                    const Eigen::Vector3d& light) {
   const Eigen::Vector3d& p = mesh.vertices[i];
   const Point2 p2{p.x(), p.y()}, s2{p.x() + light.x(), p.y() + light.y()};
   if (light.x() == 0 && light.y() == 0) return false;
-  for (std::uint32_t k = star.start[i]; k < star.start[i + 1]; ++k) {
-    const auto t = mesh.polygon(star.tris[k]);
+  for (const std::uint32_t polygon : ring) {
+    const auto t = mesh.polygon(polygon);
     // The other two corners, in counter-clockwise order around i.
     std::uint32_t a = t[0] == i ? t[1] : t[1] == i ? t[2] : t[0];
     std::uint32_t b = t[0] == i ? t[2] : t[1] == i ? t[0] : t[1];
@@ -234,6 +258,184 @@ bool attachedShadow(const Mesh& mesh, const VertexStar& star, std::uint32_t i, c
   return false;
 }
 
+// Candidate occluders for the light rays of a DEM's vertices, found without the light-frame
+// quadtree. Seen from above, every ray runs along the sun's azimuth g, at a constant offset c
+// across it, rising tan(altitude) per metre of a = position along g. The occluding triangles are
+// binned into strips of c (one pixel wide; a triangle goes into every strip its c range meets),
+// each strip sorted by the triangles' largest a. A triangle T the ray from P meets, at a point
+// ahead of P, has amax(T) >= a(P), and since its highest corner is at least the hit's height,
+// zmax(T) - amin(T) tan >= z(P) - a(P) tan: a per-triangle key against a per-point bound. So the
+// candidates are the strip's triangles from a(P) on whose key reaches P's bound, found by a
+// binary search and a scan that skips blocks of 16 by their largest key (and stops when no later
+// block reaches it). Each candidate takes the shadow quadtree's own exact test, and every
+// triangle that test can accept is a candidate (the margins are far above the rounding), so the
+// mask is the quadtree's.
+class HorizonStrips {
+ public:
+  static constexpr std::uint32_t kNone = 0xffffffffu;
+
+  // occluder: per polygon of the mesh, a number for the occluding triangle (kNone: not one); the
+  // entries carry it until renumber.
+  HorizonStrips(const Mesh& mesh, const std::vector<std::uint32_t>& occluder, const Eigen::Vector3d& light,
+                double stripWidth) {
+    const double horizontal = light.head<2>().norm();
+    g_ = light.head<2>() / horizontal;
+    tan_ = light.z() / horizontal;
+    // Margins: a millionth of the coordinates' size, where rounding is below a trillionth.
+    double aMax = 0, zMax = 0;
+    for (const Eigen::Vector3d& p : mesh.vertices) {
+      aMax = std::max(aMax, p.head<2>().norm()), zMax = std::max(zMax, std::fabs(p.z()));
+    }
+    marginA_ = 1e-6 * (aMax + 1);
+    marginKey_ = 1e-6 * (zMax + aMax * tan_ + 1);
+    // Each triangle's ranges.
+    struct Span {
+      double cLo, cHi, aLo, aHi, zHi;
+    };
+    std::vector<Span> spans;
+    std::vector<std::uint32_t> ids;
+    spans.reserve(occluder.size());
+    ids.reserve(occluder.size());
+    cLo_ = INFINITY;
+    double cHi = -INFINITY;
+    for (std::size_t p = 0; p < occluder.size(); ++p) {
+      if (occluder[p] == kNone) continue;
+      double cl = INFINITY, ch = -INFINITY, al = INFINITY, ah = -INFINITY, zh = -INFINITY;
+      for (std::uint32_t k : mesh.polygon(p)) {
+        const Eigen::Vector3d& v = mesh.vertices[k];
+        const double a = along(v), c = across(v);
+        cl = std::min(cl, c), ch = std::max(ch, c), al = std::min(al, a), ah = std::max(ah, a);
+        zh = std::max(zh, v.z());
+      }
+      // Field by field: a Span built whole was stored in halves and reloaded whole (a stall).
+      Span& s = spans.emplace_back();
+      s.cLo = cl, s.cHi = ch, s.aLo = al, s.aHi = ah, s.zHi = zh;
+      ids.push_back(occluder[p]);
+      cLo_ = std::min(cLo_, cl - marginA_), cHi = std::max(cHi, ch + marginA_);
+    }
+    if (spans.empty()) return;
+    width_ = stripWidth;
+    const auto strips = static_cast<std::size_t>(std::floor((cHi - cLo_) / width_)) + 1;
+    // Each strip's entries padded to whole superblocks (64) with entries no ray reaches.
+    std::vector<std::uint64_t> count(strips, 0);
+    const auto stripsOf = [&](const Span& s, std::size_t& lo, std::size_t& hi) {
+      lo = strip(s.cLo - marginA_), hi = std::min(strips - 1, strip(s.cHi + marginA_));
+    };
+    for (const Span& s : spans) {
+      std::size_t lo, hi;
+      stripsOf(s, lo, hi);
+      for (std::size_t k = lo; k <= hi; ++k) ++count[k];
+    }
+    start_.assign(strips + 1, 0);
+    for (std::size_t k = 0; k < strips; ++k) start_[k + 1] = start_[k] + (count[k] + kSuper - 1) / kSuper * kSuper;
+    entries_.assign(start_[strips], Entry{INFINITY, -INFINITY, INFINITY, -INFINITY, kNone});
+    std::vector<std::uint64_t> fill(start_.begin(), start_.end() - 1);
+    for (std::size_t t = 0; t < spans.size(); ++t) {
+      const Span& s = spans[t];
+      std::size_t lo, hi;
+      stripsOf(s, lo, hi);
+      const Entry e{floatAbove(s.aHi), floatAbove(s.zHi - s.aLo * tan_), floatBelow(s.cLo), floatAbove(s.cHi), ids[t]};
+      for (std::size_t k = lo; k <= hi; ++k) entries_[fill[k]++] = e;
+    }
+    // Each strip by largest a; the largest key of every block (8) and superblock (64), and of
+    // every superblock with all after it in the strip.
+    blockKey_.assign(entries_.size() / kBlock, -INFINITY);
+    superKey_.assign(entries_.size() / kSuper, -INFINITY);
+    laterKey_.assign(entries_.size() / kSuper, -INFINITY);
+    for (std::size_t k = 0; k < strips; ++k) {
+      std::sort(entries_.begin() + static_cast<std::ptrdiff_t>(start_[k]),
+                entries_.begin() + static_cast<std::ptrdiff_t>(fill[k]),
+                [](const Entry& x, const Entry& y) { return x.aHi < y.aHi; });
+      float later = -INFINITY;
+      for (std::uint64_t sb = start_[k + 1] / kSuper; sb-- > start_[k] / kSuper;) {
+        for (std::uint64_t e = sb * kSuper; e < (sb + 1) * kSuper; ++e) {
+          blockKey_[e / kBlock] = std::max(blockKey_[e / kBlock], entries_[e].key);
+          superKey_[sb] = std::max(superKey_[sb], entries_[e].key);
+        }
+        later = std::max(later, superKey_[sb]);
+        laterKey_[sb] = later;
+      }
+    }
+  }
+
+  // Whether test(t) holds for a candidate t of the ray from p.
+  // The entries' numbers through `to` (kNone: the entry is no candidate at all).
+  void renumber(const std::vector<std::uint32_t>& to) {
+    for (Entry& e : entries_) {
+      if (e.tri == kNone) continue;
+      e.tri = to[e.tri];
+      if (e.tri == kNone) e.key = -INFINITY;
+    }
+  }
+
+  // hint: where the last search of this thread ended (any value will do; a nearby one is faster).
+  template <class Test>
+  bool anyAlong(const Eigen::Vector3d& p, std::uint64_t& hint, Test&& test) const {
+    const std::size_t k = stripOf(p);
+    if (k >= stripCount()) return false;
+    const double c = across(p), a = along(p);
+    const double bound = p.z() - a * tan_ - marginKey_, aFrom = a - marginA_;
+    const double cLo = c + marginA_, cHi = c - marginA_;  // against the entries' range
+    const Entry* E = entries_.data();
+    const std::uint64_t end = start_[k + 1];
+    // First entry with aHi >= aFrom: galloping from the hint when it is in this strip (the
+    // cells of a strip come nearly in order of a), else a binary search of the strip.
+    const auto before = [&](const Entry& x) { return x.aHi < aFrom; };
+    std::uint64_t lo = start_[k], hi = end;
+    if (hint >= lo && hint < hi) {
+      std::uint64_t step = 1;
+      if (before(E[hint])) {
+        for (lo = hint + 1; lo + step < hi && before(E[lo + step - 1]); step *= 2) lo += step;
+        hi = std::min(hi, lo + step);
+      } else {
+        for (hi = hint; hi > lo + step && !before(E[hi - step]); step *= 2) hi -= step;
+        lo = std::max(lo, hi > step ? hi - step : lo);
+      }
+    }
+    std::uint64_t e = static_cast<std::uint64_t>(std::partition_point(E + lo, E + hi, before) - E);
+    hint = e;
+    if (e >= end || !(laterKey_[e / kSuper] >= bound)) return false;
+    for (;;) {
+      for (const std::uint64_t blockEnd = (e / kBlock + 1) * kBlock; e < blockEnd; ++e) {
+        const Entry& x = E[e];
+        if (x.key >= bound && x.cLo <= cLo && x.cHi >= cHi && test(x.tri)) return true;
+      }
+      // At a block boundary: the next block in this superblock that reaches the ray, else the
+      // next superblock that does (none: nothing later does).
+      while (e % kSuper != 0 && !(blockKey_[e / kBlock] >= bound)) e += kBlock;
+      if (e % kSuper != 0) continue;
+      if (e >= end || !(laterKey_[e / kSuper] >= bound)) return false;
+      while (!(superKey_[e / kSuper] >= bound)) e += kSuper;
+      while (!(blockKey_[e / kBlock] >= bound)) e += kBlock;
+    }
+  }
+
+ private:
+  static constexpr std::uint64_t kBlock = 8, kSuper = 64;
+  struct Entry {
+    float aHi, key, cLo, cHi;  // rounded outward
+    std::uint32_t tri;
+  };
+  double along(const Eigen::Vector3d& v) const { return v.x() * g_.x() + v.y() * g_.y(); }
+ public:
+  std::size_t stripCount() const { return start_.empty() ? 0 : start_.size() - 1; }
+  // The strip of the ray from p; stripCount() when no strip holds it.
+  std::size_t stripOf(const Eigen::Vector3d& p) const {
+    const double c = across(p);
+    if (!(c >= cLo_) || start_.empty()) return stripCount();
+    return std::min(strip(c), stripCount());
+  }
+ private:
+  double across(const Eigen::Vector3d& v) const { return v.y() * g_.x() - v.x() * g_.y(); }
+  std::size_t strip(double c) const { return static_cast<std::size_t>(std::floor((c - cLo_) / width_)); }
+
+  Eigen::Vector2d g_;
+  double tan_ = 0, marginA_ = 0, marginKey_ = 0, cLo_ = 0, width_ = 1;
+  std::vector<std::uint64_t> start_;
+  std::vector<Entry> entries_;
+  std::vector<float> blockKey_, superKey_, laterKey_;
+};
+
 }  // namespace
 
 double shadowReach(const LocalFrame& frame, const Eigen::Vector3d& towardLight) {
@@ -245,7 +447,7 @@ double shadowReach(const LocalFrame& frame, const Eigen::Vector3d& towardLight) 
 
 std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& towardLight,
                               const TerrainOptions& options, const Progress& progress,
-                              unsigned threadCount) {
+                              unsigned threadCount, ShadowSearch search) {
   const auto& vertices = frame.mesh.vertices;
   const std::size_t n = vertices.size();
   std::vector<Light> out(n, Light::NoData);
@@ -265,57 +467,130 @@ std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& to
     return out;
   }
 
-  report(0.0, "building the shadow quadtree");
+  // The strips need a horizontal direction to the light (not straight overhead).
+  const bool walk = search == ShadowSearch::GridWalk && light.head<2>().norm() > 1e-6;
+  const unsigned threads =
+      threadCount ? threadCount : std::max(1u, std::min(8u, std::thread::hardware_concurrency()));
+  report(0.0, walk ? "indexing the occluders" : "building the shadow quadtree");
   // Only triangles facing away from the light can cast a shadow on a cell that is not in attached
   // shadow: its ray starts into the open air, so the first terrain it meets, it enters, and it
-  // enters through a triangle whose normal points away from the light. The quadtree therefore
+  // enters through a triangle whose normal points away from the light. The index therefore
   // holds those alone (and, to stay on the safe side of rounding, those within 1e-9 of edge-on):
   // the same answers as with every triangle, for a fraction of the build.
   Mesh occluders;
   occluders.vertices = frame.mesh.vertices;
+  std::vector<std::uint32_t> occluderOf(frame.mesh.polygonCount(), HorizonStrips::kNone);
   for (std::size_t t = 0; t < frame.mesh.polygonCount(); ++t) {
     const auto c = frame.mesh.polygon(t);
     const Eigen::Vector3d& a = frame.mesh.vertices[c[0]];
     const Eigen::Vector3d n = (frame.mesh.vertices[c[1]] - a).cross(frame.mesh.vertices[c[2]] - a);
     // Up-facing normal in the frame (z up); the DEM's corner order may be either way round.
     const Eigen::Vector3d up = n.z() >= 0 ? n : Eigen::Vector3d(-n);
-    if (up.dot(light) <= 1e-9 * up.norm()) occluders.addTriangle(c[0], c[1], c[2]);
+    if (up.dot(light) <= 1e-9 * up.norm()) {
+      occluderOf[t] = static_cast<std::uint32_t>(occluders.polygonCount());
+      occluders.addTriangle(c[0], c[1], c[2]);
+    }
   }
+  // The strips (numbered by occluder polygon until the index exists) build on a second core
+  // while the index builds on this one.
+  std::optional<HorizonStrips> strips;
+  const double stripWidth = std::min(frame.pixelSizeX, frame.pixelSizeY);
+  const auto buildStrips = [&] { strips.emplace(frame.mesh, occluderOf, light, stripWidth); };
+  std::future<void> stripsBuilt;
+  if (walk && threads > 1) stripsBuilt = std::async(std::launch::async, buildStrips);
   // The light's direction of travel is the "gravity" of the shadow quadtree: "above" a point
-  // means toward the light.
-  const TerrainIndex index(occluders, CartesianMapping(-light), options);
+  // means toward the light. The strip walk brings its own candidates and never builds the tree.
+  TerrainOptions indexOptions = options;
+  indexOptions.deferTree = indexOptions.deferTree || walk;
+  // (On an error here the future's destructor waits for the strips, whose inputs outlive it.)
+  const TerrainIndex index(occluders, CartesianMapping(-light), indexOptions);
   const CartesianMapping& mapping = index.mapping();
-  const VertexStar star(frame.mesh);
+  // The triangles around each vertex: arithmetic on localFrame's own grid, else a table.
+  const bool gridMesh = frame.gridMesh && frame.width > 0 && frame.height > 0 &&
+                        frame.mesh.vertices.size() == static_cast<std::size_t>(frame.width) * frame.height &&
+                        frame.mesh.polygonCount() == 2 * static_cast<std::size_t>(frame.width - 1) * (frame.height - 1);
+  std::optional<VertexStar> star;
+  if (!gridMesh) star.emplace(frame.mesh);
+  if (walk) {
+    if (stripsBuilt.valid()) {
+      stripsBuilt.get();  // rethrows the side thread's error
+    } else {
+      buildStrips();
+    }
+    const TerrainIndex::PolygonTriangles of = index.trianglesOfPolygons();
+    std::vector<std::uint32_t> triangleOf(occluders.polygonCount(), HorizonStrips::kNone);
+    for (std::size_t o = 0; o < triangleOf.size(); ++o) {
+      // A triangle seen edge-on along the light has no triangle in the index (a wall).
+      if (of.start[o + 1] > of.start[o]) triangleOf[o] = of.tris[of.start[o]];
+    }
+    strips->renumber(triangleOf);
+  }
   report(0.3, "testing cells");
 
-  // Rows are shared out to the machine's cores; the calling thread reports progress.
-  const auto rows = static_cast<std::size_t>(frame.height);
+  // Two passes over the cells, each shared out to the machine's cores in groups (the calling
+  // thread reports progress): attached shadow by rows, reading each vertex's ring in memory
+  // order; then cast shadow for the cells still lit, by rows through the quadtree or by strips
+  // through the strips (each strip's cells in row order, so nearly in order of a: consecutive
+  // searches read the same few cache lines of the same strip).
+  const std::size_t cellCount = vertices.size();
   const auto width = static_cast<std::size_t>(frame.width);
-  std::atomic<std::size_t> nextRow{0}, rowsDone{0};
+  std::atomic<std::size_t> cellsDone{0};
   std::atomic<bool> stop{false};
-  const auto work = [&](bool reporter) {
-    for (std::size_t r; !stop && (r = nextRow++) < rows;) {
-      for (std::size_t c = 0; c < width; ++c) {
-        const std::size_t i = r * width + c;
-        if (!frame.valid[i]) continue;
-        const auto vi = static_cast<std::uint32_t>(i);
-        const Eigen::Vector3d m = mapping.toMapped(vertices[i]);
-        const bool shadowed = attachedShadow(frame.mesh, star, vi, light) ||
-                              index.occludedAbove(m.x(), m.y(), m.z(), vi);
-        out[i] = shadowed ? Light::Shadow : Light::Lit;
+  const auto inParallel = [&](std::size_t groups, const auto& cellsOf, const auto& body) {
+    std::atomic<std::size_t> next{0};
+    const auto work = [&](bool reporter) {
+      for (std::size_t g; !stop && (g = next++) < groups;) {
+        body(g);
+        const std::size_t done = cellsDone += cellsOf(g);
+        const double fraction = static_cast<double>(done) / static_cast<double>(2 * std::max<std::size_t>(1, cellCount));
+        if (reporter && progress && !progress(0.3 + 0.7 * fraction, "testing cells")) stop = true;
       }
-      const std::size_t done = ++rowsDone;
-      if (reporter && progress && !progress(0.3 + 0.7 * static_cast<double>(done) / rows, "testing cells")) {
-        stop = true;
-      }
+    };
+    std::vector<std::thread> pool;
+    for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work, false);
+    work(true);
+    for (auto& t : pool) t.join();
+  };
+  const auto rowCells = [&](std::size_t) { return width; };
+  inParallel(static_cast<std::size_t>(frame.height), rowCells, [&](std::size_t r) {
+    for (std::size_t i = r * width; i < (r + 1) * width; ++i) {
+      if (!frame.valid[i]) continue;
+      std::uint32_t grid[6];
+      const std::span<const std::uint32_t> ring =
+          gridMesh ? std::span<const std::uint32_t>(grid, static_cast<std::size_t>(gridRing(frame, i, grid)))
+                   : std::span<const std::uint32_t>(star->tris.data() + star->start[i], star->start[i + 1] - star->start[i]);
+      out[i] = attachedShadow(frame.mesh, ring, static_cast<std::uint32_t>(i), light) ? Light::Shadow : Light::Lit;
+    }
+  });
+  const auto castShadow = [&](std::size_t i, std::uint64_t& hint) {
+    if (out[i] != Light::Lit) return;
+    const auto vi = static_cast<std::uint32_t>(i);
+    const Eigen::Vector3d m = mapping.toMapped(vertices[i]);
+    const auto occludes = [&](std::uint32_t t) { return index.triangleOccludesAbove(t, m.x(), m.y(), m.z(), vi); };
+    if (strips ? strips->anyAlong(vertices[i], hint, occludes) : index.occludedAbove(m.x(), m.y(), m.z(), vi)) {
+      out[i] = Light::Shadow;
     }
   };
-  const unsigned threads =
-      threadCount ? threadCount : std::max(1u, std::min(8u, std::thread::hardware_concurrency()));
-  std::vector<std::thread> pool;
-  for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work, false);
-  work(true);
-  for (auto& t : pool) t.join();
+  if (strips) {
+    std::vector<std::uint32_t> stripOf(cellCount), order(cellCount);
+    std::vector<std::uint64_t> start(strips->stripCount() + 2, 0);  // the last: cells in none
+    for (std::size_t i = 0; i < cellCount; ++i) {
+      stripOf[i] = static_cast<std::uint32_t>(strips->stripOf(vertices[i]));
+      ++start[stripOf[i] + 1];
+    }
+    for (std::size_t g = 1; g < start.size(); ++g) start[g] += start[g - 1];
+    std::vector<std::uint64_t> fill(start.begin(), start.end() - 1);
+    for (std::size_t i = 0; i < cellCount; ++i) order[fill[stripOf[i]]++] = static_cast<std::uint32_t>(i);
+    inParallel(start.size() - 1, [&](std::size_t g) { return start[g + 1] - start[g]; }, [&](std::size_t g) {
+      std::uint64_t hint = 0;
+      for (std::uint64_t k = start[g]; k < start[g + 1]; ++k) castShadow(order[k], hint);
+    });
+  } else {
+    inParallel(static_cast<std::size_t>(frame.height), rowCells, [&](std::size_t r) {
+      std::uint64_t hint = 0;
+      for (std::size_t i = r * width; i < (r + 1) * width; ++i) castShadow(i, hint);
+    });
+  }
   if (stop) throw Error("shadow computation cancelled");
   report(1.0, "done");
   return out;

@@ -151,6 +151,51 @@ TEST(Shadow, IdenticalToBruteForceOnSmallDems) {
   }
 }
 
+// The strip walk (the default) against the light-frame quadtree, on every cell: random suns,
+// suns along the grid's axes and diagonals (strips parallel to rows, columns or cell diagonals),
+// grazing and steep suns, voids, and a frame whose triangles are found through the vertex table
+// instead of the grid's arithmetic.
+TEST(Shadow, StripWalkIdenticalToQuadtree) {
+  std::mt19937_64 rng(77);
+  std::uniform_real_distribution<double> az(0, 360), alt(1, 80);
+  std::vector<qota::SunPosition> suns = {{0, 10}, {90, 10}, {180, 25}, {270, 3}, {45, 15}, {135, 30},
+                                         {225, 0.5}, {315, 60}, {137.3, 10}, {10, 89}};
+  for (int k = 0; k < 10; ++k) suns.push_back({az(rng), alt(rng)});
+  std::size_t shadowed = 0, cells = 0;
+  for (int k = 0; k < static_cast<int>(suns.size()); ++k) {
+    qota::Heightfield hf = qota::fractalHeightfield(41, 37, 1.0, 80.0 + 10 * k, 300 + k);
+    if (k % 4 == 1) hf.z[9 * 41 + 11] = hf.z[9 * 41 + 12] = NAN;
+    LocalFrame f = qota::localFrame(gridDem(41, 37, hf.z), false, 10);
+    if (k % 5 == 2) f.gridMesh = false;
+    const Eigen::Vector3d light = f.towardSun(suns[k]);
+    const auto walk = qota::shadowMask(f, light, {}, {}, 1 + k % 2, qota::ShadowSearch::GridWalk);
+    const auto tree = qota::shadowMask(f, light, {}, {}, 1, qota::ShadowSearch::Quadtree);
+    ASSERT_EQ(walk.size(), tree.size());
+    for (std::size_t i = 0; i < walk.size(); ++i) {
+      ASSERT_EQ(walk[i], tree[i]) << "sun " << suns[k].azimuth << "/" << suns[k].altitude << " cell " << i;
+    }
+    shadowed += count(walk, Light::Shadow);
+    cells += walk.size();
+  }
+  EXPECT_GT(shadowed, cells / 10);
+  EXPECT_LT(shadowed, cells);
+}
+
+TEST(Shadow, StripWalkIdenticalToQuadtreeOnTheEllipsoid) {
+  // The real DEM on WGS84: the rows and columns curve in the frame, the strips do not care.
+  const qota::DemTerrain dem = qota::loadDem(QOTA_DATA_DIR "/mt_rainier_90m.tif");
+  const LocalFrame f = qota::localFrame(dem, false);
+  for (const qota::SunPosition sun : {qota::SunPosition{137.3, 8}, qota::SunPosition{290, 25}}) {
+    const Eigen::Vector3d light = f.towardSun(sun);
+    const auto walk = qota::shadowMask(f, light);
+    const auto tree = qota::shadowMask(f, light, {}, {}, 0, qota::ShadowSearch::Quadtree);
+    std::size_t differ = 0;
+    for (std::size_t i = 0; i < walk.size(); ++i) differ += walk[i] != tree[i];
+    EXPECT_EQ(differ, 0u) << sun.azimuth << "/" << sun.altitude;
+    EXPECT_GT(count(walk, Light::Shadow), walk.size() / 20);
+  }
+}
+
 // The naive baseline: from each cell, step toward the sun half a pixel at a time until the ray
 // leaves the grid; shadowed when the terrain (the same triangles, voids filled) rises above it.
 std::vector<Light> rayMarch(const LocalFrame& f, const qota::SunPosition& sun, int rowStep) {

@@ -2,6 +2,7 @@
 // Parsing only; each tool is a library function in qota_tools.hpp.
 #include <CLI/CLI.hpp>
 #include <iostream>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -85,7 +86,7 @@ int main(int argc, char** argv) {
   qota::tools::ShadowOptions shadow;
   CLI::App* shadowCmd = app.add_subcommand(
       "shadow",
-      "Shadows of the sun (or any directional light) on a DEM, through a QOTA shadow quadtree. "
+      "Shadows of the sun (or any directional light) on a DEM. "
       "Output: a raster on the DEM's grid, lit = 255, shadow = 0, nodata = 128 (Byte), or hours of "
       "direct sunlight (Float32, nodata -1) with --hours. Terrain outside the raster is not seen: "
       "shadows cast from beyond the edge are missing, up to the 'shadow reach' the tool prints "
@@ -122,6 +123,15 @@ int main(int argc, char** argv) {
   shadowCmd->add_option("--nodata-value", shadow.nodataValue, "Output value (and nodata) of cells without data")
       ->capture_default_str();
   addTreeOptions(shadowCmd, shadow.terrain);
+  shadowCmd
+      ->add_option("--search", shadow.search,
+                   "How each cell's light ray finds the terrain it may meet (the same mask): 'strips' "
+                   "(default; strips of the DEM along the sun's azimuth, sorted by distance) or "
+                   "'quadtree' (the paper's shadow quadtree in the light's frame)")
+      ->transform(CLI::CheckedTransformer(
+          std::map<std::string, qota::ShadowSearch>{{"strips", qota::ShadowSearch::GridWalk},
+                                                    {"quadtree", qota::ShadowSearch::Quadtree}},
+          CLI::ignore_case));
 
   qota::tools::BuildOptions build;
   CLI::App* buildCmd = app.add_subcommand(

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "index_source.hpp"
+#include "qota/shadow.hpp"
 #include "qota/terrain.hpp"
 
 namespace qota::tools {
@@ -83,6 +84,7 @@ struct ShadowOptions {
   std::string png;                       // preview: shadow over a hillshade
   int litValue = 255, shadowValue = 0, nodataValue = 128;
   TerrainOptions terrain;
+  ShadowSearch search = ShadowSearch::GridWalk;  // how the occluders are found (same mask)
 };
 int shadow(const ShadowOptions& options, std::ostream& out, std::ostream& err);
 

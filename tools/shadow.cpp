@@ -150,7 +150,7 @@ int shadow(const ShadowOptions& o, std::ostream& out, std::ostream& err) {
         if (sun.altitude <= 0) continue;
         const Eigen::Vector3d light = frame.towardSun(sun);
         mask = shadowMask(frame, light, o.terrain,
-                          termProgress(o.quiet, double(k) / steps, double(k + 1) / steps));
+                          termProgress(o.quiet, double(k) / steps, double(k + 1) / steps), 0, o.search);
         for (std::size_t i = 0; i < mask.size(); ++i) {
           if (mask[i] == Light::Lit) hoursLit[i] += dt;
         }
@@ -172,7 +172,7 @@ int shadow(const ShadowOptions& o, std::ostream& out, std::ostream& err) {
       if (light.toward.z() <= 0) {
         err << "qota shadow: the light is at or below the horizon: every cell is in shadow\n";
       }
-      mask = shadowMask(frame, light.toward, o.terrain, termProgress(o.quiet, 0, 1));
+      mask = shadowMask(frame, light.toward, o.terrain, termProgress(o.quiet, 0, 1), 0, o.search);
       for (std::size_t i = 0; i < mask.size(); ++i) {
         values[i] = mask[i] == Light::Lit ? o.litValue : mask[i] == Light::Shadow ? o.shadowValue : o.nodataValue;
       }

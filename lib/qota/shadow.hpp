@@ -55,6 +55,10 @@ struct LocalFrame {
   double minHeight = 0, maxHeight = 0;  // over valid cells
   double pixelSizeX = 1, pixelSizeY = 1;  // metres, at the centre
   std::string description;
+  // Set by localFrame: mesh is the grid's two triangles per cell, cells in row order, each split
+  // from its top-left corner (tl, bl, br then tl, br, tr). The shadow mask then finds a vertex's
+  // triangles by arithmetic; clear it after changing the mesh's triangles.
+  bool gridMesh = false;
 
   // The direction toward a sun at this azimuth/altitude (true north) in this frame.
   Eigen::Vector3d towardSun(const SunPosition& sun) const;
@@ -71,9 +75,19 @@ enum class Light : std::uint8_t { Shadow = 0, Lit = 1, NoData = 2 };
 // The light at every pixel centre of the frame's grid, row-major. towardLight: unit vector toward
 // the light in the frame. A light at or below the horizon (z <= 0) leaves every cell in shadow.
 // threads: how many to test cells with; 0 = one per core.
+// How shadowMask finds the triangles a cell's light ray may meet. Both give the same mask
+// (tested on every cell); each candidate passes the shadow quadtree's exact test.
+enum class ShadowSearch {
+  // A max-height quadtree over the DEM's cells, walked along each ray, nearest block first,
+  // skipping blocks the ray passes above: no light-frame build, which at a low sun (most of the
+  // terrain facing away from the light, in long slivers) costs more than all the queries.
+  GridWalk,
+  // The paper's shadow quadtree, built in the light's frame.
+  Quadtree,
+};
 std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& towardLight,
                               const TerrainOptions& options = {}, const Progress& progress = {},
-                              unsigned threads = 0);
+                              unsigned threads = 0, ShadowSearch search = ShadowSearch::GridWalk);
 
 // How far (metres) a shadow can reach across the raster's edge: relief / tan(altitude).
 double shadowReach(const LocalFrame& frame, const Eigen::Vector3d& towardLight);
