@@ -14,9 +14,12 @@
 //   rises more slowly than that triangle in that direction. (Inside the terrain such a ray always
 //   meets another triangle on its way out; this catches the rays that leave through a void or the
 //   raster's border instead.)
-// The sun is treated as a point (no penumbra). The shadow quadtree holds only the triangles that
+// The sun is treated as a point (no penumbra). The shadow index holds only the triangles that
 // face away from the light: a ray that starts into the open air meets terrain first by entering
-// it, through such a triangle, so the others cannot change the answer (shadow.cpp).
+// it, through such a triangle, so the others cannot change the answer (shadow.cpp). The test of
+// a candidate triangle is always the shadow index's exact one; how the candidates are found is
+// ShadowSearch (below): through the index's own quadtree, or by default through strips along the
+// sun's azimuth that need no tree.
 //
 // Frame: the DEM in metres around its centre, east-north-up (LocalFrame). A DEM in a geographic
 // CRS is put on its ellipsoid (WGS84 unless the CRS says otherwise) with GeographicLib's
