@@ -131,7 +131,7 @@ int main(int argc, char** argv) {
     std::printf("%-6.0f %-22s %10.3f %14.0f %9s %10.2f %12s\n", alt, "naive ray march (1 th)", marchS,
                 cells / marchS, "1.00", 100.0 * marchShadow / cells, "-");
     std::vector<Light> stripsMask;
-    for (const auto search : {qota::ShadowSearch::GridWalk, qota::ShadowSearch::Quadtree}) {
+    for (const auto search : {qota::ShadowSearch::Strips, qota::ShadowSearch::Quadtree}) {
       for (unsigned threads : {1u, 0u}) {
         t0 = Clock::now();
         const auto mask = qota::shadowMask(frame, light, {}, {}, threads, search);
@@ -142,7 +142,7 @@ int main(int argc, char** argv) {
           shadow += mask[i] == Light::Shadow;
           agree += mask[i] == march[i];
         }
-        const bool walk = search == qota::ShadowSearch::GridWalk;
+        const bool walk = search == qota::ShadowSearch::Strips;
         const std::string name = std::string(walk ? "qota strips" : "qota quadtree") +
                                  (threads == 1 ? " (1 thread)" : " (all cores)");
         std::printf("%-6.0f %-22s %10.3f %14.0f %9.2f %10.2f %11.3f%%\n", alt, name.c_str(), s, cells / s,

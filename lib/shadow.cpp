@@ -358,7 +358,14 @@ class HorizonStrips {
     }
   }
 
-  // Whether test(t) holds for a candidate t of the ray from p.
+  std::size_t stripCount() const { return start_.empty() ? 0 : start_.size() - 1; }
+  // The strip of the ray from p; stripCount() when no strip holds it.
+  std::size_t stripOf(const Eigen::Vector3d& p) const {
+    const double c = across(p);
+    if (!(c >= cLo_) || start_.empty()) return stripCount();
+    return std::min(strip(c), stripCount());
+  }
+
   // The entries' numbers through `to` (kNone: the entry is no candidate at all).
   void renumber(const std::vector<std::uint32_t>& to) {
     for (Entry& e : entries_) {
@@ -368,14 +375,15 @@ class HorizonStrips {
     }
   }
 
-  // hint: where the last search of this thread ended (any value will do; a nearby one is faster).
+  // Whether test(t) holds for a candidate t of the ray from p. hint: where the last search of
+  // this thread ended (any value will do; a nearby one is faster).
   template <class Test>
   bool anyAlong(const Eigen::Vector3d& p, std::uint64_t& hint, Test&& test) const {
     const std::size_t k = stripOf(p);
     if (k >= stripCount()) return false;
     const double c = across(p), a = along(p);
     const double bound = p.z() - a * tan_ - marginKey_, aFrom = a - marginA_;
-    const double cLo = c + marginA_, cHi = c - marginA_;  // against the entries' range
+    const double cPlus = c + marginA_, cMinus = c - marginA_;  // against the entries' range
     const Entry* E = entries_.data();
     const std::uint64_t end = start_[k + 1];
     // First entry with aHi >= aFrom: galloping from the hint when it is in this strip (the
@@ -398,7 +406,7 @@ class HorizonStrips {
     for (;;) {
       for (const std::uint64_t blockEnd = (e / kBlock + 1) * kBlock; e < blockEnd; ++e) {
         const Entry& x = E[e];
-        if (x.key >= bound && x.cLo <= cLo && x.cHi >= cHi && test(x.tri)) return true;
+        if (x.key >= bound && x.cLo <= cPlus && x.cHi >= cMinus && test(x.tri)) return true;
       }
       // At a block boundary: the next block in this superblock that reaches the ray, else the
       // next superblock that does (none: nothing later does).
@@ -417,15 +425,6 @@ class HorizonStrips {
     std::uint32_t tri;
   };
   double along(const Eigen::Vector3d& v) const { return v.x() * g_.x() + v.y() * g_.y(); }
- public:
-  std::size_t stripCount() const { return start_.empty() ? 0 : start_.size() - 1; }
-  // The strip of the ray from p; stripCount() when no strip holds it.
-  std::size_t stripOf(const Eigen::Vector3d& p) const {
-    const double c = across(p);
-    if (!(c >= cLo_) || start_.empty()) return stripCount();
-    return std::min(strip(c), stripCount());
-  }
- private:
   double across(const Eigen::Vector3d& v) const { return v.y() * g_.x() - v.x() * g_.y(); }
   std::size_t strip(double c) const { return static_cast<std::size_t>(std::floor((c - cLo_) / width_)); }
 
@@ -468,10 +467,10 @@ std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& to
   }
 
   // The strips need a horizontal direction to the light (not straight overhead).
-  const bool walk = search == ShadowSearch::GridWalk && light.head<2>().norm() > 1e-6;
+  const bool useStrips = search == ShadowSearch::Strips && light.head<2>().norm() > 1e-6;
   const unsigned threads =
       threadCount ? threadCount : std::max(1u, std::min(8u, std::thread::hardware_concurrency()));
-  report(0.0, walk ? "indexing the occluders" : "building the shadow quadtree");
+  report(0.0, useStrips ? "indexing the occluders" : "building the shadow quadtree");
   // Only triangles facing away from the light can cast a shadow on a cell that is not in attached
   // shadow: its ray starts into the open air, so the first terrain it meets, it enters, and it
   // enters through a triangle whose normal points away from the light. The index therefore
@@ -497,11 +496,11 @@ std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& to
   const double stripWidth = std::min(frame.pixelSizeX, frame.pixelSizeY);
   const auto buildStrips = [&] { strips.emplace(frame.mesh, occluderOf, light, stripWidth); };
   std::future<void> stripsBuilt;
-  if (walk && threads > 1) stripsBuilt = std::async(std::launch::async, buildStrips);
+  if (useStrips && threads > 1) stripsBuilt = std::async(std::launch::async, buildStrips);
   // The light's direction of travel is the "gravity" of the shadow quadtree: "above" a point
-  // means toward the light. The strip walk brings its own candidates and never builds the tree.
+  // means toward the light. The strips bring their own candidates and never build the tree.
   TerrainOptions indexOptions = options;
-  indexOptions.deferTree = indexOptions.deferTree || walk;
+  indexOptions.deferTree = indexOptions.deferTree || useStrips;
   // (On an error here the future's destructor waits for the strips, whose inputs outlive it.)
   const TerrainIndex index(occluders, CartesianMapping(-light), indexOptions);
   const CartesianMapping& mapping = index.mapping();
@@ -511,7 +510,7 @@ std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& to
                         frame.mesh.polygonCount() == 2 * static_cast<std::size_t>(frame.width - 1) * (frame.height - 1);
   std::optional<VertexStar> star;
   if (!gridMesh) star.emplace(frame.mesh);
-  if (walk) {
+  if (useStrips) {
     if (stripsBuilt.valid()) {
       stripsBuilt.get();  // rethrows the side thread's error
     } else {

@@ -500,18 +500,8 @@ TerrainIndex::Tri TerrainIndex::recordOf(std::uint32_t t) const {
   for (int k = 0; k < 3; ++k) leanCorner(col, row, half, k, cu[k * stride], cv[k * stride], ch[k * stride]);
 }
 
-[[gnu::noinline]] TerrainIndex::LeanPlane TerrainIndex::leanPlane(std::uint64_t col, std::uint64_t row,
-                                                                  std::uint32_t half) const {
-  // Named scalars, not arrays: the corners stay in registers.
-  double u0, v0, h0, u1, v1, h1, u2, v2, h2;
-  leanCorner(col, row, half, 0, u0, v0, h0);
-  leanCorner(col, row, half, 1, u1, v1, h1);
-  leanCorner(col, row, half, 2, u2, v2, h2);
-  const PlaneFit p = fitPlane(u0, v0, h0, u1, v1, h1, u2, v2, h2);
-  return {p.a, p.b, p.h0, u0, v0, std::min(h0, std::min(h1, h2)), std::max(h0, std::max(h1, h2))};
-}
-
-// leanHeight(leanPlane(col, row, half), u, v), and that plane, without fitPlane's checks and the
+// The height at (u, v) on the triangle in half `half` of cell (col, row), and its plane: the
+// records' arithmetic (fitPlane, then leanHeight's clamp), without fitPlane's checks and the
 // clamp where they change nothing: finite slopes of an up-facing plane (nh > 0) give a finite
 // height, slopes that are not finite give none, so nh > 0 and a height within the corners' range
 // stand for all of them.
@@ -526,7 +516,9 @@ TerrainIndex::Tri TerrainIndex::recordOf(std::uint32_t t) const {
   p = {r.a, r.b, h0, u0, v0, std::min(h0, std::min(h1, h2)), std::max(h0, std::max(h1, h2))};
   const double h = h0 + r.a * (u - u0) + r.b * (v - v0);
   if (r.nh > 0 && h >= p.lo && h <= p.hi) [[likely]] return h;
-  p = leanPlane(col, row, half);  // a sliver, or a height the clamp may move
+  // A sliver, or a height the clamp may move: the checked plane.
+  const PlaneFit f = fitPlane(u0, v0, h0, u1, v1, h1, u2, v2, h2);
+  p.a = f.a, p.b = f.b, p.h0 = f.h0;
   return leanHeight(p, u, v);
 }
 
@@ -1159,11 +1151,7 @@ bool TerrainIndex::occludedAbove(double u, double v, double h, std::uint32_t ver
   ensureTree();
   if (!tree_.contains(u, v)) return false;
   for (std::uint32_t t : tree_.leafItems(u, v)) {
-    const Tri& r = tris_[t];
-    if (!contains(r, t, u, v)) continue;
-    const Cold& c = cold_[t];
-    if (c.corner[0] == vertex || c.corner[1] == vertex || c.corner[2] == vertex) continue;
-    if (heightOf(r, u, v) > h) return true;
+    if (triangleOccludesAbove(t, u, v, h, vertex)) return true;
   }
   return false;
 }

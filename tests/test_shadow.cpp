@@ -168,7 +168,7 @@ TEST(Shadow, StripWalkIdenticalToQuadtree) {
     LocalFrame f = qota::localFrame(gridDem(41, 37, hf.z), false, 10);
     if (k % 5 == 2) f.gridMesh = false;
     const Eigen::Vector3d light = f.towardSun(suns[k]);
-    const auto walk = qota::shadowMask(f, light, {}, {}, 1 + k % 2, qota::ShadowSearch::GridWalk);
+    const auto walk = qota::shadowMask(f, light, {}, {}, 1 + k % 2, qota::ShadowSearch::Strips);
     const auto tree = qota::shadowMask(f, light, {}, {}, 1, qota::ShadowSearch::Quadtree);
     ASSERT_EQ(walk.size(), tree.size());
     for (std::size_t i = 0; i < walk.size(); ++i) {

@@ -129,7 +129,7 @@ int main(int argc, char** argv) {
                    "(default; strips of the DEM along the sun's azimuth, sorted by distance) or "
                    "'quadtree' (the paper's shadow quadtree in the light's frame)")
       ->transform(CLI::CheckedTransformer(
-          std::map<std::string, qota::ShadowSearch>{{"strips", qota::ShadowSearch::GridWalk},
+          std::map<std::string, qota::ShadowSearch>{{"strips", qota::ShadowSearch::Strips},
                                                     {"quadtree", qota::ShadowSearch::Quadtree}},
           CLI::ignore_case));
 

@@ -84,7 +84,7 @@ struct ShadowOptions {
   std::string png;                       // preview: shadow over a hillshade
   int litValue = 255, shadowValue = 0, nodataValue = 128;
   TerrainOptions terrain;
-  ShadowSearch search = ShadowSearch::GridWalk;  // how the occluders are found (same mask)
+  ShadowSearch search = ShadowSearch::Strips;  // how the occluders are found (same mask)
 };
 int shadow(const ShadowOptions& options, std::ostream& out, std::ostream& err);
 

@@ -81,16 +81,18 @@ enum class Light : std::uint8_t { Shadow = 0, Lit = 1, NoData = 2 };
 // How shadowMask finds the triangles a cell's light ray may meet. Both give the same mask
 // (tested on every cell); each candidate passes the shadow quadtree's exact test.
 enum class ShadowSearch {
-  // A max-height quadtree over the DEM's cells, walked along each ray, nearest block first,
-  // skipping blocks the ray passes above: no light-frame build, which at a low sun (most of the
-  // terrain facing away from the light, in long slivers) costs more than all the queries.
-  GridWalk,
+  // Strips one pixel wide along the sun's azimuth, each holding the occluding triangles it
+  // meets sorted by distance along the azimuth; a ray searches its strip from its own cell on,
+  // skipping blocks of triangles that cannot reach its height (shadow.cpp). No light-frame
+  // tree, whose build at a low sun (most of the terrain facing away from the light, in long
+  // slivers) costs more than all the queries. Needs a sun not straight overhead (else Quadtree).
+  Strips,
   // The paper's shadow quadtree, built in the light's frame.
   Quadtree,
 };
 std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& towardLight,
                               const TerrainOptions& options = {}, const Progress& progress = {},
-                              unsigned threads = 0, ShadowSearch search = ShadowSearch::GridWalk);
+                              unsigned threads = 0, ShadowSearch search = ShadowSearch::Strips);
 
 // How far (metres) a shadow can reach across the raster's edge: relief / tan(altitude).
 double shadowReach(const LocalFrame& frame, const Eigen::Vector3d& towardLight);

@@ -65,7 +65,7 @@ struct TerrainOptions {
   // statistics, tree files).
   bool gridFastPath = true;
   // Build the quadtree on first need rather than now: for a caller that brings its own
-  // candidates to triangleOccludesAbove (the shadow mask's grid walk) and may never need it.
+  // candidates to triangleOccludesAbove (the shadow mask's strips) and may never need it.
   bool deferTree = false;
 };
 
@@ -313,7 +313,6 @@ class TerrainIndex {
   struct LeanPlane {
     double a, b, h0, u0, v0, lo, hi;
   };
-  LeanPlane leanPlane(std::uint64_t col, std::uint64_t row, std::uint32_t half) const;
   double leanAnswer(std::uint64_t col, std::uint64_t row, std::uint32_t half, double u, double v,
                     LeanPlane& p) const;
   // The three corners of that triangle, corner k at [k * stride].
