@@ -35,17 +35,7 @@ inline int growExpansion(double* e, int n, double b) {
 
 }  // namespace
 
-int orient2dSign(Point2 a, Point2 b, Point2 c) {
-  // Fast filter: the rounded determinant is exact in sign when it exceeds its error bound.
-  const double left = (a.u - c.u) * (b.v - c.v);
-  const double right = (a.v - c.v) * (b.u - c.u);
-  const double det = left - right;
-  // 8 units in the last place of the magnitude sum bounds the error of the three roundings of the
-  // differences, two products and the subtraction (Shewchuk's bound is (3 + 16u)u).
-  const double bound = 8.0 * 1.1102230246251565e-16 * (std::fabs(left) + std::fabs(right));
-  if (det > bound) return 1;
-  if (det < -bound) return -1;
-
+int orient2dSignExact(Point2 a, Point2 b, Point2 c) {
   // Exact: orient2d = au*bv - au*cv - cu*bv - av*bu + av*cu + cv*bu  (the cu*cv terms cancel).
   const double f[6][2] = {{a.u, b.v}, {-a.u, c.v}, {-c.u, b.v}, {-a.v, b.u}, {a.v, c.u}, {c.v, b.u}};
   double e[13];

@@ -5,6 +5,7 @@
 #include <ogr_spatialref.h>
 
 #include <atomic>
+#include <bit>
 #include <cmath>
 #include <future>
 #include <memory>
@@ -201,9 +202,8 @@ namespace {
 // The triangles around vertex (r, c) of localFrame's grid mesh (two per cell, row-major, split
 // from the top-left corner), in increasing order: both of the cell up-left, the first of the
 // cell up, the second of the cell left, both of its own cell. Returns how many.
-int gridRing(const LocalFrame& f, std::size_t i, std::uint32_t ring[6]) {
+int gridRing(const LocalFrame& f, std::size_t r, std::size_t c, std::uint32_t ring[6]) {
   const auto w = static_cast<std::size_t>(f.width), h = static_cast<std::size_t>(f.height);
-  const std::size_t r = i / w, c = i % w;
   const auto first = [&](std::size_t rr, std::size_t cc) { return static_cast<std::uint32_t>(2 * (rr * (w - 1) + cc)); };
   int n = 0;
   if (r > 0 && c > 0) ring[n++] = first(r - 1, c - 1), ring[n++] = first(r - 1, c - 1) + 1;
@@ -228,18 +228,40 @@ struct VertexStar {
   }
 };
 
+// How a triangle faces the light (facingOf): kOccluder when it can cast a shadow on a cell that
+// is not in attached shadow. Such a cell's ray starts into the open air, so the first terrain it
+// meets, it enters, and it enters through a triangle whose normal points away from the light. Both
+// searches take these alone (and, to stay on the safe side of rounding, those within 1e-9 of
+// edge-on): the same answers as with every triangle, for a fraction of the work. kFacesAway: the
+// light strictly behind it, for attached shadow.
+constexpr std::uint8_t kOccluder = 1, kFacesAway = 2;
+[[gnu::always_inline]] inline std::uint8_t facingOf(const Mesh& mesh, std::span<const std::uint32_t> c, const Eigen::Vector3d& light) {
+  const Eigen::Vector3d& a = mesh.vertices[c[0]];
+  const Eigen::Vector3d n = (mesh.vertices[c[1]] - a).cross(mesh.vertices[c[2]] - a);
+  // Up-facing normal in the frame (z up); the DEM's corner order may be either way round.
+  const double d = n.z() >= 0 ? n.dot(light) : -n.dot(light);
+  return static_cast<std::uint8_t>((d <= 0 || d * d <= 1e-18 * n.squaredNorm() ? kOccluder : 0) |
+                                   (d < 0 ? kFacesAway : 0));
+}
+
 // Attached shadow: the light arrives from below the surface at vertex i. Seen from above (the
 // frame's z), the light's horizontal direction leaves i through one of its own triangles (exactly:
 // the one whose corner sector at i contains that direction); the vertex is in attached shadow when
-// the light rises more slowly than that triangle does in that direction. A light straight up, or
-// a direction leaving the terrain (across a void or the border), is not attached shadow.
+// the light rises more slowly than that triangle does in that direction, which is when the
+// triangle faces away from the light. A light straight up, or a direction leaving the terrain
+// (across the border), is not attached shadow.
 // ring: the triangles around i in increasing order (the first whose sector holds the direction
-// decides).
-bool attachedShadow(const Mesh& mesh, std::span<const std::uint32_t> ring, std::uint32_t i,
-                    const Eigen::Vector3d& light) {
+// decides); closed: they go all the way round (an inner vertex of the grid), so that when all of
+// them face away, whichever holds the direction does. facing: facingOf every triangle.
+bool attachedShadow(const Mesh& mesh, std::span<const std::uint32_t> ring, bool closed, std::uint32_t i,
+                    const Eigen::Vector3d& light, const std::uint8_t* facing) {
+  if (light.x() == 0 && light.y() == 0) return false;
+  unsigned away = 0;
+  for (const std::uint32_t polygon : ring) away += (facing[polygon] & kFacesAway) != 0;
+  if (away == 0) return false;
+  if (closed && away == ring.size()) return true;
   const Eigen::Vector3d& p = mesh.vertices[i];
   const Point2 p2{p.x(), p.y()}, s2{p.x() + light.x(), p.y() + light.y()};
-  if (light.x() == 0 && light.y() == 0) return false;
   for (const std::uint32_t polygon : ring) {
     const auto t = mesh.polygon(polygon);
     // The other two corners, in counter-clockwise order around i.
@@ -250,112 +272,143 @@ bool attachedShadow(const Mesh& mesh, std::span<const std::uint32_t> ring, std::
     if (orientation == 0) continue;
     if (orientation < 0) std::swap(a, b), std::swap(a2, b2);
     if (orient2dSign(p2, a2, s2) < 0 || orient2dSign(p2, s2, b2) < 0) continue;  // not this sector
-    // The triangle's rise along the light's horizontal direction, against the light's own rise.
-    const Eigen::Vector3d n = (mesh.vertices[a] - p).cross(mesh.vertices[b] - p);  // up-facing
-    // On the plane, dz = -(n.x dx + n.y dy) / n.z; below it when light.z < dz.
-    return light.z() * n.z() < -(n.x() * light.x() + n.y() * light.y());
+    return (facing[polygon] & kFacesAway) != 0;
   }
   return false;
 }
 
-// Candidate occluders for the light rays of a DEM's vertices, found without the light-frame
-// quadtree. Seen from above, every ray runs along the sun's azimuth g, at a constant offset c
-// across it, rising tan(altitude) per metre of a = position along g. The occluding triangles are
-// binned into strips of c (one pixel wide; a triangle goes into every strip its c range meets),
-// each strip sorted by the triangles' largest a. A triangle T the ray from P meets, at a point
-// ahead of P, has amax(T) >= a(P), and since its highest corner is at least the hit's height,
-// zmax(T) - amin(T) tan >= z(P) - a(P) tan: a per-triangle key against a per-point bound. So the
-// candidates are the strip's triangles from a(P) on whose key reaches P's bound, found by a
-// binary search and a scan that skips blocks of 16 by their largest key (and stops when no later
-// block reaches it). Each candidate takes the shadow quadtree's own exact test, and every
-// triangle that test can accept is a candidate (the margins are far above the rounding), so the
-// mask is the quadtree's.
+// Runs body(0) .. body(count - 1), each on its own thread (body(0) on this one).
+template <class Body>
+void inThreads(unsigned count, const Body& body) {
+  std::vector<std::thread> pool;
+  for (unsigned k = 1; k < count; ++k) pool.emplace_back([&body, k] { body(k); });
+  body(0);
+  for (auto& t : pool) t.join();
+}
+
+// Candidate occluders for the light rays of a DEM's vertices, found without a light-frame tree.
+// Seen from above, every ray runs along the sun's azimuth g, at a constant offset c across it,
+// rising tan(altitude) per metre of a = position along g: it keeps w = z - a tan(altitude)
+// constant. (c and w are coordinates across the light: a ray is a point in them.) A triangle T
+// that the ray from P meets, at a point ahead of P, has c(P) in T's range of c, w(P) in T's range
+// of w (w is linear over T, so that is its corners' range) and a(P) at most T's largest a. So the
+// occluding triangles are binned into strips of c (one pixel wide; a triangle goes into every
+// strip its c range meets), each strip sorted by the triangles' largest a, and a ray searches its
+// strip from a(P) on: a binary search, then a scan that skips blocks of 8 and 64 triangles whose
+// largest w is below w(P) (and stops when no later block reaches it), testing the other ranges
+// per triangle. Each candidate takes the shadow quadtree's exact test (mappedTriangleAbove), and
+// every triangle that test can accept is a candidate (the margins are far above the rounding), so
+// the mask is the quadtree's.
 class HorizonStrips {
  public:
-  static constexpr std::uint32_t kNone = 0xffffffffu;
-
-  // occluder: per polygon of the mesh, a number for the occluding triangle (kNone: not one); the
-  // entries carry it until renumber.
-  HorizonStrips(const Mesh& mesh, const std::vector<std::uint32_t>& occluder, const Eigen::Vector3d& light,
-                double stripWidth) {
+  // The mesh's occluding triangles for a light that is not straight overhead; facing: gets
+  // facingOf every triangle, found on the way. Built by `threads` threads, with the same result
+  // for any number (up to the order of equal entries, which no search can tell).
+  HorizonStrips(const Mesh& mesh, const Eigen::Vector3d& light, double stripWidth, std::vector<std::uint8_t>& facing,
+                unsigned threads) {
     const double horizontal = light.head<2>().norm();
     g_ = light.head<2>() / horizontal;
     tan_ = light.z() / horizontal;
-    // Margins: a millionth of the coordinates' size, where rounding is below a trillionth.
-    double aMax = 0, zMax = 0;
-    for (const Eigen::Vector3d& p : mesh.vertices) {
-      aMax = std::max(aMax, p.head<2>().norm()), zMax = std::max(zMax, std::fabs(p.z()));
-    }
-    marginA_ = 1e-6 * (aMax + 1);
-    marginKey_ = 1e-6 * (zMax + aMax * tan_ + 1);
-    // Each triangle's ranges.
-    struct Span {
-      double cLo, cHi, aLo, aHi, zHi;
-    };
-    std::vector<Span> spans;
-    std::vector<std::uint32_t> ids;
-    spans.reserve(occluder.size());
-    ids.reserve(occluder.size());
+    const unsigned parts = std::max(1u, threads);
+    // Each occluder's ranges, rounded outward; and the size of the coordinates. By parts of the
+    // mesh, one per thread.
+    const std::size_t polygons = mesh.polygonCount();
+    facing.resize(polygons);
+    std::vector<std::vector<Entry>> spans(parts);
+    std::vector<double> xyMax(parts, 0), zMax(parts, 0);
+    inThreads(parts, [&](unsigned part) {
+      const std::size_t from = polygons * part / parts, to = polygons * (part + 1) / parts;
+      std::vector<Entry>& out = spans[part];
+      out.reserve(to - from);  // (only the pages written are ever touched)
+      double xy = 0, z = 0;
+      for (std::size_t p = from; p < to; ++p) {
+        const auto corners = mesh.polygon(p);
+        facing[p] = facingOf(mesh, corners, light);
+        if (!(facing[p] & kOccluder)) continue;
+        double cl = INFINITY, ch = -INFINITY, ah = -INFINITY, wl = INFINITY, wh = -INFINITY;
+        for (std::uint32_t k : corners) {
+          const Eigen::Vector3d& v = mesh.vertices[k];
+          const double a = along(v), c = across(v), w = v.z() - a * tan_;
+          cl = std::min(cl, c), ch = std::max(ch, c), ah = std::max(ah, a);
+          wl = std::min(wl, w), wh = std::max(wh, w);
+          xy = std::max(xy, std::max(std::fabs(v.x()), std::fabs(v.y()))), z = std::max(z, std::fabs(v.z()));
+        }
+        // Field by field: an Entry built whole was stored in halves and reloaded whole (a stall).
+        Entry& e = out.emplace_back();
+        e.aHi = floatAbove(ah), e.wHi = floatAbove(wh), e.wLo = floatBelow(wl);
+        e.cLo = floatBelow(cl), e.cHi = floatAbove(ch), e.tri = static_cast<std::uint32_t>(p);
+      }
+      xyMax[part] = xy, zMax[part] = z;
+    });
+    // Margins: a millionth of the coordinates' size, where rounding is below a trillionth (the
+    // cells are the same grid's vertices, of the same size).
+    const double xy = *std::max_element(xyMax.begin(), xyMax.end()), z = *std::max_element(zMax.begin(), zMax.end());
+    marginA_ = 1e-6 * (2 * xy + 1);
+    marginW_ = 1e-6 * (z + 2 * xy * tan_ + 1);
     cLo_ = INFINITY;
     double cHi = -INFINITY;
-    for (std::size_t p = 0; p < occluder.size(); ++p) {
-      if (occluder[p] == kNone) continue;
-      double cl = INFINITY, ch = -INFINITY, al = INFINITY, ah = -INFINITY, zh = -INFINITY;
-      for (std::uint32_t k : mesh.polygon(p)) {
-        const Eigen::Vector3d& v = mesh.vertices[k];
-        const double a = along(v), c = across(v);
-        cl = std::min(cl, c), ch = std::max(ch, c), al = std::min(al, a), ah = std::max(ah, a);
-        zh = std::max(zh, v.z());
-      }
-      // Field by field: a Span built whole was stored in halves and reloaded whole (a stall).
-      Span& s = spans.emplace_back();
-      s.cLo = cl, s.cHi = ch, s.aLo = al, s.aHi = ah, s.zHi = zh;
-      ids.push_back(occluder[p]);
-      cLo_ = std::min(cLo_, cl - marginA_), cHi = std::max(cHi, ch + marginA_);
+    for (const auto& part : spans) {
+      for (const Entry& e : part) cLo_ = std::min(cLo_, e.cLo - marginA_), cHi = std::max(cHi, e.cHi + marginA_);
     }
-    if (spans.empty()) return;
-    width_ = stripWidth;
-    const auto strips = static_cast<std::size_t>(std::floor((cHi - cLo_) / width_)) + 1;
-    // Each strip's entries padded to whole superblocks (64) with entries no ray reaches.
-    std::vector<std::uint64_t> count(strips, 0);
-    const auto stripsOf = [&](const Span& s, std::size_t& lo, std::size_t& hi) {
-      lo = strip(s.cLo - marginA_), hi = std::min(strips - 1, strip(s.cHi + marginA_));
+    if (!(cLo_ <= cHi)) return;  // no occluder
+    perWidth_ = 1 / stripWidth;
+    const std::size_t strips = strip(cHi) + 1;
+    const auto stripsOf = [&](const Entry& e, std::size_t& lo, std::size_t& hi) {
+      lo = strip(e.cLo - marginA_), hi = std::min(strips - 1, strip(e.cHi + marginA_));
     };
-    for (const Span& s : spans) {
-      std::size_t lo, hi;
-      stripsOf(s, lo, hi);
-      for (std::size_t k = lo; k <= hi; ++k) ++count[k];
-    }
-    start_.assign(strips + 1, 0);
-    for (std::size_t k = 0; k < strips; ++k) start_[k + 1] = start_[k] + (count[k] + kSuper - 1) / kSuper * kSuper;
-    entries_.assign(start_[strips], Entry{INFINITY, -INFINITY, INFINITY, -INFINITY, kNone});
-    std::vector<std::uint64_t> fill(start_.begin(), start_.end() - 1);
-    for (std::size_t t = 0; t < spans.size(); ++t) {
-      const Span& s = spans[t];
-      std::size_t lo, hi;
-      stripsOf(s, lo, hi);
-      const Entry e{floatAbove(s.aHi), floatAbove(s.zHi - s.aLo * tan_), floatBelow(s.cLo), floatAbove(s.cHi), ids[t]};
-      for (std::size_t k = lo; k <= hi; ++k) entries_[fill[k]++] = e;
-    }
-    // Each strip by largest a; the largest key of every block (8) and superblock (64), and of
-    // every superblock with all after it in the strip.
-    blockKey_.assign(entries_.size() / kBlock, -INFINITY);
-    superKey_.assign(entries_.size() / kSuper, -INFINITY);
-    laterKey_.assign(entries_.size() / kSuper, -INFINITY);
-    for (std::size_t k = 0; k < strips; ++k) {
-      std::sort(entries_.begin() + static_cast<std::ptrdiff_t>(start_[k]),
-                entries_.begin() + static_cast<std::ptrdiff_t>(fill[k]),
-                [](const Entry& x, const Entry& y) { return x.aHi < y.aHi; });
-      float later = -INFINITY;
-      for (std::uint64_t sb = start_[k + 1] / kSuper; sb-- > start_[k] / kSuper;) {
-        for (std::uint64_t e = sb * kSuper; e < (sb + 1) * kSuper; ++e) {
-          blockKey_[e / kBlock] = std::max(blockKey_[e / kBlock], entries_[e].key);
-          superKey_[sb] = std::max(superKey_[sb], entries_[e].key);
-        }
-        later = std::max(later, superKey_[sb]);
-        laterKey_[sb] = later;
+    // A counting sort into the strips: each part's entries of a strip go after the earlier
+    // parts'. Each strip is padded to whole superblocks (64) with entries no ray reaches.
+    std::vector<std::vector<std::uint64_t>> fill(parts, std::vector<std::uint64_t>(strips, 0));
+    inThreads(parts, [&](unsigned part) {
+      for (const Entry& e : spans[part]) {
+        std::size_t lo, hi;
+        stripsOf(e, lo, hi);
+        for (std::size_t k = lo; k <= hi; ++k) ++fill[part][k];
       }
+    });
+    start_.assign(strips + 1, 0);
+    std::vector<std::uint64_t> used(strips);
+    for (std::size_t k = 0; k < strips; ++k) {
+      std::uint64_t at = start_[k];
+      for (unsigned part = 0; part < parts; ++part) {
+        const std::uint64_t n = fill[part][k];
+        fill[part][k] = at;
+        at += n;
+      }
+      used[k] = at;
+      start_[k + 1] = start_[k] + (at - start_[k] + kSuper - 1) / kSuper * kSuper;
     }
+    entryCount_ = start_[strips];
+    entries_.reset(new Entry[entryCount_]);  // uninitialized: every one is written below
+    inThreads(parts, [&](unsigned part) {
+      for (const Entry& e : spans[part]) {
+        std::size_t lo, hi;
+        stripsOf(e, lo, hi);
+        for (std::size_t k = lo; k <= hi; ++k) entries_[fill[part][k]++] = e;
+      }
+    });
+    spans = {};
+    // Each strip by largest a, then its padding; the largest w of every block (8) and superblock
+    // (64), and of every superblock with all after it in the strip. By ranges of strips.
+    blockW_.assign(entryCount_ / kBlock, -INFINITY);
+    superW_.assign(entryCount_ / kSuper, -INFINITY);
+    laterW_.assign(entryCount_ / kSuper, -INFINITY);
+    inThreads(parts, [&](unsigned part) {
+      for (std::size_t k = strips * part / parts; k < strips * (part + 1) / parts; ++k) {
+        Entry* E = entries_.get();
+        std::sort(E + start_[k], E + used[k], [](const Entry& x, const Entry& y) { return x.aHi < y.aHi; });
+        std::fill(E + used[k], E + start_[k + 1], Entry{INFINITY, -INFINITY, INFINITY, INFINITY, -INFINITY, kNone});
+        float later = -INFINITY;
+        for (std::uint64_t sb = start_[k + 1] / kSuper; sb-- > start_[k] / kSuper;) {
+          for (std::uint64_t e = sb * kSuper; e < (sb + 1) * kSuper; ++e) {
+            blockW_[e / kBlock] = std::max(blockW_[e / kBlock], E[e].wHi);
+            superW_[sb] = std::max(superW_[sb], E[e].wHi);
+          }
+          later = std::max(later, superW_[sb]);
+          laterW_[sb] = later;
+        }
+      }
+    });
   }
 
   std::size_t stripCount() const { return start_.empty() ? 0 : start_.size() - 1; }
@@ -366,73 +419,69 @@ class HorizonStrips {
     return std::min(strip(c), stripCount());
   }
 
-  // The entries' numbers through `to` (kNone: the entry is no candidate at all).
-  void renumber(const std::vector<std::uint32_t>& to) {
-    for (Entry& e : entries_) {
-      if (e.tri == kNone) continue;
-      e.tri = to[e.tri];
-      if (e.tri == kNone) e.key = -INFINITY;
-    }
-  }
-
-  // Whether test(t) holds for a candidate t of the ray from p. hint: where the last search of
-  // this thread ended (any value will do; a nearby one is faster).
+  // Whether test(t) holds for a candidate t (a mesh polygon) of the ray from p. hint: where the
+  // last search of this thread ended (any value will do; a nearby one is faster).
   template <class Test>
   bool anyAlong(const Eigen::Vector3d& p, std::uint64_t& hint, Test&& test) const {
     const std::size_t k = stripOf(p);
     if (k >= stripCount()) return false;
-    const double c = across(p), a = along(p);
-    const double bound = p.z() - a * tan_ - marginKey_, aFrom = a - marginA_;
-    const double cPlus = c + marginA_, cMinus = c - marginA_;  // against the entries' range
-    const Entry* E = entries_.data();
+    const double c = across(p), a = along(p), w = p.z() - a * tan_;
+    const double wFrom = w - marginW_, wTo = w + marginW_, aFrom = a - marginA_;
+    const double cPlus = c + marginA_, cMinus = c - marginA_;
+    const Entry* E = entries_.get();
     const std::uint64_t end = start_[k + 1];
-    // First entry with aHi >= aFrom: galloping from the hint when it is in this strip (the
-    // cells of a strip come nearly in order of a), else a binary search of the strip.
+    // First entry with aHi >= aFrom: a few steps from the hint when it is in this strip (the
+    // cells of a strip come nearly in order of a, a pixel or so apart: one mispredicted branch
+    // where a binary search has several), else (or when that is far) a binary search.
     const auto before = [&](const Entry& x) { return x.aHi < aFrom; };
-    std::uint64_t lo = start_[k], hi = end;
+    std::uint64_t lo = start_[k], hi = end, e;
     if (hint >= lo && hint < hi) {
-      std::uint64_t step = 1;
+      constexpr std::uint64_t kSteps = 16;
       if (before(E[hint])) {
-        for (lo = hint + 1; lo + step < hi && before(E[lo + step - 1]); step *= 2) lo += step;
-        hi = std::min(hi, lo + step);
+        for (lo = hint + 1; lo < hi && lo - hint < kSteps && before(E[lo]);) ++lo;
+        e = lo < hi && lo - hint == kSteps ? static_cast<std::uint64_t>(std::partition_point(E + lo, E + hi, before) - E) : lo;
       } else {
-        for (hi = hint; hi > lo + step && !before(E[hi - step]); step *= 2) hi -= step;
-        lo = std::max(lo, hi > step ? hi - step : lo);
+        for (hi = hint; hi > lo && hint - hi < kSteps && !before(E[hi - 1]);) --hi;
+        e = hi > lo && hint - hi == kSteps ? static_cast<std::uint64_t>(std::partition_point(E + lo, E + hi, before) - E) : hi;
       }
+    } else {
+      e = static_cast<std::uint64_t>(std::partition_point(E + lo, E + hi, before) - E);
     }
-    std::uint64_t e = static_cast<std::uint64_t>(std::partition_point(E + lo, E + hi, before) - E);
     hint = e;
-    if (e >= end || !(laterKey_[e / kSuper] >= bound)) return false;
+    if (e >= end || !(laterW_[e / kSuper] >= wFrom)) return false;
     for (;;) {
       for (const std::uint64_t blockEnd = (e / kBlock + 1) * kBlock; e < blockEnd; ++e) {
         const Entry& x = E[e];
-        if (x.key >= bound && x.cLo <= cPlus && x.cHi >= cMinus && test(x.tri)) return true;
+        if (x.wHi >= wFrom && x.wLo <= wTo && x.cLo <= cPlus && x.cHi >= cMinus && test(x.tri)) return true;
       }
       // At a block boundary: the next block in this superblock that reaches the ray, else the
       // next superblock that does (none: nothing later does).
-      while (e % kSuper != 0 && !(blockKey_[e / kBlock] >= bound)) e += kBlock;
+      while (e % kSuper != 0 && !(blockW_[e / kBlock] >= wFrom)) e += kBlock;
       if (e % kSuper != 0) continue;
-      if (e >= end || !(laterKey_[e / kSuper] >= bound)) return false;
-      while (!(superKey_[e / kSuper] >= bound)) e += kSuper;
-      while (!(blockKey_[e / kBlock] >= bound)) e += kBlock;
+      if (e >= end || !(laterW_[e / kSuper] >= wFrom)) return false;
+      while (!(superW_[e / kSuper] >= wFrom)) e += kSuper;
+      while (!(blockW_[e / kBlock] >= wFrom)) e += kBlock;
     }
   }
 
  private:
+  static constexpr std::uint32_t kNone = 0xffffffffu;
   static constexpr std::uint64_t kBlock = 8, kSuper = 64;
   struct Entry {
-    float aHi, key, cLo, cHi;  // rounded outward
+    float aHi, wHi, wLo, cLo, cHi;  // rounded outward
     std::uint32_t tri;
   };
   double along(const Eigen::Vector3d& v) const { return v.x() * g_.x() + v.y() * g_.y(); }
   double across(const Eigen::Vector3d& v) const { return v.y() * g_.x() - v.x() * g_.y(); }
-  std::size_t strip(double c) const { return static_cast<std::size_t>(std::floor((c - cLo_) / width_)); }
+  // Monotone in c, which is all the binning needs (a multiplication, not a division).
+  std::size_t strip(double c) const { return static_cast<std::size_t>((c - cLo_) * perWidth_); }
 
   Eigen::Vector2d g_;
-  double tan_ = 0, marginA_ = 0, marginKey_ = 0, cLo_ = 0, width_ = 1;
+  double tan_ = 0, marginA_ = 0, marginW_ = 0, cLo_ = 0, perWidth_ = 1;
   std::vector<std::uint64_t> start_;
-  std::vector<Entry> entries_;
-  std::vector<float> blockKey_, superKey_, laterKey_;
+  std::unique_ptr<Entry[]> entries_;
+  std::uint64_t entryCount_ = 0;
+  std::vector<float> blockW_, superW_, laterW_;
 };
 
 }  // namespace
@@ -470,72 +519,27 @@ std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& to
   const bool useStrips = search == ShadowSearch::Strips && light.head<2>().norm() > 1e-6;
   const unsigned threads =
       threadCount ? threadCount : std::max(1u, std::min(8u, std::thread::hardware_concurrency()));
-  report(0.0, useStrips ? "indexing the occluders" : "building the shadow quadtree");
-  // Only triangles facing away from the light can cast a shadow on a cell that is not in attached
-  // shadow: its ray starts into the open air, so the first terrain it meets, it enters, and it
-  // enters through a triangle whose normal points away from the light. The index therefore
-  // holds those alone (and, to stay on the safe side of rounding, those within 1e-9 of edge-on):
-  // the same answers as with every triangle, for a fraction of the build.
-  Mesh occluders;
-  occluders.vertices = frame.mesh.vertices;
-  std::vector<std::uint32_t> occluderOf(frame.mesh.polygonCount(), HorizonStrips::kNone);
-  for (std::size_t t = 0; t < frame.mesh.polygonCount(); ++t) {
-    const auto c = frame.mesh.polygon(t);
-    const Eigen::Vector3d& a = frame.mesh.vertices[c[0]];
-    const Eigen::Vector3d n = (frame.mesh.vertices[c[1]] - a).cross(frame.mesh.vertices[c[2]] - a);
-    // Up-facing normal in the frame (z up); the DEM's corner order may be either way round.
-    const Eigen::Vector3d up = n.z() >= 0 ? n : Eigen::Vector3d(-n);
-    if (up.dot(light) <= 1e-9 * up.norm()) {
-      occluderOf[t] = static_cast<std::uint32_t>(occluders.polygonCount());
-      occluders.addTriangle(c[0], c[1], c[2]);
-    }
-  }
-  // The strips (numbered by occluder polygon until the index exists) build on a second core
-  // while the index builds on this one.
-  std::optional<HorizonStrips> strips;
-  const double stripWidth = std::min(frame.pixelSizeX, frame.pixelSizeY);
-  const auto buildStrips = [&] { strips.emplace(frame.mesh, occluderOf, light, stripWidth); };
-  std::future<void> stripsBuilt;
-  if (useStrips && threads > 1) stripsBuilt = std::async(std::launch::async, buildStrips);
-  // The light's direction of travel is the "gravity" of the shadow quadtree: "above" a point
-  // means toward the light. The strips bring their own candidates and never build the tree.
-  TerrainOptions indexOptions = options;
-  indexOptions.deferTree = indexOptions.deferTree || useStrips;
-  // (On an error here the future's destructor waits for the strips, whose inputs outlive it.)
-  const TerrainIndex index(occluders, CartesianMapping(-light), indexOptions);
-  const CartesianMapping& mapping = index.mapping();
+  // The light's direction of travel is the "gravity" of the shadow quadtree's frame: "above" a
+  // point means toward the light. The strips decide their candidates in the same frame.
+  const CartesianMapping mapping(-light);
   // The triangles around each vertex: arithmetic on localFrame's own grid, else a table.
   const bool gridMesh = frame.gridMesh && frame.width > 0 && frame.height > 0 &&
                         frame.mesh.vertices.size() == static_cast<std::size_t>(frame.width) * frame.height &&
                         frame.mesh.polygonCount() == 2 * static_cast<std::size_t>(frame.width - 1) * (frame.height - 1);
   std::optional<VertexStar> star;
   if (!gridMesh) star.emplace(frame.mesh);
-  if (useStrips) {
-    if (stripsBuilt.valid()) {
-      stripsBuilt.get();  // rethrows the side thread's error
-    } else {
-      buildStrips();
-    }
-    const TerrainIndex::PolygonTriangles of = index.trianglesOfPolygons();
-    std::vector<std::uint32_t> triangleOf(occluders.polygonCount(), HorizonStrips::kNone);
-    for (std::size_t o = 0; o < triangleOf.size(); ++o) {
-      // A triangle seen edge-on along the light has no triangle in the index (a wall).
-      if (of.start[o + 1] > of.start[o]) triangleOf[o] = of.tris[of.start[o]];
-    }
-    strips->renumber(triangleOf);
-  }
-  report(0.3, "testing cells");
 
-  // Two passes over the cells, each shared out to the machine's cores in groups (the calling
-  // thread reports progress): attached shadow by rows, reading each vertex's ring in memory
-  // order; then cast shadow for the cells still lit, by rows through the quadtree or by strips
-  // through the strips (each strip's cells in row order, so nearly in order of a: consecutive
-  // searches read the same few cache lines of the same strip).
+  // Two passes over the cells, each shared out to `workers` threads in groups (the calling thread
+  // reports progress), after every triangle's facing is known: attached shadow by rows, reading
+  // each vertex's ring in memory order; then
+  // cast shadow for the cells still lit, by rows through the quadtree or by strips through the
+  // strips (each strip's cells in row order, so nearly in order of a: consecutive searches read
+  // the same few cache lines of the same strip).
   const std::size_t cellCount = vertices.size();
   const auto width = static_cast<std::size_t>(frame.width);
   std::atomic<std::size_t> cellsDone{0};
   std::atomic<bool> stop{false};
-  const auto inParallel = [&](std::size_t groups, const auto& cellsOf, const auto& body) {
+  const auto inParallel = [&](unsigned workers, std::size_t groups, const auto& cellsOf, const auto& body) {
     std::atomic<std::size_t> next{0};
     const auto work = [&](bool reporter) {
       for (std::size_t g; !stop && (g = next++) < groups;) {
@@ -546,48 +550,81 @@ std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& to
       }
     };
     std::vector<std::thread> pool;
-    for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work, false);
+    for (unsigned t = 1; t < workers; ++t) pool.emplace_back(work, false);
     work(true);
     for (auto& t : pool) t.join();
   };
   const auto rowCells = [&](std::size_t) { return width; };
-  inParallel(static_cast<std::size_t>(frame.height), rowCells, [&](std::size_t r) {
-    for (std::size_t i = r * width; i < (r + 1) * width; ++i) {
-      if (!frame.valid[i]) continue;
-      std::uint32_t grid[6];
-      const std::span<const std::uint32_t> ring =
-          gridMesh ? std::span<const std::uint32_t>(grid, static_cast<std::size_t>(gridRing(frame, i, grid)))
-                   : std::span<const std::uint32_t>(star->tris.data() + star->start[i], star->start[i + 1] - star->start[i]);
-      out[i] = attachedShadow(frame.mesh, ring, static_cast<std::uint32_t>(i), light) ? Light::Shadow : Light::Lit;
-    }
-  });
-  const auto castShadow = [&](std::size_t i, std::uint64_t& hint) {
-    if (out[i] != Light::Lit) return;
-    const auto vi = static_cast<std::uint32_t>(i);
-    const Eigen::Vector3d m = mapping.toMapped(vertices[i]);
-    const auto occludes = [&](std::uint32_t t) { return index.triangleOccludesAbove(t, m.x(), m.y(), m.z(), vi); };
-    if (strips ? strips->anyAlong(vertices[i], hint, occludes) : index.occludedAbove(m.x(), m.y(), m.z(), vi)) {
-      out[i] = Light::Shadow;
-    }
+  std::vector<std::uint8_t> facing;  // facingOf every triangle
+  const auto attachedPass = [&](unsigned workers) {
+    inParallel(workers, static_cast<std::size_t>(frame.height), rowCells, [&](std::size_t r) {
+      for (std::size_t i = r * width; i < (r + 1) * width; ++i) {
+        if (!frame.valid[i]) continue;
+        std::uint32_t grid[6];
+        const std::span<const std::uint32_t> ring =
+            gridMesh ? std::span<const std::uint32_t>(grid, static_cast<std::size_t>(gridRing(frame, r, i - r * width, grid)))
+                     : std::span<const std::uint32_t>(star->tris.data() + star->start[i], star->start[i + 1] - star->start[i]);
+        const bool closed = gridMesh && ring.size() == 6;
+        out[i] = attachedShadow(frame.mesh, ring, closed, static_cast<std::uint32_t>(i), light, facing.data())
+                     ? Light::Shadow
+                     : Light::Lit;
+      }
+    });
   };
-  if (strips) {
+
+  if (!useStrips) {
+    report(0.0, "building the shadow quadtree");
+    Mesh occluders;
+    occluders.vertices = frame.mesh.vertices;
+    facing.resize(frame.mesh.polygonCount());
+    for (std::size_t t = 0; t < frame.mesh.polygonCount(); ++t) {
+      const auto c = frame.mesh.polygon(t);
+      facing[t] = facingOf(frame.mesh, c, light);
+      if (facing[t] & kOccluder) occluders.addTriangle(c[0], c[1], c[2]);
+    }
+    const TerrainIndex index(occluders, mapping, options);
+    report(0.3, "testing cells");
+    attachedPass(threads);
+    inParallel(threads, static_cast<std::size_t>(frame.height), rowCells, [&](std::size_t r) {
+      for (std::size_t i = r * width; i < (r + 1) * width; ++i) {
+        if (out[i] != Light::Lit) continue;
+        const Eigen::Vector3d m = mapping.toMapped(vertices[i]);
+        if (index.occludedAbove(m.x(), m.y(), m.z(), static_cast<std::uint32_t>(i))) out[i] = Light::Shadow;
+      }
+    });
+  } else {
+    report(0.0, "sorting the occluders into strips");
+    const HorizonStrips strips(frame.mesh, light, std::min(frame.pixelSizeX, frame.pixelSizeY), facing, threads);
+    report(0.3, "testing cells");
+    attachedPass(threads);
     std::vector<std::uint32_t> stripOf(cellCount), order(cellCount);
-    std::vector<std::uint64_t> start(strips->stripCount() + 2, 0);  // the last: cells in none
+    std::vector<std::uint64_t> start(strips.stripCount() + 2, 0);  // the last: cells in none
     for (std::size_t i = 0; i < cellCount; ++i) {
-      stripOf[i] = static_cast<std::uint32_t>(strips->stripOf(vertices[i]));
+      stripOf[i] = static_cast<std::uint32_t>(strips.stripOf(vertices[i]));
       ++start[stripOf[i] + 1];
     }
     for (std::size_t g = 1; g < start.size(); ++g) start[g] += start[g - 1];
     std::vector<std::uint64_t> fill(start.begin(), start.end() - 1);
     for (std::size_t i = 0; i < cellCount; ++i) order[fill[stripOf[i]]++] = static_cast<std::uint32_t>(i);
-    inParallel(start.size() - 1, [&](std::size_t g) { return start[g + 1] - start[g]; }, [&](std::size_t g) {
+    inParallel(threads, start.size() - 1, [&](std::size_t g) { return start[g + 1] - start[g]; }, [&](std::size_t g) {
       std::uint64_t hint = 0;
-      for (std::uint64_t k = start[g]; k < start[g + 1]; ++k) castShadow(order[k], hint);
-    });
-  } else {
-    inParallel(static_cast<std::size_t>(frame.height), rowCells, [&](std::size_t r) {
-      std::uint64_t hint = 0;
-      for (std::size_t i = r * width; i < (r + 1) * width; ++i) castShadow(i, hint);
+      for (std::uint64_t k = start[g]; k < start[g + 1]; ++k) {
+        if (k + 8 < start[g + 1]) {  // a strip's cells are a row apart in memory
+          __builtin_prefetch(&vertices[order[k + 8]]);
+          __builtin_prefetch(&out[order[k + 8]]);
+        }
+        const std::uint32_t i = order[k];
+        if (out[i] != Light::Lit) continue;
+        const Eigen::Vector3d m = mapping.toMapped(vertices[i]);
+        const auto occludes = [&](std::uint32_t t) {
+          // A cell's own triangles meet its ray at the cell itself: never an occluder.
+          const auto c = frame.mesh.polygon(t);
+          if (c[0] == i || c[1] == i || c[2] == i) return false;
+          return mappedTriangleAbove(mapping.toMapped(vertices[c[0]]), mapping.toMapped(vertices[c[1]]),
+                                     mapping.toMapped(vertices[c[2]]), m.x(), m.y(), m.z());
+        };
+        if (strips.anyAlong(vertices[i], hint, occludes)) out[i] = Light::Shadow;
+      }
     });
   }
   if (stop) throw Error("shadow computation cancelled");

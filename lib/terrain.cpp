@@ -227,9 +227,7 @@ TerrainIndex::TerrainIndex(const Mesh& mesh, const CartesianMapping& mapping,
   // so that a walk along a row reads memory in order.
   const std::vector<std::uint32_t> slots =
       options.gridFastPath ? gridSlots(pending) : std::vector<std::uint32_t>();
-  // A deferred tree over a mesh that is not a grid may never be built: the mesh's own order.
-  const bool keepOrder = slots.empty() && options.deferTree;
-  if (!pending.empty() && !keepOrder) {
+  if (!pending.empty()) {
     const double su = domain.uhi > domain.ulo ? 65535.0 / (domain.uhi - domain.ulo) : 0.0;
     const double sv = domain.vhi > domain.vlo ? 65535.0 / (domain.vhi - domain.vlo) : 0.0;
     std::vector<std::uint64_t> keyed(pending.size());
@@ -270,7 +268,7 @@ TerrainIndex::TerrainIndex(const Mesh& mesh, const CartesianMapping& mapping,
   // fast path computes a cell's plane from its corners (the same arithmetic, so the same bits),
   // and the records are made with the tree when something needs them.
   if (gridW_) setUpLeanGrid();
-  const bool deferred = gridW_ || options.deferTree;
+  const bool deferred = gridW_ != 0;
   std::vector<Box2> boxes(deferred ? 0 : pending.size());  // build only: bboxes for the overlap test
   if (!gridLean_) {
     tris_.resize(pending.size());
@@ -285,8 +283,7 @@ TerrainIndex::TerrainIndex(const Mesh& mesh, const CartesianMapping& mapping,
                      (gridColU_.size() + gridRowV_.size()) * sizeof(double) +
                      gridPresent_.size() * sizeof(std::uint64_t);
   if (deferred) {
-    // The grid answers every height query (or the caller finds its own candidates): the tree
-    // waits until something needs it.
+    // The grid answers every height query: the tree waits until something needs it.
     deferredTree_ = true;
     stats_.memoryBytes = baseMemoryBytes_ + tris_.size() * sizeof(Tri);
   } else {
@@ -1166,17 +1163,22 @@ bool TerrainIndex::triangleOccludesAbove(std::uint32_t t, double u, double v, do
   return contains(r, t, u, v) && heightOf(r, u, v) > h;
 }
 
-TerrainIndex::PolygonTriangles TerrainIndex::trianglesOfPolygons() const {
-  PolygonTriangles p;
-  std::uint32_t polygons = static_cast<std::uint32_t>(stats_.polygons);
-  for (const Cold& c : cold_) polygons = std::max(polygons, c.polygon + 1);
-  p.start.assign(polygons + 1, 0);
-  for (const Cold& c : cold_) ++p.start[c.polygon + 1];
-  for (std::size_t i = 1; i < p.start.size(); ++i) p.start[i] += p.start[i - 1];
-  p.tris.resize(cold_.size());
-  std::vector<std::uint32_t> fill(p.start.begin(), p.start.end() - 1);
-  for (std::uint32_t t = 0; t < cold_.size(); ++t) p.tris[fill[cold_[t].polygon]++] = t;
-  return p;
+bool mappedTriangleAbove(const Eigen::Vector3d& c0, const Eigen::Vector3d& c1, const Eigen::Vector3d& c2,
+                         double u, double v, double h) {
+  // The corners counter-clockwise from the first, as fanPolygon orders them; inside() and
+  // computeRecord's plane and height range, as heightOf uses them.
+  const Point2 p0{c0.x(), c0.y()};
+  Point2 p1{c1.x(), c1.y()}, p2{c2.x(), c2.y()};
+  double h1 = c1.z(), h2 = c2.z();
+  const int sign = orient2dSign(p0, p1, p2);
+  if (sign == 0) return false;
+  if (sign < 0) std::swap(p1, p2), std::swap(h1, h2);
+  const Point2 q{u, v};
+  if (orient2dSign(p0, p1, q) < 0 || orient2dSign(p1, p2, q) < 0 || orient2dSign(p2, p0, q) < 0) return false;
+  const PlaneFit f = fitPlane(p0.u, p0.v, c0.z(), p1.u, p1.v, h1, p2.u, p2.v, h2);
+  const auto lo = static_cast<double>(floatBelow(std::min(c0.z(), std::min(h1, h2))));
+  const auto hi = static_cast<double>(floatAbove(std::max(c0.z(), std::max(h1, h2))));
+  return std::clamp(f.h0 + f.a * (u - p0.u) + f.b * (v - p0.v), lo, hi) > h;
 }
 
 std::uint32_t TerrainIndex::testsAt(double u, double v) const {

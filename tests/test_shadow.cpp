@@ -10,6 +10,7 @@
 #include "qota/error.hpp"
 #include "qota/shadow.hpp"
 #include "qota/synthetic.hpp"
+#include "qota/terrain.hpp"
 #include "qota_tools.hpp"
 
 namespace {
@@ -168,7 +169,7 @@ TEST(Shadow, StripWalkIdenticalToQuadtree) {
     LocalFrame f = qota::localFrame(gridDem(41, 37, hf.z), false, 10);
     if (k % 5 == 2) f.gridMesh = false;
     const Eigen::Vector3d light = f.towardSun(suns[k]);
-    const auto walk = qota::shadowMask(f, light, {}, {}, 1 + k % 2, qota::ShadowSearch::Strips);
+    const auto walk = qota::shadowMask(f, light, {}, {}, 1 + k % 3, qota::ShadowSearch::Strips);
     const auto tree = qota::shadowMask(f, light, {}, {}, 1, qota::ShadowSearch::Quadtree);
     ASSERT_EQ(walk.size(), tree.size());
     for (std::size_t i = 0; i < walk.size(); ++i) {
@@ -193,6 +194,55 @@ TEST(Shadow, StripWalkIdenticalToQuadtreeOnTheEllipsoid) {
     for (std::size_t i = 0; i < walk.size(); ++i) differ += walk[i] != tree[i];
     EXPECT_EQ(differ, 0u) << sun.azimuth << "/" << sun.altitude;
     EXPECT_GT(count(walk, Light::Shadow), walk.size() / 20);
+  }
+}
+
+// The strips decide their candidates with mappedTriangleAbove, from the corners; the quadtree
+// with its records. Every triangle's answer, or'ed, against the index's on points everywhere and
+// on its corners and edges (where only the exact predicates agree), at heights on the surface and
+// a rounding either side of it.
+TEST(Shadow, MappedTriangleTestIsTheIndexs) {
+  std::mt19937_64 rng(5);
+  const qota::Heightfield hf = qota::fractalHeightfield(13, 11, 1.0, 40.0, 9);
+  const LocalFrame f = qota::localFrame(gridDem(13, 11, hf.z), false, 10);
+  std::uniform_real_distribution<double> az(0, 360), alt(3, 80), unit(0, 1);
+  for (int sun = 0; sun < 4; ++sun) {
+    const Eigen::Vector3d light = f.towardSun({az(rng), alt(rng)});
+    const qota::CartesianMapping mapping(-light);
+    const qota::TerrainIndex index(f.mesh, mapping);
+    std::vector<Eigen::Vector3d> m(f.mesh.vertices.size());
+    for (std::size_t i = 0; i < m.size(); ++i) m[i] = mapping.toMapped(f.mesh.vertices[i]);
+    const auto anyTriangle = [&](double u, double v, double h, std::uint32_t vertex) {
+      for (std::size_t t = 0; t < f.mesh.polygonCount(); ++t) {
+        const auto c = f.mesh.polygon(t);
+        if (c[0] == vertex || c[1] == vertex || c[2] == vertex) continue;
+        if (qota::mappedTriangleAbove(m[c[0]], m[c[1]], m[c[2]], u, v, h)) return true;
+      }
+      return false;
+    };
+    std::size_t above = 0, checked = 0;
+    const auto check = [&](double u, double v, double h, std::uint32_t vertex) {
+      for (const double hh : {h, std::nextafter(h, -INFINITY), std::nextafter(h, INFINITY), h - 1, h + 1}) {
+        const bool fast = index.occludedAbove(u, v, hh, vertex);
+        ASSERT_EQ(fast, anyTriangle(u, v, hh, vertex)) << "sun " << sun << " at " << u << " " << v << " " << hh;
+        above += fast;
+        ++checked;
+      }
+    };
+    for (std::uint32_t i = 0; i < m.size(); ++i) check(m[i].x(), m[i].y(), m[i].z(), i);
+    for (std::size_t t = 0; t < f.mesh.polygonCount(); ++t) {
+      const auto c = f.mesh.polygon(t);
+      for (int k = 0; k < 3; ++k) {
+        const Eigen::Vector3d mid = 0.5 * (m[c[k]] + m[c[(k + 1) % 3]]);
+        check(mid.x(), mid.y(), mid.z(), 0xffffffffu);
+      }
+    }
+    for (int k = 0; k < 300; ++k) {
+      const Eigen::Vector3d& a = m[static_cast<std::size_t>(unit(rng) * (m.size() - 1))];
+      check(a.x() + 20 * (unit(rng) - 0.5), a.y() + 20 * (unit(rng) - 0.5), a.z() + 30 * (unit(rng) - 0.5), 0xffffffffu);
+    }
+    EXPECT_GT(above, checked / 20);
+    EXPECT_LT(above, checked);
   }
 }
 

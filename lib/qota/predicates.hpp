@@ -16,14 +16,30 @@
 // about 1e-150 and 1e150, or zero), far beyond any terrain.
 #pragma once
 
+#include <cmath>
+
 namespace qota {
 
 struct Point2 {
   double u = 0, v = 0;
 };
 
-// Sign (-1, 0, +1) of the exact orient2d(a, b, c).
-int orient2dSign(Point2 a, Point2 b, Point2 c);
+// Sign (-1, 0, +1) of the exact orient2d(a, b, c), by expansion arithmetic.
+int orient2dSignExact(Point2 a, Point2 b, Point2 c);
+
+// Sign (-1, 0, +1) of the exact orient2d(a, b, c). Inline, so that the rounded determinant, exact
+// in sign when it exceeds its error bound, costs no call; the rest goes to the expansions.
+inline int orient2dSign(Point2 a, Point2 b, Point2 c) {
+  const double left = (a.u - c.u) * (b.v - c.v);
+  const double right = (a.v - c.v) * (b.u - c.u);
+  const double det = left - right;
+  // 8 units in the last place of the magnitude sum bounds the error of the three roundings of the
+  // differences, two products and the subtraction (Shewchuk's bound is (3 + 16u)u).
+  const double bound = 8.0 * 1.1102230246251565e-16 * (std::fabs(left) + std::fabs(right));
+  if (det > bound) return 1;
+  if (det < -bound) return -1;
+  return orient2dSignExact(a, b, c);
+}
 
 // The plain floating-point determinant, for callers that filter it themselves.
 inline double orient2dApprox(Point2 a, Point2 b, Point2 c) {

@@ -83,9 +83,11 @@ enum class Light : std::uint8_t { Shadow = 0, Lit = 1, NoData = 2 };
 enum class ShadowSearch {
   // Strips one pixel wide along the sun's azimuth, each holding the occluding triangles it
   // meets sorted by distance along the azimuth; a ray searches its strip from its own cell on,
-  // skipping blocks of triangles that cannot reach its height (shadow.cpp). No light-frame
-  // tree, whose build at a low sun (most of the terrain facing away from the light, in long
-  // slivers) costs more than all the queries. Needs a sun not straight overhead (else Quadtree).
+  // skipping blocks of triangles that cannot reach its height (shadow.cpp), and decides the rest
+  // with mappedTriangleAbove (terrain.hpp), the index's test from the corners. No index and no
+  // light-frame tree, whose build at a low sun (most of the terrain facing away from the light,
+  // in long slivers) costs more than all the queries. Needs a sun not straight overhead (else
+  // Quadtree).
   Strips,
   // The paper's shadow quadtree, built in the light's frame.
   Quadtree,

@@ -64,9 +64,6 @@ struct TerrainOptions {
   // The records and the quadtree are made when something needs them (edits, shadows,
   // statistics, tree files).
   bool gridFastPath = true;
-  // Build the quadtree on first need rather than now: for a caller that brings its own
-  // candidates to triangleOccludesAbove (the shadow mask's strips) and may never need it.
-  bool deferTree = false;
 };
 
 // Where the line through a mapped point meets the terrain.
@@ -173,15 +170,6 @@ class TerrainIndex {
   // height strictly above h: the shadow test of a point at that vertex, whose own triangles can
   // never shade it (they meet its line at the point itself).
   bool occludedAbove(double u, double v, double h, std::uint32_t vertex) const;
-  // The same test on one triangle t (this index's numbering, see trianglesOfPolygons): for a
-  // caller that finds the candidates itself and wants exactly the quadtree's answers.
-  bool triangleOccludesAbove(std::uint32_t t, double u, double v, double h, std::uint32_t vertex) const;
-  // Every polygon's triangles in this index's numbering, as offsets into one list: polygon p has
-  // tris[start[p]] .. tris[start[p + 1] - 1] (none for a wall).
-  struct PolygonTriangles {
-    std::vector<std::uint32_t> start, tris;
-  };
-  PolygonTriangles trianglesOfPolygons() const;
 
   const CartesianMapping& mapping() const { return mapping_; }
   // True while the grid fast path is active (TerrainOptions::gridFastPath, a regular grid, no
@@ -243,6 +231,8 @@ class TerrainIndex {
   Box2 boxOf(std::uint32_t t) const;
   bool prepareLeaf(std::span<std::uint32_t> items) const;
 
+  // occludedAbove's test of one triangle t.
+  bool triangleOccludesAbove(std::uint32_t t, double u, double v, double h, std::uint32_t vertex) const;
   bool inside(std::uint32_t t, double u, double v) const;
   double heightOf(const Tri& t, double u, double v) const;
   Hit makeHit(std::uint32_t t, double u, double v, double h) const;
@@ -375,5 +365,14 @@ class TerrainIndex {
   mutable TerrainStats stats_;
   mutable bool treeStatsStale_ = false;
 };
+
+// occludedAbove's exact test of one triangle, from its mapped corners (u, v, h) in the polygon's
+// own order: whether its projection covers (u, v) (closed, by exact predicates) and its plane lies
+// strictly above h there. The index makes its records from the same corners with the same
+// arithmetic, so this is the answer the quadtree would give for that triangle: a caller that finds
+// its candidates another way (the shadow mask's strips) decides them as the quadtree does, without
+// building one. A triangle seen edge-on (zero projected area) covers nothing, as in the index.
+bool mappedTriangleAbove(const Eigen::Vector3d& c0, const Eigen::Vector3d& c1, const Eigen::Vector3d& c2,
+                         double u, double v, double h);
 
 }  // namespace qota
