@@ -4,10 +4,9 @@
 #include <GeographicLib/LocalCartesian.hpp>
 #include <ogr_spatialref.h>
 
+#include <algorithm>
 #include <atomic>
-#include <bit>
 #include <cmath>
-#include <future>
 #include <memory>
 #include <optional>
 #include <span>
@@ -235,7 +234,7 @@ struct VertexStar {
 // edge-on): the same answers as with every triangle, for a fraction of the work. kFacesAway: the
 // light strictly behind it, for attached shadow.
 constexpr std::uint8_t kOccluder = 1, kFacesAway = 2;
-[[gnu::always_inline]] inline std::uint8_t facingOf(const Mesh& mesh, std::span<const std::uint32_t> c, const Eigen::Vector3d& light) {
+std::uint8_t facingOf(const Mesh& mesh, std::span<const std::uint32_t> c, const Eigen::Vector3d& light) {
   const Eigen::Vector3d& a = mesh.vertices[c[0]];
   const Eigen::Vector3d n = (mesh.vertices[c[1]] - a).cross(mesh.vertices[c[2]] - a);
   // Up-facing normal in the frame (z up); the DEM's corner order may be either way round.
@@ -549,10 +548,7 @@ std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& to
         if (reporter && progress && !progress(0.3 + 0.7 * fraction, "testing cells")) stop = true;
       }
     };
-    std::vector<std::thread> pool;
-    for (unsigned t = 1; t < workers; ++t) pool.emplace_back(work, false);
-    work(true);
-    for (auto& t : pool) t.join();
+    inThreads(workers, [&](unsigned k) { work(k == 0); });
   };
   const auto rowCells = [&](std::size_t) { return width; };
   std::vector<std::uint8_t> facing;  // facingOf every triangle
