@@ -81,7 +81,7 @@ int main(int argc, char** argv) {
   const qota::MeshFile city = qota::loadMeshFile(QOTA_DATA_DIR "/testarea.obj");
   run({"Delft city block (OBJ)", city.mesh, qota::CartesianMapping({0, 0, -1}, city.origin)}, n, table4);
   run({"fractal 1M", qota::fractalHeightfield(708, 708, 1.0, 35.0, 7).toMesh(), qota::CartesianMapping()}, n, standard);
-  const qota::DemTerrain dem = qota::loadDem(QOTA_DATA_DIR "/mt_rainier_90m.tif");
+  const qota::DemTerrain dem = qota::loadDem(QOTA_DATA_DIR "/mt_rainier_90m.tif", {.lonLatAsCartesian = true});
   run({"SRTM Rainier", dem.mesh, dem.mapping}, n, standard);
   return 0;
 }

@@ -333,7 +333,7 @@ int main(int argc, char** argv) {
   if (quick) return 0;
   run(fractal(708, "fractal 1M"), n);
   run(fractal(2049, "fractal 8M (2048 x 2048 cells)"), n);
-  const qota::DemTerrain dem = qota::loadDem(QOTA_DATA_DIR "/mt_rainier_90m.tif");
+  const qota::DemTerrain dem = qota::loadDem(QOTA_DATA_DIR "/mt_rainier_90m.tif", {.lonLatAsCartesian = true});
   run(Terrain{"SRTM Rainier", dem.mesh, dem.mapping, std::nullopt}, n);
   return 0;
 }

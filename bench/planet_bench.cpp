@@ -292,7 +292,7 @@ int main(int argc, char** argv) {
   }
   if (quick) return 0;
   {
-    const qota::DemTerrain dem = qota::loadDem(QOTA_DATA_DIR "/mt_rainier_90m.tif");
+    const qota::DemTerrain dem = qota::loadDem(QOTA_DATA_DIR "/mt_rainier_90m.tif", {.lonLatAsCartesian = true});
     treeFileRow("cartesian SRTM Rainier", [&] { return qota::TerrainIndex(dem.mesh, dem.mapping); });
   }
   std::printf("\n");

@@ -324,7 +324,7 @@ qota::Box2 rasterDomain(const qota::DemTerrain& dem) {
 
 std::unique_ptr<Terrain> demTerrain(const std::string& name, const std::string& path,
                                     std::uint64_t seed, std::size_t brutePoints) {
-  qota::DemTerrain dem = qota::loadDem(path);
+  qota::DemTerrain dem = qota::loadDem(path, {.lonLatAsCartesian = true});  // heights only
   // The raster baseline works in the mapped frame as a pure translation of the world.
   if (!dem.mapping.vertical()) throw std::runtime_error(path + ": mapping is not vertical");
   auto t = std::make_unique<Terrain>();

@@ -5,6 +5,8 @@
 #include <ogr_spatialref.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <fstream>
 #include <memory>
@@ -68,26 +70,72 @@ bool DemTerrain::onRaster(double x, double y) const {
   return col >= 0 && col <= width && row >= 0 && row <= height;
 }
 
-DemTerrain loadDem(const std::string& path, const DemOptions& options) {
+namespace {
+
+std::string lowerTrimmed(const std::string& text) {
+  std::size_t a = 0, b = text.size();
+  while (a < b && std::isspace(static_cast<unsigned char>(text[a]))) ++a;
+  while (b > a && std::isspace(static_cast<unsigned char>(text[b - 1]))) --b;
+  std::string s = text.substr(a, b - a);
+  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return s;
+}
+
+// The band's unit type, else the unit of a vertical CRS (alone or in a compound CRS).
+VerticalUnit verticalUnitOf(const std::string& path, GDALRasterBand* band,
+                            const OGRSpatialReference* srs) {
+  VerticalUnit unit;
+  const char* type = band->GetUnitType();
+  if (type && *type) {
+    const std::optional<double> m = metresPerLengthUnit(type);
+    if (!m) {
+      throw Error(path + ": band " + std::to_string(band->GetBand()) + " has unit type '" + type +
+                  "', which is not a length; its values are not heights (give -z/--z-factor to "
+                  "say how many metres one unit is)");
+    }
+    unit.name = type;
+    unit.metresPerUnit = *m;
+    return unit;
+  }
+  if (srs && (srs->IsCompound() || srs->IsVertical())) {
+    const char* name = nullptr;
+    const double m = srs->GetTargetLinearUnits("VERT_CS", &name);
+    if (m > 0 && std::isfinite(m)) {
+      unit.name = name && *name ? name : "metre";
+      unit.metresPerUnit = m;
+    }
+  }
+  return unit;
+}
+
+// Opens the raster and reads its description (no pixels). ds receives the dataset.
+DemTerrain openDem(const std::string& path, const DemOptions& options,
+                   std::unique_ptr<GDALDataset>& ds, GDALRasterBand*& band) {
   ensureGdalRegistered();
   QuietGdalErrors quiet;
-  std::unique_ptr<GDALDataset> ds(
-      GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY | GDAL_OF_VERBOSE_ERROR));
+  ds.reset(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY | GDAL_OF_VERBOSE_ERROR));
   if (!ds) throw Error(path + ": cannot open as a raster" + gdalMessage());
-  if (options.band < 1 || options.band > ds->GetRasterCount()) {
-    throw Error(path + ": has " + std::to_string(ds->GetRasterCount()) + " band(s), no band " +
-                std::to_string(options.band));
+  const int bands = ds->GetRasterCount();
+  if (options.band == 0 && bands != 1) {
+    throw Error(path + ": has " + std::to_string(bands) + " bands; choose the one that holds the "
+                "heights (-b N, DemOptions::band)");
   }
-  GDALRasterBand* band = ds->GetRasterBand(options.band);
+  const int b = options.band == 0 ? 1 : options.band;
+  if (b < 1 || b > bands) {
+    throw Error(path + ": has " + std::to_string(bands) + " band(s), no band " + std::to_string(b));
+  }
+  band = ds->GetRasterBand(b);
 
   DemTerrain dem;
   dem.path = path;
+  dem.band = b;
   dem.driver = ds->GetDriver() ? ds->GetDriver()->GetDescription() : "";
   dem.width = ds->GetRasterXSize();
   dem.height = ds->GetRasterYSize();
   double gt[6];
   if (ds->GetGeoTransform(gt) == CE_None) std::copy(gt, gt + 6, dem.geotransform.begin());
-  if (const OGRSpatialReference* srs = ds->GetSpatialRef()) {
+  const OGRSpatialReference* srs = ds->GetSpatialRef();
+  if (srs) {
     char* wkt = nullptr;
     if (srs->exportToWkt(&wkt) == OGRERR_NONE && wkt) dem.crsWkt = wkt;
     CPLFree(wkt);
@@ -95,6 +143,60 @@ DemTerrain loadDem(const std::string& path, const DemOptions& options) {
   int hasNodata = 0;
   const double nodata = band->GetNoDataValue(&hasNodata);
   if (hasNodata) dem.nodata = nodata;
+  dem.verticalUnit = verticalUnitOf(path, band, srs);
+  if (!options.lonLatAsCartesian && srs && srs->IsGeographic()) {
+    throw Error(path + ": the raster is in longitude/latitude degrees, so as a Cartesian terrain "
+                "its x and y would be degrees and its heights metres, and slopes, normals and "
+                "poses would be wrong; put it on its ellipsoid (loadOnEllipsoid, --mapping "
+                "geodetic), reproject it (gdalwarp -t_srs EPSG:326..), or set "
+                "DemOptions::lonLatAsCartesian when only heights at points are wanted");
+  }
+  return dem;
+}
+
+}  // namespace
+
+std::optional<double> metresPerLengthUnit(const std::string& unitText) {
+  const std::string u = lowerTrimmed(unitText);
+  if (u == "m" || u == "metre" || u == "meter" || u == "metres" || u == "meters") return 1.0;
+  if (u == "ft" || u == "foot" || u == "feet" || u == "international foot" ||
+      u == "foot (international)" || u == "ft (international)") {
+    return 0.3048;
+  }
+  if (u == "us survey foot" || u == "us-ft" || u == "ftus" || u == "us_survey_foot" ||
+      u == "foot_us" || u == "us foot" || u == "survey foot" || u == "ft_us" ||
+      u == "us survey feet") {
+    return 1200.0 / 3937.0;
+  }
+  if (u == "cm" || u == "centimetre" || u == "centimeter") return 0.01;
+  if (u == "mm" || u == "millimetre" || u == "millimeter") return 0.001;
+  if (u == "dm" || u == "decimetre" || u == "decimeter") return 0.1;
+  if (u == "km" || u == "kilometre" || u == "kilometer") return 1000.0;
+  return std::nullopt;
+}
+
+std::optional<std::array<double, 2>> DemTerrain::surfacePoint(double x, double y) const {
+  const auto [col, row] = pixelOf(x, y);
+  if (!(col >= 0 && col <= width && row >= 0 && row <= height)) return std::nullopt;
+  const double c = std::clamp(col, 0.5, width - 0.5), r = std::clamp(row, 0.5, height - 0.5);
+  if (c == col && r == row) return std::array<double, 2>{x, y};
+  // pixelCentre's arithmetic, so a clamped coordinate equals the vertices' bit for bit.
+  return pixelCentre(c - 0.5, r - 0.5);
+}
+
+DemTerrain describeDem(const std::string& path, const DemOptions& options) {
+  std::unique_ptr<GDALDataset> ds;
+  GDALRasterBand* band = nullptr;
+  return openDem(path, options, ds, band);
+}
+
+DemTerrain loadDem(const std::string& path, const DemOptions& options) {
+  std::unique_ptr<GDALDataset> ds;
+  GDALRasterBand* band = nullptr;
+  DemTerrain dem = openDem(path, options, ds, band);
+  QuietGdalErrors quiet;
+  const bool hasNodata = dem.nodata.has_value();
+  const double nodata = dem.nodata.value_or(0.0);
 
   // Refuse what cannot fit before allocating: the raster as doubles, the mesh, and the index.
   const std::uint64_t w = static_cast<std::uint64_t>(dem.width);
@@ -116,7 +218,7 @@ DemTerrain loadDem(const std::string& path, const DemOptions& options) {
   std::vector<double> z(vertices);
   if (vertices && band->RasterIO(GF_Read, 0, 0, dem.width, dem.height, z.data(), dem.width,
                                  dem.height, GDT_Float64, 0, 0) != CE_None) {
-    throw Error(path + ": cannot read band " + std::to_string(options.band) + gdalMessage());
+    throw Error(path + ": cannot read band " + std::to_string(dem.band) + gdalMessage());
   }
   int hasScale = 0, hasOffset = 0;
   const double scale = band->GetScale(&hasScale), offset = band->GetOffset(&hasOffset);
@@ -129,12 +231,14 @@ DemTerrain loadDem(const std::string& path, const DemOptions& options) {
     for (std::uint64_t c = 0; c < w; ++c) {
       const std::uint64_t i = r * w + c;
       double value = z[i];
-      const bool ok = std::isfinite(value) && !(hasNodata && value == nodata);
+      bool ok = std::isfinite(value) && !(hasNodata && value == nodata);
+      if (ok && rescale) {
+        value = value * (hasScale ? scale : 1.0) + (hasOffset ? offset : 0.0);
+        ok = std::isfinite(value);  // a scale can overflow: no height, not infinity
+      }
       if (!ok) {
         ++dem.nodataCells;
         value = NAN;
-      } else if (rescale) {
-        value = value * (hasScale ? scale : 1.0) + (hasOffset ? offset : 0.0);
       }
       valid[i] = ok;
       const auto xy = dem.pixelCentre(static_cast<double>(c), static_cast<double>(r));

@@ -60,7 +60,9 @@ bool demIsLonLat(const DemTerrain& dem) {
 
 PlanetTerrain loadPlanet(const std::string& path, const PlanetOptions& options) {
   PlanetTerrain planet;
-  planet.dem = loadDem(path, options.dem);
+  DemOptions demOptions = options.dem;
+  demOptions.lonLatAsCartesian = true;  // read as lon/lat, placed on the sphere below
+  planet.dem = loadDem(path, demOptions);
   DemTerrain& dem = planet.dem;
   requireLonLatGrid(dem, "a planet");
   double radius = options.radius;
@@ -111,16 +113,19 @@ PlanetTerrain loadPlanet(const std::string& path, const PlanetOptions& options) 
     if (90.0 - top <= pixel && top < 90.0) planet.northCap = cap(0, 90.0);
     if (bottom + 90.0 <= pixel && bottom > -90.0) planet.southCap = cap(h - 1, -90.0);
   }
-  // Lon/lat/height to the sphere.
+  // Lon/lat/height to the sphere, heights in metres.
+  const double metres = dem.verticalUnit.metresPerUnit;
   for (Eigen::Vector3d& p : mesh.vertices) {
     if (!std::isfinite(p.z())) continue;
-    p = (radius + p.z()) * SphericalMapping::up(p.x(), p.y());
+    p = (radius + p.z() * metres) * SphericalMapping::up(p.x(), p.y());
   }
   return planet;
 }
 
 EllipsoidTerrain loadOnEllipsoid(const std::string& path, const DemOptions& options) {
-  DemTerrain dem = loadDem(path, options);
+  DemOptions demOptions = options;
+  demOptions.lonLatAsCartesian = true;  // read as lon/lat, placed on the ellipsoid below
+  DemTerrain dem = loadDem(path, demOptions);
   if (!demIsLonLat(dem)) {
     throw Error(dem.path + ": the geodetic mapping needs a raster in longitude/latitude degrees "
                 "(a geographic CRS); reproject it with gdalwarp -t_srs EPSG:4326");
@@ -128,9 +133,11 @@ EllipsoidTerrain loadOnEllipsoid(const std::string& path, const DemOptions& opti
   double a, f;
   demEllipsoid(dem, a, f);
   EllipsoidTerrain terrain{std::move(dem), GeodeticMapping(a, f)};
+  const double metres = terrain.dem.verticalUnit.metresPerUnit;
   for (Eigen::Vector3d& p : terrain.dem.mesh.vertices) {
     if (!std::isfinite(p.z())) continue;
-    p = terrain.mapping.toWorld(p);  // (lon, lat, h) is the mapped point
+    // (lon, lat, h) is the mapped point, h in metres
+    p = terrain.mapping.toWorld(metres == 1 ? p : Eigen::Vector3d(p.x(), p.y(), p.z() * metres));
   }
   return terrain;
 }

@@ -1,9 +1,6 @@
 #include "qota/shadow.hpp"
 
 #include <Eigen/Geometry>
-#include <GeographicLib/LocalCartesian.hpp>
-#include <ogr_spatialref.h>
-
 #include <algorithm>
 #include <atomic>
 #include <cmath>
@@ -14,206 +11,13 @@
 
 #include "float_bounds.hpp"
 #include "qota/error.hpp"
-#include "qota/globe.hpp"
 #include "qota/predicates.hpp"
 
 namespace qota {
 namespace {
 
-constexpr double kDeg = M_PI / 180.0;
-
-// A raster's axes are x = easting or longitude, y = northing or latitude (GDAL's convention for
-// rasters), whatever the CRS's official axis order.
-OGRSpatialReference rasterCrs(const DemTerrain& dem) {
-  OGRSpatialReference srs;
-  if (srs.importFromWkt(dem.crsWkt.c_str()) != OGRERR_NONE) {
-    throw Error(dem.path + ": its coordinate reference system cannot be read");
-  }
-  srs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  return srs;
-}
-
-// Fills NaN heights from their neighbours, rim inwards (onion peeling, as gdal_fillnodata does in
-// spirit): each pass gives every void cell next to known cells the mean of those, until none is
-// left. A raster with no data at all becomes flat at 0.
-void fillVoids(std::vector<double>& z, int w, int h) {
-  std::vector<std::size_t> todo;
-  for (std::size_t i = 0; i < z.size(); ++i) {
-    if (!std::isfinite(z[i])) todo.push_back(i);
-  }
-  std::vector<std::pair<std::size_t, double>> fills;
-  while (!todo.empty()) {
-    fills.clear();
-    std::vector<std::size_t> still;
-    for (std::size_t i : todo) {
-      const int c = static_cast<int>(i % w), r = static_cast<int>(i / w);
-      double sum = 0;
-      int count = 0;
-      for (int dr = -1; dr <= 1; ++dr) {
-        for (int dc = -1; dc <= 1; ++dc) {
-          const int cc = c + dc, rr = r + dr;
-          if ((dr || dc) && cc >= 0 && rr >= 0 && cc < w && rr < h) {
-            const double v = z[static_cast<std::size_t>(rr) * w + cc];
-            if (std::isfinite(v)) sum += v, ++count;
-          }
-        }
-      }
-      if (count) {
-        fills.push_back({i, sum / count});
-      } else {
-        still.push_back(i);
-      }
-    }
-    if (fills.empty()) {  // nothing known anywhere
-      for (std::size_t i : still) z[i] = 0;
-      break;
-    }
-    for (const auto& [i, v] : fills) z[i] = v;
-    todo.swap(still);
-  }
-}
-
-}  // namespace
-
-Eigen::Vector3d LocalFrame::towardSun(const SunPosition& sun) const {
-  SunPosition inFrame = sun;
-  inFrame.azimuth = sun.azimuth + trueNorthFromY;
-  return towardSunEnu(inFrame);
-}
-
-LocalFrame localFrame(const DemTerrain& dem, bool flat, double pixelSize) {
-  LocalFrame f;
-  f.width = dem.width;
-  f.height = dem.height;
-  const std::size_t n = dem.mesh.vertices.size();
-  // Heights with the voids filled (for occlusion only), and which cells have data.
-  std::vector<double> z(n);
-  f.valid.resize(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    z[i] = dem.mesh.vertices[i].z();
-    f.valid[i] = std::isfinite(z[i]);
-  }
-  fillVoids(z, dem.width, dem.height);
-  // Every cell's two triangles, split as the DEM's (top-left to bottom-right diagonal).
-  for (int r = 0; r + 1 < dem.height; ++r) {
-    for (int c = 0; c + 1 < dem.width; ++c) {
-      const auto tl = static_cast<std::uint32_t>(r * dem.width + c), tr = tl + 1;
-      const auto bl = static_cast<std::uint32_t>(tl + dem.width), br = bl + 1;
-      f.mesh.addTriangle(tl, bl, br);
-      f.mesh.addTriangle(tl, br, tr);
-    }
-  }
-  f.mesh.vertices.resize(n);
-  f.gridMesh = true;
-  const double cc = (dem.width - 1) / 2.0, cr = (dem.height - 1) / 2.0;
-  const auto centre = dem.pixelCentre(cc, cr);
-
-  if (dem.crsWkt.empty()) {
-    if (!(pixelSize > 0)) {
-      throw Error(dem.path + ": the raster has no coordinate reference system, so the size of its "
-                  "pixels in metres is unknown; give it with --pixel-size METRES");
-    }
-    // Pixel grid, rows running south.
-    for (std::size_t i = 0; i < n; ++i) {
-      const double c = static_cast<double>(i % dem.width), r = static_cast<double>(i / dem.width);
-      f.mesh.vertices[i] = {(c - cc) * pixelSize, -(r - cr) * pixelSize, z[i]};
-    }
-    f.description = "pixel grid, " + std::to_string(pixelSize) + " m per pixel (no CRS)";
-  } else {
-    const OGRSpatialReference srs = rasterCrs(dem);
-    if (srs.IsGeographic()) {
-      double a = 0, fl = 0;
-      demEllipsoid(dem, a, fl);
-      const double lon0 = centre[0], lat0 = centre[1];
-      f.geographicLocation = true;
-      f.centreLon = lon0;
-      f.centreLat = lat0;
-      if (flat) {
-        // Longitude and latitude scaled linearly by the ellipsoid's radii of curvature at the
-        // centre: no curvature.
-        const double e2 = fl * (2 - fl), s = std::sin(lat0 * kDeg);
-        const double w = std::sqrt(1 - e2 * s * s);
-        const double nRad = a / w, mRad = a * (1 - e2) / (w * w * w);
-        for (std::size_t i = 0; i < n; ++i) {
-          const Eigen::Vector3d& p = dem.mesh.vertices[i];
-          f.mesh.vertices[i] = {(p.x() - lon0) * kDeg * nRad * std::cos(lat0 * kDeg),
-                                (p.y() - lat0) * kDeg * mRad, z[i]};
-        }
-        f.description = "flat east-north-up metres around the centre (--flat)";
-      } else {
-        const GeographicLib::LocalCartesian local(lat0, lon0, 0, GeographicLib::Geocentric(a, fl));
-        for (std::size_t i = 0; i < n; ++i) {
-          const Eigen::Vector3d& p = dem.mesh.vertices[i];
-          Eigen::Vector3d& q = f.mesh.vertices[i];
-          local.Forward(p.y(), p.x(), z[i], q.x(), q.y(), q.z());
-        }
-        f.description = "east-north-up metres on the ellipsoid (a = " + std::to_string(a) +
-                        " m), tangent at the centre";
-      }
-    } else {
-      const double unit = srs.GetLinearUnits();
-      for (std::size_t i = 0; i < n; ++i) {
-        const Eigen::Vector3d& p = dem.mesh.vertices[i];
-        f.mesh.vertices[i] = {(p.x() - centre[0]) * unit, (p.y() - centre[1]) * unit, z[i]};
-      }
-      f.description = "projected grid metres";
-      // Where the centre is, and where true north points on the grid there.
-      OGRSpatialReference geo;
-      geo.CopyGeogCSFrom(&srs);
-      geo.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-      std::unique_ptr<OGRCoordinateTransformation> toGeo(OGRCreateCoordinateTransformation(&srs, &geo));
-      std::unique_ptr<OGRCoordinateTransformation> toGrid(OGRCreateCoordinateTransformation(&geo, &srs));
-      double x = centre[0], y = centre[1];
-      if (toGeo && toGrid && toGeo->Transform(1, &x, &y)) {
-        f.geographicLocation = true;
-        f.centreLon = x;
-        f.centreLat = y;
-        double nx = x, ny = y + 0.01;
-        if (toGrid->Transform(1, &nx, &ny)) {
-          f.trueNorthFromY = std::atan2(nx - centre[0], ny - centre[1]) / kDeg;
-        }
-      }
-    }
-  }
-  f.minHeight = INFINITY;
-  f.maxHeight = -INFINITY;
-  for (std::size_t i = 0; i < n; ++i) {
-    if (f.valid[i]) {
-      f.minHeight = std::min(f.minHeight, f.mesh.vertices[i].z());
-      f.maxHeight = std::max(f.maxHeight, f.mesh.vertices[i].z());
-    }
-  }
-  if (!(f.minHeight <= f.maxHeight)) f.minHeight = f.maxHeight = 0;
-  if (dem.width > 1 && dem.height > 1) {
-    // Every vertex has a position (voids are filled), so the centre's neighbours give the size.
-    const std::size_t ci = static_cast<std::size_t>(std::floor(cr)) * dem.width +
-                           static_cast<std::size_t>(std::floor(cc));
-    const auto& v = f.mesh.vertices;
-    f.pixelSizeX = (v[ci + 1] - v[ci]).head<2>().norm();
-    f.pixelSizeY = (v[ci + dem.width] - v[ci]).head<2>().norm();
-  }
-
-  return f;
-}
-
-namespace {
-
-// The triangles around vertex (r, c) of localFrame's grid mesh (two per cell, row-major, split
-// from the top-left corner), in increasing order: both of the cell up-left, the first of the
-// cell up, the second of the cell left, both of its own cell. Returns how many.
-int gridRing(const LocalFrame& f, std::size_t r, std::size_t c, std::uint32_t ring[6]) {
-  const auto w = static_cast<std::size_t>(f.width), h = static_cast<std::size_t>(f.height);
-  const auto first = [&](std::size_t rr, std::size_t cc) { return static_cast<std::uint32_t>(2 * (rr * (w - 1) + cc)); };
-  int n = 0;
-  if (r > 0 && c > 0) ring[n++] = first(r - 1, c - 1), ring[n++] = first(r - 1, c - 1) + 1;
-  if (r > 0 && c + 1 < w) ring[n++] = first(r - 1, c);
-  if (r + 1 < h && c > 0) ring[n++] = first(r, c - 1) + 1;
-  if (r + 1 < h && c + 1 < w) ring[n++] = first(r, c), ring[n++] = first(r, c) + 1;
-  return n;
-}
-
-// Triangles around each vertex, as offsets into one list (a vertex of a DEM has at most 6), for
-// a frame whose mesh is not localFrame's grid.
+// Triangles around each vertex, as offsets into one list, for a frame whose mesh is not
+// localFrame's grid.
 struct VertexStar {
   std::vector<std::uint32_t> start, tris;
   VertexStar(const Mesh& mesh) : start(mesh.vertices.size() + 1, 0) {
@@ -232,41 +36,60 @@ struct VertexStar {
 // meets, it enters, and it enters through a triangle whose normal points away from the light. Both
 // searches take these alone (and, to stay on the safe side of rounding, those within 1e-9 of
 // edge-on): the same answers as with every triangle, for a fraction of the work. kFacesAway: the
-// light strictly behind it, for attached shadow.
+// light strictly behind it, for attached shadow. "Up" is the frame's +z, or on an ellipsoid the
+// body's normal at the triangle's first corner (the DEM's corner order may be either way round).
 constexpr std::uint8_t kOccluder = 1, kFacesAway = 2;
-std::uint8_t facingOf(const Mesh& mesh, std::span<const std::uint32_t> c, const Eigen::Vector3d& light) {
+std::uint8_t facingOf(const LocalFrame& frame, std::span<const std::uint32_t> c, const Eigen::Vector3d& light) {
+  const Mesh& mesh = frame.mesh;
   const Eigen::Vector3d& a = mesh.vertices[c[0]];
   const Eigen::Vector3d n = (mesh.vertices[c[1]] - a).cross(mesh.vertices[c[2]] - a);
-  // Up-facing normal in the frame (z up); the DEM's corner order may be either way round.
-  const double d = n.z() >= 0 ? n.dot(light) : -n.dot(light);
+  const double up = frame.body.ellipsoid ? n.dot(frame.upAt(a)) : n.z();
+  const double d = up >= 0 ? n.dot(light) : -n.dot(light);
   return static_cast<std::uint8_t>((d <= 0 || d * d <= 1e-18 * n.squaredNorm() ? kOccluder : 0) |
                                    (d < 0 ? kFacesAway : 0));
 }
 
-// Attached shadow: the light arrives from below the surface at vertex i. Seen from above (the
-// frame's z), the light's horizontal direction leaves i through one of its own triangles (exactly:
-// the one whose corner sector at i contains that direction); the vertex is in attached shadow when
-// the light rises more slowly than that triangle does in that direction, which is when the
-// triangle faces away from the light. A light straight up, or a direction leaving the terrain
-// (across the border), is not attached shadow.
+// Attached shadow: the light arrives from below the surface at vertex i. Seen from above (along
+// the body's up at i), the light's horizontal direction leaves i through one of its own triangles
+// (exactly: the one whose corner sector at i contains that direction); the vertex is in attached
+// shadow when the light rises more slowly than that triangle does in that direction, which is
+// when the triangle faces away from the light. A light straight up, or a direction leaving the
+// terrain (across an edge of the surface), is not attached shadow.
 // ring: the triangles around i in increasing order (the first whose sector holds the direction
-// decides); closed: they go all the way round (an inner vertex of the grid), so that when all of
-// them face away, whichever holds the direction does. facing: facingOf every triangle.
-bool attachedShadow(const Mesh& mesh, std::span<const std::uint32_t> ring, bool closed, std::uint32_t i,
+// decides); closed: they go all the way round, so that when all of them face away, whichever
+// holds the direction does. facing: facingOf every triangle.
+bool attachedShadow(const LocalFrame& frame, std::span<const std::uint32_t> ring, bool closed, std::uint32_t i,
                     const Eigen::Vector3d& light, const std::uint8_t* facing) {
-  if (light.x() == 0 && light.y() == 0) return false;
   unsigned away = 0;
   for (const std::uint32_t polygon : ring) away += (facing[polygon] & kFacesAway) != 0;
   if (away == 0) return false;
-  if (closed && away == ring.size()) return true;
+  const Mesh& mesh = frame.mesh;
   const Eigen::Vector3d& p = mesh.vertices[i];
-  const Point2 p2{p.x(), p.y()}, s2{p.x() + light.x(), p.y() + light.y()};
+  // Seen from above: the frame's x, y as they are (exact), or on an ellipsoid the vertex's tangent
+  // plane, coordinates relative to the vertex.
+  Eigen::Vector3d e1(1, 0, 0), e2(0, 1, 0);
+  Point2 p2{p.x(), p.y()}, s2{p.x() + light.x(), p.y() + light.y()};
+  if (frame.body.ellipsoid) {
+    const Eigen::Vector3d up = frame.upAt(p);
+    e1 = up.unitOrthogonal();
+    e2 = up.cross(e1);
+    p2 = {0, 0};
+    s2 = {light.dot(e1), light.dot(e2)};
+  }
+  if (s2.u == p2.u && s2.v == p2.v) return false;  // the light straight up (or down)
+  if (closed && away == ring.size()) return true;
+  const auto seen = [&](std::uint32_t k) -> Point2 {
+    const Eigen::Vector3d& v = mesh.vertices[k];
+    if (!frame.body.ellipsoid) return {v.x(), v.y()};
+    const Eigen::Vector3d d = v - p;
+    return {d.dot(e1), d.dot(e2)};
+  };
   for (const std::uint32_t polygon : ring) {
     const auto t = mesh.polygon(polygon);
     // The other two corners, in counter-clockwise order around i.
     std::uint32_t a = t[0] == i ? t[1] : t[1] == i ? t[2] : t[0];
     std::uint32_t b = t[0] == i ? t[2] : t[1] == i ? t[0] : t[1];
-    Point2 a2{mesh.vertices[a].x(), mesh.vertices[a].y()}, b2{mesh.vertices[b].x(), mesh.vertices[b].y()};
+    Point2 a2 = seen(a), b2 = seen(b);
     const int orientation = orient2dSign(p2, a2, b2);
     if (orientation == 0) continue;
     if (orientation < 0) std::swap(a, b), std::swap(a2, b2);
@@ -303,8 +126,9 @@ class HorizonStrips {
   // The mesh's occluding triangles for a light that is not straight overhead; facing: gets
   // facingOf every triangle, found on the way. Built by `threads` threads, with the same result
   // for any number (up to the order of equal entries, which no search can tell).
-  HorizonStrips(const Mesh& mesh, const Eigen::Vector3d& light, double stripWidth, std::vector<std::uint8_t>& facing,
-                unsigned threads) {
+  HorizonStrips(const LocalFrame& frame, const Eigen::Vector3d& light, double stripWidth,
+                std::vector<std::uint8_t>& facing, unsigned threads) {
+    const Mesh& mesh = frame.mesh;
     const double horizontal = light.head<2>().norm();
     g_ = light.head<2>() / horizontal;
     tan_ = light.z() / horizontal;
@@ -322,7 +146,7 @@ class HorizonStrips {
       double xy = 0, z = 0;
       for (std::size_t p = from; p < to; ++p) {
         const auto corners = mesh.polygon(p);
-        facing[p] = facingOf(mesh, corners, light);
+        facing[p] = facingOf(frame, corners, light);
         if (!(facing[p] & kOccluder)) continue;
         double cl = INFINITY, ch = -INFINITY, ah = -INFINITY, wl = INFINITY, wh = -INFINITY;
         for (std::uint32_t k : corners) {
@@ -496,8 +320,11 @@ std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& to
                               const TerrainOptions& options, const Progress& progress,
                               unsigned threadCount, ShadowSearch search) {
   const auto& vertices = frame.mesh.vertices;
-  const std::size_t n = vertices.size();
-  std::vector<Light> out(n, Light::NoData);
+  const std::size_t cellCount = frame.cellCount();
+  if (frame.valid.size() != cellCount || vertices.size() < cellCount) {
+    throw Error("shadow mask: the frame's cells and vertices do not match its size");
+  }
+  std::vector<Light> out(cellCount, Light::NoData);
   const auto report = [&](double done, const char* message) {
     if (progress && !progress(done, message)) throw Error("shadow computation cancelled");
   };
@@ -505,9 +332,9 @@ std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& to
     throw Error("light direction must be a nonzero finite vector");
   }
   const Eigen::Vector3d light = towardLight.normalized();
-  if (light.z() <= 0) {
-    // The light is at or below the horizon: no direct light anywhere.
-    for (std::size_t i = 0; i < n; ++i) {
+  if (!frame.body.ellipsoid && light.z() <= 0) {
+    // A flat frame with the light at or below the horizon: no direct light anywhere.
+    for (std::size_t i = 0; i < cellCount; ++i) {
       if (frame.valid[i]) out[i] = Light::Shadow;
     }
     report(1.0, "light below the horizon");
@@ -522,19 +349,18 @@ std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& to
   // point means toward the light. The strips decide their candidates in the same frame.
   const CartesianMapping mapping(-light);
   // The triangles around each vertex: arithmetic on localFrame's own grid, else a table.
-  const bool gridMesh = frame.gridMesh && frame.width > 0 && frame.height > 0 &&
-                        frame.mesh.vertices.size() == static_cast<std::size_t>(frame.width) * frame.height &&
-                        frame.mesh.polygonCount() == 2 * static_cast<std::size_t>(frame.width - 1) * (frame.height - 1);
+  const bool gridMesh = frame.gridMesh && frame.grid.width() == frame.width && frame.grid.height() == frame.height &&
+                        vertices.size() == frame.grid.vertexCount() &&
+                        frame.mesh.polygonCount() == frame.grid.triangleCount();
   std::optional<VertexStar> star;
   if (!gridMesh) star.emplace(frame.mesh);
 
   // Two passes over the cells, each shared out to `workers` threads in groups (the calling thread
-  // reports progress), after every triangle's facing is known: attached shadow by rows, reading
-  // each vertex's ring in memory order; then
-  // cast shadow for the cells still lit, by rows through the quadtree or by strips through the
-  // strips (each strip's cells in row order, so nearly in order of a: consecutive searches read
-  // the same few cache lines of the same strip).
-  const std::size_t cellCount = vertices.size();
+  // reports progress), after every triangle's facing is known: attached shadow (and the body's
+  // own shadow) by rows, reading each vertex's ring in memory order; then cast shadow for the
+  // cells still lit, by rows through the quadtree or by strips through the strips (each strip's
+  // cells in row order, so nearly in order of a: consecutive searches read the same few cache
+  // lines of the same strip).
   const auto width = static_cast<std::size_t>(frame.width);
   std::atomic<std::size_t> cellsDone{0};
   std::atomic<bool> stop{false};
@@ -556,14 +382,16 @@ std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& to
     inParallel(workers, static_cast<std::size_t>(frame.height), rowCells, [&](std::size_t r) {
       for (std::size_t i = r * width; i < (r + 1) * width; ++i) {
         if (!frame.valid[i]) continue;
-        std::uint32_t grid[6];
+        std::uint32_t grid[RasterGrid::kMaxRing];
+        bool closed = false;
         const std::span<const std::uint32_t> ring =
-            gridMesh ? std::span<const std::uint32_t>(grid, static_cast<std::size_t>(gridRing(frame, r, i - r * width, grid)))
+            gridMesh ? std::span<const std::uint32_t>(
+                           grid, static_cast<std::size_t>(frame.grid.ring(static_cast<int>(r),
+                                                                           static_cast<int>(i - r * width), grid, closed)))
                      : std::span<const std::uint32_t>(star->tris.data() + star->start[i], star->start[i + 1] - star->start[i]);
-        const bool closed = gridMesh && ring.size() == 6;
-        out[i] = attachedShadow(frame.mesh, ring, closed, static_cast<std::uint32_t>(i), light, facing.data())
-                     ? Light::Shadow
-                     : Light::Lit;
+        const bool shadow = attachedShadow(frame, ring, closed, static_cast<std::uint32_t>(i), light, facing.data()) ||
+                            (frame.body.ellipsoid && frame.rayEntersBody(vertices[i], light));
+        out[i] = shadow ? Light::Shadow : Light::Lit;
       }
     });
   };
@@ -575,22 +403,24 @@ std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& to
     facing.resize(frame.mesh.polygonCount());
     for (std::size_t t = 0; t < frame.mesh.polygonCount(); ++t) {
       const auto c = frame.mesh.polygon(t);
-      facing[t] = facingOf(frame.mesh, c, light);
+      facing[t] = facingOf(frame, c, light);
       if (facing[t] & kOccluder) occluders.addTriangle(c[0], c[1], c[2]);
     }
-    const TerrainIndex index(occluders, mapping, options);
     report(0.3, "testing cells");
     attachedPass(threads);
-    inParallel(threads, static_cast<std::size_t>(frame.height), rowCells, [&](std::size_t r) {
-      for (std::size_t i = r * width; i < (r + 1) * width; ++i) {
-        if (out[i] != Light::Lit) continue;
-        const Eigen::Vector3d m = mapping.toMapped(vertices[i]);
-        if (index.occludedAbove(m.x(), m.y(), m.z(), static_cast<std::uint32_t>(i))) out[i] = Light::Shadow;
-      }
-    });
+    if (occluders.polygonCount() > 0) {
+      const TerrainIndex index(occluders, mapping, options);
+      inParallel(threads, static_cast<std::size_t>(frame.height), rowCells, [&](std::size_t r) {
+        for (std::size_t i = r * width; i < (r + 1) * width; ++i) {
+          if (out[i] != Light::Lit) continue;
+          const Eigen::Vector3d m = mapping.toMapped(vertices[i]);
+          if (index.occludedAbove(m.x(), m.y(), m.z(), static_cast<std::uint32_t>(i))) out[i] = Light::Shadow;
+        }
+      });
+    }
   } else {
     report(0.0, "sorting the occluders into strips");
-    const HorizonStrips strips(frame.mesh, light, std::min(frame.pixelSizeX, frame.pixelSizeY), facing, threads);
+    const HorizonStrips strips(frame, light, std::min(frame.pixelSizeX, frame.pixelSizeY), facing, threads);
     report(0.3, "testing cells");
     attachedPass(threads);
     std::vector<std::uint32_t> stripOf(cellCount), order(cellCount);

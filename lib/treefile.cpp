@@ -1,5 +1,6 @@
 #include "qota/treefile.hpp"
 
+#include <cmath>
 #include <cstring>
 #include <fstream>
 #include <type_traits>
@@ -13,7 +14,8 @@ namespace qota {
 namespace {
 
 constexpr char kMagic[8] = {'Q', 'O', 'T', 'A', 'T', 'R', 'E', 'E'};
-constexpr std::uint32_t kVersion = 2;  // 2: the grid keeps no plane table
+constexpr std::uint32_t kVersion = 3;  // 2: the grid keeps no plane table; 3: band and unit
+constexpr std::uint32_t kOldestVersion = 2;
 
 // The payload checksum: 8-byte words folded with a multiply-xor step (a few GB/s), the tail
 // bytes as one zero-padded word, the length last.
@@ -348,6 +350,9 @@ void saveTree(const std::string& path, const Index& index, const TreeSource& sou
   w.pod(source.width);
   w.pod(source.height);
   w.pod(source.geotransform);
+  w.pod(source.band);
+  w.str(source.verticalUnit);
+  w.pod(source.metresPerUnit);
   TreeFileAccess::write(w, index);
   Checksum sum;
   sum.add(w.bytes().data(), w.bytes().size());
@@ -392,9 +397,10 @@ TreeFile loadTree(const std::string& path) {
   in.read(reinterpret_cast<char*>(&payload), 8);
   in.read(reinterpret_cast<char*>(&checksum), 8);
   if (!in) throw Error(path + ": not a valid qota tree file: truncated header");
-  if (version != kVersion) {
+  if (version < kOldestVersion || version > kVersion) {
     throw Error(path + ": tree file version " + std::to_string(version) + ", this qota reads " +
-                std::to_string(kVersion));
+                std::to_string(kOldestVersion) + " to " + std::to_string(kVersion) +
+                "; rebuild it from its source with qota build");
   }
   if (kind > 3) throw Error(path + ": not a valid qota tree file: unknown kind " + std::to_string(kind));
   if (payload != fileSize - 32) {
@@ -415,6 +421,14 @@ TreeFile loadTree(const std::string& path) {
   source.width = r.pod<int>("source");
   source.height = r.pod<int>("source");
   source.geotransform = r.pod<std::array<double, 6>>("source");
+  if (version >= 3) {
+    source.band = r.pod<int>("source");
+    source.verticalUnit = r.str("source");
+    source.metresPerUnit = r.pod<double>("source");
+    if (!(source.metresPerUnit > 0) || !std::isfinite(source.metresPerUnit) || source.band < 1) {
+      r.fail("bad source band or vertical unit");
+    }
+  }
   TreeFile tf{[&]() -> AnyIndex {
                 switch (kind) {
                   case 0: return TreeFileAccess::load<TerrainIndex>(r, mapping);

@@ -14,6 +14,7 @@ packages=(
   libcli11-dev                  # argument parsing for the qota tool
   libpng-dev                    # PNG previews
   libnova-dev                   # solar position (VSOP87) for qota shadow
+  libhowardhinnant-date-dev tzdata  # dates and IANA time zones for qota shadow --time/--tz
   libassimp-dev                 # mesh files (OBJ, PLY, glTF, STL, ...)
   libembree-dev                 # bench/embree_bench: the general ray tracer qota is measured against
 )

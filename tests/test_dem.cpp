@@ -9,6 +9,7 @@
 #include "qota/dem.hpp"
 #include "qota/error.hpp"
 #include "qota/terrain.hpp"
+#include "raster_files.hpp"
 
 namespace {
 
@@ -25,7 +26,7 @@ std::filesystem::path scratch(const std::string& name) {
 // except where a neighbouring valid triangle reaches them (it cannot: every triangle touching a
 // nodata vertex is gone), so they all miss.
 TEST(Dem, RainierPixelCentresAreRasterValues) {
-  const DemTerrain dem = qota::loadDem(QOTA_DATA_DIR "/mt_rainier_90m.tif");
+  const DemTerrain dem = qota::loadDem(QOTA_DATA_DIR "/mt_rainier_90m.tif", {.lonLatAsCartesian = true});
   ASSERT_EQ(dem.width, 1201);
   ASSERT_EQ(dem.height, 1201);
   ASSERT_TRUE(dem.nodata);
@@ -157,9 +158,9 @@ TEST(Dem, SrtmHgtAndOtherDrivers) {
   std::unique_ptr<GDALDataset> copy(drv->CreateCopy(path.c_str(), src.get(), FALSE, nullptr, nullptr, nullptr));
   ASSERT_NE(copy, nullptr);
   copy.reset();
-  const DemTerrain hgt = qota::loadDem(path.string());
+  const DemTerrain hgt = qota::loadDem(path.string(), {.lonLatAsCartesian = true});
   EXPECT_EQ(hgt.driver, "SRTMHGT");
-  const DemTerrain tif = qota::loadDem(QOTA_DATA_DIR "/mt_rainier_90m.tif");
+  const DemTerrain tif = qota::loadDem(QOTA_DATA_DIR "/mt_rainier_90m.tif", {.lonLatAsCartesian = true});
   EXPECT_EQ(hgt.mesh.polygonCount(), tif.mesh.polygonCount());
   const TerrainIndex a(hgt.mesh, hgt.mapping), b(tif.mesh, tif.mapping);
   std::mt19937_64 rng(3);
@@ -209,6 +210,77 @@ TEST(Dem, TooLargeForMemoryIsRefusedBeforeAllocating) {
   }
   // An explicit limit applies to small rasters too.
   EXPECT_THROW(qota::loadDem(QOTA_DATA_DIR "/SainteHelens.dem", {1, 1000000}), qota::Error);
+}
+
+}  // namespace
+
+namespace {
+
+std::string writeSmall(const std::string& name, const std::string& crs, const std::string& unit, int bands = 1) {
+  qota::test::RasterSpec s;
+  s.width = s.height = 4;
+  s.geotransform = {500000, 30, 0, 5200000, 0, -30};
+  s.crs = crs;
+  s.unitType = unit;
+  for (int b = 0; b < bands; ++b) s.bands.push_back(std::vector<double>(16, 100.0 + b));
+  const auto path = qota::test::scratchPath(name);
+  qota::test::writeRaster(path, s);
+  return path.string();
+}
+
+TEST(Dem, LonLatIsNotACartesianTerrainUnlessAskedFor) {
+  // x, y in degrees and z in metres make no metric frame: refused, with the ways out named.
+  try {
+    qota::loadDem(QOTA_DATA_DIR "/mt_rainier_90m.tif");
+    FAIL() << "a lon/lat raster was taken as a Cartesian terrain";
+  } catch (const qota::Error& e) {
+    for (const char* part : {"longitude/latitude", "loadOnEllipsoid", "gdalwarp", "lonLatAsCartesian"}) {
+      EXPECT_NE(std::string(e.what()).find(part), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_EQ(qota::loadDem(QOTA_DATA_DIR "/mt_rainier_90m.tif", {.lonLatAsCartesian = true}).width, 1201);
+  EXPECT_EQ(qota::loadDem(QOTA_DATA_DIR "/SainteHelens.dem").width, 327);  // projected: metric
+}
+
+TEST(Dem, VerticalUnitsFromTheBandOrTheCrs) {
+  struct Case {
+    const char* crs;
+    const char* unit;
+    double metres;
+    bool known;
+  };
+  for (const Case& c : {Case{"EPSG:32610", "", 1.0, false}, Case{"EPSG:32610", "m", 1.0, true},
+                        Case{"EPSG:32610", "metre", 1.0, true}, Case{"EPSG:32610", "ft", 0.3048, true},
+                        Case{"EPSG:32610", "Foot", 0.3048, true},
+                        Case{"EPSG:32610", "US survey foot", 1200.0 / 3937.0, true},
+                        Case{"EPSG:32610+5703", "", 1.0, true},               // NAVD88 height, metres
+                        Case{"EPSG:32610+6360", "", 1200.0 / 3937.0, true},  // NAVD88 height (ftUS)
+                        Case{"EPSG:32610+8228", "", 0.3048, true}}) {       // NAVD88 height (ft)
+    const qota::DemTerrain d = qota::describeDem(writeSmall("units.tif", c.crs, c.unit));
+    EXPECT_NEAR(d.verticalUnit.metresPerUnit, c.metres, 1e-15) << c.crs << " '" << c.unit << "'";
+    EXPECT_EQ(d.verticalUnit.known(), c.known) << c.crs << " '" << c.unit << "'";
+    // The heights stay in the raster's own unit.
+    EXPECT_EQ(qota::loadDem(writeSmall("units.tif", c.crs, c.unit)).mesh.vertices[5].z(), 100.0);
+  }
+  try {
+    qota::loadDem(writeSmall("celsius.tif", "EPSG:32610", "degC"));
+    FAIL() << "a temperature was taken for heights";
+  } catch (const qota::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("'degC'"), std::string::npos) << e.what();
+  }
+}
+
+TEST(Dem, SeveralBandsNeedAChoice) {
+  const std::string path = writeSmall("bands.tif", "EPSG:32610", "", 3);
+  try {
+    qota::loadDem(path);
+    FAIL() << "band 1 was taken without asking";
+  } catch (const qota::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("has 3 bands"), std::string::npos) << e.what();
+  }
+  const qota::DemTerrain d = qota::loadDem(path, {.band = 3});
+  EXPECT_EQ(d.band, 3);
+  EXPECT_EQ(d.mesh.vertices[0].z(), 102.0);
 }
 
 }  // namespace

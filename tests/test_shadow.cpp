@@ -184,7 +184,7 @@ TEST(Shadow, StripWalkIdenticalToQuadtree) {
 
 TEST(Shadow, StripWalkIdenticalToQuadtreeOnTheEllipsoid) {
   // The real DEM on WGS84: the rows and columns curve in the frame, the strips do not care.
-  const qota::DemTerrain dem = qota::loadDem(QOTA_DATA_DIR "/mt_rainier_90m.tif");
+  const qota::DemTerrain dem = qota::loadDem(QOTA_DATA_DIR "/mt_rainier_90m.tif", {.lonLatAsCartesian = true});
   const LocalFrame f = qota::localFrame(dem, false);
   for (const qota::SunPosition sun : {qota::SunPosition{137.3, 8}, qota::SunPosition{290, 25}}) {
     const Eigen::Vector3d light = f.towardSun(sun);
@@ -291,7 +291,7 @@ TEST(Shadow, AgreesWithRayMarchOnTheRealDem) {
   // The flat frame, where a ray march in pixel space is exact in its geometry; it samples the
   // terrain every half pixel, so it misses ridges thinner than that (and grazing rays), which
   // are the disagreements.
-  const qota::DemTerrain dem = qota::loadDem(QOTA_DATA_DIR "/mt_rainier_90m.tif");
+  const qota::DemTerrain dem = qota::loadDem(QOTA_DATA_DIR "/mt_rainier_90m.tif", {.lonLatAsCartesian = true});
   const LocalFrame f = qota::localFrame(dem, true);
   for (const qota::SunPosition sun : {qota::SunPosition{135, 20}, qota::SunPosition{250, 35}}) {
     const auto exact = qota::shadowMask(f, f.towardSun(sun));
@@ -317,7 +317,7 @@ TEST(Shadow, AgreesWithRayMarchOnTheRealDem) {
 TEST(Shadow, CurvatureLowersDistantTerrain) {
   // On the ellipsoid, terrain far away drops below the tangent plane (about 8 m at 10 km), so
   // fewer cells are shaded at a low sun than on the flat frame.
-  const qota::DemTerrain dem = qota::loadDem(QOTA_DATA_DIR "/mt_rainier_90m.tif");
+  const qota::DemTerrain dem = qota::loadDem(QOTA_DATA_DIR "/mt_rainier_90m.tif", {.lonLatAsCartesian = true});
   const LocalFrame curved = qota::localFrame(dem, false), flat = qota::localFrame(dem, true);
   EXPECT_GT(curved.mesh.vertices[0].z(), -1000.0);
   EXPECT_LT(curved.mesh.vertices[0].z(), flat.mesh.vertices[0].z());

@@ -38,7 +38,8 @@ std::vector<std::string> lines(const std::string& s) {
 TEST(SampleTool, GoodBadAndOffRasterLinesStayAligned) {
   SampleOptions o;
   o.source = kRainier;
-  const ToolRun r = sample(o, "-122 47\n\n-121.5, 46.5\nfoo bar\n-130 46\n-121.5 46.5 100\n1 2 3 4\n");
+  o.queryZ = true;
+  const ToolRun r = sample(o, "-122 47 1e4\n\n-121.5, 46.5, 1e4\nfoo bar 1\n-130 46 1\n-121.5 46.5 100\n1 2 3 4\n");
   const auto out = lines(r.out);
   ASSERT_EQ(out.size(), 7u) << r.out;
   EXPECT_EQ(out[0], "487");
@@ -47,7 +48,7 @@ TEST(SampleTool, GoodBadAndOffRasterLinesStayAligned) {
   EXPECT_EQ(out[3], "error");
   EXPECT_EQ(out[4], "none");
   EXPECT_EQ(out[5], "none");  // no terrain at or below 100 m
-  EXPECT_EQ(out[6], "error");
+  EXPECT_EQ(out[6], "none 4");  // off the raster; the fourth field passed through
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("stdin:4: 'foo' is not a number"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("stdin:5: point (-130, 46) is off the raster"), std::string::npos) << r.err;

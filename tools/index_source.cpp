@@ -23,7 +23,9 @@ bool isRaster(const std::string& path) {
 }
 
 TreeSource sourceOf(const DemTerrain& dem) {
-  return {dem.path, dem.crsWkt, dem.width, dem.height, dem.geotransform};
+  return {dem.path,          dem.crsWkt, dem.width,
+          dem.height,        dem.geotransform, dem.band,
+          dem.verticalUnit.name, dem.verticalUnit.metresPerUnit};
 }
 
 }  // namespace
@@ -37,8 +39,15 @@ TreeFile openIndex(const SourceOptions& o) {
   if (o.source.rfind("/vsi", 0) != 0 && !std::filesystem::exists(o.source)) {
     throw Error(o.source + ": cannot open: no such file");
   }
+  DemOptions demOptions;
+  demOptions.band = o.band;
+  demOptions.lonLatAsCartesian = true;
   if (isTreeFile(o.source)) {
     TreeFile tf = loadTree(o.source);
+    if (o.band != 0 && o.band != tf.source.band) {
+      throw Error(o.source + ": the tree file was built from band " + std::to_string(tf.source.band) +
+                  " of " + tf.source.path + ", not band " + std::to_string(o.band));
+    }
     if (!o.mapping.empty() && o.mapping != mappingNameOf(tf.index)) {
       throw Error(o.source + ": the tree file was built in the " +
                   std::string(mappingNameOf(tf.index)) + " mapping, not " + o.mapping +
@@ -49,6 +58,7 @@ TreeFile openIndex(const SourceOptions& o) {
   if (!isRaster(o.source)) {
     // A mesh file, in world coordinates: the mapping's default frame (a sphere or cylinder
     // about the origin's z axis, the WGS84 ellipsoid with ECEF coordinates).
+    if (o.band != 0) throw Error(o.source + ": -b applies to rasters; this is a mesh file");
     const MeshFile file = loadMeshFile(o.source);
     TreeSource source;
     source.path = o.source;
@@ -65,26 +75,29 @@ TreeFile openIndex(const SourceOptions& o) {
     }
   }
   if (o.mapping.empty() || o.mapping == "cartesian") {
-    const DemTerrain dem = loadDem(o.source);
+    const DemTerrain dem = loadDem(o.source, demOptions);
     return {TerrainIndex(dem.mesh, dem.mapping, o.terrain), sourceOf(dem)};
   }
   if (o.mapping == "spherical") {
     PlanetOptions planetOptions;
     planetOptions.radius = o.radius;
+    planetOptions.dem = demOptions;
     const PlanetTerrain planet = loadPlanet(o.source, planetOptions);
     return {SphericalIndex(planet.dem.mesh, planet.mapping, o.terrain), sourceOf(planet.dem)};
   }
   if (o.mapping == "geodetic") {
-    const EllipsoidTerrain t = loadOnEllipsoid(o.source);
+    const EllipsoidTerrain t = loadOnEllipsoid(o.source, demOptions);
     return {GeodeticIndex(t.dem.mesh, t.mapping, o.terrain), sourceOf(t.dem)};
   }
   if (o.mapping == "cylindrical") {
     // The raster is the station's relief: columns around the axis, rows along it.
-    const DemTerrain dem = loadDem(o.source);
+    const DemTerrain dem = loadDem(o.source, demOptions);
     Heightfield relief;
     relief.nx = dem.width, relief.ny = dem.height;
     relief.z.resize(dem.mesh.vertices.size());
-    for (std::size_t i = 0; i < relief.z.size(); ++i) relief.z[i] = dem.mesh.vertices[i].z();
+    // Relief in metres: the station's geometry is metric.
+    const double metres = dem.verticalUnit.metresPerUnit;
+    for (std::size_t i = 0; i < relief.z.size(); ++i) relief.z[i] = dem.mesh.vertices[i].z() * metres;
     StationOptions station;
     if (o.radius > 0) station.radius = o.radius;
     if (o.length > 0) station.length = o.length;

@@ -15,6 +15,7 @@ struct SourceOptions {
   std::string mapping;
   double radius = 0;                  // spherical: planet radius; cylindrical: station radius
   double length = 0;                  // cylindrical: station length
+  int band = 0;                       // raster band (1-based); 0: the raster's only band
   TerrainOptions terrain;
 };
 
@@ -24,7 +25,9 @@ struct SourceOptions {
 // (stationMesh). A file GDAL cannot open as a raster is read as a mesh (loadMeshFile: OBJ, PLY,
 // glTF, STL, ... or 3D polygons in any vector format) in world coordinates: cartesian with
 // gravity -Z, or the mapping's default frame (sphere or cylinder about the origin and z axis,
-// WGS84 with ECEF coordinates). Throws qota::Error.
+// WGS84 with ECEF coordinates). A raster in longitude/latitude is accepted in the cartesian
+// mapping (x, y in degrees): the tools that take this index ask for heights at points, which
+// the lon/lat grid gives exactly. Throws qota::Error.
 TreeFile openIndex(const SourceOptions& options);
 
 // The mapping name of an index ("cartesian", ...).

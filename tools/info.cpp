@@ -92,7 +92,9 @@ int treeInfo(const InfoOptions& options, std::ostream& out) {
 int info(const InfoOptions& options, std::ostream& out, std::ostream& err) {
   try {
     if (isTreeFile(options.source)) return treeInfo(options, out);
-    const DemTerrain dem = loadDem(options.source);
+    // Statistics of the index in the raster's own x, y (degrees for a lon/lat raster): the
+    // quadtree works in (u, v) whatever their unit.
+    const DemTerrain dem = loadDem(options.source, {.band = options.band, .lonLatAsCartesian = true});
     const auto start = std::chrono::steady_clock::now();
     const TerrainIndex index(dem.mesh, dem.mapping, options.terrain);
     const double seconds =

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "qota_tools.hpp"
+#include "text_output.hpp"
 
 namespace {
 
@@ -42,10 +43,13 @@ int main(int argc, char** argv) {
   qota::tools::SampleOptions sample;
   CLI::App* sampleCmd = app.add_subcommand(
       "sample",
-      "Terrain height under points. Reads 'x y' or 'x y z' lines (z: the nearest terrain at or "
-      "below it) from stdin or --input-file and prints one line per input line: the height, "
-      "'none' where there is no terrain, 'error' for a malformed line. Exit code 1 when a line "
-      "was malformed or off the raster, 2 when the raster cannot be read.");
+      "Terrain height under points. Reads 'x y [fields...]' lines (or 'x y z [fields...]' with "
+      "--query-z: the nearest terrain at or below z) from stdin or --input-file and prints one "
+      "line per input line: the height in the raster's own vertical unit (as gdallocationinfo "
+      "prints it; a mesh's z), 'none' where there is no terrain, 'error' for a malformed line, "
+      "followed by the line's other fields unchanged. Between the outermost pixel centres and "
+      "the raster's edge, the height of the nearest point on the outermost centres' lines. Exit "
+      "code 1 when a line was malformed or off the raster, 2 when the source cannot be read.");
   sampleCmd->add_option("source", sample.source,
                         "Elevation raster (any GDAL format), tree file (qota build) or mesh file")
       ->required();
@@ -55,7 +59,16 @@ int main(int argc, char** argv) {
   sampleCmd->add_option("--srs", sample.srs,
                         "CRS of the input points (EPSG:4326, WKT, PROJ...); default: the raster's");
   sampleCmd->add_option("-p,--precision", sample.precision,
-                        "Decimals to print; default: the shortest that round-trips");
+                        "Decimals to print (0 to 100); default: the shortest that round-trips")
+      ->check(CLI::Range(0, qota::tools::kMaxPrecision));
+  sampleCmd->add_flag("--query-z", sample.queryZ,
+                      "The third field of a line is the query height: answer the nearest terrain "
+                      "at or below it (else it is passed through like any other field)");
+  sampleCmd->add_flag("--header", sample.header,
+                      "The first line is a header: print 'height' and its other names");
+  sampleCmd->add_option("-b,--band", sample.band,
+                        "Raster band holding the heights (needed when the raster has several)")
+      ->check(CLI::Range(1, 1 << 30));
   sampleCmd->add_flag("--world", sample.printWorld, "Also print the world point x y z of the hit");
   sampleCmd->add_option("--mapping", sample.mapping,
                         "Frame: cartesian (the raster as a map), spherical (a lon/lat raster as a "
@@ -81,6 +94,7 @@ int main(int argc, char** argv) {
       app.add_subcommand("info", "Raster, terrain and quadtree statistics (the paper's Table 4)");
   infoCmd->add_option("source", info.source, "Elevation raster (any GDAL format) or tree file (qota build)")
       ->required();
+  infoCmd->add_option("-b,--band", info.band, "Raster band holding the heights")->check(CLI::Range(1, 1 << 30));
   addTreeOptions(infoCmd, info.terrain);
 
   qota::tools::ShadowOptions shadow;
@@ -90,8 +104,9 @@ int main(int argc, char** argv) {
       "Output: a raster on the DEM's grid, lit = 255, shadow = 0, nodata = 128 (Byte), or hours of "
       "direct sunlight (Float32, nodata -1) with --hours. Terrain outside the raster is not seen: "
       "shadows cast from beyond the edge are missing, up to the 'shadow reach' the tool prints "
-      "(relief / tan(altitude)); pad tiles by that much. A DEM in a geographic CRS is placed on "
-      "its ellipsoid (Earth curvature included) unless --flat.");
+      "(relief / tan(altitude)); pad tiles by that much. A DEM with a CRS is placed on its "
+      "ellipsoid (curvature included, the sun's direction right at every cell) unless --flat. "
+      "Heights are converted to metres from the raster's vertical unit (-z and -s as gdaldem's).");
   shadowCmd->add_option("source", shadow.source, "Elevation raster (any GDAL format)")->required();
   shadowCmd->add_option("-o,--output", shadow.output, "Output raster")->required();
   shadowCmd->add_option("--of", shadow.format, "GDAL format (-of); default: from the extension");
@@ -106,15 +121,30 @@ int main(int argc, char** argv) {
       ->delimiter(',')
       ->expected(3);
   shadowCmd->add_option("--time", shadow.time,
-                        "Date and time, ISO 8601 (2024-06-21T14:00, with Z or +HH:MM, or --tz): "
-                        "the sun's position at the DEM's centre");
-  shadowCmd->add_option("--tz", shadow.tz, "UTC offset of --time when it has none (+02:00)");
+                        "Date and time, ISO 8601 with its UTC offset (2024-06-21T14:00+02:00, or "
+                        "...Z), or without one and --tz: the Sun's position seen from the DEM's "
+                        "centre (Earth: VSOP87; Mars: Mars24)");
+  shadowCmd->add_option("--tz", shadow.tz,
+                        "Zone of a --time without offset: an offset (+02:00) or an IANA name "
+                        "(Europe/Paris)");
   std::vector<double> hours;
   shadowCmd->add_option("--hours", hours,
-                        "START END STEP: hours of direct sunlight between these local hours of "
-                        "--time's date, sampled every STEP hours")
+                        "START END STEP: hours of direct sunlight between these local clock hours "
+                        "(0 to 48) of --time's date, in steps of STEP hours (at least 1/60); a "
+                        "cell lit at a step's middle counts the whole step")
       ->expected(3);
-  shadowCmd->add_flag("--flat", shadow.flat, "Ignore Earth curvature for a geographic DEM");
+  shadowCmd->add_flag("--flat", shadow.flat,
+                      "No curvature: a geographic DEM's lon/lat scaled linearly, a projected "
+                      "DEM's grid as it is");
+  shadowCmd->add_option("-b,--band", shadow.band, "Raster band holding the heights")
+      ->check(CLI::Range(1, 1 << 30));
+  shadowCmd->add_option("-z,--z-factor", shadow.zFactor,
+                        "Multiply heights by this after converting their unit to metres (gdaldem's -z)")
+      ->check(CLI::PositiveNumber);
+  shadowCmd->add_option("-s,--scale", shadow.scale,
+                        "Horizontal units per vertical unit, for a raster whose vertical unit is not "
+                        "known (gdaldem's -s; a degree counts as 111120 m)")
+      ->check(CLI::PositiveNumber);
   shadowCmd->add_option("--pixel-size", shadow.pixelSize, "Metres per pixel for a raster without CRS");
   shadowCmd->add_option("--png", shadow.png, "Also write a PNG preview: the shadows over a hillshade");
   shadowCmd->add_option("--lit-value", shadow.litValue, "Output value of lit cells")->capture_default_str();
@@ -150,6 +180,8 @@ int main(int argc, char** argv) {
   buildCmd->add_option("--length", build.source.length, "cylindrical: station length")
       ->check(CLI::PositiveNumber);
   buildCmd->add_flag("-q,--quiet", build.quiet, "No summary");
+  buildCmd->add_option("-b,--band", build.source.band, "Raster band holding the heights")
+      ->check(CLI::Range(1, 1 << 30));
   addTreeOptions(buildCmd, build.source.terrain);
 
   qota::tools::RenderTreeOptions renderTree;
@@ -169,6 +201,8 @@ int main(int argc, char** argv) {
       ->capture_default_str()
       ->check(CLI::Range(16, 16384));
   renderTreeCmd->add_flag("-q,--quiet", renderTree.quiet, "No summary");
+  renderTreeCmd->add_option("-b,--band", renderTree.band, "Raster band holding the heights")
+      ->check(CLI::Range(1, 1 << 30));
   addTreeOptions(renderTreeCmd, renderTree.terrain);
 
   try {

@@ -19,30 +19,40 @@ namespace qota::tools {
 // qota sample: terrain heights at points, one output line per input line. The source may also be
 // a tree file (qota build) or, in the cartesian mapping, a mesh file.
 //
-// Input lines: "x y" (the topmost terrain) or "x y z" (the nearest terrain at or below z), in the
-// raster's CRS, or in `srs` when given (any string GDAL's SetFromUserInput takes: EPSG:4326, WKT,
-// PROJ; coordinates in x = easting/longitude, y = northing/latitude order). Numbers are separated
-// by spaces, tabs or commas; a blank line gives a blank output line.
+// Input lines: "x y [fields...]" (the topmost terrain at x, y), or with queryZ "x y z
+// [fields...]" (the nearest terrain at or below z), in the raster's CRS, or in `srs` when given
+// (any string GDAL's SetFromUserInput takes: EPSG:4326, WKT, PROJ; coordinates in x =
+// easting/longitude, y = northing/latitude order). Fields are separated by spaces, tabs or
+// commas; the fields after the coordinates are passed through, unchanged, after the answer (as
+// gdallocationinfo does from GDAL 3.9), behind the separator that followed the coordinates. A
+// blank line gives a blank output line. With `header`, the first line is a header: it prints
+// "height" (and "x y z" with printWorld) followed by its other names.
 //
 // Output lines: the height (shortest decimal that round-trips to the same double, or fixed with
-// `precision` decimals), followed by the world point x y z when `printWorld`; "none" where there
-// is no terrain (a hole, or off the raster); "error" for a malformed line. Exit code: 0 when every
-// line had a valid point on the raster, 1 when any line was malformed or off the raster (with a
-// message naming the line on stderr), 2 for a usage error or unreadable file.
+// `precision` decimals) in the source's own vertical unit (the raster's, as gdallocationinfo
+// prints it; a mesh's z), followed by the world point x y z when `printWorld`; "none" where there
+// is no terrain (a hole, or off the raster); "error" for a malformed line. Between the outermost
+// pixel centres and the raster's edge (the outer half pixel) the height is that of the nearest
+// point on the outermost centres' lines (dem.hpp). Exit code: 0 when every line had a valid point
+// on the raster, 1 when any line was malformed or off the raster (with a message naming the line
+// on stderr), 2 for a usage error or unreadable file.
 struct SampleOptions {
   std::string source;       // raster path
   std::string inputFile;    // empty: read from the `in` stream
   std::string outputFile;   // empty: write to the `out` stream; else written atomically
   std::string srs;          // CRS of the input points; empty: the raster's
-  int precision = -1;       // -1: shortest round-trip; else decimals after the point
+  int precision = -1;       // -1: shortest round-trip; else decimals after the point (<= 100)
   bool printWorld = false;
+  bool queryZ = false;      // the third field is the query height
+  bool header = false;      // the first line is a header
+  int band = 0;             // raster band (1-based); 0: the raster's only band
   // The frame (coords/README.md): "cartesian" (the raster as a map, heights along -Z),
   // "spherical" (a lon/lat raster closed into a planet of radius `radius`, 0: from its CRS;
-  // points "lon lat [r]", output the surface radius), "geodetic" (a lon/lat raster on its CRS's
-  // ellipsoid; points "lon lat [h]", output the height along the ellipsoid normal), or
-  // "cylindrical" (the raster as the relief of a station of `radius` (default 250) and `length`
-  // (default 1000) around the z axis; points "angle axial [h]", output the distance from the
-  // axis, "below" meaning away from it).
+  // points "lon lat [r]", output the surface radius in metres), "geodetic" (a lon/lat raster on
+  // its CRS's ellipsoid; points "lon lat [h]", output the height along the ellipsoid normal, in
+  // the raster's vertical unit), or "cylindrical" (the raster as the relief of a station of
+  // `radius` (default 250) and `length` (default 1000) around the z axis; points "angle axial
+  // [h]", output the distance from the axis in metres, "below" meaning away from it).
   std::string mapping;       // empty: a tree file's own mapping, else cartesian
   double radius = 0;
   double length = 0;
@@ -55,6 +65,7 @@ int sample(const SampleOptions& options, std::istream& in, std::ostream& out, st
 // "name: value" per line.
 struct InfoOptions {
   std::string source;
+  int band = 0;  // raster band (1-based); 0: the raster's only band
   TerrainOptions terrain;
 };
 int info(const InfoOptions& options, std::ostream& out, std::ostream& err);
@@ -63,24 +74,35 @@ int info(const InfoOptions& options, std::ostream& out, std::ostream& err);
 // DEM's grid (see qota/shadow.hpp for the geometry).
 //
 // The light: azimuth/altitude in degrees (gdaldem's -az/-alt), or a vector toward the light in
-// the DEM's east-north-up frame, or a date and time (the sun's position at the DEM's centre).
+// the east-north-up frame at the DEM's centre, or an instant (the Sun's position seen from the
+// DEM's centre, on the Earth or Mars; `time` is ISO 8601 with its UTC offset, or `tz` gives the
+// zone: an offset or an IANA name, see qota/instant.hpp). Heights are converted to metres from the
+// raster's vertical unit (band unit type or vertical CRS) times zFactor; scale (gdaldem's -s) is
+// for rasters whose unit is not known.
 // Output: Byte, litValue where lit, shadowValue in shadow, nodataValue (also set as the band's
-// nodata) where the DEM has none; or, with hours, Float32 hours of direct sunlight over the day
-// (nodata -1). Written to a temporary file and renamed into place, so a failed or cancelled run
-// never leaves a partial raster under the requested name. Exit code 0 on success, 2 on error.
+// nodata) where the DEM has none (three different values); or, with hours, Float32 hours of
+// direct sunlight (nodata -1): the elapsed time between the local clock times START and END of
+// the date, in steps of STEP hours (at least a minute; the last may be shorter), a cell lit at a
+// step's middle counting the whole step. Written to a temporary file and renamed into place, so a
+// failed or cancelled run never leaves a partial raster under the requested name; an output that
+// is the input, or a format that stores no pixels (VRT), is refused. Exit code 0 on success, 2 on
+// error.
 struct ShadowOptions {
   std::string source;
   std::string output;
   std::string format;                    // GDAL driver; empty: guessed from the extension
   std::vector<std::string> creationOptions;  // NAME=VALUE
   bool quiet = false;
+  int band = 0;                          // 1-based; 0: the raster's only band
   std::optional<double> azimuth, altitude;
   std::optional<Eigen::Vector3d> sunVector;
   std::string time;                      // ISO 8601
-  std::string tz;                        // UTC offset for a time without one
+  std::string tz;                        // zone of a time without offset: +HH:MM or an IANA name
   std::optional<std::array<double, 3>> hours;  // start, end, step (local hours of the date)
   bool flat = false;
   double pixelSize = 0;                  // metres per pixel for a raster without CRS
+  double zFactor = 1;                    // gdaldem's -z
+  double scale = 0;                      // gdaldem's -s (horizontal units per vertical unit)
   std::string png;                       // preview: shadow over a hillshade
   int litValue = 255, shadowValue = 0, nodataValue = 128;
   TerrainOptions terrain;
@@ -103,6 +125,7 @@ int shadow(const ShadowOptions& options, std::ostream& out, std::ostream& err);
 // or not writable, output not named .png, size outside 16..16384).
 struct RenderTreeOptions {
   std::string source, output;
+  int band = 0;     // raster band (1-based); 0: the raster's only band
   int size = 1024;  // pixels along the image's long side
   bool quiet = false;
   TerrainOptions terrain;

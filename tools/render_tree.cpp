@@ -137,11 +137,12 @@ int renderTree(const RenderTreeOptions& o, std::ostream& out, std::ostream& err)
       const TreeSource& from = treeFile->source;
       if (const auto* index = std::get_if<TerrainIndex>(&treeFile->index);
           index && from.width > 0 && std::filesystem::exists(from.path)) {
-        dem.emplace(loadDem(from.path));
+        dem.emplace(loadDem(from.path, {.band = from.band, .lonLatAsCartesian = true}));
         mapping = &index->mapping();
       }
     } else {
-      dem.emplace(loadDem(o.source));
+      // Drawn on the raster's own grid: a lon/lat raster's degrees are fine here.
+      dem.emplace(loadDem(o.source, {.band = o.band, .lonLatAsCartesian = true}));
       built.emplace(dem->mesh, dem->mapping, o.terrain);
       treePtr = &built->tree();
       mapping = &built->mapping();

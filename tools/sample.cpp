@@ -4,17 +4,17 @@
 #include <charconv>
 #include <fstream>
 #include <functional>
-#include <type_traits>
 #include <iostream>
 #include <memory>
 #include <optional>
 #include <string_view>
+#include <type_traits>
 #include <vector>
 
+#include "index_source.hpp"
 #include "qota/curved.hpp"
 #include "qota/dem.hpp"
 #include "qota/error.hpp"
-#include "index_source.hpp"
 #include "qota_tools.hpp"
 #include "text_output.hpp"
 
@@ -30,58 +30,90 @@ std::string quoted(std::string_view token, std::string_view what) {
   return m;
 }
 
-// Splits a line into numbers. Returns an error message, or "" when the line holds 2 or 3 finite
-// numbers (or nothing at all: count == 0).
-std::string parsePointLine(std::string_view line, double (&values)[3], int& count) {
-  count = 0;
+bool isSeparator(char c) { return c == ' ' || c == '\t' || c == ','; }
+
+// One input line: its coordinates, and the fields after them, passed through to the output.
+struct PointLine {
+  double v[3] = {0, 0, 0};
+  int count = 0;               // coordinates read: 0 for a blank line, else `want`
+  std::string_view rest;       // the text after the coordinates and their separators
+  char separator = ' ';        // what follows the last coordinate: ',', '\t' or ' '
+};
+
+// Reads the first `want` fields of a line as finite numbers (fields are separated by spaces,
+// tabs or commas) and keeps the rest of the line as it is. Returns an error message, or "" when
+// the line is good (or blank).
+std::string parsePointLine(std::string_view line, int want, PointLine& out) {
+  out = PointLine{};
+  if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
   std::size_t i = 0;
-  const auto isSep = [](char c) { return c == ' ' || c == '\t' || c == ',' || c == '\r'; };
-  while (true) {
-    while (i < line.size() && isSep(line[i])) ++i;
-    if (i == line.size()) break;
+  while (i < line.size() && isSeparator(line[i])) ++i;
+  if (i == line.size()) return "";  // blank
+  const char* expected = want == 3 ? "expected 'x y z' (--query-z)" : "expected 'x y'";
+  for (int k = 0; k < want; ++k) {
+    while (i < line.size() && isSeparator(line[i])) ++i;
+    if (i == line.size()) {
+      return std::string(expected) + ", got " + std::to_string(k) + (k == 1 ? " value" : " values");
+    }
     std::size_t j = i;
-    while (j < line.size() && !isSep(line[j])) ++j;
+    while (j < line.size() && !isSeparator(line[j])) ++j;
     const std::string_view token = line.substr(i, j - i);
-    if (count == 3) return "expected 'x y' or 'x y z', got more than 3 values";
     double v = 0;
     const auto r = std::from_chars(token.data(), token.data() + token.size(), v);
     if (r.ec != std::errc() || r.ptr != token.data() + token.size()) {
       return quoted(token, "is not a number");
     }
     if (!std::isfinite(v)) return quoted(token, "is not a finite number");
-    values[count++] = v;
+    out.v[k] = v;
     i = j;
   }
-  if (count == 1) return "expected 'x y' or 'x y z', got 1 value";
+  out.count = want;
+  if (i < line.size()) out.separator = line[i] == ',' || line[i] == '\t' ? line[i] : ' ';
+  while (i < line.size() && isSeparator(line[i])) ++i;
+  out.rest = line.substr(i);
   return "";
 }
 
 std::unique_ptr<OGRCoordinateTransformation> makeTransform(const std::string& srs,
-                                                           const DemTerrain& dem) {
+                                                           const TreeSource& source) {
   if (srs.empty()) return nullptr;
-  if (dem.crsWkt.empty()) {
-    throw Error(dem.path + ": the raster has no CRS, so points given in --srs cannot be placed on it");
+  if (source.crsWkt.empty()) {
+    throw Error(source.path + ": the source has no CRS, so points given in --srs cannot be placed on it");
   }
   OGRSpatialReference from, to;
   if (from.SetFromUserInput(srs.c_str()) != OGRERR_NONE) {
     throw Error("--srs '" + srs + "' is not a coordinate reference system GDAL knows");
   }
-  to.importFromWkt(dem.crsWkt.c_str());
+  to.importFromWkt(source.crsWkt.c_str());
   from.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
   to.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
   std::unique_ptr<OGRCoordinateTransformation> ct(OGRCreateCoordinateTransformation(&from, &to));
-  if (!ct) throw Error("--srs '" + srs + "': no transformation to the raster's CRS");
+  if (!ct) throw Error("--srs '" + srs + "': no transformation to the source's CRS");
   return ct;
 }
 
-// One answer of a surface: the hit, or nothing; `problem` set when the point is outside the
-// surface's domain (printed as `token` with the message on stderr).
+// One answer of a surface: the height and world point, or nothing; `problem` set when the point
+// is outside the surface's domain (printed as `token`, with the message on stderr).
 struct Answer {
-  std::optional<Hit> hit;
+  std::optional<double> height;
+  Eigen::Vector3d world = Eigen::Vector3d::Zero();
   std::string token, problem;
 };
 // (x, y) in the input's order after -w; z: the query height, or null for the top surface.
 using Surface = std::function<Answer(double x, double y, const double* z)>;
+
+Answer outside(const char* token, std::string problem) { return {std::nullopt, {}, token, std::move(problem)}; }
+
+// The raster grid a tree was built from (its footprint, for the outer half-pixel rule), or
+// nothing for a mesh source.
+std::shared_ptr<const DemTerrain> gridOf(const TreeSource& source) {
+  if (source.width <= 0 || source.height <= 0) return nullptr;
+  auto grid = std::make_shared<DemTerrain>();
+  grid->path = source.path;
+  grid->width = source.width, grid->height = source.height;
+  grid->geotransform = source.geotransform;
+  return grid;
+}
 
 // The terrain of options.source (a tree file, or a raster or mesh in options.mapping), with its
 // query. The index lives in the returned closure.
@@ -91,29 +123,44 @@ Surface openSurface(const SampleOptions& options) {
   so.mapping = options.mapping;
   so.radius = options.radius;
   so.length = options.length;
+  so.band = options.band;
   so.terrain = options.terrain;
   auto tree = std::make_shared<TreeFile>(openIndex(so));
+  if (tree->source.path.empty()) tree->source.path = options.source;
+  const std::shared_ptr<const DemTerrain> grid = gridOf(tree->source);
+  // Points off the raster, and the outer half pixel: the height of the nearest point on the
+  // outermost pixel centres' lines (dem.hpp). xy is moved there; false when off the raster.
+  const auto onSurface = [grid](double& x, double& y, std::string& problem) {
+    if (!grid) return true;
+    const auto p = grid->surfacePoint(x, y);
+    if (!p) {
+      problem = "point (" + formatNumber(x) + ", " + formatNumber(y) + ") is off the raster";
+      return false;
+    }
+    x = (*p)[0], y = (*p)[1];
+    return true;
+  };
+
   if (const TerrainIndex* index = std::get_if<TerrainIndex>(&tree->index)) {
-    // The raster's footprint and CRS, when the source was a raster.
-    auto grid = std::make_shared<DemTerrain>();
-    grid->path = tree->source.path.empty() ? options.source : tree->source.path;
-    grid->crsWkt = tree->source.crsWkt;
-    grid->width = tree->source.width, grid->height = tree->source.height;
-    grid->geotransform = tree->source.geotransform;
-    std::shared_ptr<OGRCoordinateTransformation> transform = makeTransform(options.srs, *grid);
-    return [tree, index, grid, transform, srs = options.srs](double x0, double y0, const double* z) {
+    std::shared_ptr<OGRCoordinateTransformation> transform = makeTransform(options.srs, tree->source);
+    const CartesianMapping& mapping = index->mapping();
+    return [tree, index, mapping, transform, onSurface, srs = options.srs](double x0, double y0,
+                                                                           const double* z) {
       double x = x0, y = y0;
       if (transform && !transform->Transform(1, &x, &y)) {
-        return Answer{std::nullopt, "error",
-                      "cannot transform (" + formatNumber(x0) + ", " + formatNumber(y0) +
-                          ") from " + srs + " to the raster's CRS"};
+        return outside("error", "cannot transform (" + formatNumber(x0) + ", " + formatNumber(y0) +
+                                    ") from " + srs + " to the source's CRS");
       }
-      if (grid->width > 0 && !grid->onRaster(x, y)) {
-        return Answer{std::nullopt, "none",
-                      "point (" + formatNumber(x) + ", " + formatNumber(y) + ") is off the raster"};
-      }
-      const Eigen::Vector3d m = index->mapping().toMapped(Eigen::Vector3d(x, y, z ? *z : 0.0));
-      return Answer{z ? index->below(m.x(), m.y(), m.z()) : index->top(m.x(), m.y()), "", ""};
+      const double px = x, py = y;
+      std::string problem;
+      if (!onSurface(x, y, problem)) return outside("none", problem);
+      const Eigen::Vector3d m = mapping.toMapped(Eigen::Vector3d(x, y, z ? *z : 0.0));
+      const std::optional<Hit> hit = z ? index->below(m.x(), m.y(), m.z()) : index->top(m.x(), m.y());
+      if (!hit) return Answer{};
+      // The height in the source's own coordinates: along "up" from its world origin (a mesh's
+      // index works around the centre of its box, a raster's around its centre at z = 0).
+      const double height = mapping.vertical() ? hit->world.z() : -hit->world.dot(mapping.gravity());
+      return Answer{height, Eigen::Vector3d(px, py, height), "", ""};
     };
   }
   if (!options.srs.empty()) {
@@ -121,25 +168,42 @@ Surface openSurface(const SampleOptions& options) {
                 std::string(mappingNameOf(tree->index)) +
                 " mapping reads longitude/latitude (or angle/axial) coordinates");
   }
-  // The curved mappings share their query; only the domain check differs.
+  // A geodetic source's heights are in the raster's vertical unit (converted to metres for the
+  // ellipsoid): the query height comes in it and the answer goes out in it, as for cartesian.
+  const double metres = tree->source.metresPerUnit;
   return std::visit(
       [&](const auto& index) -> Surface {
-        const bool latitude = !std::is_same_v<std::decay_t<decltype(index)>, CylindricalIndex>;
-        return [tree, &index, latitude](double u, double v, const double* z) {
-          if (latitude && !(v >= -90.0 && v <= 90.0)) {
-            return Answer{std::nullopt, "error",
-                          "latitude " + formatNumber(v) + " is outside [-90, 90]"};
+        using Index = std::decay_t<decltype(index)>;
+        constexpr bool kGeodetic = std::is_same_v<Index, GeodeticIndex>;
+        constexpr bool kLatitude = !std::is_same_v<Index, CylindricalIndex>;
+        return [tree, &index, onSurface, metres](double u, double v, const double* z) {
+          if (kLatitude && !(v >= -90.0 && v <= 90.0)) {
+            return outside("error", "latitude " + formatNumber(v) + " is outside [-90, 90]");
           }
-          return Answer{z ? index.below(u, v, *z) : index.top(u, v), "", ""};
+          std::string problem;
+          if (kGeodetic && !onSurface(u, v, problem)) return outside("none", problem);
+          const double scale = kGeodetic ? metres : 1.0;
+          const std::optional<Hit> hit = z ? index.below(u, v, *z * scale) : index.top(u, v);
+          if (!hit) return Answer{};
+          return Answer{hit->height / scale, hit->world, "", ""};
         };
       },
       tree->index);
+}
+
+// What a line's answer is followed by: the fields after its coordinates, if any.
+void passThrough(std::ostream& out, const PointLine& p) {
+  if (!p.rest.empty()) out << p.separator << p.rest;
 }
 
 }  // namespace
 
 int sample(const SampleOptions& options, std::istream& in, std::ostream& out, std::ostream& err) {
   try {
+    if (options.precision > kMaxPrecision) {
+      throw Error("-p " + std::to_string(options.precision) + ": at most " +
+                  std::to_string(kMaxPrecision) + " decimals");
+    }
     const Surface surface = openSurface(options);
 
     std::ifstream file;
@@ -158,39 +222,58 @@ int sample(const SampleOptions& options, std::istream& in, std::ostream& out, st
       output = &outFile->stream();
     }
 
+    const int want = options.queryZ ? 3 : 2;
     bool failed = false;
     std::string line;
     for (std::uint64_t lineNo = 1; std::getline(*input, line); ++lineNo) {
       const auto fail = [&](const std::string& token, const std::string& message) {
-        *output << token << '\n';
+        *output << token;
         err << "qota sample: " << where << ':' << lineNo << ": " << message << '\n';
         failed = true;
       };
-      double v[3];
-      int count = 0;
-      if (const std::string problem = parsePointLine(line, v, count); !problem.empty()) {
-        fail("error", problem);
-        continue;
-      }
-      if (count == 0) {
+      PointLine p;
+      if (options.header && lineNo == 1) {
+        // The header's coordinate names become the answer's; its other names pass through.
+        std::size_t i = 0;
+        for (int k = 0; k < want; ++k) {
+          while (i < line.size() && isSeparator(line[i])) ++i;
+          while (i < line.size() && !isSeparator(line[i])) ++i;
+        }
+        if (i < line.size()) p.separator = line[i] == ',' || line[i] == '\t' ? line[i] : ' ';
+        while (i < line.size() && isSeparator(line[i])) ++i;
+        std::string_view rest(line);
+        rest = rest.substr(i);
+        if (!rest.empty() && rest.back() == '\r') rest.remove_suffix(1);
+        p.rest = rest;
+        const char s = p.separator;
+        *output << "height";
+        if (options.printWorld) *output << s << 'x' << s << 'y' << s << 'z';
+        passThrough(*output, p);
         *output << '\n';
         continue;
       }
-      const double x = options.swapXY ? v[1] : v[0], y = options.swapXY ? v[0] : v[1];
-      const Answer answer = surface(x, y, count == 3 ? &v[2] : nullptr);
+      if (const std::string problem = parsePointLine(line, want, p); !problem.empty()) {
+        fail("error", problem + (lineNo == 1 && !options.header ? " (a header line? --header skips it)" : ""));
+        *output << '\n';
+        continue;
+      }
+      if (p.count == 0) {
+        *output << '\n';
+        continue;
+      }
+      const double x = options.swapXY ? p.v[1] : p.v[0], y = options.swapXY ? p.v[0] : p.v[1];
+      const Answer answer = surface(x, y, options.queryZ ? &p.v[2] : nullptr);
       if (!answer.problem.empty()) {
         fail(answer.token, answer.problem);
-        continue;
+      } else if (!answer.height) {
+        *output << "none";
+      } else {
+        *output << formatNumber(*answer.height, options.precision);
+        if (options.printWorld) {
+          for (int k = 0; k < 3; ++k) *output << p.separator << formatNumber(answer.world[k], options.precision);
+        }
       }
-      const std::optional<Hit>& hit = answer.hit;
-      if (!hit) {
-        *output << "none\n";
-        continue;
-      }
-      *output << formatNumber(hit->height, options.precision);
-      if (options.printWorld) {
-        for (int k = 0; k < 3; ++k) *output << ' ' << formatNumber(hit->world[k], options.precision);
-      }
+      passThrough(*output, p);
       *output << '\n';
     }
     if (input->bad()) throw Error(where + ": read error");
@@ -198,6 +281,7 @@ int sample(const SampleOptions& options, std::istream& in, std::ostream& out, st
       outFile->commit();
     } else {
       output->flush();
+      if (!*output) throw Error("cannot write the output");
     }
     return failed ? 1 : 0;
   } catch (const Error& e) {

@@ -3,9 +3,11 @@
 #include <gdal_priv.h>
 
 #include <cmath>
+#include <filesystem>
 #include <iostream>
 
 #include "qota/error.hpp"
+#include "qota/instant.hpp"
 #include "qota/shadow.hpp"
 #include "qota_tools.hpp"
 #include "raster_output.hpp"
@@ -13,8 +15,6 @@
 
 namespace qota::tools {
 namespace {
-
-constexpr double kDeg = M_PI / 180.0;
 
 // GDAL's terminal progress ("0...10...20..."), scaled into [lo, hi] of the whole run.
 Progress termProgress(bool quiet, double lo, double hi) {
@@ -33,35 +33,40 @@ int lightKinds(const ShadowOptions& o) {
   return (o.azimuth || o.altitude ? 1 : 0) + (o.sunVector ? 1 : 0) + (o.time.empty() ? 0 : 1);
 }
 
-std::optional<int> utcOffset(const ShadowOptions& o) {
-  if (o.tz.empty()) return std::nullopt;
-  return parseUtcOffset(o.tz);
-}
-
 void requireLocation(const LocalFrame& frame, const std::string& path) {
   if (!frame.geographicLocation) {
-    throw Error(path + ": the raster has no coordinate reference system, so its place on Earth (and "
-                "the sun's position there) is unknown; give -az/-alt or --sun-vector instead");
+    throw Error(path + ": the raster has no coordinate reference system, so its place (and the "
+                "sun's position there) is unknown; give -az/-alt or --sun-vector instead");
   }
 }
 
-LightChoice chooseLight(const ShadowOptions& o, const LocalFrame& frame) {
+// Where the Sun is, seen from the DEM's centre, on the DEM's body.
+SunPosition sunAt(const LocalFrame& frame, double julianDayUT, const std::string& path) {
+  requireLocation(frame, path);
+  if (frame.body.name == "Earth") return sunPosition(julianDayUT, frame.centreLon, frame.centreLat);
+  if (frame.body.name == "Mars") return marsSunPosition(julianDayUT, frame.centreLon, frame.centreLat);
+  throw Error(path + ": the raster lies on " + frame.body.name + "; --time knows where the Sun is "
+              "seen from the Earth (VSOP87) and from Mars (Mars24) only: give the light with "
+              "-az/-alt or --sun-vector");
+}
+
+LightChoice chooseLight(const ShadowOptions& o, const LocalFrame& frame, std::ostream& out) {
   if (o.sunVector) {
     if (!o.sunVector->allFinite() || o.sunVector->squaredNorm() == 0) {
       throw Error("--sun-vector must be a nonzero finite vector x,y,z (east, north, up)");
     }
     const Eigen::Vector3d v = o.sunVector->normalized();
     return {v, "light vector " + formatNumber(v.x(), 6) + "," + formatNumber(v.y(), 6) + "," +
-                   formatNumber(v.z(), 6) + " (east, north, up)"};
+                   formatNumber(v.z(), 6) + " (east, north, up at the centre)"};
   }
   SunPosition sun;  // gdaldem hillshade's defaults: 315, 45
   std::string from = "-az/-alt";
   if (!o.time.empty()) {
-    requireLocation(frame, o.source);
-    const double jd = julianDayFromIso8601(o.time, utcOffset(o));
-    sun = sunPosition(jd, frame.centreLon, frame.centreLat);
-    from = "the sun at " + o.time + " seen from " + formatNumber(frame.centreLon, 5) + ", " +
-           formatNumber(frame.centreLat, 5);
+    const Instant t = parseInstant(o.time, o.tz);
+    if (!o.quiet) out << "time: " << t.local << " = " << t.utc << '\n';
+    sun = sunAt(frame, t.julianDayUT, o.source);
+    from = "the Sun at " + t.utc + " seen from " + formatNumber(frame.centreLon, 5) + ", " +
+           formatNumber(frame.centreLat, 5) + " on " + frame.body.name;
   } else {
     if (o.azimuth) sun.azimuth = *o.azimuth;
     if (o.altitude) sun.altitude = *o.altitude;
@@ -78,7 +83,7 @@ LightChoice chooseLight(const ShadowOptions& o, const LocalFrame& frame) {
 std::vector<double> preview(const LocalFrame& f, const Eigen::Vector3d& light,
                             const std::vector<Light>& mask, const std::vector<double>* hours) {
   const int w = f.width, h = f.height;
-  std::vector<double> grey(mask.size(), 0.0);
+  std::vector<double> grey(f.cellCount(), 0.0);
   double maxHours = 0;
   if (hours) {
     for (double x : *hours) maxHours = std::max(maxHours, x);
@@ -105,86 +110,127 @@ std::vector<double> preview(const LocalFrame& f, const Eigen::Vector3d& light,
   return grey;
 }
 
+// True when both paths name the same existing file (or the same path).
+bool sameFile(const std::string& a, const std::string& b) {
+  std::error_code ec;
+  if (std::filesystem::equivalent(a, b, ec)) return true;
+  return std::filesystem::weakly_canonical(a, ec) == std::filesystem::weakly_canonical(b, ec) && !ec;
+}
+
+// Everything that can be refused before any work: the light, the values, the outputs.
+void checkOptions(const ShadowOptions& o, const std::string& format) {
+  if (o.output.empty()) throw Error("an output file is needed: -o OUT");
+  if (lightKinds(o) > 1) throw Error("give one light: -az/-alt, --sun-vector or --time");
+  if (!o.tz.empty() && o.time.empty()) throw Error("--tz needs --time (the date and time it is the zone of)");
+  if (o.hours && o.time.empty()) throw Error("--hours needs --time for the date");
+  for (int v : {o.litValue, o.shadowValue, o.nodataValue}) {
+    if (v < 0 || v > 255) throw Error("output values must be 0..255, got " + std::to_string(v));
+  }
+  if (!o.hours && (o.litValue == o.shadowValue || o.litValue == o.nodataValue || o.shadowValue == o.nodataValue)) {
+    throw Error("--lit-value " + std::to_string(o.litValue) + ", --shadow-value " + std::to_string(o.shadowValue) +
+                " and --nodata-value " + std::to_string(o.nodataValue) +
+                " must differ, or lit, shadow and nodata cells could not be told apart");
+  }
+  if (format == "VRT" || format == "MEM") {
+    throw Error(o.output + ": the " + format + " format holds no pixels of its own (it would point at "
+                "a dataset that is gone); write a GeoTIFF (.tif) or another format that stores them");
+  }
+  for (const std::string* path : {&o.output, &o.png}) {
+    if (!path->empty() && sameFile(*path, o.source)) {
+      throw Error(*path + " is the input DEM; give another output name");
+    }
+  }
+  if (!o.png.empty() && sameFile(o.png, o.output)) throw Error("--png and -o name the same file");
+}
+
 }  // namespace
 
 int shadow(const ShadowOptions& o, std::ostream& out, std::ostream& err) {
   try {
-    if (o.output.empty()) throw Error("an output file is needed: -o OUT");
-    if (lightKinds(o) > 1) throw Error("give one light: -az/-alt, --sun-vector or --time");
-    if (o.hours && o.time.empty()) throw Error("--hours needs --time for the date");
-    for (int v : {o.litValue, o.shadowValue, o.nodataValue}) {
-      if (v < 0 || v > 255) throw Error("output values must be 0..255, got " + std::to_string(v));
-    }
-    const std::string format = o.format.empty() ? driverForPath(o.output) : o.format;
-    const DemTerrain dem = loadDem(o.source);
-    const LocalFrame frame = localFrame(dem, o.flat, o.pixelSize);
+    const std::string format = o.output.empty() ? "" : o.format.empty() ? driverForPath(o.output) : o.format;
+    checkOptions(o, format);
+    DemOptions demOptions;
+    demOptions.band = o.band;
+    demOptions.lonLatAsCartesian = true;  // read as lon/lat: the frame puts it on its ellipsoid
+    const DemTerrain dem = loadDem(o.source, demOptions);
+    FrameOptions frameOptions;
+    frameOptions.flat = o.flat;
+    frameOptions.pixelSize = o.pixelSize;
+    frameOptions.zFactor = o.zFactor;
+    frameOptions.scale = o.scale;
+    const LocalFrame frame = localFrame(dem, frameOptions);
     if (!o.quiet) {
       out << "qota shadow: " << o.source << " -> " << o.output << " (" << format << ")\n"
           << "frame: " << frame.description << '\n';
+      if (frame.metresPerUnit != 1) {
+        out << "heights: " << formatNumber(frame.metresPerUnit) << " m per unit ("
+            << (dem.verticalUnit.known() ? "'" + dem.verticalUnit.name + "'" : std::string("-s")) +
+                   (o.zFactor != 1 ? ", -z " + formatNumber(o.zFactor) : std::string())
+            << ")\n";
+      }
     }
 
-    std::vector<double> values(frame.mesh.vertices.size());
+    const std::size_t cells = frame.cellCount();
+    std::vector<double> values(cells);
     std::vector<Light> mask;
     Eigen::Vector3d shownLight;
     std::vector<double> hoursLit;
     if (o.hours) {
-      // Hours of direct sunlight: the sun sampled at the middle of every step of the day.
-      requireLocation(frame, o.source);
+      // Hours of direct sunlight: the elapsed time between the local clock times START and END of
+      // the date, in steps of STEP hours; a cell lit at a step's middle counts the whole step.
       const auto [start, end, step] = *o.hours;
-      if (!(step > 0) || !(end > start) || end - start > 48) {
-        throw Error("--hours START END STEP: need START < END (at most 48 h apart) and STEP > 0");
+      if (!(start >= 0) || !(end > start) || !(end <= 48)) {
+        throw Error("--hours START END STEP: need 0 <= START < END <= 48 (hours after local midnight), got " +
+                    formatNumber(start) + " " + formatNumber(end));
       }
-      const std::string date = o.time.substr(0, 10);
-      std::optional<int> offset = utcOffset(o);
-      if (o.time.size() > 10 && !offset) {
-        // The offset written in --time, if any, applies to the whole day.
-        const std::size_t p = o.time.find_first_of("Z+-", 11);
-        if (p != std::string::npos) offset = parseUtcOffset(o.time.substr(p));
+      if (!(step >= 1.0 / 60) || !(step <= end - start)) {
+        throw Error("--hours STEP " + formatNumber(step) + ": need at least one minute (1/60 h) and at most "
+                    "END - START (" + formatNumber(end - start) + " h)");
       }
-      const double midnight = julianDayFromIso8601(date, offset);
-      hoursLit.assign(values.size(), 0.0);
-      const int steps = static_cast<int>(std::ceil((end - start) / step - 1e-9));
+      requireLocation(frame, o.source);
+      const LocalSpan span = localSpan(o.time, o.tz, start, end);
+      const double elapsed = (span.end.julianDayUT - span.start.julianDayUT) * 24.0;
+      const int steps = static_cast<int>(std::ceil(elapsed / step - 1e-9));
+      hoursLit.assign(cells, 0.0);
       for (int k = 0; k < steps; ++k) {
-        const double t0 = start + k * step, dt = std::min(step, end - t0);
-        const SunPosition sun = sunPosition(midnight + (t0 + dt / 2) / 24.0, frame.centreLon, frame.centreLat);
-        if (sun.altitude <= 0) continue;
-        const Eigen::Vector3d light = frame.towardSun(sun);
-        mask = shadowMask(frame, light, o.terrain,
+        const double t0 = k * step, dt = std::min(step, elapsed - t0);
+        const SunPosition sun = sunAt(frame, span.start.julianDayUT + (t0 + dt / 2) / 24.0, o.source);
+        if (sun.altitude <= -frame.horizonSlack || (!frame.body.ellipsoid && sun.altitude <= 0)) continue;  // night everywhere
+        mask = shadowMask(frame, frame.towardSun(sun), o.terrain,
                           termProgress(o.quiet, double(k) / steps, double(k + 1) / steps), 0, o.search);
-        for (std::size_t i = 0; i < mask.size(); ++i) {
+        for (std::size_t i = 0; i < cells; ++i) {
           if (mask[i] == Light::Lit) hoursLit[i] += dt;
         }
       }
-      for (std::size_t i = 0; i < values.size(); ++i) {
-        values[i] = frame.valid[i] ? hoursLit[i] : -1.0;
-      }
+      for (std::size_t i = 0; i < cells; ++i) values[i] = frame.valid[i] ? hoursLit[i] : -1.0;
       if (mask.empty()) mask = shadowMask(frame, Eigen::Vector3d(0, 0, -1));  // night all day
-      shownLight = frame.towardSun(sunPosition(midnight + (start + end) / 48.0, frame.centreLon, frame.centreLat));
+      shownLight = frame.towardSun(sunAt(frame, (span.start.julianDayUT + span.end.julianDayUT) / 2, o.source));
       if (!o.quiet) {
         GDALTermProgress(1.0, "", nullptr);
-        out << "sunlight: " << steps << " steps of " << formatNumber(step) << " h from "
-            << formatNumber(start) << " to " << formatNumber(end) << " h local time on " << date << '\n';
+        out << "sunlight: " << steps << " steps of " << formatNumber(step) << " h, from " << span.start.local
+            << " (" << span.start.utc << ") to " << span.end.local << " (" << span.end.utc << "), "
+            << formatNumber(elapsed) << " h\n";
       }
     } else {
-      const LightChoice light = chooseLight(o, frame);
+      const LightChoice light = chooseLight(o, frame, out);
       shownLight = light.toward;
       if (!o.quiet) out << "light: " << light.description << '\n';
       if (light.toward.z() <= 0) {
-        err << "qota shadow: the light is at or below the horizon: every cell is in shadow\n";
+        err << "qota shadow: the light is at or below the horizon at the centre"
+            << (frame.body.ellipsoid ? "" : ": every cell is in shadow") << '\n';
       }
       mask = shadowMask(frame, light.toward, o.terrain, termProgress(o.quiet, 0, 1), 0, o.search);
-      for (std::size_t i = 0; i < mask.size(); ++i) {
+      for (std::size_t i = 0; i < cells; ++i) {
         values[i] = mask[i] == Light::Lit ? o.litValue : mask[i] == Light::Shadow ? o.shadowValue : o.nodataValue;
       }
       if (!o.quiet) {
         std::size_t lit = 0, valid = 0;
         for (Light l : mask) lit += l == Light::Lit, valid += l != Light::NoData;
         const double reach = shadowReach(frame, light.toward);
-        out << "lit: " << formatNumber(valid ? 100.0 * lit / valid : 0.0, 2) << " % of " << valid
-            << " cells\n";
+        out << "lit: " << formatNumber(valid ? 100.0 * lit / valid : 0.0, 2) << " % of " << valid << " cells\n";
         out << "shadow reach: "
-            << (std::isfinite(reach) ? formatNumber(reach, 0) + " m (" +
-                                           formatNumber(reach / std::min(frame.pixelSizeX, frame.pixelSizeY), 0) +
+            << (std::isfinite(reach) ? formatReadable(reach, 0) + " m (" +
+                                           formatReadable(reach / std::min(frame.pixelSizeX, frame.pixelSizeY), 0) +
                                            " pixels)"
                                      : std::string("unbounded"))
             << ": terrain outside the raster can shade cells this far inside it; pad tiles by that much\n";

@@ -1,16 +1,31 @@
 #include "text_output.hpp"
 
+#include <algorithm>
 #include <charconv>
+#include <cmath>
 
 #include "qota/error.hpp"
 
 namespace qota::tools {
 
 std::string formatNumber(double value, int precision) {
-  char buf[64];
+  precision = std::min(precision, kMaxPrecision);
+  // A fixed double needs up to 309 integer digits, a sign, a point and the decimals.
+  std::string buf(330 + static_cast<std::size_t>(std::max(precision, 0)), '\0');
   const auto r = precision < 0
-                     ? std::to_chars(buf, buf + sizeof buf, value)
-                     : std::to_chars(buf, buf + sizeof buf, value, std::chars_format::fixed, precision);
+                     ? std::to_chars(buf.data(), buf.data() + buf.size(), value)
+                     : std::to_chars(buf.data(), buf.data() + buf.size(), value, std::chars_format::fixed, precision);
+  // The buffer fits every double; an error here would be a bug, never garbage on the output.
+  if (r.ec != std::errc()) throw Error("cannot format a number");
+  buf.resize(static_cast<std::size_t>(r.ptr - buf.data()));
+  return buf;
+}
+
+std::string formatReadable(double value, int decimals) {
+  if (std::isfinite(value) && std::fabs(value) < 1e15) return formatNumber(value, decimals);
+  char buf[64];
+  const auto r = std::to_chars(buf, buf + sizeof buf, value, std::chars_format::scientific);
+  if (r.ec != std::errc()) throw Error("cannot format a number");
   return std::string(buf, r.ptr);
 }
 

@@ -10,8 +10,17 @@
 
 namespace qota::tools {
 
-// The shortest decimal that reads back as the same double (precision < 0), or fixed decimals.
+// The most decimals -p takes: more than a double holds (17 significant digits) for any height,
+// with room for tiny values; every one printed is a true digit of the double's exact value.
+constexpr int kMaxPrecision = 100;
+
+// The shortest decimal that reads back as the same double (precision < 0), or fixed decimals
+// (precision 0 .. kMaxPrecision; more is clamped). Exact for any double, however large; "nan",
+// "inf", "-inf" for those.
 std::string formatNumber(double value, int precision = -1);
 
+// A number for people: fixed decimals while it stays short, else the shortest round trip in
+// scientific notation (a shadow reach of 1e300 m is not printed as 300 digits).
+std::string formatReadable(double value, int decimals);
 
 }  // namespace qota::tools

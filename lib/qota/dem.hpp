@@ -1,8 +1,8 @@
 // Terrains from elevation rasters, through GDAL: any raster GDAL reads (GeoTIFF, SRTM .hgt, USGS
 // ASCII DEM, DTED, ...).
 //
-// Geometry: band 1 (or the band asked for), scaled by the band's scale and offset when it has
-// them. One vertex at every pixel centre, at world position
+// Geometry: the band asked for (DemOptions::band; a raster with several bands must name one),
+// scaled by the band's scale and offset when it has them. One vertex at every pixel centre, at world position
 //     x = gt[0] + (col + 0.5) gt[1] + (row + 0.5) gt[2]
 //     y = gt[3] + (col + 0.5) gt[4] + (row + 0.5) gt[5]
 //     z = value
@@ -11,12 +11,26 @@
 // row) to its bottom-right centre (col + 1, row + 1): (TL, BL, BR) and (TL, BR, TR). The surface
 // therefore spans the pixel centres; the outer half-cell border of the raster has no terrain.
 //
-// Nodata: a pixel equal to the band's nodata value, or NaN, has no vertex height; every triangle
-// touching it is left out, so nodata makes holes.
+// Nodata: a pixel equal to the band's nodata value, or NaN or infinite, has no vertex height;
+// every triangle touching it is left out, so nodata makes holes.
+//
+// The outer half pixel (between the outermost pixel centres and the raster's edge) has no
+// triangles. A point there takes the height of the nearest point on the outermost pixel centres'
+// lines (surfacePoint below): the surface is extended flat across the edge, as texture clamping
+// does, so two tiles that share an edge both answer up to it. Sampling, shadows and tree files
+// built from rasters all keep this rule.
+//
+// Units: heights stay in the raster's own vertical unit (what gdallocationinfo prints); the unit
+// is read from the band's unit type ("m", "ft", "US survey foot", ...) or else from a vertical
+// CRS, and DemTerrain::metresPerUnit converts it for geometry (shadows, curved worlds). A raster
+// that says nothing is taken as metres.
 //
 // Frame: the Cartesian mapping with gravity -Z and its origin at the raster's centre (so UTM
 // coordinates in the millions keep full precision in the index). The CRS (WKT) is kept with the
-// terrain; coordinates are never reprojected here.
+// terrain; coordinates are never reprojected here. A raster in longitude/latitude degrees is
+// refused as a Cartesian terrain unless DemOptions::lonLatAsCartesian is set: its x and y would
+// be degrees and its z metres, so slopes, normals and poses would be meaningless (heights alone
+// are still right). Use loadOnEllipsoid (globe.hpp) for a metric frame, or reproject the raster.
 #pragma once
 
 #include <array>
@@ -30,11 +44,26 @@
 namespace qota {
 
 struct DemOptions {
-  int band = 1;
+  // 1-based band; 0: the raster's only band (a raster with several is refused: name one).
+  int band = 0;
   // Memory the terrain may use; 0 means the memory available on this machine. A raster that
   // would need more is refused before anything large is allocated.
   std::uint64_t memoryLimitBytes = 0;
+  // Accept a raster in longitude/latitude as a Cartesian terrain (x, y in degrees). Right for
+  // heights at points (qota sample), wrong for anything metric (normals, slopes, poses, moves).
+  bool lonLatAsCartesian = false;
 };
+
+// The vertical unit of a raster's heights.
+struct VerticalUnit {
+  std::string name;          // as the raster gives it ("metre", "ft", ...); "" when it says nothing
+  double metresPerUnit = 1;  // 1 when it says nothing (metres assumed)
+  bool known() const { return !name.empty(); }
+};
+
+// The unit a unit-type text names ("m", "metre", "ft", "foot", "US survey foot", "cm", ...), in
+// metres; std::nullopt for a text that is not a length unit.
+std::optional<double> metresPerLengthUnit(const std::string& unitText);
 
 struct DemTerrain {
   std::string path;
@@ -44,6 +73,8 @@ struct DemTerrain {
   std::string crsWkt;  // empty when the raster has no CRS
   std::optional<double> nodata;
   std::uint64_t nodataCells = 0;
+  int band = 1;               // the band read (1-based)
+  VerticalUnit verticalUnit;  // of the heights in mesh (they are kept in this unit)
   Mesh mesh;                   // vertex index = row * width + col
   CartesianMapping mapping;    // gravity -Z, origin at the raster centre
 
@@ -54,10 +85,21 @@ struct DemTerrain {
   std::array<double, 2> pixelOf(double x, double y) const;
   // True when the world point lies on the raster's footprint.
   bool onRaster(double x, double y) const;
+  // The point whose height answers for (x, y) under the outer half-pixel rule: (x, y) itself
+  // between the outermost pixel centres, else the nearest point on their lines (the pixel
+  // coordinates clamped to [0.5, size - 0.5], converted back with the geotransform's own
+  // arithmetic, so a clamped point lies exactly on the centres' line of a north-up raster).
+  // std::nullopt off the raster.
+  std::optional<std::array<double, 2>> surfacePoint(double x, double y) const;
 };
 
+// The geometry of a raster, without reading its pixels: size, geotransform, CRS, band, nodata,
+// vertical unit. The same checks as loadDem (the file opens as a raster, the band exists).
+DemTerrain describeDem(const std::string& path, const DemOptions& options = {});
+
 // Reads a raster into a terrain. Throws qota::Error naming the file when it cannot be opened, has
-// no such band, or is too large for the memory limit.
+// no such band (or several and none was named), has a unit type that is not a length, is in
+// longitude/latitude without lonLatAsCartesian, or is too large for the memory limit.
 DemTerrain loadDem(const std::string& path, const DemOptions& options = {});
 
 // Memory available to this process for a new terrain, in bytes (MemAvailable, else physical).

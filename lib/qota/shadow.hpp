@@ -21,12 +21,27 @@
 // ShadowSearch (below): through the index's own quadtree, or by default through strips along the
 // sun's azimuth that need no tree.
 //
-// Frame: the DEM in metres around its centre, east-north-up (LocalFrame). A DEM in a geographic
-// CRS is put on its ellipsoid (WGS84 unless the CRS says otherwise) with GeographicLib's
-// LocalCartesian, so the Earth's curvature lowers distant terrain as it should; `flat` maps
-// longitude and latitude linearly instead. A projected DEM uses its own x, y in metres, with the
-// sun's azimuth turned from true north to grid north (meridian convergence at the centre).
-// Heights are taken as metres.
+// Frame (LocalFrame): the DEM in metres, east-north-up at its centre. A DEM with a CRS is put on
+// its ellipsoid (WGS84 unless the CRS says otherwise; Mars's, the Moon's...): every pixel centre
+// at its longitude, latitude (through PROJ for a projected CRS) and height, in geocentric
+// coordinates turned to east-north-up at the centre. So the Earth's curvature lowers distant
+// terrain as it should, and the light, one direction in that frame (parallel rays: the sun is far
+// away), meets each cell at the sun's own azimuth and altitude there: on a continent or the whole
+// globe the terminator falls where it is. Rays are straight lines in that frame. A raster that
+// spans 360 degrees of longitude is closed at the antimeridian, and at the poles when its rows
+// reach within a pixel of them (raster_grid.hpp), so no ray slips through a seam. `flat` maps a
+// geographic DEM's longitude and latitude linearly, and a projected DEM's grid as it is in metres
+// (the sun's azimuth turned from true north to grid north); a raster without CRS is a pixel grid
+// of `pixelSize` metres. Heights are converted to metres from the raster's vertical unit
+// (dem.hpp), times `zFactor`.
+//
+// The outer half pixel: the frame's surface reaches the raster's edge, flat across it (the same
+// rule as sampling, raster_grid.hpp), so that terrain occludes. Cells are still the pixel centres.
+//
+// The body: a cell whose ray toward the light passes below the lowest terrain of the DEM (less a
+// margin for the chords between pixel centres), on the ellipsoid, is in shadow: the planet itself
+// is in the way, whatever lies beyond the raster. In a flat frame that is a light at or below the
+// horizon.
 #pragma once
 
 #include <Eigen/Core>
@@ -37,46 +52,88 @@
 #include <vector>
 
 #include "qota/dem.hpp"
+#include "qota/raster_grid.hpp"
 #include "qota/sun.hpp"
 #include "qota/terrain.hpp"
 
 namespace qota {
 
-// The DEM's vertices in a local metric east-north-up frame (same vertex indices as dem.mesh),
-// with every cell's two triangles. Voids are filled from their rims for occlusion: light cannot
-// pass under the terrain through missing data, and every vertex has a full ring of triangles.
-// Their cells stay nodata (valid = 0) in every output.
+// How a DEM becomes a frame (see above).
+struct FrameOptions {
+  bool flat = false;      // no curvature: lon/lat scaled linearly, a projected grid as it is
+  double pixelSize = 0;   // metres per pixel for a raster without CRS (0: refuse such a raster)
+  double zFactor = 1;     // heights times this (gdaldem's -z), after the unit's conversion
+  // gdaldem's -s: horizontal units per vertical unit, for a raster whose vertical unit is not
+  // known (0: metres). Horizontal units: the CRS's linear unit, a degree counted as 111120 m
+  // (gdaldem's convention), or the metre of --pixel-size for a raster without CRS.
+  double scale = 0;
+};
+
+// The DEM's vertices in a local metric east-north-up frame (same vertex indices as dem.mesh for
+// the cells), with every cell's two triangles and the closure's (border, seam, caps). Voids are
+// filled from their rims for occlusion: light cannot pass under the terrain through missing data,
+// and every vertex has a full ring of triangles. Their cells stay nodata (valid = 0) in every
+// output.
 struct LocalFrame {
-  Mesh mesh;
-  std::vector<std::uint8_t> valid;  // the DEM has a height at this cell
+  Mesh mesh;                        // cells first (vertex i = cell i), then grid's extra vertices
+  std::vector<std::uint8_t> valid;  // per cell: the DEM has a height here
   int width = 0, height = 0;
   bool geographicLocation = false;  // centreLon/Lat are known (the DEM has a CRS)
   double centreLon = 0, centreLat = 0;
   // Clockwise angle (degrees) from the frame's +y axis to true north: 0 for east-north-up
-  // frames, the meridian convergence for grid frames.
+  // frames, the meridian convergence for flat projected grids.
   double trueNorthFromY = 0;
-  double minHeight = 0, maxHeight = 0;  // over valid cells
+  double minHeight = 0, maxHeight = 0;  // metres above the reference surface, over valid cells
   double pixelSizeX = 1, pixelSizeY = 1;  // metres, at the centre
+  double metresPerUnit = 1;             // of the DEM's heights (unit and zFactor)
   std::string description;
-  // Set by localFrame: mesh is the grid's two triangles per cell, cells in row order, each split
-  // from its top-left corner (tl, bl, br then tl, br, tr). The shadow mask then finds a vertex's
-  // triangles by arithmetic; clear it after changing the mesh's triangles.
+  // The triangulation: mesh's triangles are grid's (inner ones in the DEM's order, then the
+  // closure's), so the shadow mask finds a vertex's triangles by arithmetic. Clear gridMesh after
+  // changing the mesh's triangles.
+  RasterGrid grid;
   bool gridMesh = false;
+  // The body the DEM lies on. For an ellipsoid (semi-axes a, b), a frame point p is the
+  // geocentric point rotation^T p + origin (rotation: geocentric to east-north-up at the centre).
+  struct Body {
+    std::string name = "Earth";  // the CRS's celestial body ("" without CRS)
+    bool ellipsoid = false;      // false: a flat frame, "up" is +z everywhere
+    double a = 0, b = 0;
+    Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();
+    Eigen::Vector3d origin = Eigen::Vector3d::Zero();
+    double lowest = 0;  // the height (metres) below which a ray is in the body (see above)
+  } body;
 
-  // The direction toward a sun at this azimuth/altitude (true north) in this frame.
+  // How far (degrees) the light may be below the horizon at the centre while some cell may still
+  // see it: the largest angle between the centre's up and a cell's, plus the dip of the horizon
+  // from the highest cell down to body.lowest. 0 in a flat frame.
+  double horizonSlack = 0;
+
+  std::size_t cellCount() const { return static_cast<std::size_t>(width) * height; }
+  // The unit upward normal of the body at frame point p ((0, 0, 1) in a flat frame).
+  Eigen::Vector3d upAt(const Eigen::Vector3d& p) const;
+  // Whether the ray from p toward `light` passes into the body (below body.lowest).
+  bool rayEntersBody(const Eigen::Vector3d& p, const Eigen::Vector3d& light) const;
+  // The direction toward a sun at this azimuth/altitude (true north) seen from the DEM's centre,
+  // in this frame.
   Eigen::Vector3d towardSun(const SunPosition& sun) const;
 };
 
+LocalFrame localFrame(const DemTerrain& dem, const FrameOptions& options);
 // pixelSize: metres per pixel for a raster without CRS (0: refuse such a raster).
 LocalFrame localFrame(const DemTerrain& dem, bool flat, double pixelSize = 0);
+
+// The celestial body of a CRS ("Earth", "Mars", "Moon", ...; PROJ's name for its ellipsoid, or
+// guessed from the semi-major axis); "" for no CRS.
+std::string celestialBody(const std::string& crsWkt);
 
 // Progress: fraction done in [0, 1] and a message; return false to cancel (then qota::Error).
 using Progress = std::function<bool(double, const char*)>;
 
 enum class Light : std::uint8_t { Shadow = 0, Lit = 1, NoData = 2 };
 
-// The light at every pixel centre of the frame's grid, row-major. towardLight: unit vector toward
-// the light in the frame. A light at or below the horizon (z <= 0) leaves every cell in shadow.
+// The light at every pixel centre of the frame's grid (cellCount() entries, row-major).
+// towardLight: vector toward the light in the frame. In a flat frame a light at or below the
+// horizon (z <= 0) leaves every cell in shadow; on an ellipsoid each cell has its own horizon.
 // threads: how many to test cells with; 0 = one per core.
 // How shadowMask finds the triangles a cell's light ray may meet. Both give the same mask
 // (tested on every cell); each candidate passes the shadow quadtree's exact test.

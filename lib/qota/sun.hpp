@@ -12,13 +12,18 @@
 // 2004, 0.0003 degree uncertainty) and the published equinox and solstice instants: agreement
 // better than 0.005 degree. Valid for any year libnova's VSOP87 covers (thousands of years).
 //
+// On Mars the Sun comes from the Mars24 algorithm (Allison & McEwen 2000, as documented with
+// worked examples by NASA GISS, "Mars24 Algorithm and Worked Examples", 2015 revision): the
+// areocentric solar longitude Ls, the equation of time, mean solar time at the prime meridian and
+// the subsolar point, from which the direction of the Sun follows at any place. Tested against
+// both published worked examples (to 1e-4 degree, 1e-5 hour). Times are UTC; TT - UTC comes from
+// the leap-second table (1972 onwards).
+//
 // Angles in degrees. Azimuth clockwise from north (gdaldem's -az), altitude above the horizon
 // (gdaldem's -alt).
 #pragma once
 
 #include <Eigen/Core>
-#include <optional>
-#include <string_view>
 
 namespace qota {
 
@@ -40,13 +45,32 @@ SunPosition sunPosition(double julianDayUT, double longitude, double latitude,
 // The sun's apparent geocentric declination (degrees) at the given Julian day (UT).
 double sunDeclination(double julianDayUT);
 
-// Julian day (UT) of an ISO 8601 date and time: "YYYY-MM-DD[THH:MM[:SS[.fff]]][Z|+HH:MM|-HH:MM]"
-// (a space may replace the T). Without an offset in the text, `utcOffsetMinutes` applies (local
-// time = UT + offset); without either, the time is UT. Throws qota::Error naming the text.
-double julianDayFromIso8601(std::string_view text, std::optional<int> utcOffsetMinutes = {});
+// The Sun from Mars by the Mars24 algorithm: every intermediate of the published worked examples.
+struct Mars24 {
+  double deltaJ2000 = 0;        // days (TT) since J2000
+  double meanAnomaly = 0;       // B-1, degrees
+  double fmsAngle = 0;          // B-2: the fictitious mean sun's angle, degrees
+  double perturbers = 0;        // B-3, degrees
+  double equationOfCenter = 0;  // B-4: true minus mean anomaly, degrees
+  double ls = 0;                // B-5: areocentric solar longitude, degrees [0, 360)
+  double equationOfTime = 0;    // C-1, degrees
+  double meanSolarTime = 0;     // C-2: at the prime meridian (Airy-0), hours [0, 24)
+  double subsolarWest = 0;      // C-5: west longitude of the subsolar point, degrees [0, 360)
+  double declination = 0;       // D-1: planetocentric declination of the Sun, degrees
+  double distance = 0;          // D-2: heliocentric distance, au
+  // C-4: local true solar time at a west longitude, hours [0, 24).
+  double localTrueSolarTime(double westLongitude) const;
+};
+Mars24 mars24(double julianDayUT);
 
-// A UTC offset "+HH:MM", "-HH", "Z", "UTC" in minutes. Throws qota::Error naming the text.
-int parseUtcOffset(std::string_view text);
+// The Sun seen from (east longitude, latitude) on Mars: azimuth clockwise from north and altitude
+// (90 degrees minus Mars24's zenith angle, D-5 and D-6). No refraction: Mars's thin atmosphere
+// bends light by far less than the algorithm's accuracy.
+SunPosition marsSunPosition(double julianDayUT, double eastLongitude, double latitude);
+
+// TT - UTC in seconds at a Julian day (UTC): 32.184 s plus the leap seconds (TAI - UTC, 10 s in
+// 1972 to 37 s since 2017). Throws qota::Error before 1972, where UTC had no whole-second steps.
+double ttMinusUtc(double julianDayUT);
 
 // The unit vector toward the sun in a local east-north-up frame.
 Eigen::Vector3d towardSunEnu(const SunPosition& sun);

@@ -2,10 +2,11 @@
 //
 // Layout (little-endian, as the machine that wrote it; a file from a big-endian machine is
 // refused by its magic):
-//   magic "QOTATREE", u32 version (1), u32 kind (0 cartesian, 1 spherical, 2 cylindrical,
+//   magic "QOTATREE", u32 version (3), u32 kind (0 cartesian, 1 spherical, 2 cylindrical,
 //   3 geodetic), u64 payload bytes, u64 checksum of the payload;
 //   payload: the mapping's describe() text (parseMapping reads it back exactly), the source
-//   (path, CRS WKT, raster size and geotransform when it was a raster), the index's scalars and
+//   (path, CRS WKT, raster size and geotransform when it was a raster; from version 3 also its
+//   band and vertical unit), the index's scalars and
 //   statistics, then its flat arrays (triangle records, vertex tables, quadtree nodes, leaf
 //   references), each as a u64 element count, a u32 element size and the raw elements.
 // The checksum is a 64-bit multiply-xor hash over the payload's 8-byte words: it catches
@@ -36,6 +37,9 @@ struct TreeSource {
   std::string crsWkt;
   int width = 0, height = 0;  // raster size; 0 when the source was not a raster
   std::array<double, 6> geotransform{0, 1, 0, 0, 0, 1};
+  int band = 1;                 // the raster band the heights came from
+  std::string verticalUnit;     // the raster's vertical unit ("" when it said nothing)
+  double metresPerUnit = 1;     // of that unit
 };
 
 using AnyIndex = std::variant<TerrainIndex, SphericalIndex, CylindricalIndex, GeodeticIndex>;
@@ -53,7 +57,9 @@ void saveTree(const std::string& path, const AnyIndex& index, const TreeSource& 
 template <class Index>
 void saveTree(const std::string& path, const Index& index, const TreeSource& source = {});
 
-// Reads an index back. Throws qota::Error naming the file and what is wrong.
+// Reads an index back (this version's files and version 2's, which carry no band or unit: band
+// 1, unit unknown). Throws qota::Error naming the file and what is wrong; an older or newer
+// format says to rebuild the file.
 TreeFile loadTree(const std::string& path);
 
 }  // namespace qota

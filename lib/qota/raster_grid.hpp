@@ -1,0 +1,82 @@
+// The triangulation of a raster: the one place that says which triangles a grid of pixel centres
+// makes, and how it is closed at its edges.
+//
+// Cells: one vertex per pixel centre, vertex index = row * width + col. Inner triangles: two per
+// square of four centres, split along the diagonal from its top-left centre (col, row) to its
+// bottom-right centre (col + 1, row + 1): (TL, BL, BR) then (TL, BR, TR), squares in row order,
+// so the square (row, col) holds triangles 2 (row (width - 1) + col) and the one after.
+//
+// Closure, optional, each adding vertices after the cells and triangles after the inner ones:
+// - border: the outer half pixel. A vertex on the raster's edge beside every outermost centre
+//   (and at the four corners), taking the height of the nearest centre, and the strips of squares
+//   between them and the outermost centres, split the same way. The surface so reaches the
+//   raster's edge flat across it: the height at a point of the outer half pixel is the height at
+//   the nearest point on the outermost centres' lines (DemTerrain::surfacePoint).
+// - wrapsColumns: the raster spans 360 degrees of longitude; the squares between the last column
+//   and the first close the seam (and the border, if any, runs round without left and right edges).
+// - northCap / southCap: the first (last) row is the last before a pole; a vertex at the pole is
+//   fanned to the row (instead of a border along it).
+// Every triangle keeps one winding: counter-clockwise seen with rows running down the screen
+// reversed, i.e. the same turn as the inner ones, caps included.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <unordered_map>
+#include <vector>
+
+namespace qota {
+
+class RasterGrid {
+ public:
+  struct Closure {
+    bool border = false;
+    bool wrapsColumns = false;
+    bool northCap = false, southCap = false;
+  };
+
+  // A vertex added by the closure: where it stands in pixel coordinates (GDAL's: the raster's
+  // top-left corner is (0, 0), pixel centres at + 0.5) and which cell's height it takes, or the
+  // pole it is (+1 north, -1 south; its position and height are the caller's).
+  struct ExtraVertex {
+    double col = 0, row = 0;
+    std::uint32_t cell = 0;
+    int pole = 0;
+  };
+
+  RasterGrid() = default;
+  // width, height >= 1. A closure on a grid too small to have it (a cap on a raster one row
+  // high, a seam on one column) is dropped.
+  RasterGrid(int width, int height, Closure closure);
+
+  int width() const { return width_; }
+  int height() const { return height_; }
+  const Closure& closure() const { return closure_; }
+  std::size_t cellCount() const { return static_cast<std::size_t>(width_) * height_; }
+  std::size_t innerTriangleCount() const {
+    return width_ > 1 && height_ > 1 ? 2 * static_cast<std::size_t>(width_ - 1) * (height_ - 1) : 0;
+  }
+  std::size_t vertexCount() const { return cellCount() + extraVertices_.size(); }
+  std::size_t triangleCount() const { return innerTriangleCount() + extraTriangles_.size(); }
+  const std::vector<ExtraVertex>& extraVertices() const { return extraVertices_; }
+
+  // The corners of triangle t, inner ones first, in the order described above.
+  std::array<std::uint32_t, 3> triangle(std::size_t t) const;
+
+  // The triangles that have cell (row, col) as a corner, in increasing order; returns how many
+  // (at most kMaxRing). closed: they go all the way round it (no edge of the surface there).
+  static constexpr int kMaxRing = 8;
+  int ring(int row, int col, std::uint32_t out[kMaxRing], bool& closed) const;
+
+ private:
+  std::uint32_t addExtra(double col, double row, std::uint32_t cell, int pole = 0);
+
+  int width_ = 0, height_ = 0;
+  Closure closure_;
+  std::vector<ExtraVertex> extraVertices_;
+  std::vector<std::array<std::uint32_t, 3>> extraTriangles_;
+  // The closure's triangles around each cell on the raster's outermost rows and columns.
+  std::unordered_map<std::uint32_t, std::vector<std::uint32_t>> extraRing_;
+};
+
+}  // namespace qota

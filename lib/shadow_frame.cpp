@@ -1,0 +1,357 @@
+// The frame shadows are computed in: a DEM's pixel centres (and its closure's vertices) in
+// metres, east-north-up at its centre, on its body's ellipsoid (see qota/shadow.hpp).
+#include <GeographicLib/Geocentric.hpp>
+#include <ogr_spatialref.h>
+#include <proj.h>
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+
+#include "qota/error.hpp"
+#include "qota/globe.hpp"
+#include "qota/shadow.hpp"
+
+namespace qota {
+namespace {
+
+constexpr double kDeg = M_PI / 180.0;
+// gdaldem's convention for -s on a geographic raster: metres per degree.
+constexpr double kMetresPerDegree = 111120.0;
+
+// A raster's axes are x = easting or longitude, y = northing or latitude (GDAL's convention for
+// rasters), whatever the CRS's official axis order.
+OGRSpatialReference rasterCrs(const DemTerrain& dem) {
+  OGRSpatialReference srs;
+  if (srs.importFromWkt(dem.crsWkt.c_str()) != OGRERR_NONE) {
+    throw Error(dem.path + ": its coordinate reference system cannot be read");
+  }
+  srs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  return srs;
+}
+
+// Fills NaN heights from their neighbours, rim inwards (onion peeling, as gdal_fillnodata does in
+// spirit): each pass gives every void cell next to known cells the mean of those, until none is
+// left. A raster with no data at all becomes flat at 0.
+void fillVoids(std::vector<double>& z, int w, int h) {
+  std::vector<std::size_t> todo;
+  for (std::size_t i = 0; i < z.size(); ++i) {
+    if (!std::isfinite(z[i])) todo.push_back(i);
+  }
+  std::vector<std::pair<std::size_t, double>> fills;
+  while (!todo.empty()) {
+    fills.clear();
+    std::vector<std::size_t> still;
+    for (std::size_t i : todo) {
+      const int c = static_cast<int>(i % w), r = static_cast<int>(i / w);
+      double sum = 0;
+      int count = 0;
+      for (int dr = -1; dr <= 1; ++dr) {
+        for (int dc = -1; dc <= 1; ++dc) {
+          const int cc = c + dc, rr = r + dr;
+          if ((dr || dc) && cc >= 0 && rr >= 0 && cc < w && rr < h) {
+            const double v = z[static_cast<std::size_t>(rr) * w + cc];
+            if (std::isfinite(v)) sum += v, ++count;
+          }
+        }
+      }
+      if (count) {
+        fills.push_back({i, sum / count});
+      } else {
+        still.push_back(i);
+      }
+    }
+    if (fills.empty()) {  // nothing known anywhere
+      for (std::size_t i : still) z[i] = 0;
+      break;
+    }
+    for (const auto& [i, v] : fills) z[i] = v;
+    todo.swap(still);
+  }
+}
+
+// Metres per unit of the DEM's heights: its vertical unit, or -s for a raster without one, times
+// -z.
+double heightMetres(const DemTerrain& dem, const FrameOptions& o, const OGRSpatialReference* srs) {
+  if (!(o.zFactor > 0) || !std::isfinite(o.zFactor)) {
+    throw Error("-z/--z-factor must be a positive number, got " + std::to_string(o.zFactor));
+  }
+  if (!(o.scale >= 0) || !std::isfinite(o.scale)) {
+    throw Error("-s/--scale must be a positive number, got " + std::to_string(o.scale));
+  }
+  double metres = dem.verticalUnit.metresPerUnit;
+  if (o.scale > 0) {
+    if (dem.verticalUnit.known()) {
+      throw Error(dem.path + ": its heights are in '" + dem.verticalUnit.name +
+                  "', so -s/--scale (for rasters whose vertical unit is not known) does not apply; "
+                  "use -z/--z-factor to scale them");
+    }
+    double horizontal = 1;  // metres per horizontal unit
+    if (srs && srs->IsGeographic()) {
+      horizontal = kMetresPerDegree;
+    } else if (srs) {
+      horizontal = srs->GetLinearUnits();
+    }
+    metres = horizontal / o.scale;
+  }
+  return metres * o.zFactor;
+}
+
+// The geocentric-to-east-north-up rotation at geodetic (lat, lon): rows east, north, up.
+Eigen::Matrix3d enuRotation(double lat, double lon) {
+  const double sp = std::sin(lat * kDeg), cp = std::cos(lat * kDeg);
+  const double sl = std::sin(lon * kDeg), cl = std::cos(lon * kDeg);
+  Eigen::Matrix3d r;
+  r << -sl, cl, 0, -sp * cl, -sp * sl, cp, cp * cl, cp * sl, sp;
+  return r;
+}
+
+}  // namespace
+
+std::string celestialBody(const std::string& crsWkt) {
+  if (crsWkt.empty()) return "";
+  std::string name;
+  PJ_CONTEXT* ctx = proj_context_create();
+  proj_log_level(ctx, PJ_LOG_NONE);
+  if (PJ* crs = proj_create(ctx, crsWkt.c_str())) {
+    if (PJ* ellipsoid = proj_get_ellipsoid(ctx, crs)) {
+      if (const char* body = proj_get_celestial_body_name(ctx, ellipsoid)) name = body;
+      proj_destroy(ellipsoid);
+    }
+    proj_destroy(crs);
+  }
+  proj_context_destroy(ctx);
+  if (!name.empty() && name != "Non-Earth body") return name;
+  // PROJ could not name it: by the size of its ellipsoid.
+  OGRSpatialReference srs;
+  OGRErr e = OGRERR_NONE;
+  if (srs.importFromWkt(crsWkt.c_str()) != OGRERR_NONE) return "unknown";
+  const double a = srs.GetSemiMajor(&e);
+  if (e != OGRERR_NONE) return "unknown";
+  if (a > 6.30e6 && a < 6.45e6) return "Earth";
+  if (a > 3.38e6 && a < 3.41e6) return "Mars";
+  if (a > 1.73e6 && a < 1.745e6) return "Moon";
+  return "a body of radius " + std::to_string(static_cast<long long>(a)) + " m";
+}
+
+Eigen::Vector3d LocalFrame::upAt(const Eigen::Vector3d& p) const {
+  if (!body.ellipsoid) return Eigen::Vector3d(0, 0, 1);
+  const Eigen::Vector3d x = body.rotation.transpose() * p + body.origin;
+  const Eigen::Vector3d g(x.x() / (body.a * body.a), x.y() / (body.a * body.a), x.z() / (body.b * body.b));
+  return (body.rotation * g).normalized();
+}
+
+bool LocalFrame::rayEntersBody(const Eigen::Vector3d& p, const Eigen::Vector3d& light) const {
+  if (!body.ellipsoid) return light.z() <= 0;
+  // The ellipsoid lowered to body.lowest, in coordinates that make it the unit sphere.
+  const double A = body.a + body.lowest, B = body.b + body.lowest;
+  const Eigen::Vector3d x = body.rotation.transpose() * p + body.origin, d = body.rotation.transpose() * light;
+  const Eigen::Vector3d xs(x.x() / A, x.y() / A, x.z() / B), ds(d.x() / A, d.y() / A, d.z() / B);
+  const double qa = ds.squaredNorm(), qb = xs.dot(ds), qc = xs.squaredNorm() - 1;
+  if (qc <= 0) return true;          // already below it
+  return qb < 0 && qb * qb >= qa * qc;  // ahead of p (t > 0), and it meets the ellipsoid
+}
+
+Eigen::Vector3d LocalFrame::towardSun(const SunPosition& sun) const {
+  SunPosition inFrame = sun;
+  inFrame.azimuth = sun.azimuth + trueNorthFromY;
+  return towardSunEnu(inFrame);
+}
+
+LocalFrame localFrame(const DemTerrain& dem, bool flat, double pixelSize) {
+  FrameOptions o;
+  o.flat = flat;
+  o.pixelSize = pixelSize;
+  return localFrame(dem, o);
+}
+
+LocalFrame localFrame(const DemTerrain& dem, const FrameOptions& o) {
+  LocalFrame f;
+  f.width = dem.width;
+  f.height = dem.height;
+  const int w = dem.width, h = dem.height;
+  const std::size_t n = f.cellCount();
+  if (w < 1 || h < 1 || dem.mesh.vertices.size() != n) {
+    throw Error(dem.path + ": not a raster grid (" + std::to_string(dem.mesh.vertices.size()) +
+                " vertices for " + std::to_string(w) + " x " + std::to_string(h) + " cells)");
+  }
+  std::optional<OGRSpatialReference> srs;
+  if (!dem.crsWkt.empty()) srs = rasterCrs(dem);
+  f.metresPerUnit = heightMetres(dem, o, srs ? &*srs : nullptr);
+
+  // Heights in metres with the voids filled (for occlusion only), and which cells have data.
+  std::vector<double> z(n);
+  f.valid.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    z[i] = dem.mesh.vertices[i].z() * f.metresPerUnit;
+    f.valid[i] = std::isfinite(z[i]);
+  }
+  f.minHeight = INFINITY;
+  f.maxHeight = -INFINITY;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (f.valid[i]) f.minHeight = std::min(f.minHeight, z[i]), f.maxHeight = std::max(f.maxHeight, z[i]);
+  }
+  if (!(f.minHeight <= f.maxHeight)) f.minHeight = f.maxHeight = 0;
+  fillVoids(z, w, h);
+
+  const auto& gt = dem.geotransform;
+  const double cc = (w - 1) / 2.0, cr = (h - 1) / 2.0;
+  const auto centre = dem.pixelCentre(cc, cr);
+  const bool geographic = srs && srs->IsGeographic();
+  const bool ellipsoid = srs && !o.flat;
+  f.body.name = srs ? celestialBody(dem.crsWkt) : "";
+
+  // The closure: the outer half pixel always; round the globe and over the poles on an ellipsoid.
+  RasterGrid::Closure closure;
+  closure.border = true;
+  if (ellipsoid && geographic && gt[2] == 0 && gt[4] == 0 && gt[1] > 0 && gt[5] < 0) {
+    closure.wrapsColumns = std::fabs(w * gt[1] - 360.0) < 0.5 * gt[1];
+    const double top = dem.pixelCentre(0, 0)[1], bottom = dem.pixelCentre(0, h - 1)[1];
+    closure.northCap = closure.wrapsColumns && 90.0 - top <= -gt[5] && top < 90.0;
+    closure.southCap = closure.wrapsColumns && bottom + 90.0 <= -gt[5] && bottom > -90.0;
+  }
+  f.grid = RasterGrid(w, h, closure);
+  f.gridMesh = true;
+
+  // Every vertex: where it stands in pixel coordinates, and its height in metres.
+  const std::size_t vertexCount = f.grid.vertexCount();
+  std::vector<double> col(vertexCount), row(vertexCount), height(vertexCount);
+  std::vector<int> pole(vertexCount, 0);
+  for (std::size_t i = 0; i < n; ++i) {
+    col[i] = static_cast<double>(i % w) + 0.5, row[i] = static_cast<double>(i / w) + 0.5, height[i] = z[i];
+  }
+  for (std::size_t k = 0; k < f.grid.extraVertices().size(); ++k) {
+    const RasterGrid::ExtraVertex& e = f.grid.extraVertices()[k];
+    const std::size_t i = n + k;
+    col[i] = e.col, row[i] = e.row, pole[i] = e.pole;
+    if (e.pole == 0) {
+      height[i] = z[e.cell];
+      continue;
+    }
+    const std::size_t r = e.pole > 0 ? 0 : static_cast<std::size_t>(h - 1);  // the pole's row
+    double sum = 0;
+    for (std::size_t c = 0; c < static_cast<std::size_t>(w); ++c) sum += z[r * w + c];
+    height[i] = sum / w;
+  }
+  const auto source = [&](std::size_t i, double& x, double& y) {
+    x = gt[0] + col[i] * gt[1] + row[i] * gt[2];
+    y = gt[3] + col[i] * gt[4] + row[i] * gt[5];
+  };
+
+  f.mesh.vertices.resize(vertexCount);
+  if (!srs) {
+    if (!(o.pixelSize > 0) || !std::isfinite(o.pixelSize)) {
+      throw Error(dem.path + ": the raster has no coordinate reference system, so the size of its "
+                  "pixels in metres is unknown; give it with --pixel-size METRES");
+    }
+    // Pixel grid, rows running south.
+    for (std::size_t i = 0; i < vertexCount; ++i) {
+      f.mesh.vertices[i] = {(col[i] - 0.5 - cc) * o.pixelSize, -(row[i] - 0.5 - cr) * o.pixelSize, height[i]};
+    }
+    f.description = "pixel grid, " + std::to_string(o.pixelSize) + " m per pixel (no CRS)";
+  } else {
+    double a = 0, fl = 0;
+    demEllipsoid(dem, a, fl);
+    // Longitude and latitude of every vertex (and of the centre), on the CRS's own ellipsoid.
+    std::vector<double> lon(vertexCount), lat(vertexCount);
+    double lon0 = centre[0], lat0 = centre[1];
+    for (std::size_t i = 0; i < vertexCount; ++i) source(i, lon[i], lat[i]);
+    if (!geographic) {
+      OGRSpatialReference geo;
+      geo.CopyGeogCSFrom(&*srs);
+      geo.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+      std::unique_ptr<OGRCoordinateTransformation> toGeo(OGRCreateCoordinateTransformation(&*srs, &geo));
+      std::unique_ptr<OGRCoordinateTransformation> toGrid(OGRCreateCoordinateTransformation(&geo, &*srs));
+      if (!toGeo || !toGrid) throw Error(dem.path + ": its CRS cannot be converted to longitude/latitude");
+      if (!toGeo->Transform(1, &lon0, &lat0)) {
+        throw Error(dem.path + ": its centre cannot be converted to longitude/latitude");
+      }
+      if (ellipsoid) {
+        std::vector<int> ok(vertexCount, 0);
+        toGeo->Transform(vertexCount, lon.data(), lat.data(), nullptr, ok.data());
+        for (std::size_t i = 0; i < vertexCount; ++i) {
+          if (!ok[i] || !std::isfinite(lon[i]) || !std::isfinite(lat[i])) {
+            throw Error(dem.path + ": pixel (" + std::to_string(col[i]) + ", " + std::to_string(row[i]) +
+                        ") cannot be converted to longitude/latitude; shadow it with --flat");
+          }
+        }
+      }
+      // Where true north points on the grid at the centre (for a flat projected frame).
+      double nx = lon0, ny = lat0 + 0.01;
+      if (toGrid->Transform(1, &nx, &ny)) f.trueNorthFromY = std::atan2(nx - centre[0], ny - centre[1]) / kDeg;
+    }
+    f.geographicLocation = true;
+    f.centreLon = lon0;
+    f.centreLat = lat0;
+    for (std::size_t i = 0; i < vertexCount; ++i) {
+      if (pole[i]) lon[i] = 0, lat[i] = 90.0 * pole[i];
+    }
+    if (ellipsoid) {
+      const GeographicLib::Geocentric earth(a, fl);
+      f.body.ellipsoid = true;
+      f.body.a = a;
+      f.body.b = a * (1 - fl);
+      f.body.rotation = enuRotation(lat0, lon0);
+      earth.Forward(lat0, lon0, 0, f.body.origin.x(), f.body.origin.y(), f.body.origin.z());
+      f.trueNorthFromY = 0;
+      for (std::size_t i = 0; i < vertexCount; ++i) {
+        if (!(std::fabs(lat[i]) <= 90.0)) {
+          throw Error(dem.path + ": pixel (" + std::to_string(col[i]) + ", " + std::to_string(row[i]) +
+                      ") is at latitude " + std::to_string(lat[i]) + ", beyond the pole");
+        }
+        Eigen::Vector3d X;
+        earth.Forward(lat[i], lon[i], height[i], X.x(), X.y(), X.z());
+        f.mesh.vertices[i] = f.body.rotation * (X - f.body.origin);
+      }
+      f.description = std::string(geographic ? "" : "projected grid put ") + "on the " +
+                      (f.body.name.empty() ? "" : f.body.name + " ") + "ellipsoid (a = " +
+                      std::to_string(a) + " m), east-north-up at the centre" +
+                      (closure.wrapsColumns ? ", closed round the globe" : "") +
+                      (closure.northCap || closure.southCap ? " and over the poles" : "");
+    } else if (geographic) {
+      // Longitude and latitude scaled linearly by the ellipsoid's radii of curvature at the
+      // centre: no curvature.
+      const double e2 = fl * (2 - fl), s = std::sin(lat0 * kDeg);
+      const double wq = std::sqrt(1 - e2 * s * s);
+      const double nRad = a / wq, mRad = a * (1 - e2) / (wq * wq * wq);
+      for (std::size_t i = 0; i < vertexCount; ++i) {
+        f.mesh.vertices[i] = {(lon[i] - lon0) * kDeg * nRad * std::cos(lat0 * kDeg), (lat[i] - lat0) * kDeg * mRad,
+                              height[i]};
+      }
+      f.description = "flat east-north-up metres around the centre (--flat)";
+    } else {
+      const double unit = srs->GetLinearUnits();
+      for (std::size_t i = 0; i < vertexCount; ++i) {
+        double x, y;
+        source(i, x, y);
+        f.mesh.vertices[i] = {(x - centre[0]) * unit, (y - centre[1]) * unit, height[i]};
+      }
+      f.description = "projected grid metres (--flat)";
+    }
+  }
+  for (std::size_t t = 0; t < f.grid.triangleCount(); ++t) {
+    const auto c = f.grid.triangle(t);
+    f.mesh.addTriangle(c[0], c[1], c[2]);
+  }
+  if (w > 1 && h > 1) {
+    // Every vertex has a position (voids are filled), so the centre's neighbours give the size.
+    const std::size_t ci = static_cast<std::size_t>(std::floor(cr)) * w + static_cast<std::size_t>(std::floor(cc));
+    const auto& v = f.mesh.vertices;
+    f.pixelSizeX = (v[ci + 1] - v[ci]).head<2>().norm();
+    f.pixelSizeY = (v[ci + w] - v[ci]).head<2>().norm();
+  }
+  // Below this height a ray is inside the body: the lowest terrain, less a margin for the chords
+  // between pixel centres (a triangle sags below its corners by less than d^2 / 2R on a sphere,
+  // d its longest side) and a centimetre for rounding.
+  const double diagonal = std::hypot(f.pixelSizeX, f.pixelSizeY);
+  f.body.lowest = f.minHeight - 0.01 - (f.body.ellipsoid ? diagonal * diagonal / (2 * f.body.b) : 0.0);
+  if (f.body.ellipsoid) {
+    double tilt = 0;
+    for (std::size_t i = 0; i < n; ++i) tilt = std::max(tilt, std::acos(std::clamp(f.upAt(f.mesh.vertices[i]).z(), -1.0, 1.0)));
+    const double dip = std::acos(std::clamp((f.body.b + f.body.lowest) / (f.body.b + f.maxHeight), -1.0, 1.0));
+    f.horizonSlack = (tilt + dip) / kDeg + 0.01;
+  }
+  return f;
+}
+
+}  // namespace qota
