@@ -36,14 +36,16 @@ struct VertexStar {
 // meets, it enters, and it enters through a triangle whose normal points away from the light. Both
 // searches take these alone (and, to stay on the safe side of rounding, those within 1e-9 of
 // edge-on): the same answers as with every triangle, for a fraction of the work. kFacesAway: the
-// light strictly behind it, for attached shadow. "Up" is the frame's +z, or on an ellipsoid the
-// body's normal at the triangle's first corner (the DEM's corner order may be either way round).
+// light strictly behind it, for attached shadow. The normal is turned up: the frame's +z, or on an
+// ellipsoid the body's normal at the triangle's first corner (the DEM's corner order may be
+// either way round); `winding` (+1 or -1) says it for a grid, whose triangles all turn alike.
 constexpr std::uint8_t kOccluder = 1, kFacesAway = 2;
-std::uint8_t facingOf(const LocalFrame& frame, std::span<const std::uint32_t> c, const Eigen::Vector3d& light) {
+std::uint8_t facingOf(const LocalFrame& frame, std::span<const std::uint32_t> c, const Eigen::Vector3d& light,
+                      int winding) {
   const Mesh& mesh = frame.mesh;
   const Eigen::Vector3d& a = mesh.vertices[c[0]];
   const Eigen::Vector3d n = (mesh.vertices[c[1]] - a).cross(mesh.vertices[c[2]] - a);
-  const double up = frame.body.ellipsoid ? n.dot(frame.upAt(a)) : n.z();
+  const double up = winding != 0 ? winding : frame.body.ellipsoid ? n.dot(frame.upAt(a)) : n.z();
   const double d = up >= 0 ? n.dot(light) : -n.dot(light);
   return static_cast<std::uint8_t>((d <= 0 || d * d <= 1e-18 * n.squaredNorm() ? kOccluder : 0) |
                                    (d < 0 ? kFacesAway : 0));
@@ -127,7 +129,7 @@ class HorizonStrips {
   // facingOf every triangle, found on the way. Built by `threads` threads, with the same result
   // for any number (up to the order of equal entries, which no search can tell).
   HorizonStrips(const LocalFrame& frame, const Eigen::Vector3d& light, double stripWidth,
-                std::vector<std::uint8_t>& facing, unsigned threads) {
+                std::vector<std::uint8_t>& facing, unsigned threads, int winding) {
     const Mesh& mesh = frame.mesh;
     const double horizontal = light.head<2>().norm();
     g_ = light.head<2>() / horizontal;
@@ -146,7 +148,7 @@ class HorizonStrips {
       double xy = 0, z = 0;
       for (std::size_t p = from; p < to; ++p) {
         const auto corners = mesh.polygon(p);
-        facing[p] = facingOf(frame, corners, light);
+        facing[p] = facingOf(frame, corners, light, winding);
         if (!(facing[p] & kOccluder)) continue;
         double cl = INFINITY, ch = -INFINITY, ah = -INFINITY, wl = INFINITY, wh = -INFINITY;
         for (std::uint32_t k : corners) {
@@ -354,6 +356,8 @@ std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& to
                         frame.mesh.polygonCount() == frame.grid.triangleCount();
   std::optional<VertexStar> star;
   if (!gridMesh) star.emplace(frame.mesh);
+  // On an ellipsoid a grid's triangles all turn alike (facingOf); else each is looked at.
+  const int winding = frame.body.ellipsoid && gridMesh ? frame.gridWinding : 0;
 
   // Two passes over the cells, each shared out to `workers` threads in groups (the calling thread
   // reports progress), after every triangle's facing is known: attached shadow (and the body's
@@ -378,6 +382,7 @@ std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& to
   };
   const auto rowCells = [&](std::size_t) { return width; };
   std::vector<std::uint8_t> facing;  // facingOf every triangle
+  const BodyRays bodyRays(frame, light);
   const auto attachedPass = [&](unsigned workers) {
     inParallel(workers, static_cast<std::size_t>(frame.height), rowCells, [&](std::size_t r) {
       for (std::size_t i = r * width; i < (r + 1) * width; ++i) {
@@ -390,7 +395,7 @@ std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& to
                                                                            static_cast<int>(i - r * width), grid, closed)))
                      : std::span<const std::uint32_t>(star->tris.data() + star->start[i], star->start[i + 1] - star->start[i]);
         const bool shadow = attachedShadow(frame, ring, closed, static_cast<std::uint32_t>(i), light, facing.data()) ||
-                            (frame.body.ellipsoid && frame.rayEntersBody(vertices[i], light));
+                            (frame.body.ellipsoid && bodyRays.entersBody(vertices[i]));
         out[i] = shadow ? Light::Shadow : Light::Lit;
       }
     });
@@ -403,7 +408,7 @@ std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& to
     facing.resize(frame.mesh.polygonCount());
     for (std::size_t t = 0; t < frame.mesh.polygonCount(); ++t) {
       const auto c = frame.mesh.polygon(t);
-      facing[t] = facingOf(frame, c, light);
+      facing[t] = facingOf(frame, c, light, winding);
       if (facing[t] & kOccluder) occluders.addTriangle(c[0], c[1], c[2]);
     }
     report(0.3, "testing cells");
@@ -420,7 +425,7 @@ std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& to
     }
   } else {
     report(0.0, "sorting the occluders into strips");
-    const HorizonStrips strips(frame, light, std::min(frame.pixelSizeX, frame.pixelSizeY), facing, threads);
+    const HorizonStrips strips(frame, light, std::min(frame.pixelSizeX, frame.pixelSizeY), facing, threads, winding);
     report(0.3, "testing cells");
     attachedPass(threads);
     std::vector<std::uint32_t> stripOf(cellCount), order(cellCount);

@@ -1,5 +1,6 @@
 // The frame shadows are computed in: a DEM's pixel centres (and its closure's vertices) in
 // metres, east-north-up at its centre, on its body's ellipsoid (see qota/shadow.hpp).
+#include <Eigen/Geometry>
 #include <GeographicLib/Geocentric.hpp>
 #include <ogr_spatialref.h>
 #include <proj.h>
@@ -141,15 +142,47 @@ Eigen::Vector3d LocalFrame::upAt(const Eigen::Vector3d& p) const {
   return (body.rotation * g).normalized();
 }
 
+BodyRays::BodyRays(const LocalFrame& frame, const Eigen::Vector3d& light) : frame_(&frame), light_(light) {
+  const LocalFrame::Body& b = frame.body;
+  if (!b.ellipsoid) return;
+  // The ellipsoid lowered to body.lowest, in coordinates x' = S x that make it the unit sphere.
+  // Along the ray x + t d, |S (x + t d)|^2 = qa t^2 + 2 qb t + qc + 1, where qb = (S x).(S d) is
+  // linear in the frame point p (x = R^T p + origin): p.k + k0.
+  scale_ = Eigen::Vector3d(1 / (b.a + b.lowest), 1 / (b.a + b.lowest), 1 / (b.b + b.lowest));
+  const Eigen::Vector3d d = b.rotation.transpose() * light;
+  const Eigen::Vector3d s2d = scale_.cwiseProduct(scale_).cwiseProduct(d);
+  k_ = b.rotation * s2d;
+  k0_ = b.origin.dot(s2d);
+  qa_ = scale_.cwiseProduct(d).squaredNorm();
+}
+
+bool BodyRays::entersBody(const Eigen::Vector3d& p) const {
+  const LocalFrame::Body& b = frame_->body;
+  if (!b.ellipsoid) return light_.z() <= 0;
+  const double qb = p.dot(k_) + k0_;
+  if (qb >= 0) return false;  // the ray climbs away from the ellipsoid
+  const Eigen::Vector3d xs = scale_.cwiseProduct(b.rotation.transpose() * p + b.origin);
+  const double qc = xs.squaredNorm() - 1;
+  return qc <= 0 || qb * qb >= qa_ * qc;  // already below it, or ahead of p it meets it
+}
+
 bool LocalFrame::rayEntersBody(const Eigen::Vector3d& p, const Eigen::Vector3d& light) const {
-  if (!body.ellipsoid) return light.z() <= 0;
-  // The ellipsoid lowered to body.lowest, in coordinates that make it the unit sphere.
-  const double A = body.a + body.lowest, B = body.b + body.lowest;
-  const Eigen::Vector3d x = body.rotation.transpose() * p + body.origin, d = body.rotation.transpose() * light;
-  const Eigen::Vector3d xs(x.x() / A, x.y() / A, x.z() / B), ds(d.x() / A, d.y() / A, d.z() / B);
-  const double qa = ds.squaredNorm(), qb = xs.dot(ds), qc = xs.squaredNorm() - 1;
-  if (qc <= 0) return true;          // already below it
-  return qb < 0 && qb * qb >= qa * qc;  // ahead of p (t > 0), and it meets the ellipsoid
+  return BodyRays(*this, light).entersBody(p);
+}
+
+double LocalFrame::horizonSlack() const {
+  if (!body.ellipsoid) return 0;
+  // The largest angle between the centre's up (the frame's z) and a cell's.
+  double cosTilt = 1;
+  const Eigen::RowVector3d upRow = body.rotation.row(2);
+  for (std::size_t i = 0; i < cellCount(); ++i) {
+    const Eigen::Vector3d x = body.rotation.transpose() * mesh.vertices[i] + body.origin;
+    const Eigen::Vector3d g(x.x() / (body.a * body.a), x.y() / (body.a * body.a), x.z() / (body.b * body.b));
+    cosTilt = std::min(cosTilt, upRow.dot(g) / g.norm());
+  }
+  const double tilt = std::acos(std::clamp(cosTilt, -1.0, 1.0));
+  const double dip = std::acos(std::clamp((body.b + body.lowest) / (body.b + maxHeight), -1.0, 1.0));
+  return (tilt + dip) / kDeg + 0.01;
 }
 
 Eigen::Vector3d LocalFrame::towardSun(const SunPosition& sun) const {
@@ -329,10 +362,7 @@ LocalFrame localFrame(const DemTerrain& dem, const FrameOptions& o) {
       f.description = "projected grid metres (--flat)";
     }
   }
-  for (std::size_t t = 0; t < f.grid.triangleCount(); ++t) {
-    const auto c = f.grid.triangle(t);
-    f.mesh.addTriangle(c[0], c[1], c[2]);
-  }
+  f.mesh.indices = f.grid.indices();
   if (w > 1 && h > 1) {
     // Every vertex has a position (voids are filled), so the centre's neighbours give the size.
     const std::size_t ci = static_cast<std::size_t>(std::floor(cr)) * w + static_cast<std::size_t>(std::floor(cc));
@@ -345,11 +375,14 @@ LocalFrame localFrame(const DemTerrain& dem, const FrameOptions& o) {
   // d its longest side) and a centimetre for rounding.
   const double diagonal = std::hypot(f.pixelSizeX, f.pixelSizeY);
   f.body.lowest = f.minHeight - 0.01 - (f.body.ellipsoid ? diagonal * diagonal / (2 * f.body.b) : 0.0);
-  if (f.body.ellipsoid) {
-    double tilt = 0;
-    for (std::size_t i = 0; i < n; ++i) tilt = std::max(tilt, std::acos(std::clamp(f.upAt(f.mesh.vertices[i]).z(), -1.0, 1.0)));
-    const double dip = std::acos(std::clamp((f.body.b + f.body.lowest) / (f.body.b + f.maxHeight), -1.0, 1.0));
-    f.horizonSlack = (tilt + dip) / kDeg + 0.01;
+  // Which way the grid's triangles turn seen from above: the same for all of them (the rows and
+  // columns keep their orientation on the ellipsoid), so the centre's first one tells.
+  if (w > 1 && h > 1) {
+    const std::size_t t = 2 * ((h - 1) / 2 * static_cast<std::size_t>(w - 1) + (w - 1) / 2);
+    const auto c = f.grid.triangle(t);
+    const auto& v = f.mesh.vertices;
+    const Eigen::Vector3d normal = (v[c[1]] - v[c[0]]).cross(v[c[2]] - v[c[0]]);
+    f.gridWinding = normal.dot(f.upAt(v[c[0]])) >= 0 ? 1 : -1;
   }
   return f;
 }

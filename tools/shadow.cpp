@@ -192,10 +192,11 @@ int shadow(const ShadowOptions& o, std::ostream& out, std::ostream& err) {
       const double elapsed = (span.end.julianDayUT - span.start.julianDayUT) * 24.0;
       const int steps = static_cast<int>(std::ceil(elapsed / step - 1e-9));
       hoursLit.assign(cells, 0.0);
+      const double slack = frame.horizonSlack();
       for (int k = 0; k < steps; ++k) {
         const double t0 = k * step, dt = std::min(step, elapsed - t0);
         const SunPosition sun = sunAt(frame, span.start.julianDayUT + (t0 + dt / 2) / 24.0, o.source);
-        if (sun.altitude <= -frame.horizonSlack || (!frame.body.ellipsoid && sun.altitude <= 0)) continue;  // night everywhere
+        if (sun.altitude <= -slack || (!frame.body.ellipsoid && sun.altitude <= 0)) continue;  // night everywhere
         mask = shadowMask(frame, frame.towardSun(sun), o.terrain,
                           termProgress(o.quiet, double(k) / steps, double(k + 1) / steps), 0, o.search);
         for (std::size_t i = 0; i < cells; ++i) {

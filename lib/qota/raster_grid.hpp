@@ -62,6 +62,8 @@ class RasterGrid {
 
   // The corners of triangle t, inner ones first, in the order described above.
   std::array<std::uint32_t, 3> triangle(std::size_t t) const;
+  // Every triangle's corners, in order, three indices each (a Mesh's indices).
+  std::vector<std::uint32_t> indices() const;
 
   // The triangles that have cell (row, col) as a corner, in increasing order; returns how many
   // (at most kMaxRing). closed: they go all the way round it (no edge of the surface there).

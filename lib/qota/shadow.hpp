@@ -92,6 +92,9 @@ struct LocalFrame {
   // changing the mesh's triangles.
   RasterGrid grid;
   bool gridMesh = false;
+  // +1 when grid's corner order turns counter-clockwise seen from above (the body's up), -1 when
+  // clockwise: the same for every triangle of the grid and its closure.
+  int gridWinding = 1;
   // The body the DEM lies on. For an ellipsoid (semi-axes a, b), a frame point p is the
   // geocentric point rotation^T p + origin (rotation: geocentric to east-north-up at the centre).
   struct Body {
@@ -103,19 +106,30 @@ struct LocalFrame {
     double lowest = 0;  // the height (metres) below which a ray is in the body (see above)
   } body;
 
-  // How far (degrees) the light may be below the horizon at the centre while some cell may still
-  // see it: the largest angle between the centre's up and a cell's, plus the dip of the horizon
-  // from the highest cell down to body.lowest. 0 in a flat frame.
-  double horizonSlack = 0;
-
   std::size_t cellCount() const { return static_cast<std::size_t>(width) * height; }
   // The unit upward normal of the body at frame point p ((0, 0, 1) in a flat frame).
   Eigen::Vector3d upAt(const Eigen::Vector3d& p) const;
+  // How far (degrees) the light may be below the horizon at the centre while some cell may still
+  // see it: the largest angle between the centre's up and a cell's, plus the dip of the horizon
+  // from the highest cell down to body.lowest. 0 in a flat frame. (A pass over the cells.)
+  double horizonSlack() const;
   // Whether the ray from p toward `light` passes into the body (below body.lowest).
   bool rayEntersBody(const Eigen::Vector3d& p, const Eigen::Vector3d& light) const;
   // The direction toward a sun at this azimuth/altitude (true north) seen from the DEM's centre,
   // in this frame.
   Eigen::Vector3d towardSun(const SunPosition& sun) const;
+};
+
+// The body test of many rays toward one light (LocalFrame::rayEntersBody), set up once.
+class BodyRays {
+ public:
+  BodyRays(const LocalFrame& frame, const Eigen::Vector3d& light);
+  bool entersBody(const Eigen::Vector3d& p) const;
+
+ private:
+  const LocalFrame* frame_;
+  Eigen::Vector3d light_, scale_ = Eigen::Vector3d::Ones(), k_ = Eigen::Vector3d::Zero();
+  double k0_ = 0, qa_ = 0;
 };
 
 LocalFrame localFrame(const DemTerrain& dem, const FrameOptions& options);
