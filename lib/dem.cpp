@@ -72,6 +72,8 @@ bool DemTerrain::onRaster(double x, double y) const {
 
 namespace {
 
+constexpr double kMaxCoordinate = 1e100, kMinPixelArea = 1e-200;
+
 std::string lowerTrimmed(const std::string& text) {
   std::size_t a = 0, b = text.size();
   while (a < b && std::isspace(static_cast<unsigned char>(text[a]))) ++a;
@@ -108,6 +110,33 @@ VerticalUnit verticalUnitOf(const std::string& path, GDALRasterBand* band,
   return unit;
 }
 
+// A geotransform that places pixels usably: finite, invertible, with pixel sizes and an extent
+// whose products stay in the range of doubles (the exact predicates multiply coordinate
+// differences: 1e-300 m pixels or 1e300 m rasters would underflow or overflow them).
+void checkGeotransform(const std::string& path, const std::array<double, 6>& g, int width, int height) {
+  const auto text = [&] {
+    std::ostringstream s;
+    s.precision(17);
+    s << g[0] << ", " << g[1] << ", " << g[2] << ", " << g[3] << ", " << g[4] << ", " << g[5];
+    return s.str();
+  };
+  for (double x : g) {
+    if (!std::isfinite(x) || std::fabs(x) > kMaxCoordinate) {
+      throw Error(path + ": geotransform (" + text() + ") is not finite or beyond 1e100");
+    }
+  }
+  const double det = g[1] * g[5] - g[2] * g[4];
+  if (!(std::fabs(det) >= kMinPixelArea)) {
+    throw Error(path + ": geotransform (" + text() + ") gives pixels of no area (or below 1e-200): "
+                "they cannot be placed");
+  }
+  const double w = width, h = height;
+  if (std::fabs(g[0]) + w * std::fabs(g[1]) + h * std::fabs(g[2]) > kMaxCoordinate ||
+      std::fabs(g[3]) + w * std::fabs(g[4]) + h * std::fabs(g[5]) > kMaxCoordinate) {
+    throw Error(path + ": geotransform (" + text() + ") puts the raster beyond 1e100");
+  }
+}
+
 // Opens the raster and reads its description (no pixels). ds receives the dataset.
 DemTerrain openDem(const std::string& path, const DemOptions& options,
                    std::unique_ptr<GDALDataset>& ds, GDALRasterBand*& band) {
@@ -134,6 +163,7 @@ DemTerrain openDem(const std::string& path, const DemOptions& options,
   dem.height = ds->GetRasterYSize();
   double gt[6];
   if (ds->GetGeoTransform(gt) == CE_None) std::copy(gt, gt + 6, dem.geotransform.begin());
+  checkGeotransform(path, dem.geotransform, dem.width, dem.height);
   const OGRSpatialReference* srs = ds->GetSpatialRef();
   if (srs) {
     char* wkt = nullptr;

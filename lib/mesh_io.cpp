@@ -512,10 +512,20 @@ class Builder {
                                          " faces are degenerate: no area)"
                                    : std::string()));
     }
+    // Coordinates whose products stay in the range of doubles (the exact predicates multiply
+    // coordinate differences): within 1e100 in magnitude, and finite.
+    for (std::size_t i = 0; i < out_.mesh.vertices.size(); ++i) {
+      const Eigen::Vector3d& p = out_.mesh.vertices[i];
+      if (!(p.cwiseAbs().maxCoeff() <= 1e100)) {
+        throw Error(out_.path + ": vertex " + std::to_string(i + 1) + " (" + std::to_string(p.x()) + ", " +
+                    std::to_string(p.y()) + ", " + std::to_string(p.z()) +
+                    ") is not finite or beyond 1e100; shift the model to a local origin");
+      }
+    }
     Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
     Eigen::Vector3d hi = -lo;
     for (const auto& p : out_.mesh.vertices) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
-    out_.origin = 0.5 * (lo + hi);
+    out_.origin = 0.5 * lo + 0.5 * hi;
   }
 
  private:

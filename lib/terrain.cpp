@@ -70,12 +70,13 @@ inline PlaneFit fitPlane(const double u[3], const double v[3], const double h[3]
 // multiply-add, so the same bits. Inputs are structure-of-arrays: corner k of lane i at
 // [k * kLanes + i]. ok[i] is false where the lane needs the scalar path: a sliver's plane, or a
 // height that the clamp to the corners' range could change.
+// The two builds are chosen once, by a function pointer set when the library is loaded (not an
+// ifunc: those run before ThreadSanitizer's runtime is up, and crash it).
 constexpr int kLanes = 16;
 using Vec4 = double __attribute__((vector_size(32)));
 using Mask4 = long long __attribute__((vector_size(32)));
-[[gnu::target_clones("avx2", "default")]] void planeHeights(const double* cu, const double* cv,
-                                                           const double* ch, const double* u,
-                                                           const double* v, double* h, bool* ok) {
+[[gnu::always_inline]] inline void planeHeightsLanes(const double* cu, const double* cv, const double* ch,
+                                                     const double* u, const double* v, double* h, bool* ok) {
   for (int i = 0; i < kLanes; i += 4) {
     Vec4 c[3][3];  // [k][u, v, h]
     for (int k = 0; k < 3; ++k) {
@@ -101,6 +102,21 @@ using Mask4 = long long __attribute__((vector_size(32)));
     for (int j = 0; j < 4; ++j) ok[i + j] = good[j] != 0;
   }
 }
+using PlaneHeights = void (*)(const double*, const double*, const double*, const double*, const double*, double*,
+                              bool*);
+[[gnu::target("avx2")]] void planeHeightsAvx2(const double* cu, const double* cv, const double* ch, const double* u,
+                                              const double* v, double* h, bool* ok) {
+  planeHeightsLanes(cu, cv, ch, u, v, h, ok);
+}
+void planeHeightsBaseline(const double* cu, const double* cv, const double* ch, const double* u, const double* v,
+                          double* h, bool* ok) {
+  planeHeightsLanes(cu, cv, ch, u, v, h, ok);
+}
+PlaneHeights choosePlaneHeights() {
+  __builtin_cpu_init();
+  return __builtin_cpu_supports("avx2") ? planeHeightsAvx2 : planeHeightsBaseline;
+}
+const PlaneHeights planeHeights = choosePlaneHeights();
 
 std::string describePoint(const Eigen::Vector3d& p) {
   return "(" + std::to_string(p.x()) + ", " + std::to_string(p.y()) + ", " + std::to_string(p.z()) +
@@ -126,28 +142,36 @@ bool nearlyFlat(std::span<const std::uint32_t> idx, std::span<const Point2> c) {
 
 // Sign of the convex polygon's orientation as seen along gravity: +1 counter-clockwise, -1
 // clockwise, 0 when its projection has no area (or nearly none, see nearlyFlat). Throws when it
-// is not convex. Every vertex must
-// lie on the inner side (or on the line) of every edge; this exact test rejects reflex corners and
-// self-intersecting outlines alike.
+// is not convex. In linear time, with exact predicates: every corner turns the same way (or goes
+// straight on), and the corners come in angular order around an extreme one (the lowest, then
+// leftmost), which a polygon winding round more than once (a pentagram turns one way at every
+// corner too) cannot do.
 int convexOrientation(std::span<const std::uint32_t> idx, std::span<const Point2> c,
                       std::size_t polygon) {
   const std::size_t n = idx.size();
+  const auto notConvex = [&]() -> int {
+    if (nearlyFlat(idx, c)) return 0;
+    throw Error("polygon " + std::to_string(polygon) + " (" + std::to_string(n) +
+                " vertices) is not convex as seen along gravity; split it into convex "
+                "polygons or triangles");
+  };
   int sign = 0;
   for (std::size_t i = 0; i < n; ++i) {
-    const Point2 a = c[idx[i]], b = c[idx[(i + 1) % n]];
-    for (std::size_t j = 0; j < n; ++j) {
-      if (j == i || j == (i + 1) % n) continue;
-      const int s = orient2dSign(a, b, c[idx[j]]);
-      if (s == 0) continue;
-      if (sign == 0) {
-        sign = s;
-      } else if (s != sign) {
-        if (nearlyFlat(idx, c)) return 0;
-        throw Error("polygon " + std::to_string(polygon) + " (" + std::to_string(n) +
-                    " vertices) is not convex as seen along gravity; split it into convex "
-                    "polygons or triangles");
-      }
-    }
+    const int s = orient2dSign(c[idx[(i + n - 1) % n]], c[idx[i]], c[idx[(i + 1) % n]]);
+    if (s == 0) continue;
+    if (sign == 0) sign = s;
+    if (s != sign) return notConvex();
+  }
+  if (sign == 0) return 0;  // every corner on one line
+  std::size_t k = 0;
+  for (std::size_t i = 1; i < n; ++i) {
+    const Point2 p = c[idx[i]], q = c[idx[k]];
+    if (p.v < q.v || (p.v == q.v && p.u < q.u)) k = i;
+  }
+  const Point2 p0 = c[idx[k]];
+  for (std::size_t j = 1; j + 1 < n; ++j) {
+    const int s = orient2dSign(p0, c[idx[(k + j) % n]], c[idx[(k + j + 1) % n]]);
+    if (s != 0 && s != sign) return notConvex();
   }
   return sign;
 }
@@ -285,7 +309,8 @@ TerrainIndex::TerrainIndex(const Mesh& mesh, const CartesianMapping& mapping,
   if (deferred) {
     // The grid answers every height query: the tree waits until something needs it.
     deferredTree_ = true;
-    stats_.memoryBytes = baseMemoryBytes_ + tris_.size() * sizeof(Tri);
+    recordBytesBeforeTree_ = tris_.size() * sizeof(Tri);
+    stats_.memoryBytes = baseMemoryBytes_ + recordBytesBeforeTree_;
   } else {
     setTreeFloor(boxes);
     tree_.build(static_cast<std::uint32_t>(cold_.size()), domain, options.tree,

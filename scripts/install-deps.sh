@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Installs the Debian packages qota builds against. Skips what is already present, so it is
-# cheap to run before every build. Needs root (or sudo) only when something is missing.
+# Installs the Debian packages qota builds against (or, given names, those packages). Skips what
+# is already present, so it is cheap to run before every build. Needs root (or sudo) only when
+# something is missing.
 set -euo pipefail
 
 packages=(
@@ -19,6 +20,7 @@ packages=(
   libembree-dev                 # bench/embree_bench: the general ray tracer qota is measured against
 )
 
+[ $# -gt 0 ] && packages=("$@")
 missing=()
 for p in "${packages[@]}"; do
   if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'install ok installed'; then

@@ -15,6 +15,11 @@ int build(const BuildOptions& options, std::ostream& out, std::ostream& err) {
     if (options.output.empty()) throw Error("no output file (-o)");
     const auto t0 = std::chrono::steady_clock::now();
     const TreeFile tree = openIndex(options.source);
+    const std::uint64_t triangles = std::visit([](const auto& index) { return index.stats().triangles; }, tree.index);
+    if (triangles == 0) {
+      throw Error(options.source.source + ": no terrain to index (every pixel is nodata, or no polygon has an "
+                  "area seen along the mapping's lines); nothing was written");
+    }
     const auto t1 = std::chrono::steady_clock::now();
     saveTree(options.output, tree.index, tree.source);
     const auto t2 = std::chrono::steady_clock::now();
@@ -31,9 +36,8 @@ int build(const BuildOptions& options, std::ostream& out, std::ostream& err) {
           tree.index);
     }
     return 0;
-  } catch (const Error& e) {
-    err << "qota build: " << e.what() << '\n';
-    return 2;
+  } catch (...) {
+    return reportFailure("build", err);
   }
 }
 

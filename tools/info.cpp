@@ -120,9 +120,8 @@ int info(const InfoOptions& options, std::ostream& out, std::ostream& err) {
     printTree(t, s.memoryBytes, s.triangles, out);
     out << "build time (s): " << formatNumber(seconds, 3) << '\n';
     return 0;
-  } catch (const Error& e) {
-    err << "qota info: " << e.what() << '\n';
-    return 2;
+  } catch (...) {
+    return reportFailure("info", err);
   }
 }
 

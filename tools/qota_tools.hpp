@@ -144,4 +144,8 @@ struct BuildOptions {
 };
 int build(const BuildOptions& options, std::ostream& out, std::ostream& err);
 
+// The whole qota command: parses argv (argv[0] is the program's name) and runs the subcommand.
+// Never throws: every failure is a message on `err` and exit code 2.
+int runCli(int argc, const char* const* argv, std::istream& in, std::ostream& out, std::ostream& err);
+
 }  // namespace qota::tools

@@ -220,9 +220,8 @@ int renderTree(const RenderTreeOptions& o, std::ostream& out, std::ostream& err)
           << "written: " << o.output << '\n';
     }
     return 0;
-  } catch (const Error& e) {
-    err << "qota render-tree: " << e.what() << '\n';
-    return 2;
+  } catch (...) {
+    return reportFailure("render-tree", err);
   }
 }
 

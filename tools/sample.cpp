@@ -284,9 +284,8 @@ int sample(const SampleOptions& options, std::istream& in, std::ostream& out, st
       if (!*output) throw Error("cannot write the output");
     }
     return failed ? 1 : 0;
-  } catch (const Error& e) {
-    err << "qota sample: " << e.what() << '\n';
-    return 2;
+  } catch (...) {
+    return reportFailure("sample", err);
   }
 }
 

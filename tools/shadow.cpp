@@ -247,9 +247,8 @@ int shadow(const ShadowOptions& o, std::ostream& out, std::ostream& err) {
     }
     if (!o.quiet) out << "written: " << o.output << (o.png.empty() ? "" : " and " + o.png) << '\n';
     return 0;
-  } catch (const Error& e) {
-    err << "qota shadow: " << e.what() << '\n';
-    return 2;
+  } catch (...) {
+    return reportFailure("shadow", err);
   }
 }
 

@@ -3,6 +3,9 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <exception>
+#include <new>
+#include <ostream>
 
 #include "qota/error.hpp"
 
@@ -27,6 +30,21 @@ std::string formatReadable(double value, int decimals) {
   const auto r = std::to_chars(buf, buf + sizeof buf, value, std::chars_format::scientific);
   if (r.ec != std::errc()) throw Error("cannot format a number");
   return std::string(buf, r.ptr);
+}
+
+int reportFailure(const char* tool, std::ostream& err) {
+  err << "qota " << tool << ": ";
+  try {
+    throw;
+  } catch (const std::bad_alloc&) {
+    err << "out of memory";
+  } catch (const std::exception& e) {
+    err << e.what();
+  } catch (...) {
+    err << "unexpected error";
+  }
+  err << '\n';
+  return 2;
 }
 
 }  // namespace qota::tools

@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <ostream>
 #include <string>
 
 #include "qota/atomic_file.hpp"  // AtomicFile, shared with the library
@@ -22,5 +23,9 @@ std::string formatNumber(double value, int precision = -1);
 // A number for people: fixed decimals while it stays short, else the shortest round trip in
 // scientific notation (a shadow reach of 1e300 m is not printed as 300 digits).
 std::string formatReadable(double value, int decimals);
+
+// For a tool's catch (...): prints "qota <tool>: <what went wrong>" for whatever was thrown (a
+// qota::Error's message, "out of memory", a library's exception) and returns exit code 2.
+int reportFailure(const char* tool, std::ostream& err);
 
 }  // namespace qota::tools

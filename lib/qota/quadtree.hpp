@@ -384,6 +384,18 @@ template <class Overlaps>
 void Quadtree::build(std::uint32_t itemCount, Box2 root, const QuadtreeOptions& options,
                      Overlaps&& overlaps, double minSizeU, double minSizeV,
                      const std::function<Box2(std::uint32_t)>& boxOf) {
+  // A root much longer than it is wide would cut its short side into cells far thinner than the
+  // items, each item referenced by thousands of them (a raster two pixels by five thousand). So
+  // the short side is widened, about its centre, to at least half the long one.
+  if (!root.empty()) {
+    const double su0 = root.uhi - root.ulo, sv0 = root.vhi - root.vlo;
+    const auto widen = [](double& lo, double& hi, double size) {
+      const double mid = 0.5 * lo + 0.5 * hi;
+      lo = std::min(lo, mid - 0.5 * size), hi = std::max(hi, mid + 0.5 * size);
+    };
+    if (su0 < 0.5 * sv0) widen(root.ulo, root.uhi, 0.5 * sv0);
+    if (sv0 < 0.5 * su0) widen(root.vlo, root.vhi, 0.5 * su0);
+  }
   root_ = root;
   cut_.clear();
   boxOf_ = options.cuts == QuadtreeOptions::Cuts::CostModel ? boxOf : nullptr;

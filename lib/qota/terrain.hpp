@@ -175,8 +175,10 @@ class TerrainIndex {
   // True while the grid fast path is active (TerrainOptions::gridFastPath, a regular grid, no
   // insertion since).
   bool gridFastPath() const { return gridW_ != 0; }
+  // Thread-safe with queries and with itself (not with edits, which nothing is).
   const TerrainStats& stats() const {
     ensureTree();
+    const std::lock_guard<std::mutex> lock(deferred_->stats);
     if (treeStatsStale_) {  // after edits, or after the deferred build
       stats_.tree = tree_.stats();
       stats_.memoryBytes = baseMemoryBytes_ + tris_.size() * sizeof(Tri) + stats_.tree.memoryBytes;
@@ -188,9 +190,10 @@ class TerrainIndex {
     ensureTree();
     return tree_;
   }
-  // The memory the index holds right now: without the tree while a grid has not needed it.
+  // The memory the index holds right now: without the tree (and the records it brings) while a
+  // grid has not needed it. Thread-safe, during the deferred build too.
   std::uint64_t memoryBytesNow() const {
-    return deferredTree_ && !deferred_->built.load() ? baseMemoryBytes_ + tris_.size() * sizeof(Tri)
+    return deferredTree_ && !deferred_->built.load() ? baseMemoryBytes_ + recordBytesBeforeTree_
                                                     : stats().memoryBytes;
   }
 
@@ -353,10 +356,12 @@ class TerrainIndex {
   }
   void buildDeferredTree() const;
   bool deferredTree_ = false;
-  struct Deferred {  // behind a pointer: once_flag and atomic do not move
+  struct Deferred {  // behind a pointer: once_flag, atomic and mutex do not move
     std::once_flag once;
     std::atomic<bool> built{false};
+    std::mutex stats;  // the lazily refreshed stats_
   };
+  std::uint64_t recordBytesBeforeTree_ = 0;  // tris_ before a deferred build (it may add them)
   std::unique_ptr<Deferred> deferred_ = std::make_unique<Deferred>();
   QuadtreeOptions deferredOptions_;
   mutable double floorU_ = 0, floorV_ = 0;  // the tree's node size floor (setTreeFloor)

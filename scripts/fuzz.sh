@@ -1,0 +1,58 @@
+#!/usr/bin/env bash
+# Fuzzes qota's inputs with libFuzzer (clang from Debian), under AddressSanitizer and
+# UndefinedBehaviorSanitizer:
+#
+#   scripts/fuzz.sh SECONDS [HARNESS...]
+#
+# Harnesses (tests/fuzz/fuzz_NAME.cpp): treefile, mesh, sample_line, raster, cli. Each first
+# replays its seed corpus (tests/fuzz/corpus/NAME) and every crash ever found
+# (tests/fuzz/crashes/NAME, kept as regressions once fixed), then fuzzes for SECONDS seconds
+# starting from the corpus (new inputs go to a scratch copy, not the repository). A crash, a
+# hang (over 20 s on one input), a leak or an out-of-memory input is written to
+# build-fuzz/crashes/NAME/ and counted. Prints one line per harness, "NAME: N runs, M crashes",
+# and exits 1 when any harness crashed.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+seconds=${1:?usage: scripts/fuzz.sh SECONDS [HARNESS...]}
+shift
+harnesses=("$@")
+[ ${#harnesses[@]} -eq 0 ] && harnesses=(treefile mesh sample_line raster cli)
+
+./scripts/install-deps.sh
+./scripts/install-deps.sh clang-14 libclang-rt-14-dev
+cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPILER=clang++-14 \
+  -DQOTA_SANITIZE=address,undefined -DQOTA_BUILD_FUZZERS=ON -DQOTA_BUILD_TESTS=OFF \
+  -DQOTA_BUILD_EXAMPLES=OFF -DQOTA_BUILD_BENCH=OFF > /dev/null
+cmake --build build-fuzz -j2 --target $(printf 'fuzz_%s ' "${harnesses[@]}") > build-fuzz/build.log 2>&1 ||
+  { tail -40 build-fuzz/build.log; exit 2; }
+
+export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:allocator_may_return_null=1}
+export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
+export LSAN_OPTIONS=${LSAN_OPTIONS:-suppressions=$PWD/tests/fuzz/lsan.supp}
+failed=0
+for name in "${harnesses[@]}"; do
+  bin=build-fuzz/tests/fuzz/fuzz_$name
+  seeds=tests/fuzz/corpus/$name known=tests/fuzz/crashes/$name
+  work=build-fuzz/corpus/$name artifacts=build-fuzz/crashes/$name
+  mkdir -p "$seeds" "$known" "$work" "$artifacts"
+  log=build-fuzz/$name.log
+  crashes=0 runs=0
+  # Every input ever kept, once: the seeds and the crashes of the past must all pass now.
+  if ! "$bin" -runs=0 -timeout=20 -rss_limit_mb=3072 -artifact_prefix="$artifacts/" "$seeds" "$known" > "$log" 2>&1; then
+    crashes=1
+  fi
+  runs=$(grep -Eo '^#[0-9]+' "$log" | tail -1 | tr -d '#' || true)
+  if [ "$crashes" -eq 0 ] && [ "$seconds" -gt 0 ]; then
+    if ! "$bin" -max_total_time="$seconds" -timeout=20 -rss_limit_mb=3072 -print_final_stats=1 \
+        -artifact_prefix="$artifacts/" "$work" "$seeds" >> "$log" 2>&1; then
+      crashes=1
+    fi
+    runs=$(grep -Eo 'stat::number_of_executed_units: *[0-9]+' "$log" | tail -1 | grep -Eo '[0-9]+$' || echo "$runs")
+  fi
+  echo "$name: ${runs:-0} runs, $crashes crashes"
+  if [ "$crashes" -ne 0 ]; then
+    failed=1
+    grep -E 'ERROR|SUMMARY|runtime error|Test unit written|deadly signal|ALARM|==[0-9]+==' "$log" | head -20 | sed 's/^/  /'
+  fi
+done
+exit $failed

@@ -1,0 +1,29 @@
+#!/usr/bin/env bash
+# The whole test suite under AddressSanitizer + UndefinedBehaviorSanitizer (build-asan), then
+# the tests that run threads under ThreadSanitizer (build-tsan). Any report fails the run.
+#
+#   scripts/sanitize.sh [asan|tsan]     (default: both)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+./scripts/install-deps.sh
+which=${1:-all}
+# The sanitizers' own rules: a report is fatal, with a stack; leaks are checked.
+export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1}
+export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
+export LSAN_OPTIONS=${LSAN_OPTIONS:-suppressions=$PWD/tests/fuzz/lsan.supp}
+export TSAN_OPTIONS=${TSAN_OPTIONS:-halt_on_error=1:second_deadlock_stack=1}
+
+if [ "$which" = all ] || [ "$which" = asan ]; then
+  cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DQOTA_SANITIZE=address,undefined \
+    -DQOTA_BUILD_TESTS=ON -DQOTA_BUILD_EXAMPLES=ON -DQOTA_BUILD_BENCH=OFF > /dev/null
+  cmake --build build-asan -j2
+  ctest --test-dir build-asan -j2 --output-on-failure --timeout 1200
+fi
+if [ "$which" = all ] || [ "$which" = tsan ]; then
+  cmake -S . -B build-tsan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DQOTA_SANITIZE=thread \
+    -DQOTA_BUILD_TESTS=ON -DQOTA_BUILD_EXAMPLES=OFF -DQOTA_BUILD_BENCH=OFF > /dev/null
+  cmake --build build-tsan -j2 --target qota_tests
+  # The tests whose code runs threads: shadows (the strips and cell passes), parallel batches,
+  # the deferred quadtree, statistics read while others query.
+  build-tsan/tests/qota_tests --gtest_filter='*Thread*:*Parallel*:*Concurren*:Shadow*:*Deferred*:GridFast*:*Batch*'
+fi

@@ -1,0 +1,251 @@
+// The qota command's parser: one subcommand per tool (as git, or GDAL's gdal command). Parsing
+// only; each tool is a library function in qota_tools.hpp.
+#include <CLI/CLI.hpp>
+#include <iostream>
+#include <map>
+#include <new>
+#include <string>
+#include <vector>
+
+#include "qota_tools.hpp"
+#include "text_output.hpp"
+
+namespace qota::tools {
+namespace {
+
+void addTreeOptions(CLI::App* app, qota::TerrainOptions& terrain) {
+  app->add_option("--max-poly", terrain.tree.maxPoly,
+                  "Maxpoly: split a quadtree node holding more polygons than this")
+      ->capture_default_str()
+      ->check(CLI::Range(1u, 1u << 20));
+  app->add_option("--max-depth", terrain.tree.maxDepth, "Maxdepth: deepest quadtree level")
+      ->capture_default_str()
+      ->check(CLI::Range(0u, 30u));
+}
+
+// GDAL's tools spell some options with one dash and several letters (-az, -alt, -of, -co);
+// CLI11 reads a single dash as short flags, so those spellings become --az, --alt, --of, --co.
+std::vector<std::string> gdalStyleArguments(int argc, const char* const* argv) {
+  std::vector<std::string> args(argv, argv + argc);
+  for (std::size_t i = 1; i < args.size(); ++i) {
+    for (const char* name : {"-az", "-alt", "-of", "-co"}) {
+      if (args[i] == name) args[i] = std::string("-") + name;
+    }
+  }
+  return args;
+}
+
+int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostream& out, std::ostream& err) {
+  CLI::App app{
+      "qota: terrain following with the Quick Oriented Terrain Algorithm (MERL TR-96-17, 1996)"};
+  app.require_subcommand(1);
+
+  SampleOptions sample;
+  CLI::App* sampleCmd = app.add_subcommand(
+      "sample",
+      "Terrain height under points. Reads 'x y [fields...]' lines (or 'x y z [fields...]' with "
+      "--query-z: the nearest terrain at or below z) from stdin or --input-file and prints one "
+      "line per input line: the height in the raster's own vertical unit (as gdallocationinfo "
+      "prints it; a mesh's z), 'none' where there is no terrain, 'error' for a malformed line, "
+      "followed by the line's other fields unchanged. Between the outermost pixel centres and "
+      "the raster's edge, the height of the nearest point on the outermost centres' lines. Exit "
+      "code 1 when a line was malformed or off the raster, 2 when the source cannot be read.");
+  sampleCmd->add_option("source", sample.source,
+                        "Elevation raster (any GDAL format), tree file (qota build) or mesh file")
+      ->required();
+  sampleCmd->add_option("-i,--input-file", sample.inputFile, "Read points from this file");
+  sampleCmd->add_option("-o,--output-file", sample.outputFile,
+                        "Write results to this file (replaced only when complete)");
+  sampleCmd->add_option("--srs", sample.srs,
+                        "CRS of the input points (EPSG:4326, WKT, PROJ...); default: the raster's");
+  sampleCmd->add_option("-p,--precision", sample.precision,
+                        "Decimals to print (0 to 100); default: the shortest that round-trips")
+      ->check(CLI::Range(0, kMaxPrecision));
+  sampleCmd->add_flag("--query-z", sample.queryZ,
+                      "The third field of a line is the query height: answer the nearest terrain "
+                      "at or below it (else it is passed through like any other field)");
+  sampleCmd->add_flag("--header", sample.header,
+                      "The first line is a header: print 'height' and its other names");
+  sampleCmd->add_option("-b,--band", sample.band,
+                        "Raster band holding the heights (needed when the raster has several)")
+      ->check(CLI::Range(1, 1 << 30));
+  sampleCmd->add_flag("--world", sample.printWorld, "Also print the world point x y z of the hit");
+  sampleCmd->add_option("--mapping", sample.mapping,
+                        "Frame: cartesian (the raster as a map), spherical (a lon/lat raster as a "
+                        "closed planet; lines 'lon lat [r]', prints the surface radius), geodetic "
+                        "(a lon/lat raster on its ellipsoid; lines 'lon lat [h]', prints the "
+                        "height along the normal), cylindrical (the raster as a station's relief; "
+                        "lines 'angle axial [h]', prints the distance from the axis); default: a "
+                        "tree file's own, else cartesian")
+      ->check(CLI::IsMember({"cartesian", "spherical", "geodetic", "cylindrical"}));
+  sampleCmd->add_option("--radius", sample.radius,
+                        "spherical: the planet's reference radius in metres (default: from the "
+                        "raster's CRS, 6371008.8 for WGS84); cylindrical: the station's radius "
+                        "(default 250)")
+      ->check(CLI::PositiveNumber);
+  sampleCmd->add_option("--length", sample.length, "cylindrical: the station's length (default 1000)")
+      ->check(CLI::PositiveNumber);
+  sampleCmd->add_flag("-w,--lat-lon", sample.swapXY,
+                      "Input lines are 'lat lon' (or 'y x') instead of 'lon lat'");
+  addTreeOptions(sampleCmd, sample.terrain);
+
+  InfoOptions info;
+  CLI::App* infoCmd =
+      app.add_subcommand("info", "Raster, terrain and quadtree statistics (the paper's Table 4)");
+  infoCmd->add_option("source", info.source, "Elevation raster (any GDAL format) or tree file (qota build)")
+      ->required();
+  infoCmd->add_option("-b,--band", info.band, "Raster band holding the heights")->check(CLI::Range(1, 1 << 30));
+  addTreeOptions(infoCmd, info.terrain);
+
+  ShadowOptions shadow;
+  CLI::App* shadowCmd = app.add_subcommand(
+      "shadow",
+      "Shadows of the sun (or any directional light) on a DEM. "
+      "Output: a raster on the DEM's grid, lit = 255, shadow = 0, nodata = 128 (Byte), or hours of "
+      "direct sunlight (Float32, nodata -1) with --hours. Terrain outside the raster is not seen: "
+      "shadows cast from beyond the edge are missing, up to the 'shadow reach' the tool prints "
+      "(relief / tan(altitude)); pad tiles by that much. A DEM with a CRS is placed on its "
+      "ellipsoid (curvature included, the sun's direction right at every cell) unless --flat. "
+      "Heights are converted to metres from the raster's vertical unit (-z and -s as gdaldem's).");
+  shadowCmd->add_option("source", shadow.source, "Elevation raster (any GDAL format)")->required();
+  shadowCmd->add_option("-o,--output", shadow.output, "Output raster")->required();
+  shadowCmd->add_option("--of", shadow.format, "GDAL format (-of); default: from the extension");
+  shadowCmd->add_option("--co", shadow.creationOptions, "Creation option NAME=VALUE (-co), repeatable");
+  shadowCmd->add_flag("-q,--quiet", shadow.quiet, "No progress or summary");
+  shadowCmd->add_option("--az", shadow.azimuth,
+                        "Sun azimuth (-az), degrees clockwise from north (default 315)");
+  shadowCmd->add_option("--alt", shadow.altitude,
+                        "Sun altitude (-alt), degrees above the horizon (default 45)");
+  std::vector<double> sunVector;
+  shadowCmd->add_option("--sun-vector", sunVector, "Vector toward the light: east,north,up")
+      ->delimiter(',')
+      ->expected(3);
+  shadowCmd->add_option("--time", shadow.time,
+                        "Date and time, ISO 8601 with its UTC offset (2024-06-21T14:00+02:00, or "
+                        "...Z), or without one and --tz: the Sun's position seen from the DEM's "
+                        "centre (Earth: VSOP87; Mars: Mars24)");
+  shadowCmd->add_option("--tz", shadow.tz,
+                        "Zone of a --time without offset: an offset (+02:00) or an IANA name "
+                        "(Europe/Paris)");
+  std::vector<double> hours;
+  shadowCmd->add_option("--hours", hours,
+                        "START END STEP: hours of direct sunlight between these local clock hours "
+                        "(0 to 48) of --time's date, in steps of STEP hours (at least 1/60); a "
+                        "cell lit at a step's middle counts the whole step")
+      ->expected(3);
+  shadowCmd->add_flag("--flat", shadow.flat,
+                      "No curvature: a geographic DEM's lon/lat scaled linearly, a projected "
+                      "DEM's grid as it is");
+  shadowCmd->add_option("-b,--band", shadow.band, "Raster band holding the heights")
+      ->check(CLI::Range(1, 1 << 30));
+  shadowCmd->add_option("-z,--z-factor", shadow.zFactor,
+                        "Multiply heights by this after converting their unit to metres (gdaldem's -z)")
+      ->check(CLI::PositiveNumber);
+  shadowCmd->add_option("-s,--scale", shadow.scale,
+                        "Horizontal units per vertical unit, for a raster whose vertical unit is not "
+                        "known (gdaldem's -s; a degree counts as 111120 m)")
+      ->check(CLI::PositiveNumber);
+  shadowCmd->add_option("--pixel-size", shadow.pixelSize, "Metres per pixel for a raster without CRS");
+  shadowCmd->add_option("--png", shadow.png, "Also write a PNG preview: the shadows over a hillshade");
+  shadowCmd->add_option("--lit-value", shadow.litValue, "Output value of lit cells")->capture_default_str();
+  shadowCmd->add_option("--shadow-value", shadow.shadowValue, "Output value of shadowed cells")
+      ->capture_default_str();
+  shadowCmd->add_option("--nodata-value", shadow.nodataValue, "Output value (and nodata) of cells without data")
+      ->capture_default_str();
+  addTreeOptions(shadowCmd, shadow.terrain);
+  shadowCmd
+      ->add_option("--search", shadow.search,
+                   "How each cell's light ray finds the terrain it may meet (the same mask): 'strips' "
+                   "(default; strips of the DEM along the sun's azimuth, sorted by distance) or "
+                   "'quadtree' (the paper's shadow quadtree in the light's frame)")
+      ->transform(CLI::CheckedTransformer(
+          std::map<std::string, qota::ShadowSearch>{{"strips", qota::ShadowSearch::Strips},
+                                                    {"quadtree", qota::ShadowSearch::Quadtree}},
+          CLI::ignore_case));
+
+  BuildOptions build;
+  CLI::App* buildCmd = app.add_subcommand(
+      "build",
+      "Build a terrain's QOTA index once and write it as a tree file (.qota), which sample, info "
+      "and render-tree load instead of rebuilding.");
+  buildCmd->add_option("source", build.source.source, "Raster (any GDAL format) or mesh file (OBJ, PLY, glTF, STL, GeoPackage...)")
+      ->required();
+  buildCmd->add_option("-o,--output", build.output, "Tree file to write (replaced only when complete)")
+      ->required();
+  buildCmd->add_option("--mapping", build.source.mapping,
+                       "cartesian (default), spherical, geodetic or cylindrical (see sample)")
+      ->check(CLI::IsMember({"cartesian", "spherical", "geodetic", "cylindrical"}));
+  buildCmd->add_option("--radius", build.source.radius, "spherical: planet radius; cylindrical: station radius")
+      ->check(CLI::PositiveNumber);
+  buildCmd->add_option("--length", build.source.length, "cylindrical: station length")
+      ->check(CLI::PositiveNumber);
+  buildCmd->add_flag("-q,--quiet", build.quiet, "No summary");
+  buildCmd->add_option("-b,--band", build.source.band, "Raster band holding the heights")
+      ->check(CLI::Range(1, 1 << 30));
+  addTreeOptions(buildCmd, build.source.terrain);
+
+  RenderTreeOptions renderTree;
+  CLI::App* renderTreeCmd = app.add_subcommand(
+      "render-tree",
+      "A picture of the QOTA quadtree over a DEM (the paper's Figure 4): a grey PNG on the "
+      "raster's grid, each leaf filled by its polygon count (white = empty, darker on a log scale "
+      "down to grey 160 at --max-poly polygons or more), leaf edges in dark grey (40), over a "
+      "faint hillshade.");
+  renderTreeCmd->add_option("source", renderTree.source,
+                            "Elevation raster (any GDAL format) or tree file (qota build; its "
+                            "own Maxpoly and Maxdepth; drawn over its raster when that is still "
+                            "there, else over its (u, v) box)")
+      ->required();
+  renderTreeCmd->add_option("-o,--output", renderTree.output, "Output PNG")->required();
+  renderTreeCmd->add_option("--size", renderTree.size, "Pixels along the image's long side")
+      ->capture_default_str()
+      ->check(CLI::Range(16, 16384));
+  renderTreeCmd->add_flag("-q,--quiet", renderTree.quiet, "No summary");
+  renderTreeCmd->add_option("-b,--band", renderTree.band, "Raster band holding the heights")
+      ->check(CLI::Range(1, 1 << 30));
+  addTreeOptions(renderTreeCmd, renderTree.terrain);
+
+  try {
+    const std::vector<std::string> args = gdalStyleArguments(argc, argv);
+    std::vector<const char*> cargs;
+    for (const auto& a : args) cargs.push_back(a.c_str());
+    app.parse(static_cast<int>(cargs.size()), const_cast<char**>(cargs.data()));
+  } catch (const CLI::ParseError& e) {
+    // CLI11 prints help (exit 0) or the parse error (non-zero).
+    const int code = app.exit(e, out, err);
+    return code == 0 ? 0 : 2;
+  }
+  if (*buildCmd) return tools::build(build, out, err);
+  if (*sampleCmd) return tools::sample(sample, in, out, err);
+  if (*infoCmd) return tools::info(info, out, err);
+  if (*shadowCmd) {
+    if (!sunVector.empty()) shadow.sunVector = Eigen::Vector3d(sunVector[0], sunVector[1], sunVector[2]);
+    if (!hours.empty()) shadow.hours = std::array<double, 3>{hours[0], hours[1], hours[2]};
+    return qota::tools::shadow(shadow, out, err);
+  }
+  if (*renderTreeCmd) return tools::renderTree(renderTree, out, err);
+  return 2;
+}
+
+}  // namespace
+
+int runCli(int argc, const char* const* argv, std::istream& in, std::ostream& out, std::ostream& err) {
+  // Every failure ends here as a message and exit code 2, whatever threw it (the tools turn their
+  // own into messages; this catches what they could not foresee: memory, the standard library,
+  // the libraries underneath).
+  const auto fail = [&](const std::string& what) {
+    err << "qota: " << what << '\n';
+    return 2;
+  };
+  try {
+    return parseAndRun(argc, argv, in, out, err);
+  } catch (const std::bad_alloc&) {
+    return fail("out of memory");
+  } catch (const std::exception& e) {
+    return fail(e.what());
+  } catch (...) {
+    return fail("unexpected error");
+  }
+}
+
+}  // namespace qota::tools
