@@ -10,6 +10,7 @@
 #include <type_traits>
 
 #include "qota/error.hpp"
+#include "qota/memory_budget.hpp"
 #include "qota/predicates.hpp"
 
 namespace qota {
@@ -92,6 +93,9 @@ CurvedIndex<M>::CurvedIndex(const Mesh& mesh, const M& mapping, const TerrainOpt
     : mapping_(mapping) {
   const std::size_t nv = mesh.vertices.size();
   if (nv > 0xfffffff0u) throw Error("curved terrain: more than 2^32 vertices");
+  std::uint64_t fanned = 0;  // refuse what cannot fit before allocating (memory_budget.hpp)
+  for (std::size_t p = 0; p < mesh.polygonCount(); ++p) fanned += mesh.polygon(p).size() > 2 ? mesh.polygon(p).size() - 2 : 0;
+  memory::require(std::string(M::name()) + " terrain", memory::kCurvedIndex, nv, fanned);
   std::vector<Eigen::Vector3d> local(nv);
   std::vector<double> vertexHeight;  // geodetic only: ellipsoid height of each vertex
   for (std::size_t i = 0; i < nv; ++i) {

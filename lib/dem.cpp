@@ -24,31 +24,12 @@ namespace {
 using detail::QuietGdalErrors;
 using detail::gdalMessage;
 
-std::string gib(std::uint64_t bytes) {
-  std::ostringstream s;
-  s.precision(3);
-  s << static_cast<double>(bytes) / (1024.0 * 1024.0 * 1024.0) << " GiB";
-  return s.str();
-}
 
 }  // namespace
 
 void ensureGdalRegistered() {
   static std::once_flag once;
   std::call_once(once, [] { GDALAllRegister(); });
-}
-
-std::uint64_t availableMemoryBytes() {
-  std::ifstream meminfo("/proc/meminfo");
-  std::string key;
-  std::uint64_t kib = 0;
-  std::string unit;
-  while (meminfo >> key >> kib >> unit) {
-    if (key == "MemAvailable:") return kib * 1024;
-  }
-  const long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGE_SIZE);
-  return pages > 0 && page > 0 ? static_cast<std::uint64_t>(pages) * static_cast<std::uint64_t>(page)
-                               : 0;
 }
 
 std::array<double, 2> DemTerrain::pixelCentre(double col, double row) const {
@@ -233,15 +214,14 @@ DemTerrain loadDem(const std::string& path, const DemOptions& options) {
   const std::uint64_t h = static_cast<std::uint64_t>(dem.height);
   const std::uint64_t vertices = w * h;
   const std::uint64_t triangles = w > 1 && h > 1 ? 2 * (w - 1) * (h - 1) : 0;
-  const std::uint64_t need = vertices * (sizeof(double) + sizeof(Eigen::Vector3d)) +
-                             triangles * 3 * sizeof(std::uint32_t) +
-                             TerrainIndex::estimateBuildBytes(vertices, triangles);
-  const std::uint64_t limit =
-      options.memoryLimitBytes ? options.memoryLimitBytes : availableMemoryBytes();
+  const std::uint64_t need = memory::kProcessBase + memory::kDemMesh.bytes(vertices, triangles) +
+                             options.then.bytes(vertices, triangles);
+  dem.estimatedBytes = need;
+  const std::uint64_t limit = options.memoryLimitBytes ? options.memoryLimitBytes : memory::availableBytes();
   if (vertices >= 0xffffffffull || (limit && need > limit)) {
     throw Error(path + ": a " + std::to_string(dem.width) + " x " + std::to_string(dem.height) +
-                " raster needs about " + gib(need) + " to build its terrain, more than the " +
-                gib(limit) + " of memory available; cut it into tiles (gdal_translate -srcwin) "
+                " raster needs about " + memory::gib(need) + " for this job, more than the " +
+                memory::gib(limit) + " of memory available; cut it into tiles (gdal_translate -srcwin) "
                 "or resample it");
   }
 

@@ -20,6 +20,33 @@ struct QuietGdalErrors {
   QuietGdalErrors& operator=(const QuietGdalErrors&) = delete;
 };
 
+// Records every error GDAL reports while it lives (none printed): whether any was a failure, and
+// the first failure's message. For writes, where GDAL reports a full disk as an error at the
+// close and still returns.
+class GdalErrorLog {
+ public:
+  GdalErrorLog() {
+    CPLPushErrorHandlerEx(&GdalErrorLog::handler, this);
+    CPLErrorReset();
+  }
+  ~GdalErrorLog() { CPLPopErrorHandler(); }
+  GdalErrorLog(const GdalErrorLog&) = delete;
+  GdalErrorLog& operator=(const GdalErrorLog&) = delete;
+  bool failed() const { return failed_; }
+  const std::string& message() const { return message_; }
+
+ private:
+  static void CPL_STDCALL handler(CPLErr level, CPLErrorNum, const char* msg) {
+    auto* self = static_cast<GdalErrorLog*>(CPLGetErrorHandlerUserData());
+    if (level == CE_Failure || level == CE_Fatal) {
+      if (!self->failed_ && msg) self->message_ = msg;
+      self->failed_ = true;
+    }
+  }
+  bool failed_ = false;
+  std::string message_;
+};
+
 // GDAL's last error as ": message", or "" when there is none.
 inline std::string gdalMessage() {
   const char* m = CPLGetLastErrorMsg();

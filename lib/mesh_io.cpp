@@ -9,7 +9,14 @@
 #include <ogrsf_frmts.h>
 
 #include <Eigen/Geometry>
+#include <poll.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <chrono>
+#include <filesystem>
 #include <array>
 #include <assimp/Importer.hpp>
 #include <bit>
@@ -37,6 +44,8 @@ namespace {
 // Single-precision Assimp is what the header's precision note is about; if a double build shows
 // up, the note (and MeshFile::singlePrecision) must say so, and OBJ could go through it too.
 constexpr bool kAssimpSinglePrecision = sizeof(ai_real) == sizeof(float);
+// The largest coordinate a mesh may have (see Builder::vertex).
+constexpr double kMaxCoordinate = 1e100;
 
 // ---------------------------------------------------------------------------------------------
 // Vertex sharing: one vertex per exact coordinate triple.
@@ -397,6 +406,13 @@ class Builder {
   Builder(MeshFile& out, const MeshFileOptions& options) : out_(out), options_(options) {}
 
   std::uint32_t vertex(const Eigen::Vector3d& p) {
+    // Coordinates whose products stay in the range of doubles (the exact predicates multiply
+    // coordinate differences): finite and within 1e100 in magnitude.
+    if (!(p.cwiseAbs().maxCoeff() <= kMaxCoordinate)) {
+      throw Error(out_.path + ": vertex " + std::to_string(out_.mesh.vertices.size() + 1) + " (" +
+                  std::to_string(p.x()) + ", " + std::to_string(p.y()) + ", " + std::to_string(p.z()) +
+                  ") is not finite or beyond 1e100; shift the model to a local origin");
+    }
     const auto [it, added] = ids_.try_emplace(
         PointKey{p.x(), p.y(), p.z()}, static_cast<std::uint32_t>(out_.mesh.vertices.size()));
     if (added) {
@@ -511,16 +527,6 @@ class Builder {
                   (out_.degenerate ? " (all " + std::to_string(out_.degenerate) +
                                          " faces are degenerate: no area)"
                                    : std::string()));
-    }
-    // Coordinates whose products stay in the range of doubles (the exact predicates multiply
-    // coordinate differences): within 1e100 in magnitude, and finite.
-    for (std::size_t i = 0; i < out_.mesh.vertices.size(); ++i) {
-      const Eigen::Vector3d& p = out_.mesh.vertices[i];
-      if (!(p.cwiseAbs().maxCoeff() <= 1e100)) {
-        throw Error(out_.path + ": vertex " + std::to_string(i + 1) + " (" + std::to_string(p.x()) + ", " +
-                    std::to_string(p.y()) + ", " + std::to_string(p.z()) +
-                    ") is not finite or beyond 1e100; shift the model to a local origin");
-      }
     }
     Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
     Eigen::Vector3d hi = -lo;
@@ -1004,6 +1010,158 @@ std::int64_t MeshFile::objectIndex(std::string_view name) const {
   return it == objects.end() ? -1 : it - objects.begin();
 }
 
+// Assimp, kept at arm's length. Its parsers are not ours to fix, and hostile files make some of
+// them loop for ever or crash (a PLY header with a mangled end_header sends Debian's Assimp 5.2
+// seeking without end). So the import runs in a child process: the child reads the file and
+// sends the mesh back through a pipe; the parent waits at most MeshFileOptions::assimpSeconds
+// (plus a second per 5 MB of file) and turns a crash, a hang or a garbled reply into a
+// qota::Error naming the file.
+namespace isolated {
+
+class Pipe {
+ public:
+  explicit Pipe(int fd) : fd_(fd) {}
+  bool write(const void* p, std::size_t n) {
+    const char* c = static_cast<const char*>(p);
+    while (n > 0) {
+      const ssize_t k = ::write(fd_, c, n);
+      if (k < 0 && errno == EINTR) continue;
+      if (k <= 0) return false;
+      c += k, n -= static_cast<std::size_t>(k);
+    }
+    return true;
+  }
+  template <class T>
+  bool pod(const T& v) { return write(&v, sizeof v); }
+  template <class T>
+  bool vec(const std::vector<T>& v) { return pod<std::uint64_t>(v.size()) && write(v.data(), v.size() * sizeof(T)); }
+  bool str(const std::string& s) { return pod<std::uint64_t>(s.size()) && write(s.data(), s.size()); }
+
+ private:
+  int fd_;
+};
+
+// Reads the child's reply with a deadline; false on timeout, error or end of data.
+class Reply {
+ public:
+  Reply(int fd, std::chrono::steady_clock::time_point deadline) : fd_(fd), deadline_(deadline) {}
+  bool read(void* p, std::size_t n) {
+    char* c = static_cast<char*>(p);
+    while (n > 0) {
+      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline_ - std::chrono::steady_clock::now());
+      if (left.count() <= 0) return timedOut_ = true, false;
+      pollfd pfd{fd_, POLLIN, 0};
+      const int r = ::poll(&pfd, 1, static_cast<int>(std::min<long long>(left.count(), 1000)));
+      if (r < 0 && errno == EINTR) continue;
+      if (r < 0) return false;
+      if (r == 0) continue;
+      const ssize_t k = ::read(fd_, c, n);
+      if (k < 0 && errno == EINTR) continue;
+      if (k <= 0) return false;
+      c += k, n -= static_cast<std::size_t>(k);
+    }
+    return true;
+  }
+  template <class T>
+  bool pod(T& v) { return read(&v, sizeof v); }
+  // A vector of at most `limit` elements (a garbled count must not allocate the machine away).
+  template <class T>
+  bool vec(std::vector<T>& v, std::uint64_t limit) {
+    std::uint64_t n = 0;
+    if (!pod(n) || n > limit) return false;
+    v.resize(n);
+    return read(v.data(), n * sizeof(T));
+  }
+  bool str(std::string& s) {
+    std::uint64_t n = 0;
+    if (!pod(n) || n > (1u << 24)) return false;
+    s.resize(n);
+    return read(s.data(), n);
+  }
+  bool timedOut() const { return timedOut_; }
+
+ private:
+  int fd_;
+  std::chrono::steady_clock::time_point deadline_;
+  bool timedOut_ = false;
+};
+
+bool send(Pipe& p, const MeshFile& m) {
+  bool ok = p.pod<char>('M') && p.str(m.format) && p.pod<std::uint8_t>(m.singlePrecision) && p.pod(m.origin) &&
+            p.pod<std::uint64_t>(m.degenerate) && p.pod<std::uint64_t>(m.triangulated) &&
+            p.vec(m.mesh.vertices) && p.vec(m.mesh.indices) && p.vec(m.mesh.offsets) &&
+            p.vec(m.polygonMaterial) && p.vec(m.polygonObject) && p.vec(m.polygonSource) &&
+            p.pod<std::uint64_t>(m.materials.size());
+  for (const auto& s : m.materials) ok = ok && p.str(s);
+  ok = ok && p.pod<std::uint64_t>(m.objects.size());
+  for (const auto& s : m.objects) ok = ok && p.str(s);
+  return ok;
+}
+
+bool receive(Reply& r, MeshFile& m) {
+  constexpr std::uint64_t kLimit = 1ull << 32;
+  std::uint8_t single = 0;
+  std::uint64_t materials = 0, objects = 0;
+  bool ok = r.str(m.format) && r.pod(single) && r.pod(m.origin) && r.pod(m.degenerate) && r.pod(m.triangulated) &&
+            r.vec(m.mesh.vertices, kLimit) && r.vec(m.mesh.indices, kLimit) && r.vec(m.mesh.offsets, kLimit) &&
+            r.vec(m.polygonMaterial, kLimit) && r.vec(m.polygonObject, kLimit) && r.vec(m.polygonSource, kLimit) &&
+            r.pod(materials) && materials <= kLimit;
+  for (std::uint64_t i = 0; ok && i < materials; ++i) ok = r.str(m.materials.emplace_back());
+  ok = ok && r.pod(objects) && objects <= kLimit;
+  for (std::uint64_t i = 0; ok && i < objects; ++i) ok = r.str(m.objects.emplace_back());
+  m.singlePrecision = single != 0;
+  return ok;
+}
+
+}  // namespace isolated
+
+void readAssimpIsolated(MeshFile& out, const MeshFileOptions& options, const std::string& ext) {
+  int fds[2];
+  if (::pipe(fds) != 0) throw Error(out.path + ": cannot start the mesh reader (pipe)");
+  const pid_t pid = ::fork();
+  if (pid < 0) {
+    ::close(fds[0]), ::close(fds[1]);
+    throw Error(out.path + ": cannot start the mesh reader (fork)");
+  }
+  if (pid == 0) {  // the child: read, send, leave without running the parent's exit handlers
+    ::close(fds[0]);
+    isolated::Pipe pipe(fds[1]);
+    try {
+      readAssimp(out, options, ext);
+      isolated::send(pipe, out);
+    } catch (const std::exception& e) {
+      pipe.pod<char>('E') && pipe.str(e.what());
+    }
+    ::close(fds[1]);
+    ::_exit(0);
+  }
+  ::close(fds[1]);
+  std::error_code ec;
+  const auto bytes = std::filesystem::file_size(out.path, ec);
+  const double seconds = options.assimpSeconds + static_cast<double>(ec ? 0 : bytes) / 5e6;
+  isolated::Reply reply(fds[0], std::chrono::steady_clock::now() +
+                                    std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                        std::chrono::duration<double>(seconds)));
+  char kind = 0;
+  std::string message;
+  bool ok = reply.pod(kind) && (kind == 'M' ? isolated::receive(reply, out) : kind == 'E' && reply.str(message));
+  const bool timedOut = reply.timedOut();
+  ::close(fds[0]);
+  if (timedOut || !ok) ::kill(pid, SIGKILL);
+  int status = 0;
+  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  if (timedOut) {
+    throw Error(out.path + ": Assimp took more than " + std::to_string(static_cast<long>(seconds)) +
+                " s to read it; giving up");
+  }
+  if (WIFSIGNALED(status) && !ok) {
+    throw Error(out.path + ": Assimp crashed reading it (signal " + std::to_string(WTERMSIG(status)) + ")");
+  }
+  if (!ok) throw Error(out.path + ": Assimp's reply was cut short");
+  if (kind == 'E') throw Error(message);
+}
+
 MeshFile loadMeshFile(const std::string& path, const MeshFileOptions& options) {
   MeshFile out;
   out.path = path;
@@ -1036,7 +1194,7 @@ MeshFile loadMeshFile(const std::string& path, const MeshFileOptions& options) {
   }
   Assimp::Importer importer;
   if (!ext.empty() && importer.IsExtensionSupported(ext)) {
-    readAssimp(out, options, ext);
+    readAssimpIsolated(out, options, ext);
     return out;
   }
   throw Error(path +

@@ -176,7 +176,10 @@ class HorizonStrips {
       for (const Entry& e : part) cLo_ = std::min(cLo_, e.cLo - marginA_), cHi = std::max(cHi, e.cHi + marginA_);
     }
     if (!(cLo_ <= cHi)) return;  // no occluder
-    perWidth_ = 1 / stripWidth;
+    // One pixel a strip, but no more strips than a few per cell (a DEM of wild heights can spread
+    // its occluders far wider than the cells): the width only tunes the search, never its answer.
+    const double maxStrips = 4.0 * static_cast<double>(frame.cellCount()) + 1024;
+    perWidth_ = std::min(1 / stripWidth, maxStrips / (cHi - cLo_));
     const std::size_t strips = strip(cHi) + 1;
     const auto stripsOf = [&](const Entry& e, std::size_t& lo, std::size_t& hi) {
       lo = strip(e.cLo - marginA_), hi = std::min(strips - 1, strip(e.cHi + marginA_));
@@ -343,8 +346,12 @@ std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& to
     return out;
   }
 
-  // The strips need a horizontal direction to the light (not straight overhead).
-  const bool useStrips = search == ShadowSearch::Strips && light.head<2>().norm() > 1e-6;
+  // The strips need a horizontal direction to the light (not straight overhead), and keep their
+  // ranges in floats: coordinates far beyond any planet's (localFrame refuses heights beyond
+  // 1e9 m; a frame made by hand may hold anything) take the quadtree instead.
+  double extent = 0;
+  for (const Eigen::Vector3d& v : vertices) extent = std::max(extent, v.cwiseAbs().maxCoeff());
+  const bool useStrips = search == ShadowSearch::Strips && light.head<2>().norm() > 1e-6 && extent < 1e30;
   const unsigned threads =
       threadCount ? threadCount : std::max(1u, std::min(8u, std::thread::hardware_concurrency()));
   // The light's direction of travel is the "gravity" of the shadow quadtree's frame: "above" a

@@ -19,6 +19,8 @@ namespace {
 constexpr double kDeg = M_PI / 180.0;
 // gdaldem's convention for -s on a geographic raster: metres per degree.
 constexpr double kMetresPerDegree = 111120.0;
+// Heights beyond this (in metres) are not terrain: a million kilometres is past the Moon.
+constexpr double kMaxHeight = 1e9;
 
 // A raster's axes are x = easting or longitude, y = northing or latitude (GDAL's convention for
 // rasters), whatever the CRS's official axis order.
@@ -218,6 +220,10 @@ LocalFrame localFrame(const DemTerrain& dem, const FrameOptions& o) {
   for (std::size_t i = 0; i < n; ++i) {
     z[i] = dem.mesh.vertices[i].z() * f.metresPerUnit;
     f.valid[i] = std::isfinite(z[i]);
+    if (f.valid[i] && !(std::fabs(z[i]) <= kMaxHeight)) {
+      throw Error(dem.path + ": the height at pixel (" + std::to_string(i % w) + ", " + std::to_string(i / w) +
+                  ") is " + std::to_string(z[i]) + " m, beyond any terrain (1e9 m); is it nodata, or the wrong unit?");
+    }
   }
   f.minHeight = INFINITY;
   f.maxHeight = -INFINITY;

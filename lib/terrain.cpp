@@ -13,6 +13,7 @@
 
 #include "float_bounds.hpp"
 #include "qota/error.hpp"
+#include "qota/memory_budget.hpp"
 
 namespace qota {
 namespace {
@@ -178,13 +179,6 @@ int convexOrientation(std::span<const std::uint32_t> idx, std::span<const Point2
 
 }  // namespace
 
-std::uint64_t TerrainIndex::estimateBuildBytes(std::uint64_t vertices, std::uint64_t triangles) {
-  // Per vertex: mapped position and 2D corner. Per triangle: the pending list, the hot and cold
-  // records, the Morton keys and about three references alive at once during the build.
-  return vertices * (sizeof(Eigen::Vector3d) + sizeof(Point2)) +
-         triangles * (sizeof(Pending) + sizeof(Tri) + sizeof(Cold) + 16 + 12);
-}
-
 TerrainIndex::TerrainIndex(const Mesh& mesh, const CartesianMapping& mapping,
                            const TerrainOptions& options)
     : mapping_(mapping) {
@@ -196,6 +190,11 @@ TerrainIndex::TerrainIndex(const Mesh& mesh, const CartesianMapping& mapping,
   }
   stats_.polygons = np;
   stats_.vertices = nv;
+  // Refuse what cannot fit before allocating: at least a grid's worth (the lean grid is the
+  // smallest index), a general mesh's with its tree.
+  std::uint64_t fanned = 0;
+  for (std::size_t p = 0; p < np; ++p) fanned += mesh.polygon(p).size() > 2 ? mesh.polygon(p).size() - 2 : 0;
+  memory::require("terrain", options.gridFastPath ? memory::kGridIndex : memory::kCartesianIndex, nv, fanned);
 
   // Map every vertex once, so that polygons sharing a vertex share its mapped coordinates exactly.
   std::vector<Eigen::Vector3d> mapped(nv);

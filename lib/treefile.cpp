@@ -15,7 +15,11 @@ namespace {
 
 constexpr char kMagic[8] = {'Q', 'O', 'T', 'A', 'T', 'R', 'E', 'E'};
 constexpr std::uint32_t kVersion = 3;  // 2: the grid keeps no plane table; 3: band and unit
-constexpr std::uint32_t kOldestVersion = 2;
+constexpr std::uint32_t kOldestVersion = 3;  // version 2 stored its statistics with padding
+// Structs written as they are must have no padding, whose bytes would be whatever memory held:
+// the same index must always make the same file.
+static_assert(sizeof(QuadtreeOptions) == 12 && sizeof(QuadtreeStats) == 64 && sizeof(Quadtree::Node) == 8);
+static_assert(sizeof(TerrainStats) == 4 * 8 + sizeof(Box2) + sizeof(QuadtreeStats) + 8);
 
 // The payload checksum: 8-byte words folded with a multiply-xor step (a few GB/s), the tail
 // bytes as one zero-padded word, the length last.
@@ -53,11 +57,15 @@ class Checksum {
   int fill_ = 0;
 };
 
+// The payload, streamed straight to the file (no copy of a tree in memory: a tree file is as
+// large as the index), summed on the way.
 class Writer {
  public:
+  explicit Writer(std::ostream& out) : out_(out) {}
   void raw(const void* p, std::size_t n) {
-    const auto* c = static_cast<const char*>(p);
-    buf_.insert(buf_.end(), c, c + n);
+    out_.write(static_cast<const char*>(p), static_cast<std::streamsize>(n));
+    sum_.add(p, n);
+    bytes_ += n;
   }
   template <class T>
   void pod(const T& v) {
@@ -76,10 +84,13 @@ class Writer {
     pod<std::uint32_t>(sizeof(T));
     raw(v.data(), v.size() * sizeof(T));
   }
-  const std::vector<char>& bytes() const { return buf_; }
+  std::uint64_t bytes() const { return bytes_; }
+  std::uint64_t checksum() const { return sum_.value(); }
 
  private:
-  std::vector<char> buf_;
+  std::ostream& out_;
+  Checksum sum_;
+  std::uint64_t bytes_ = 0;
 };
 
 class Reader {
@@ -343,7 +354,17 @@ bool isTreeFile(const std::string& path) {
 
 template <class Index>
 void saveTree(const std::string& path, const Index& index, const TreeSource& source) {
-  Writer w;
+  AtomicFile file(path);
+  std::ofstream& out = file.stream();
+  // The header, with the payload's size and checksum filled in once it is written.
+  out.write(kMagic, 8);
+  const std::uint32_t version = kVersion, kind = kindOf<Index>();
+  out.write(reinterpret_cast<const char*>(&version), 4);
+  out.write(reinterpret_cast<const char*>(&kind), 4);
+  const std::uint64_t zero = 0;
+  out.write(reinterpret_cast<const char*>(&zero), 8);
+  out.write(reinterpret_cast<const char*>(&zero), 8);
+  Writer w(out);
   w.str(index.mapping().describe());
   w.str(source.path);
   w.str(source.crsWkt);
@@ -354,19 +375,10 @@ void saveTree(const std::string& path, const Index& index, const TreeSource& sou
   w.str(source.verticalUnit);
   w.pod(source.metresPerUnit);
   TreeFileAccess::write(w, index);
-  Checksum sum;
-  sum.add(w.bytes().data(), w.bytes().size());
-
-  AtomicFile file(path);
-  std::ofstream& out = file.stream();
-  out.write(kMagic, 8);
-  const std::uint32_t version = kVersion, kind = kindOf<Index>();
-  const std::uint64_t payload = w.bytes().size(), checksum = sum.value();
-  out.write(reinterpret_cast<const char*>(&version), 4);
-  out.write(reinterpret_cast<const char*>(&kind), 4);
+  const std::uint64_t payload = w.bytes(), checksum = w.checksum();
+  out.seekp(16);
   out.write(reinterpret_cast<const char*>(&payload), 8);
   out.write(reinterpret_cast<const char*>(&checksum), 8);
-  out.write(w.bytes().data(), static_cast<std::streamsize>(payload));
   file.commit();
 }
 
@@ -421,13 +433,11 @@ TreeFile loadTree(const std::string& path) {
   source.width = r.pod<int>("source");
   source.height = r.pod<int>("source");
   source.geotransform = r.pod<std::array<double, 6>>("source");
-  if (version >= 3) {
-    source.band = r.pod<int>("source");
-    source.verticalUnit = r.str("source");
-    source.metresPerUnit = r.pod<double>("source");
-    if (!(source.metresPerUnit > 0) || !std::isfinite(source.metresPerUnit) || source.band < 1) {
-      r.fail("bad source band or vertical unit");
-    }
+  source.band = r.pod<int>("source");
+  source.verticalUnit = r.str("source");
+  source.metresPerUnit = r.pod<double>("source");
+  if (!(source.metresPerUnit > 0) || !std::isfinite(source.metresPerUnit) || source.band < 1) {
+    r.fail("bad source band or vertical unit");
   }
   TreeFile tf{[&]() -> AnyIndex {
                 switch (kind) {

@@ -32,8 +32,9 @@ export LSAN_OPTIONS=${LSAN_OPTIONS:-suppressions=$PWD/tests/fuzz/lsan.supp}
 failed=0
 for name in "${harnesses[@]}"; do
   bin=build-fuzz/tests/fuzz/fuzz_$name
-  seeds=tests/fuzz/corpus/$name known=tests/fuzz/crashes/$name
-  work=build-fuzz/corpus/$name artifacts=build-fuzz/crashes/$name
+  # Absolute paths: a harness may change its working folder (fuzz_cli runs in its own).
+  seeds=$PWD/tests/fuzz/corpus/$name known=$PWD/tests/fuzz/crashes/$name
+  work=$PWD/build-fuzz/corpus/$name artifacts=$PWD/build-fuzz/crashes/$name
   mkdir -p "$seeds" "$known" "$work" "$artifacts"
   log=build-fuzz/$name.log
   crashes=0 runs=0

@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -859,6 +860,41 @@ TEST(MeshIo, RandomPolygonsWithHolesAreCutExactly) {
     }
   }
   EXPECT_GT(checked, 3900);
+}
+
+}  // namespace
+
+namespace {
+
+TEST(MeshFileSafety, AssimpLoopingOnAFileIsAnError) {
+  // A PLY header with a mangled end_header sends Debian's Assimp seeking for ever: the read runs
+  // in a child process and is given up after the time limit, as an error naming the file.
+  const auto path = std::filesystem::temp_directory_path() / "qota_tests" / "mangled.ply";
+  std::filesystem::create_directories(path.parent_path());
+  std::ofstream(path, std::ios::binary)
+      << "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+         "element face 2\nproperty list uchar int vertex_indices\ne\xbd" "d_header\n0 0 1\n10 0 1\n10 10 2\n0 10 2\n4 0 1 2 3\n";
+  qota::MeshFileOptions options;
+  options.assimpSeconds = 1;
+  const auto start = std::chrono::steady_clock::now();
+  try {
+    qota::loadMeshFile(path.string(), options);
+    FAIL() << "the mangled PLY was read";
+  } catch (const qota::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("mangled.ply"), std::string::npos) << e.what();
+  }
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(10));
+}
+
+TEST(MeshFileSafety, HugeCoordinatesAreRefused) {
+  const auto path = std::filesystem::temp_directory_path() / "qota_tests" / "huge.obj";
+  std::ofstream(path) << "v 0 0 0\nv 1e308 0 0\nv 0 -1e308 0\nf 1 2 3\n";
+  try {
+    qota::loadMeshFile(path.string());
+    FAIL() << "coordinates of 1e308 were accepted";
+  } catch (const qota::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("beyond 1e100"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace

@@ -5,6 +5,7 @@
 
 #include "index_source.hpp"
 #include "qota/error.hpp"
+#include "qota/memory_budget.hpp"
 #include "qota_tools.hpp"
 #include "text_output.hpp"
 
@@ -31,7 +32,9 @@ int build(const BuildOptions& options, std::ostream& out, std::ostream& err) {
                 << index.stats().triangles << " triangles, " << index.stats().tree.nodes
                 << " nodes, " << std::filesystem::file_size(options.output) << " bytes\n"
                 << "built in " << formatNumber(secs(t0, t1), 3) << " s, written in "
-                << formatNumber(secs(t1, t2), 3) << " s\n";
+                << formatNumber(secs(t1, t2), 3) << " s\n"
+                << "memory: peak " << memory::peakBytes() / (1 << 20) << " MiB (estimated "
+                << estimatedPeakBytes(tree, options.source) / (1 << 20) << " MiB)\n";
           },
           tree.index);
     }

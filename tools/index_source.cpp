@@ -2,6 +2,7 @@
 
 #include <gdal_priv.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <memory>
 
@@ -30,6 +31,20 @@ TreeSource sourceOf(const DemTerrain& dem) {
 
 }  // namespace
 
+std::uint64_t estimatedPeakBytes(const TreeFile& tree, const SourceOptions& o) {
+  const bool cartesian = std::holds_alternative<TerrainIndex>(tree.index);
+  const memory::PerItem then = !cartesian ? memory::kCurvedIndex : o.heightsOnly ? memory::kGridIndex : memory::kCartesianIndex;
+  const std::uint64_t w = static_cast<std::uint64_t>(std::max(tree.source.width, 0));
+  const std::uint64_t h = static_cast<std::uint64_t>(std::max(tree.source.height, 0));
+  if (w > 0 && h > 0 && !isTreeFile(o.source)) {
+    const std::uint64_t v = w * h, t = w > 1 && h > 1 ? 2 * (w - 1) * (h - 1) : 0;
+    return memory::kProcessBase + memory::kDemMesh.bytes(v, t) + then.bytes(v, t);
+  }
+  return std::visit(
+      [&](const auto& index) { return memory::kProcessBase + then.bytes(index.stats().vertices, index.stats().triangles); },
+      tree.index);
+}
+
 const char* mappingNameOf(const AnyIndex& index) {
   return std::visit([](const auto& i) { return i.mapping().name(); }, index);
 }
@@ -42,6 +57,8 @@ TreeFile openIndex(const SourceOptions& o) {
   DemOptions demOptions;
   demOptions.band = o.band;
   demOptions.lonLatAsCartesian = true;
+  const bool cartesian = o.mapping.empty() || o.mapping == "cartesian";
+  demOptions.then = !cartesian ? memory::kCurvedIndex : o.heightsOnly ? memory::kGridIndex : memory::kCartesianIndex;
   if (isTreeFile(o.source)) {
     TreeFile tf = loadTree(o.source);
     if (o.band != 0 && o.band != tf.source.band) {

@@ -16,6 +16,7 @@ struct SourceOptions {
   double radius = 0;                  // spherical: planet radius; cylindrical: station radius
   double length = 0;                  // cylindrical: station length
   int band = 0;                       // raster band (1-based); 0: the raster's only band
+  bool heightsOnly = false;           // only heights at points (sample): no quadtree on a grid
   TerrainOptions terrain;
 };
 
@@ -29,6 +30,10 @@ struct SourceOptions {
 // mapping (x, y in degrees): the tools that take this index ask for heights at points, which
 // the lon/lat grid gives exactly. Throws qota::Error.
 TreeFile openIndex(const SourceOptions& options);
+
+// The memory a job on this source was estimated to peak at (qota/memory_budget.hpp), as the
+// loaders estimate it before reading a raster: the process, the terrain and its index.
+std::uint64_t estimatedPeakBytes(const TreeFile& tree, const SourceOptions& options);
 
 // The mapping name of an index ("cartesian", ...).
 const char* mappingNameOf(const AnyIndex& index);

@@ -3,13 +3,13 @@
 #include <cpl_conv.h>
 #include <cpl_string.h>
 #include <gdal_priv.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cctype>
 #include <filesystem>
 #include <memory>
 
+#include "gdal_errors.hpp"
 #include "qota/error.hpp"
 
 namespace qota::tools {
@@ -43,13 +43,21 @@ std::string driverForPath(const std::string& path) {
   throw Error(path + ": no GDAL driver writes '." + ext + "' files; give -of FORMAT");
 }
 
-void writeRaster(const RasterWrite& w, const DemTerrain& grid, const std::vector<double>& values) {
+void writeRaster(const RasterWrite& w, const DemTerrain& grid, const std::vector<double>& values, OutputStage& stage) {
   ensureGdalRegistered();
   const std::string format = w.format.empty() ? driverForPath(w.path) : w.format;
   GDALDriver* driver = GetGDALDriverManager()->GetDriverByName(format.c_str());
   if (!driver) throw Error("-of " + format + ": no such GDAL driver");
   if (!driver->GetMetadataItem(GDAL_DCAP_CREATE) && !driver->GetMetadataItem(GDAL_DCAP_CREATECOPY)) {
     throw Error("-of " + format + ": GDAL cannot write this format");
+  }
+  if (values.size() < static_cast<std::size_t>(grid.width) * grid.height) {
+    throw Error(w.path + ": fewer values than cells");
+  }
+  CPLStringList co;
+  for (const auto& o : w.creationOptions) {
+    if (o.find('=') == std::string::npos) throw Error("-co " + o + ": expected NAME=VALUE");
+    co.AddString(o.c_str());
   }
   GDALDriver* mem = GetGDALDriverManager()->GetDriverByName("MEM");
   const GDALDataType type = w.byteData ? GDT_Byte : GDT_Float32;
@@ -66,39 +74,16 @@ void writeRaster(const RasterWrite& w, const DemTerrain& grid, const std::vector
     throw Error(w.path + ": cannot fill the output raster");
   }
 
-  // Temporary name in the same folder (rename must not cross file systems), same extension.
-  const std::filesystem::path target(w.path);
-  std::filesystem::path temp = target;
-  temp.replace_filename("." + target.filename().string() + ".tmp" + std::to_string(::getpid()) +
-                        target.extension().string());
-  CPLStringList co;
-  for (const auto& o : w.creationOptions) {
-    if (o.find('=') == std::string::npos) throw Error("-co " + o + ": expected NAME=VALUE");
-    co.AddString(o.c_str());
-  }
-  CPLPushErrorHandler(CPLQuietErrorHandler);
-  CPLErrorReset();
-  std::unique_ptr<GDALDataset> copy(driver->CreateCopy(temp.c_str(), ds.get(), FALSE, co.List(),
-                                                       w.quiet ? GDALDummyProgress : GDALTermProgress,
-                                                       nullptr));
-  const std::string gdalError = CPLGetLastErrorMsg();
-  CPLPopErrorHandler();
-  const bool ok = copy != nullptr;
-  copy.reset();  // flush and close before the rename
-  std::error_code ec;
-  const std::filesystem::path sidecar = temp.string() + ".aux.xml";
-  if (!ok) {
-    std::filesystem::remove(temp, ec);
-    std::filesystem::remove(sidecar, ec);
-    throw Error(w.path + ": cannot write" + (gdalError.empty() ? std::string() : " (" + gdalError + ")"));
-  }
-  std::filesystem::rename(temp, target, ec);
-  if (ec) {
-    std::filesystem::remove(temp, ec);
-    throw Error(w.path + ": cannot rename into place (" + ec.message() + ")");
-  }
-  if (std::filesystem::exists(sidecar)) {
-    std::filesystem::rename(sidecar, target.string() + ".aux.xml", ec);
+  // Written into the stage (staged files move into place only when everything is written). Any
+  // error GDAL reports while writing or closing (a full disk shows up at the close) fails it.
+  const std::filesystem::path staged = stage.stage(w.path);
+  detail::GdalErrorLog errors;
+  std::unique_ptr<GDALDataset> copy(driver->CreateCopy(staged.c_str(), ds.get(), FALSE, co.List(),
+                                                       w.quiet ? GDALDummyProgress : GDALTermProgress, nullptr));
+  const bool created = copy != nullptr;
+  copy.reset();  // flush and close
+  if (!created || errors.failed()) {
+    throw Error(w.path + ": cannot write" + (errors.message().empty() ? std::string() : " (" + errors.message() + ")"));
   }
 }
 

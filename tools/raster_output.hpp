@@ -1,12 +1,14 @@
 // Writing rasters through GDAL, safely: the driver guessed from the file name unless given, the
-// data assembled in memory, then copied to a temporary file in the same folder and renamed into
-// place (with any side-car file), so a failed run never leaves a half-written raster.
+// data assembled in memory, then copied into an OutputStage (qota/atomic_file.hpp), which the
+// caller commits when all its outputs are written: a failed run never leaves a half-written
+// raster, nor its sidecar files.
 #pragma once
 
 #include <cstdint>
 #include <string>
 #include <vector>
 
+#include "qota/atomic_file.hpp"
 #include "qota/dem.hpp"
 
 namespace qota::tools {
@@ -25,6 +27,6 @@ struct RasterWrite {
   double nodata = 0;
   bool quiet = true;   // no progress on stdout
 };
-void writeRaster(const RasterWrite& w, const DemTerrain& grid, const std::vector<double>& values);
+void writeRaster(const RasterWrite& w, const DemTerrain& grid, const std::vector<double>& values, OutputStage& stage);
 
 }  // namespace qota::tools

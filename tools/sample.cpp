@@ -124,6 +124,7 @@ Surface openSurface(const SampleOptions& options) {
   so.radius = options.radius;
   so.length = options.length;
   so.band = options.band;
+  so.heightsOnly = true;
   so.terrain = options.terrain;
   auto tree = std::make_shared<TreeFile>(openIndex(so));
   if (tree->source.path.empty()) tree->source.path = options.source;

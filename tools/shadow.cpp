@@ -147,11 +147,15 @@ void checkOptions(const ShadowOptions& o, const std::string& format) {
 
 int shadow(const ShadowOptions& o, std::ostream& out, std::ostream& err) {
   try {
+    for (const std::string* path : {&o.output, &o.png}) {
+      if (!path->empty()) OutputStage::checkTarget(*path);
+    }
     const std::string format = o.output.empty() ? "" : o.format.empty() ? driverForPath(o.output) : o.format;
     checkOptions(o, format);
     DemOptions demOptions;
     demOptions.band = o.band;
     demOptions.lonLatAsCartesian = true;  // read as lon/lat: the frame puts it on its ellipsoid
+    demOptions.then = memory::kShadow;
     const DemTerrain dem = loadDem(o.source, demOptions);
     FrameOptions frameOptions;
     frameOptions.flat = o.flat;
@@ -238,14 +242,21 @@ int shadow(const ShadowOptions& o, std::ostream& out, std::ostream& err) {
       }
     }
 
+    // Both outputs staged, then placed together: a failing preview leaves no mask either.
+    OutputStage stage;
     RasterWrite w{o.output, format, o.creationOptions, !o.hours, o.hours ? -1.0 : double(o.nodataValue), true};
-    writeRaster(w, dem, values);
+    writeRaster(w, dem, values, stage);
     if (!o.png.empty()) {
       const std::vector<double> grey = preview(frame, shownLight.z() > 0 ? shownLight : Eigen::Vector3d(0, 0, 1),
                                                mask, o.hours ? &hoursLit : nullptr);
-      writeRaster({o.png, "PNG", {}, true, 0.0, true}, dem, grey);
+      writeRaster({o.png, "PNG", {}, true, 0.0, true}, dem, grey, stage);
     }
-    if (!o.quiet) out << "written: " << o.output << (o.png.empty() ? "" : " and " + o.png) << '\n';
+    stage.commit();
+    if (!o.quiet) {
+      out << "written: " << o.output << (o.png.empty() ? "" : " and " + o.png) << '\n'
+          << "memory: peak " << memory::peakBytes() / (1 << 20) << " MiB (estimated " << dem.estimatedBytes / (1 << 20)
+          << " MiB)\n";
+    }
     return 0;
   } catch (...) {
     return reportFailure("shadow", err);

@@ -139,6 +139,7 @@ class CurvedIndex {
     double na;
     float ulo, uhi, vlo, vhi;  // uhi may exceed 180 (a box across the seam)
     std::uint32_t polygon;
+    std::uint32_t reserved = 0;  // tree files store records as they are: no byte left to chance
   };
   static_assert(sizeof(Tri) == 128);
   static constexpr std::uint32_t kNone = 0xffffffffu;

@@ -39,6 +39,7 @@
 #include <string>
 
 #include "qota/cartesian.hpp"
+#include "qota/memory_budget.hpp"
 #include "qota/mesh.hpp"
 
 namespace qota {
@@ -46,12 +47,16 @@ namespace qota {
 struct DemOptions {
   // 1-based band; 0: the raster's only band (a raster with several is refused: name one).
   int band = 0;
-  // Memory the terrain may use; 0 means the memory available on this machine. A raster that
-  // would need more is refused before anything large is allocated.
+  // Memory the job may use; 0 means the memory available on this machine. A raster whose
+  // terrain and what is built on it (`then`) would need more is refused before anything large is
+  // allocated.
   std::uint64_t memoryLimitBytes = 0;
   // Accept a raster in longitude/latitude as a Cartesian terrain (x, y in degrees). Right for
   // heights at points (qota sample), wrong for anything metric (normals, slopes, poses, moves).
   bool lonLatAsCartesian = false;
+  // What the caller builds on the terrain, for the memory check (qota/memory_budget.hpp): by
+  // default a TerrainIndex with its quadtree.
+  memory::PerItem then = memory::kCartesianIndex;
 };
 
 // The vertical unit of a raster's heights.
@@ -74,6 +79,7 @@ struct DemTerrain {
   std::optional<double> nodata;
   std::uint64_t nodataCells = 0;
   int band = 1;               // the band read (1-based)
+  std::uint64_t estimatedBytes = 0;  // the job's peak memory as loadDem estimated it
   VerticalUnit verticalUnit;  // of the heights in mesh (they are kept in this unit)
   Mesh mesh;                   // vertex index = row * width + col
   CartesianMapping mapping;    // gravity -Z, origin at the raster centre
@@ -101,9 +107,6 @@ DemTerrain describeDem(const std::string& path, const DemOptions& options = {});
 // no such band (or several and none was named), has a unit type that is not a length, is in
 // longitude/latitude without lonLatAsCartesian, or is too large for the memory limit.
 DemTerrain loadDem(const std::string& path, const DemOptions& options = {});
-
-// Memory available to this process for a new terrain, in bytes (MemAvailable, else physical).
-std::uint64_t availableMemoryBytes();
 
 // Registers GDAL's drivers once; safe to call from anywhere.
 void ensureGdalRegistered();

@@ -58,15 +58,17 @@ struct QuadtreeOptions {
   // boxes (TerrainIndex); others always cut at the midpoint.
   enum class Cuts : std::uint8_t { Midpoint, CostModel };
   Cuts cuts = Cuts::Midpoint;
+  // Tree files store this struct as it is: no byte may be left to chance (padding).
+  std::uint8_t reserved[3] = {0, 0, 0};
 };
 
 // The statistics of the paper's Table 4, plus the shape of the tree.
-struct QuadtreeStats {
+struct QuadtreeStats {  // (no padding: tree files store it as it is)
   std::uint64_t nodes = 0;
   std::uint64_t leaves = 0;
   std::uint64_t emptyLeaves = 0;
-  std::uint32_t depth = 0;              // deepest leaf (root = 0)
   std::uint64_t references = 0;         // total leaf references (sum of leaf sizes)
+  std::uint32_t depth = 0;              // deepest leaf (root = 0)
   std::uint32_t maxLeafItems = 0;
   double meanLeafItems = 0;             // over all leaves
   double averageTests = 0;              // leaf size averaged over the domain's area (Table 4)

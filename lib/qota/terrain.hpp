@@ -101,9 +101,6 @@ class TerrainIndex {
   // Throws qota::Error for invalid polygons (see the rules above).
   TerrainIndex(const Mesh& mesh, const CartesianMapping& mapping, const TerrainOptions& options = {});
 
-  // Upper bound of the memory a terrain of this many vertices and triangles needs while it is
-  // built and afterwards (used to refuse a raster too large for the machine before reading it).
-  static std::uint64_t estimateBuildBytes(std::uint64_t vertices, std::uint64_t triangles);
 
   // Queries at a point (u, v) of the mapped frame.
   std::optional<Hit> below(double u, double v, double h) const;   // nearest with height <= h

@@ -5,10 +5,12 @@
 //   magic "QOTATREE", u32 version (3), u32 kind (0 cartesian, 1 spherical, 2 cylindrical,
 //   3 geodetic), u64 payload bytes, u64 checksum of the payload;
 //   payload: the mapping's describe() text (parseMapping reads it back exactly), the source
-//   (path, CRS WKT, raster size and geotransform when it was a raster; from version 3 also its
-//   band and vertical unit), the index's scalars and
+//   (path, CRS WKT, raster size, geotransform, band and vertical unit when it was a raster), the
+//   index's scalars and
 //   statistics, then its flat arrays (triangle records, vertex tables, quadtree nodes, leaf
 //   references), each as a u64 element count, a u32 element size and the raw elements.
+// Structs are stored as they are and have no padding, so the same index always makes the same
+// bytes, whatever the machine's threads or the output's name.
 // The checksum is a 64-bit multiply-xor hash over the payload's 8-byte words: it catches
 // truncation, bit rot and edits, not deliberate forgery. Loading checks the magic, version,
 // kind, every size against the bytes left in the file (so nothing large is allocated for a
@@ -57,9 +59,8 @@ void saveTree(const std::string& path, const AnyIndex& index, const TreeSource& 
 template <class Index>
 void saveTree(const std::string& path, const Index& index, const TreeSource& source = {});
 
-// Reads an index back (this version's files and version 2's, which carry no band or unit: band
-// 1, unit unknown). Throws qota::Error naming the file and what is wrong; an older or newer
-// format says to rebuild the file.
+// Reads an index back. Throws qota::Error naming the file and what is wrong; a file of another
+// version (2, before qota kept the raster's band and unit) says to rebuild it.
 TreeFile loadTree(const std::string& path);
 
 }  // namespace qota

@@ -18,6 +18,7 @@
 #include "qota/terrain.hpp"
 #include "qota/treefile.hpp"
 #include "qota_tools.hpp"
+#include "text_output.hpp"
 
 namespace {
 

@@ -1,0 +1,46 @@
+// What qota's big steps cost in memory, so that a job too large for the machine is refused before
+// anything large is allocated, and the refusal can be trusted: each figure is the most the step
+// was measured to add (peak resident memory, scripts/memory.sh prints both side by side), per
+// vertex and per triangle, with a margin. The tools print their peak beside the estimate.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+namespace qota::memory {
+
+struct PerItem {
+  std::uint64_t perVertex = 0, perTriangle = 0;
+  std::uint64_t bytes(std::uint64_t vertices, std::uint64_t triangles) const {
+    return vertices * perVertex + triangles * perTriangle;
+  }
+};
+
+// The process before any terrain: the C++ runtime, GDAL, PROJ, Assimp and their caches (measured
+// 56 MB for a one-pixel raster).
+constexpr std::uint64_t kProcessBase = 80ull << 20;
+// A raster read into a terrain (loadDem): the vertices, the pixels read as doubles while they are
+// placed, the triangles' indices.
+constexpr PerItem kDemMesh{36, 13};
+// A TerrainIndex with its quadtree, at its build's peak (records, pending list, Morton keys,
+// references). Measured up to 206 bytes a triangle (a 500 x 500 raster), 192 at 2000 x 2000.
+constexpr PerItem kCartesianIndex{40, 230};
+// A TerrainIndex on a regular grid answering heights only: the lean grid, no tree (qota sample).
+constexpr PerItem kGridIndex{40, 80};
+// A curved index (spherical, geodetic, cylindrical) with its quadtree. Measured up to 313.
+constexpr PerItem kCurvedIndex{40, 360};
+// A shadow mask: the frame's mesh, the facing, the strips, the cell order. Measured up to 53.
+constexpr PerItem kShadow{40, 70};
+
+// Memory available to this process for new work, in bytes (MemAvailable, else physical memory;
+// 0 when unknown).
+std::uint64_t availableBytes();
+// This process's peak resident memory so far (VmHWM), in bytes; 0 when unknown.
+std::uint64_t peakBytes();
+// "1.23 GiB".
+std::string gib(std::uint64_t bytes);
+// Throws qota::Error when `cost` for these vertices and triangles exceeds the memory available
+// now; `what` names the job ("terrain of 3 polygons").
+void require(const std::string& what, const PerItem& cost, std::uint64_t vertices, std::uint64_t triangles);
+
+}  // namespace qota::memory
