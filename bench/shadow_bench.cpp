@@ -107,7 +107,7 @@ int main(int argc, char** argv) {
   }
   const qota::DemTerrain dem = syntheticDem(n);
   const qota::LocalFrame frame = qota::localFrame(dem, false, 10.0);
-  std::vector<double> heights(frame.mesh.vertices.size());
+  std::vector<double> heights(frame.cellCount());
   for (std::size_t i = 0; i < heights.size(); ++i) heights[i] = frame.mesh.vertices[i].z();
   const double cells = static_cast<double>(n) * n;
   std::printf("shadow_bench: %d x %d DEM (%.0f cells, %zu triangles), relief %.0f m, %u cores\n", n, n,

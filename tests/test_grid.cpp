@@ -4,7 +4,9 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <atomic>
 #include <random>
+#include <thread>
 
 #include "qota/dem.hpp"
 #include "qota/synthetic.hpp"
@@ -157,6 +159,35 @@ TEST(GridFastPath, CursorMemoAnswersAsPlainQueries) {
       a.removePolygon(a.below(u, v, 1e300)->polygon);
     }
   }
+}
+
+TEST(GridFastPath, ConcurrentStatsQueriesAndDeferredBuild) {
+  // Threads query heights, read the statistics and the memory (which build the deferred tree on
+  // first need) and ask for every hit (which needs the tree) at once: the same answers as one
+  // thread alone, and no race (scripts/sanitize.sh runs this under ThreadSanitizer).
+  const Heightfield f = fractalHeightfield(200, 160, 1.0, 20.0, 21);
+  const Mesh mesh = f.toMesh();
+  const TerrainIndex index(mesh, CartesianMapping());
+  ASSERT_TRUE(index.gridFastPath());
+  std::vector<std::optional<double>> expect(400);
+  for (int i = 0; i < 400; ++i) expect[i] = index.heightBelow(0.37 * i, 0.29 * i, 1e9);
+  std::atomic<int> wrong{0};
+  std::vector<std::thread> threads;
+  for (int k = 0; k < 4; ++k) {
+    threads.emplace_back([&, k] {
+      for (int round = 0; round < 20; ++round) {
+        for (int i = 0; i < 400; ++i) {
+          if (index.heightBelow(0.37 * i, 0.29 * i, 1e9) != expect[i]) ++wrong;
+        }
+        if (k % 2 == 0) (void)index.memoryBytesNow();
+        if (k == 1) (void)index.stats().tree.nodes;
+        if (k == 3 && round == 5) (void)index.all(10.5, 20.25).size();
+      }
+    });
+  }
+  for (auto& t : threads) t.join();
+  EXPECT_EQ(wrong.load(), 0);
+  EXPECT_GT(index.stats().tree.nodes, 0u);
 }
 
 }  // namespace

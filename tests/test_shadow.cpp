@@ -109,9 +109,9 @@ double surfaceAt(const LocalFrame& f, double x, double y) {
 // does not have that vertex as a corner (Moller-Trumbore, t > 0).
 std::vector<Light> bruteForceMask(const LocalFrame& f, const Eigen::Vector3d& light) {
   const auto& v = f.mesh.vertices;
-  std::vector<Light> out(v.size(), Light::NoData);
+  std::vector<Light> out(f.cellCount(), Light::NoData);
   const double eps = 1e-6 * f.pixelSizeX / std::max(1e-9, light.head<2>().norm());
-  for (std::size_t i = 0; i < v.size(); ++i) {
+  for (std::size_t i = 0; i < f.cellCount(); ++i) {
     if (!f.valid[i]) continue;
     out[i] = Light::Lit;
     const Eigen::Vector3d q = v[i] + eps * light;
@@ -266,7 +266,7 @@ std::vector<Light> rayMarch(const LocalFrame& f, const qota::SunPosition& sun, i
                 : Z(c0, r0) + fc * (Z(c0 + 1, r0) - Z(c0, r0)) + fr * (Z(c0 + 1, r0 + 1) - Z(c0 + 1, r0));
     return true;
   };
-  std::vector<Light> out(v.size(), Light::NoData);
+  std::vector<Light> out(f.cellCount(), Light::NoData);
   for (int r = 0; r < h; r += rowStep) {
     for (int c = 0; c < w; ++c) {
       const std::size_t i = static_cast<std::size_t>(r) * w + c;
