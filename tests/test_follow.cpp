@@ -7,6 +7,7 @@
 #include "qota/curved.hpp"
 #include "qota/error.hpp"
 #include "qota/follow.hpp"
+#include "qota/glm_interop.hpp"
 #include "qota/scene.hpp"
 #include "qota/globe.hpp"
 #include "qota/mesh_io.hpp"

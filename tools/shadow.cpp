@@ -9,6 +9,7 @@
 #include "qota/error.hpp"
 #include "qota/instant.hpp"
 #include "qota/shadow.hpp"
+#include "qota/sunlight.hpp"
 #include "qota_tools.hpp"
 #include "raster_output.hpp"
 #include "text_output.hpp"
@@ -33,23 +34,6 @@ int lightKinds(const ShadowOptions& o) {
   return (o.azimuth || o.altitude ? 1 : 0) + (o.sunVector ? 1 : 0) + (o.time.empty() ? 0 : 1);
 }
 
-void requireLocation(const LocalFrame& frame, const std::string& path) {
-  if (!frame.geographicLocation) {
-    throw Error(path + ": the raster has no coordinate reference system, so its place (and the "
-                "sun's position there) is unknown; give -az/-alt or --sun-vector instead");
-  }
-}
-
-// Where the Sun is, seen from the DEM's centre, on the DEM's body.
-SunPosition sunAt(const LocalFrame& frame, double julianDayUT, const std::string& path) {
-  requireLocation(frame, path);
-  if (frame.body.name == "Earth") return sunPosition(julianDayUT, frame.centreLon, frame.centreLat);
-  if (frame.body.name == "Mars") return marsSunPosition(julianDayUT, frame.centreLon, frame.centreLat);
-  throw Error(path + ": the raster lies on " + frame.body.name + "; --time knows where the Sun is "
-              "seen from the Earth (VSOP87) and from Mars (Mars24) only: give the light with "
-              "-az/-alt or --sun-vector");
-}
-
 LightChoice chooseLight(const ShadowOptions& o, const LocalFrame& frame, std::ostream& out) {
   if (o.sunVector) {
     if (!o.sunVector->allFinite() || o.sunVector->squaredNorm() == 0) {
@@ -64,7 +48,7 @@ LightChoice chooseLight(const ShadowOptions& o, const LocalFrame& frame, std::os
   if (!o.time.empty()) {
     const Instant t = parseInstant(o.time, o.tz);
     if (!o.quiet) out << "time: " << t.local << " = " << t.utc << '\n';
-    sun = sunAt(frame, t.julianDayUT, o.source);
+    sun = sunOverFrame(frame, t.julianDayUT, o.source);
     from = "the Sun at " + t.utc + " seen from " + formatNumber(frame.centreLon, 5) + ", " +
            formatNumber(frame.centreLat, 5) + " on " + frame.body.name;
   } else {
@@ -191,25 +175,14 @@ int shadow(const ShadowOptions& o, std::ostream& out, std::ostream& err) {
         throw Error("--hours STEP " + formatNumber(step) + ": need at least one minute (1/60 h) and at most "
                     "END - START (" + formatNumber(end - start) + " h)");
       }
-      requireLocation(frame, o.source);
       const LocalSpan span = localSpan(o.time, o.tz, start, end);
-      const double elapsed = (span.end.julianDayUT - span.start.julianDayUT) * 24.0;
-      const int steps = static_cast<int>(std::ceil(elapsed / step - 1e-9));
-      hoursLit.assign(cells, 0.0);
-      const double slack = frame.horizonSlack();
-      for (int k = 0; k < steps; ++k) {
-        const double t0 = k * step, dt = std::min(step, elapsed - t0);
-        const SunPosition sun = sunAt(frame, span.start.julianDayUT + (t0 + dt / 2) / 24.0, o.source);
-        if (sun.altitude <= -slack || (!frame.body.ellipsoid && sun.altitude <= 0)) continue;  // night everywhere
-        mask = shadowMask(frame, frame.towardSun(sun), o.terrain,
-                          termProgress(o.quiet, double(k) / steps, double(k + 1) / steps), 0, o.search);
-        for (std::size_t i = 0; i < cells; ++i) {
-          if (mask[i] == Light::Lit) hoursLit[i] += dt;
-        }
-      }
+      const SunlightHours sunlight = sunlightHours(frame, o.source, span.start.julianDayUT, span.end.julianDayUT, step,
+                                                   o.terrain, termProgress(o.quiet, 0, 1), o.search);
+      hoursLit = sunlight.hours;
       for (std::size_t i = 0; i < cells; ++i) values[i] = frame.valid[i] ? hoursLit[i] : -1.0;
-      if (mask.empty()) mask = shadowMask(frame, Eigen::Vector3d(0, 0, -1));  // night all day
-      shownLight = frame.towardSun(sunAt(frame, (span.start.julianDayUT + span.end.julianDayUT) / 2, o.source));
+      shownLight = frame.towardSun(sunOverFrame(frame, (span.start.julianDayUT + span.end.julianDayUT) / 2, o.source));
+      const int steps = sunlight.steps;
+      const double elapsed = sunlight.elapsedHours;
       if (!o.quiet) {
         GDALTermProgress(1.0, "", nullptr);
         out << "sunlight: " << steps << " steps of " << formatNumber(step) << " h, from " << span.start.local

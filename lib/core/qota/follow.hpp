@@ -17,6 +17,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <cmath>
 #include <cstdint>
 #include <functional>
@@ -26,10 +27,33 @@
 #include <type_traits>
 #include <vector>
 
-#include "qota/glm_interop.hpp"
 #include "qota/terrain.hpp"
 
 namespace qota {
+
+// A rigid pose: position and orientation (columns: the object's x, y, z axes in the world).
+// (qota/glm_interop.hpp turns it into a renderer's model matrix.)
+struct Pose {
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d orientation = Eigen::Matrix3d::Identity();
+};
+
+// The pose of an object resting on a hit: up along the normal, heading as near `forward` (a
+// world direction) as the surface allows. When forward is parallel to the normal, any
+// perpendicular heading is used.
+inline Pose poseOnHit(const Hit& hit, const Eigen::Vector3d& forward) {
+  const Eigen::Vector3d z = hit.normal.normalized();
+  Eigen::Vector3d x = forward - forward.dot(z) * z;
+  if (x.squaredNorm() < 1e-24) x = z.unitOrthogonal();
+  x.normalize();
+  Pose pose;
+  pose.position = hit.world;
+  pose.orientation.col(0) = x;
+  pose.orientation.col(1) = z.cross(x);
+  pose.orientation.col(2) = z;
+  return pose;
+}
+
 
 template <class Index>
 using MappingOf = std::decay_t<decltype(std::declval<const Index&>().mapping())>;

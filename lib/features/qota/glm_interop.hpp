@@ -10,18 +10,12 @@
 #include <Eigen/Geometry>
 #include <glm/glm.hpp>
 
-#include "qota/terrain.hpp"
+#include "qota/follow.hpp"  // Pose, poseOnHit
 
 namespace qota {
 
 inline glm::dvec3 toGlm(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
 inline Eigen::Vector3d fromGlm(const glm::dvec3& v) { return {v.x, v.y, v.z}; }
-
-// A rigid pose: position and orientation (columns: the object's x, y, z axes in the world).
-struct Pose {
-  Eigen::Vector3d position = Eigen::Vector3d::Zero();
-  Eigen::Matrix3d orientation = Eigen::Matrix3d::Identity();
-};
 
 // The column-major model matrix of a pose (glm's convention: m[column][row]).
 inline glm::dmat4 toGlm(const Pose& pose) {
@@ -31,22 +25,6 @@ inline glm::dmat4 toGlm(const Pose& pose) {
     m[3][c] = pose.position[c];
   }
   return m;
-}
-
-// The pose of an object resting on a hit: up along the normal, heading as near `forward` (a
-// world direction) as the surface allows. When forward is parallel to the normal, any
-// perpendicular heading is used.
-inline Pose poseOnHit(const Hit& hit, const Eigen::Vector3d& forward) {
-  const Eigen::Vector3d z = hit.normal.normalized();
-  Eigen::Vector3d x = forward - forward.dot(z) * z;
-  if (x.squaredNorm() < 1e-24) x = z.unitOrthogonal();
-  x.normalize();
-  Pose pose;
-  pose.position = hit.world;
-  pose.orientation.col(0) = x;
-  pose.orientation.col(1) = z.cross(x);
-  pose.orientation.col(2) = z;
-  return pose;
 }
 
 inline glm::dvec3 glmPosition(const Hit& hit) { return toGlm(hit.world); }

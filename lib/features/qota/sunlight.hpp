@@ -1,0 +1,30 @@
+// Where the Sun is over a shadow frame, and hours of direct sunlight over part of a day.
+#pragma once
+
+#include <vector>
+
+#include "qota/shadow.hpp"
+#include "qota/sun.hpp"
+
+namespace qota {
+
+// The Sun seen from the frame's centre at a Julian day (UT): VSOP87 on the Earth, Mars24 on Mars
+// (the body the DEM's CRS names). Throws qota::Error for a frame without a place (no CRS) or on
+// another body, naming `source` and the other ways to give the light.
+SunPosition sunOverFrame(const LocalFrame& frame, double julianDayUT, const std::string& source);
+
+struct SunlightHours {
+  std::vector<double> hours;  // per cell: hours of direct sunlight (0 where there is no data)
+  int steps = 0;              // masks computed, night steps skipped included
+  double elapsedHours = 0;    // the span's length
+};
+
+// Hours of direct sunlight between two instants (Julian days, UT), in steps of `stepHours`
+// (the last step may be shorter): a cell lit at a step's middle counts the whole step. Steps when
+// the Sun is below the horizon of every cell are counted without computing a mask. Throws
+// qota::Error for a step under a minute or longer than the span.
+SunlightHours sunlightHours(const LocalFrame& frame, const std::string& source, double startJulianDay,
+                            double endJulianDay, double stepHours, const TerrainOptions& options = {},
+                            const Progress& progress = {}, ShadowSearch search = ShadowSearch::Strips);
+
+}  // namespace qota
