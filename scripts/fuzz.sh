@@ -8,8 +8,9 @@
 # replays its seed corpus (tests/fuzz/corpus/NAME) and every crash ever found
 # (tests/fuzz/crashes/NAME, kept as regressions once fixed), then fuzzes for SECONDS seconds
 # starting from the corpus (new inputs go to a scratch copy, not the repository). A crash, a
-# hang (over 20 s on one input), a leak or an out-of-memory input is written to
-# build-fuzz/crashes/NAME/ and counted. Prints one line per harness, "NAME: N runs, M crashes",
+# hang (over 20 s on one input; 120 s for raster, whose every input runs five tools, a shadow and
+# a tree build among them, some 20 times slower under the sanitizers than in a release build), a
+# leak or an out-of-memory input is written to build-fuzz/crashes/NAME/ and counted. Prints one line per harness, "NAME: N runs, M crashes",
 # and exits 1 when any harness crashed.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -37,14 +38,16 @@ for name in "${harnesses[@]}"; do
   work=$PWD/build-fuzz/corpus/$name artifacts=$PWD/build-fuzz/crashes/$name
   mkdir -p "$seeds" "$known" "$work" "$artifacts"
   log=build-fuzz/$name.log
+  timeout=20
+  [ "$name" = raster ] && timeout=120
   crashes=0 runs=0
   # Every input ever kept, once: the seeds and the crashes of the past must all pass now.
-  if ! "$bin" -runs=0 -timeout=20 -rss_limit_mb=3072 -artifact_prefix="$artifacts/" "$seeds" "$known" > "$log" 2>&1; then
+  if ! "$bin" -runs=0 -timeout=$timeout -rss_limit_mb=3072 -artifact_prefix="$artifacts/" "$seeds" "$known" > "$log" 2>&1; then
     crashes=1
   fi
   runs=$(grep -Eo '^#[0-9]+' "$log" | tail -1 | tr -d '#' || true)
   if [ "$crashes" -eq 0 ] && [ "$seconds" -gt 0 ]; then
-    if ! "$bin" -max_total_time="$seconds" -timeout=20 -rss_limit_mb=3072 -print_final_stats=1 \
+    if ! "$bin" -max_total_time="$seconds" -timeout=$timeout -rss_limit_mb=3072 -print_final_stats=1 \
         -artifact_prefix="$artifacts/" "$work" "$seeds" >> "$log" 2>&1; then
       crashes=1
     fi

@@ -1010,12 +1010,12 @@ std::int64_t MeshFile::objectIndex(std::string_view name) const {
   return it == objects.end() ? -1 : it - objects.begin();
 }
 
-// Assimp, kept at arm's length. Its parsers are not ours to fix, and hostile files make some of
-// them loop for ever or crash (a PLY header with a mangled end_header sends Debian's Assimp 5.2
-// seeking without end). So the import runs in a child process: the child reads the file and
-// sends the mesh back through a pipe; the parent waits at most MeshFileOptions::assimpSeconds
-// (plus a second per 5 MB of file) and turns a crash, a hang or a garbled reply into a
-// qota::Error naming the file.
+// Assimp and OGR, kept at arm's length. Their parsers are not ours to fix, and hostile files make
+// some of them loop for ever or crash: a PLY header with a mangled end_header sends Debian's
+// Assimp 5.2 seeking without end, a 157-byte DXF file sends GDAL 3.6's DXF driver round for ever.
+// So those reads run in a child process: the child reads the file and sends the mesh back
+// through a pipe; the parent waits at most MeshFileOptions::readerSeconds (plus a second per 5 MB
+// of file) and turns a crash, a hang or a garbled reply into a qota::Error naming the file.
 namespace isolated {
 
 class Pipe {
@@ -1087,7 +1087,7 @@ class Reply {
 };
 
 bool send(Pipe& p, const MeshFile& m) {
-  bool ok = p.pod<char>('M') && p.str(m.format) && p.pod<std::uint8_t>(m.singlePrecision) && p.pod(m.origin) &&
+  bool ok = p.pod<char>('M') && p.str(m.format) && p.str(m.crsWkt) && p.pod<std::uint8_t>(m.singlePrecision) && p.pod(m.origin) &&
             p.pod<std::uint64_t>(m.degenerate) && p.pod<std::uint64_t>(m.triangulated) &&
             p.vec(m.mesh.vertices) && p.vec(m.mesh.indices) && p.vec(m.mesh.offsets) &&
             p.vec(m.polygonMaterial) && p.vec(m.polygonObject) && p.vec(m.polygonSource) &&
@@ -1102,7 +1102,7 @@ bool receive(Reply& r, MeshFile& m) {
   constexpr std::uint64_t kLimit = 1ull << 32;
   std::uint8_t single = 0;
   std::uint64_t materials = 0, objects = 0;
-  bool ok = r.str(m.format) && r.pod(single) && r.pod(m.origin) && r.pod(m.degenerate) && r.pod(m.triangulated) &&
+  bool ok = r.str(m.format) && r.str(m.crsWkt) && r.pod(single) && r.pod(m.origin) && r.pod(m.degenerate) && r.pod(m.triangulated) &&
             r.vec(m.mesh.vertices, kLimit) && r.vec(m.mesh.indices, kLimit) && r.vec(m.mesh.offsets, kLimit) &&
             r.vec(m.polygonMaterial, kLimit) && r.vec(m.polygonObject, kLimit) && r.vec(m.polygonSource, kLimit) &&
             r.pod(materials) && materials <= kLimit;
@@ -1115,7 +1115,10 @@ bool receive(Reply& r, MeshFile& m) {
 
 }  // namespace isolated
 
-void readAssimpIsolated(MeshFile& out, const MeshFileOptions& options, const std::string& ext) {
+// Runs read(out) in a child process and takes its MeshFile back (see above); `reader` names the
+// library in messages.
+void readIsolated(MeshFile& out, const MeshFileOptions& options, const char* reader,
+                  const std::function<void(MeshFile&)>& read) {
   int fds[2];
   if (::pipe(fds) != 0) throw Error(out.path + ": cannot start the mesh reader (pipe)");
   const pid_t pid = ::fork();
@@ -1127,7 +1130,7 @@ void readAssimpIsolated(MeshFile& out, const MeshFileOptions& options, const std
     ::close(fds[0]);
     isolated::Pipe pipe(fds[1]);
     try {
-      readAssimp(out, options, ext);
+      read(out);
       isolated::send(pipe, out);
     } catch (const std::exception& e) {
       pipe.pod<char>('E') && pipe.str(e.what());
@@ -1138,7 +1141,7 @@ void readAssimpIsolated(MeshFile& out, const MeshFileOptions& options, const std
   ::close(fds[1]);
   std::error_code ec;
   const auto bytes = std::filesystem::file_size(out.path, ec);
-  const double seconds = options.assimpSeconds + static_cast<double>(ec ? 0 : bytes) / 5e6;
+  const double seconds = options.readerSeconds + static_cast<double>(ec ? 0 : bytes) / 5e6;
   isolated::Reply reply(fds[0], std::chrono::steady_clock::now() +
                                     std::chrono::duration_cast<std::chrono::steady_clock::duration>(
                                         std::chrono::duration<double>(seconds)));
@@ -1152,13 +1155,13 @@ void readAssimpIsolated(MeshFile& out, const MeshFileOptions& options, const std
   while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
   }
   if (timedOut) {
-    throw Error(out.path + ": Assimp took more than " + std::to_string(static_cast<long>(seconds)) +
+    throw Error(out.path + ": " + reader + " took more than " + std::to_string(static_cast<long>(seconds)) +
                 " s to read it; giving up");
   }
   if (WIFSIGNALED(status) && !ok) {
-    throw Error(out.path + ": Assimp crashed reading it (signal " + std::to_string(WTERMSIG(status)) + ")");
+    throw Error(out.path + ": " + reader + " crashed reading it (signal " + std::to_string(WTERMSIG(status)) + ")");
   }
-  if (!ok) throw Error(out.path + ": Assimp's reply was cut short");
+  if (!ok) throw Error(out.path + ": " + reader + "'s reply was cut short");
   if (kind == 'E') throw Error(message);
 }
 
@@ -1184,17 +1187,20 @@ MeshFile loadMeshFile(const std::string& path, const MeshFileOptions& options) {
     const bool gdalKnows =
         !exists || GDALIdentifyDriverEx(path.c_str(), GDAL_OF_VECTOR, nullptr, nullptr);
     if (gdalKnows) {
-      std::unique_ptr<GDALDataset> ds(GDALDataset::Open(
-          path.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY | GDAL_OF_VERBOSE_ERROR));
-      if (!ds) throw Error(path + ": cannot open as a vector dataset" + gdalMessage());
-      OgrReader reader(out, options);
-      reader.read(*ds);
+      readIsolated(out, options, "GDAL/OGR", [&](MeshFile& m) {
+        const QuietGdalErrors quietChild;
+        std::unique_ptr<GDALDataset> ds(GDALDataset::Open(
+            path.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY | GDAL_OF_VERBOSE_ERROR));
+        if (!ds) throw Error(path + ": cannot open as a vector dataset" + gdalMessage());
+        OgrReader reader(m, options);
+        reader.read(*ds);
+      });
       return out;
     }
   }
   Assimp::Importer importer;
   if (!ext.empty() && importer.IsExtensionSupported(ext)) {
-    readAssimpIsolated(out, options, ext);
+    readIsolated(out, options, "Assimp", [&](MeshFile& m) { readAssimp(m, options, ext); });
     return out;
   }
   throw Error(path +

@@ -15,7 +15,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   try {
     qota::MeshFileOptions options;
     options.triangulate = (data[0] / kNames.size()) % 2 == 1;
-    options.assimpSeconds = 2;  // a hang in Assimp's parsers is an error after this
+    options.readerSeconds = 2;  // a hang in Assimp's parsers is an error after this
     const qota::MeshFile file = qota::loadMeshFile(path, options);
     const qota::TerrainIndex index(file.mesh, qota::CartesianMapping(Eigen::Vector3d(0, 0, -1), file.origin));
     const qota::Box2 box = index.tree().box();

@@ -8,6 +8,7 @@
 #include <ogr_spatialref.h>
 
 #include <array>
+#include <cstdlib>
 #include <cmath>
 #include <cstring>
 #include <sstream>
@@ -176,6 +177,11 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   const std::uint8_t mode = in.byte(), how = in.byte();
   const std::string path = mode < 192 ? structuredRaster(in) : rawRaster(in);
   if (path.empty()) return 0;
+  if (const char* dump = std::getenv("QOTA_FUZZ_DUMP")) {  // to look at an input's raster with GDAL's tools
+    GDALDriver* tiff = GetGDALDriverManager()->GetDriverByName("GTiff");
+    std::unique_ptr<GDALDataset> src(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER));
+    if (src) std::unique_ptr<GDALDataset>(tiff->CreateCopy(dump, src.get(), FALSE, nullptr, nullptr, nullptr));
+  }
   try {
     const qota::DemTerrain dem = qota::loadDem(path, {.band = 1, .lonLatAsCartesian = true});
     const qota::TerrainIndex index(dem.mesh, dem.mapping);

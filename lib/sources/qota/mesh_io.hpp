@@ -4,9 +4,9 @@
 //
 // Which reader: a name ending in ".obj" (any case) goes to the OBJ reader; a file a GDAL vector
 // driver recognises goes to OGR (so DXF is read by GDAL, in double precision); any other
-// extension Assimp knows goes to Assimp, run in a child process with a time limit (a crash or a
-// hang in its parsers is an error, not ours); else OGR is tried once more (connection strings,
-// /vsi paths) before "unknown format".
+// extension Assimp knows goes to Assimp; else OGR is tried once more (connection strings, /vsi
+// paths) before "unknown format". OGR and Assimp run in a child process with a time limit: a
+// crash or a hang in their parsers is an error naming the file, not a crash of qota.
 //
 // Precision: world coordinates are kept as the file gives them, in double. Debian's Assimp is
 // built in single precision (sizeof(ai_real) == 4, checked in the tests): it rounds every
@@ -67,9 +67,10 @@ struct MeshFileOptions {
   bool keepDegenerate = false;
   // Cut every polygon into triangles, convex ones too (fans of their corners).
   bool triangulate = false;
-  // Assimp reads in a child process (its parsers loop or crash on some hostile files); a read
-  // that takes longer than this many seconds, plus one per 5 MB of file, is given up as an error.
-  double assimpSeconds = 60;
+  // Assimp and OGR read in a child process (their parsers loop or crash on some hostile files); a
+  // read that takes longer than this many seconds, plus one per 5 MB of file, is given up as an
+  // error.
+  double readerSeconds = 60;
 };
 
 struct MeshFile {
