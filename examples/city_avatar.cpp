@@ -36,7 +36,7 @@ int main(int argc, char** argv) {
     // precise in the index.
     const qota::TerrainIndex index(city.mesh, qota::CartesianMapping({0, 0, -1}, city.origin));
     std::printf("%s: %zu polygons, %llu walls left out of the index\n", path.c_str(),
-                city.mesh.polygonCount(), static_cast<unsigned long long>(index.stats().walls));
+                city.mesh.polygonCount(), static_cast<unsigned long long>(index.stats().leftOut));
     qota::MoveOptions walk;
     walk.wholePath = true;
     walk.step = 0.25;      // metres between samples

@@ -352,7 +352,12 @@ TEST(CurvedIndex, BadInput) {
   EXPECT_THROW(SphericalIndex(mesh, SphericalMapping()), Error);
   mesh.vertices[2] = {0, 0, 1};
   const SphericalIndex index(mesh, SphericalMapping());
-  EXPECT_THROW(index.top(0, 91), Error);
+  EXPECT_FALSE(index.top(0, 91).has_value());  // beyond the pole: no terrain, no exception (index.hpp)
+  EXPECT_FALSE(index.top(NAN, 0).has_value());
+  EXPECT_FALSE(index.below(0, 30, NAN).has_value());
+  IndexOptions grid;
+  grid.gridFastPath = true;
+  EXPECT_THROW(SphericalIndex(mesh, SphericalMapping(), grid), Error);  // not for a curved mapping
   EXPECT_TRUE(index.top(30, 30).has_value());
   EXPECT_FALSE(index.top(-150, -30).has_value());  // a hole: the rest of the sphere is empty
 }

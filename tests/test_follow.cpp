@@ -486,11 +486,21 @@ TEST(Scene, CurvedWorldMatchesARebuild) {
     }
     EXPECT_GT(onRaft, 100);
   }
-  // A curved part tilted off its axis cannot answer along the world's lines.
-  Eigen::Isometry3d tilt = Eigen::Isometry3d::Identity();
-  tilt.translate(Eigen::Vector3d(5, 0, 0));
-  scene.setTransform(spinning, tilt);
-  EXPECT_THROW(scene.below(world.toWorld({10, 10, 1000})), Error);
+  // A curved part moved off its centre: the world's lines are no longer its own, and it answers
+  // along them exactly (alongLine), as the moved mesh in one spherical index does.
+  Eigen::Isometry3d shift = Eigen::Isometry3d::Identity();
+  shift.translate(Eigen::Vector3d(5, 0, 0));
+  scene.setTransform(spinning, shift);
+  scene.setTransform(boat, Eigen::Isometry3d(Eigen::Translation3d(0, 0, 1e7)));  // out of the way
+  const SphericalIndex shifted(transformed(planetMesh, shift), world);
+  for (int i = 0; i < 50; ++i) {
+    const Eigen::Vector3d p = world.toWorld({uniform(rng, -180, 180), uniform(rng, -80, 80), uniform(rng, 990, 1040)});
+    const auto a = scene.below(p);
+    const Eigen::Vector3d m = world.toMapped(p);
+    const auto b = shifted.below(m.x(), m.y(), m.z());
+    ASSERT_EQ(a.has_value(), b.has_value());
+    if (a) EXPECT_NEAR(a->hit.height, b->height, 1e-9 * b->height);
+  }
 }
 
 }  // namespace

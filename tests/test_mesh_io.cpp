@@ -226,7 +226,7 @@ TEST(MeshIo, TestAreaWallsAreVerticalAndLeftOutOfTheIndex) {
   EXPECT_EQ(buildingWalls, 3066u);
   EXPECT_EQ(walls, 3974u);
   // Every *Wall polygon, and nothing else, is a wall for the index.
-  EXPECT_EQ(index.stats().walls, walls);
+  EXPECT_EQ(index.stats().leftOut, walls);
   EXPECT_EQ(index.stats().polygons, f.mesh.polygonCount());
 }
 
@@ -324,7 +324,7 @@ TEST(MeshIo, KeepDegenerateKeepsThemAsWalls) {
   EXPECT_EQ(f.degenerate, 2u);
   EXPECT_EQ(f.mesh.polygonCount(), 28619u);
   const TerrainIndex index(f.mesh, qota::CartesianMapping(Eigen::Vector3d(0, 0, -1), f.origin));
-  EXPECT_EQ(index.stats().walls, 3974u + 2u);
+  EXPECT_EQ(index.stats().leftOut, 3974u + 2u);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -722,10 +722,10 @@ TEST(MeshIo, OgrVerticalWallWithWindow) {
   }
   EXPECT_DOUBLE_EQ(area, 60.0 - 6.0);
   const TerrainIndex index(f.mesh, qota::CartesianMapping(Eigen::Vector3d(0, 0, -1), f.origin));
-  EXPECT_EQ(index.stats().walls, 8u);
+  EXPECT_EQ(index.stats().leftOut, 8u);
   // Seen from the side (gravity along +y), the window is a hole.
   const TerrainIndex side(f.mesh, qota::CartesianMapping(Eigen::Vector3d(0, 1, 0), f.origin));
-  EXPECT_EQ(side.stats().walls, 0u);
+  EXPECT_EQ(side.stats().leftOut, 0u);
   EXPECT_TRUE(side.topWorld(Eigen::Vector3d(1, 0, 1)));
   EXPECT_FALSE(side.topWorld(Eigen::Vector3d(3.5, 0, 3)));
 }

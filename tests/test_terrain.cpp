@@ -247,7 +247,7 @@ TEST(TerrainInput, WallsAreLeftOutAndCounted) {
   m.addPolygon({a, b, c, d});
   m.addTriangle(a, a, b);  // degenerate
   const TerrainIndex index(m, CartesianMapping());
-  EXPECT_EQ(index.stats().walls, 2u);
+  EXPECT_EQ(index.stats().leftOut, 2u);
   EXPECT_EQ(index.stats().polygons, 5u);
   EXPECT_EQ(index.stats().triangles, 4u);
 }

@@ -114,7 +114,7 @@ int info(const InfoOptions& options, std::ostream& out, std::ostream& err) {
     out << "mapping: " << index.mapping().describe() << '\n';
     out << "polygons: " << s.polygons << '\n';
     out << "triangles: " << s.triangles << '\n';
-    out << "walls left out: " << s.walls << '\n';
+    out << "walls left out: " << s.leftOut << '\n';
     out << "max poly: " << options.terrain.tree.maxPoly << '\n';
     out << "max depth: " << options.terrain.tree.maxDepth << '\n';
     printTree(t, s.memoryBytes, s.triangles, out);

@@ -9,6 +9,8 @@
 #include <string>
 #include <type_traits>
 
+#include "qota/batch.hpp"
+#include "qota/index.hpp"
 #include "qota/error.hpp"
 #include "qota/memory_budget.hpp"
 #include "qota/predicates.hpp"
@@ -91,6 +93,10 @@ double geodeticFromScaled(double chi, double k) {
 template <class M>
 CurvedIndex<M>::CurvedIndex(const Mesh& mesh, const M& mapping, const TerrainOptions& options)
     : mapping_(mapping) {
+  if (options.gridFastPath.value_or(false)) {
+    throw Error(std::string(M::name()) + " terrain: the grid fast path (IndexOptions::gridFastPath) is for "
+                "planar mappings only");
+  }
   const std::size_t nv = mesh.vertices.size();
   if (nv > 0xfffffff0u) throw Error("curved terrain: more than 2^32 vertices");
   std::uint64_t fanned = 0;  // refuse what cannot fit before allocating (memory_budget.hpp)
@@ -140,7 +146,7 @@ CurvedIndex<M>::CurvedIndex(const Mesh& mesh, const M& mapping, const TerrainOpt
       Tri t{};
       FootBox box;
       if (!makeTriangle(p, h, static_cast<std::uint32_t>(poly), t, box)) {
-        ++stats_.degenerate;
+        ++stats_.leftOut;
         continue;
       }
       tris.push_back(t);
@@ -410,6 +416,24 @@ bool CurvedIndex<M>::polar(double v) const {
 }
 
 template <class M>
+bool CurvedIndex<M>::validQuery(double u, double v) const {
+  if (!std::isfinite(u) || !std::isfinite(v)) return false;
+  if constexpr (kAngularV<M>) return v >= -90.0 && v <= 90.0;
+  return true;
+}
+
+template <class M>
+bool CurvedIndex<M>::mapped(const Eigen::Vector3d& world, Eigen::Vector3d& m) const {
+  if (!world.allFinite()) return false;
+  try {
+    m = mapping_.toMapped(world);  // throws at the mapping's singular point (a sphere's centre)
+  } catch (const Error&) {
+    return false;
+  }
+  return m.allFinite();
+}
+
+template <class M>
 double CurvedIndex<M>::normalizeU(double u) const {
   if (u >= -180.0 && u < 180.0) return u;
   double w = std::remainder(u, 360.0);  // [-180, 180]
@@ -466,17 +490,13 @@ std::uint32_t CurvedIndex<M>::nearestIn(std::span<const std::uint32_t> items, bo
 }
 
 template <class M>
-void CurvedIndex<M>::heights(std::span<const Point2> points,
-                             std::span<std::optional<double>> out) const {
-  if (out.size() < points.size()) {
-    throw Error("heights: " + std::to_string(points.size()) + " points but room for " +
-                std::to_string(out.size()));
-  }
+template <class ZOf>
+void CurvedIndex<M>::heightsBelowBatch(std::span<const Point2> points, const ZOf& zOf,
+                                       std::span<std::optional<double>> out) const {
   // Software pipelining as in TerrainIndex::heightsBelow: every point's leaf, then every leaf's
   // references, then every leaf's triangles, each stage issuing its loads for the whole group
   // before any is waited for, so the three dependent cache misses of a query overlap.
   constexpr std::size_t kGroup = 16;
-  constexpr double kTop = M::kHeightUp ? kInf : -kInf;
   Quadtree::Node leaf[kGroup];
   bool inTree[kGroup];
   double uu[kGroup];
@@ -493,31 +513,68 @@ void CurvedIndex<M>::heights(std::span<const Point2> points,
     for (std::size_t i = 0; i < n; ++i) {
       const Point2 p = points[g + i];
       if (!inTree[i]) {
-        out[g + i] = height(p.u, p.v);  // the poles, off the domain, and the errors
+        out[g + i] = heightBelow(p.u, p.v, zOf(g + i));  // the poles, off the domain, the invalid
         continue;
       }
       double h = 0, t = 0;
       const Line line = lineAt(uu[i], p.v);
       const std::uint32_t best =
-          nearestIn<true>(tree_.leafRange(leaf[i]), true, uu[i], p.v, line, elevation(kTop), h, t);
+          nearestIn<true>(tree_.leafRange(leaf[i]), true, uu[i], p.v, line, elevation(zOf(g + i)), h, t);
       out[g + i] = best == kNone ? std::nullopt : std::optional<double>(h);
     }
   }
 }
 
 template <class M>
+void CurvedIndex<M>::heights(std::span<const Point2> points, std::span<std::optional<double>> out) const {
+  heightsBelow(points, kTop, out);
+}
+
+template <class M>
+void CurvedIndex<M>::heightsBelow(std::span<const Point2> points, double z,
+                                  std::span<std::optional<double>> out) const {
+  batch::requireRoom("heightsBelow", points.size(), out.size());
+  heightsBelowBatch(points, [z](std::size_t) { return z; }, out);
+}
+
+template <class M>
+void CurvedIndex<M>::heightsBelow(std::span<const Point2> points, std::span<const double> zs,
+                                  std::span<std::optional<double>> out) const {
+  batch::requireRoom("heightsBelow", points.size(), std::min(out.size(), zs.size()));
+  heightsBelowBatch(points, [zs](std::size_t i) { return zs[i]; }, out);
+}
+
+template <class M>
+void CurvedIndex<M>::heightsParallel(std::span<const Point2> points, std::span<std::optional<double>> out,
+                                     unsigned threads) const {
+  heightsBelowParallel(points, kTop, out, threads);
+}
+
+template <class M>
+void CurvedIndex<M>::heightsBelowParallel(std::span<const Point2> points, double z,
+                                          std::span<std::optional<double>> out, unsigned threads) const {
+  batch::requireRoom("heightsBelowParallel", points.size(), out.size());
+  batch::inSlices(points.size(), threads, 4096, [&](std::size_t lo, std::size_t hi) {
+    heightsBelowBatch(points.subspan(lo, hi - lo), [z](std::size_t) { return z; }, out.subspan(lo, hi - lo));
+  });
+}
+
+template <class M>
+void CurvedIndex<M>::heightsBelowParallel(std::span<const Point2> points, std::span<const double> zs,
+                                          std::span<std::optional<double>> out, unsigned threads) const {
+  batch::requireRoom("heightsBelowParallel", points.size(), std::min(out.size(), zs.size()));
+  batch::inSlices(points.size(), threads, 4096, [&](std::size_t lo, std::size_t hi) {
+    const std::span<const double> z = zs.subspan(lo, hi - lo);
+    heightsBelowBatch(points.subspan(lo, hi - lo), [z](std::size_t i) { return z[i]; }, out.subspan(lo, hi - lo));
+  });
+}
+
+template <class M>
 template <bool Below>
 std::uint32_t CurvedIndex<M>::nearest(double u, double v, double h, double& hOut, Line& line,
                                       double& tOut, Quadtree::Cursor* cursor) const {
-  if constexpr (kAngularV<M>) {
-    if (!(v >= -90.0 && v <= 90.0)) {
-      throw Error(std::string(M::name()) + " query: latitude " + std::to_string(v) +
-                  " is outside [-90, 90]");
-    }
-  }
-  if (!std::isfinite(u) || !std::isfinite(v)) {
-    throw Error(std::string(M::name()) + " query: (u, v) is not finite");
-  }
+  // Outside the domain (a latitude beyond the poles) or not finite: no terrain (index.hpp).
+  if (!validQuery(u, v) || std::isnan(h)) return kNone;
   u = normalizeU(u);
   if (polar(v)) {
     line = lineAt(u, v);
@@ -559,12 +616,10 @@ std::optional<Hit> CurvedIndex<M>::hitAt(double u, double v, double h,
 }
 
 template <class M>
-std::optional<double> CurvedIndex<M>::heightAt(double u, double v, Quadtree::Cursor* cursor) const {
+std::optional<double> CurvedIndex<M>::heightAt(double u, double v, double z, Quadtree::Cursor* cursor) const {
   double hh, t;
   Line line;
-  if (nearest<true>(u, v, M::kHeightUp ? kInf : -kInf, hh, line, t, cursor) == kNone) {
-    return std::nullopt;
-  }
+  if (nearest<true>(u, v, z, hh, line, t, cursor) == kNone) return std::nullopt;
   return hh;
 }
 
@@ -592,7 +647,12 @@ std::optional<Hit> CurvedIndex<M>::above(Quadtree::Cursor& cursor, double u, dou
 
 template <class M>
 std::optional<double> CurvedIndex<M>::height(Quadtree::Cursor& cursor, double u, double v) const {
-  return heightAt(u, v, &cursor);
+  return heightAt(u, v, kTop, &cursor);
+}
+
+template <class M>
+std::optional<double> CurvedIndex<M>::heightBelow(Quadtree::Cursor& cursor, double u, double v, double z) const {
+  return heightAt(u, v, z, &cursor);
 }
 
 template <class M>
@@ -607,17 +667,17 @@ std::optional<Hit> CurvedIndex<M>::top(double u, double v) const {
 
 template <class M>
 std::optional<double> CurvedIndex<M>::height(double u, double v) const {
-  return heightAt(u, v, nullptr);
+  return heightAt(u, v, kTop, nullptr);
+}
+
+template <class M>
+std::optional<double> CurvedIndex<M>::heightBelow(double u, double v, double z) const {
+  return heightAt(u, v, z, nullptr);
 }
 
 template <class M>
 std::vector<Hit> CurvedIndex<M>::all(double u, double v) const {
-  if constexpr (kAngularV<M>) {
-    if (!(v >= -90.0 && v <= 90.0)) {
-      throw Error(std::string(M::name()) + " query: latitude " + std::to_string(v) +
-                  " is outside [-90, 90]");
-    }
-  }
+  if (!validQuery(u, v)) return {};
   u = normalizeU(u);
   Line line;
   const Line* lp = nullptr;
@@ -635,20 +695,81 @@ std::vector<Hit> CurvedIndex<M>::all(double u, double v) const {
 
 template <class M>
 std::optional<Hit> CurvedIndex<M>::belowWorld(const Eigen::Vector3d& p) const {
-  const Eigen::Vector3d m = mapping_.toMapped(p);
+  Eigen::Vector3d m;
+  if (!mapped(p, m)) return std::nullopt;
   return below(m.x(), m.y(), m.z());
 }
 
 template <class M>
 std::optional<Hit> CurvedIndex<M>::aboveWorld(const Eigen::Vector3d& p) const {
-  const Eigen::Vector3d m = mapping_.toMapped(p);
+  Eigen::Vector3d m;
+  if (!mapped(p, m)) return std::nullopt;
   return above(m.x(), m.y(), m.z());
 }
 
 template <class M>
 Bracket CurvedIndex<M>::bracketWorld(const Eigen::Vector3d& p) const {
-  const Eigen::Vector3d m = mapping_.toMapped(p);
+  Eigen::Vector3d m;
+  if (!mapped(p, m)) return {};
   return bracket(m.x(), m.y(), m.z());
+}
+
+template <class M>
+std::optional<Hit> CurvedIndex<M>::topWorld(const Eigen::Vector3d& p) const {
+  Eigen::Vector3d m;
+  if (!mapped(p, m)) return std::nullopt;
+  return top(m.x(), m.y());
+}
+
+template <class M>
+std::vector<Hit> CurvedIndex<M>::allWorld(const Eigen::Vector3d& p) const {
+  Eigen::Vector3d m;
+  if (!mapped(p, m)) return {};
+  return all(m.x(), m.y());
+}
+
+template <class M>
+std::vector<LineHit> CurvedIndex<M>::alongLine(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction,
+                                               double tmin, double tmax) const {
+  std::vector<LineHit> out;
+  if (!origin.allFinite() || !direction.allFinite() || direction.squaredNorm() == 0) return out;
+  // The line in the local frame; each live triangle tested exactly on its corners' offsets from
+  // the line's origin (the sign of det[a - O; b - O; d] per edge, as TerrainIndex::alongLine).
+  const Eigen::Vector3d O = worldToLocal(origin);
+  const Eigen::Vector3d d = worldToLocal(origin + direction) - O;
+  const double dv[3] = {d.x(), d.y(), d.z()};
+  for (std::uint32_t i = 0; i < tris_.size(); ++i) {
+    if (!live(i)) continue;
+    const Tri& tri = tris_[i];
+    double q[3][3];
+    for (int k = 0; k < 3; ++k) {
+      for (int c = 0; c < 3; ++c) q[k][c] = tri.p[k][c] - O[c];
+    }
+    const int s0 = orient3dSign(q[0], q[1], dv), s1 = orient3dSign(q[1], q[2], dv), s2 = orient3dSign(q[2], q[0], dv);
+    const bool neg = s0 < 0 || s1 < 0 || s2 < 0, pos = s0 > 0 || s1 > 0 || s2 > 0;
+    if (neg == pos) continue;  // outside, or the line lies in the triangle's plane
+    const Eigen::Vector3d a(q[0][0], q[0][1], q[0][2]), b(q[1][0], q[1][1], q[1][2]), e(q[2][0], q[2][1], q[2][2]);
+    Eigen::Vector3d n = (b - a).cross(e - a);
+    const double nd = n.dot(d);
+    if (nd == 0) continue;
+    const double tt = n.dot(a) / nd;
+    if (!(tt >= tmin && tt <= tmax)) continue;
+    LineHit lh;
+    lh.t = tt;
+    lh.hit.world = origin + tt * direction;
+    Eigen::Vector3d m;
+    if (!mapped(lh.hit.world, m)) continue;
+    lh.hit.height = m.z();
+    Eigen::Vector3d normal = localDirToWorld(n.normalized());
+    if (normal.dot(mapping_.line(m.x(), m.y()).down) > 0) normal = -normal;  // up: against down
+    lh.hit.normal = normal;
+    lh.hit.polygon = tri.polygon;
+    out.push_back(lh);
+  }
+  std::sort(out.begin(), out.end(), [](const LineHit& x, const LineHit& y) {
+    return x.t != y.t ? x.t < y.t : x.hit.polygon < y.hit.polygon;
+  });
+  return out;
 }
 
 template <class M>
@@ -698,7 +819,7 @@ std::uint32_t CurvedIndex<M>::insertPolygon(std::span<const Eigen::Vector3d> cor
     Tri t;
     FootBox box;
     if (!makeTriangle(p, h, id, t, box)) {
-      ++stats_.degenerate;
+      ++stats_.leftOut;
       continue;
     }
     const auto i = static_cast<std::uint32_t>(tris_.size());
@@ -757,5 +878,6 @@ bool CurvedIndex<M>::removePolygon(std::uint32_t polygon) {
 template class CurvedIndex<SphericalMapping>;
 template class CurvedIndex<CylindricalMapping>;
 template class CurvedIndex<GeodeticMapping>;
+static_assert(EditableTerrain<SphericalIndex> && EditableTerrain<CylindricalIndex> && EditableTerrain<GeodeticIndex>);
 
 }  // namespace qota

@@ -21,30 +21,31 @@ void Scene::setTransform(std::size_t part, const Eigen::Isometry3d& partToWorld)
 
 namespace {
 
-// Every hit of a part on the line (local point p, local down d), in the part's frame.
-std::vector<Hit> partHits(const TerrainIndex& index, const Eigen::Vector3d& p,
-                          const Eigen::Vector3d& d, std::size_t) {
-  const Eigen::Vector3d own = index.mapping().gravity();
-  if (d.cross(own).norm() <= 1e-15 && d.dot(own) > 0) return index.allWorld(p);
+// Every hit of a part on the line (local point p, local down d), in the part's frame: along the
+// part's own line through p when the world's line is that line (a fast query), else along any
+// line (alongLine, exact, every index has it).
+template <class Index>
+std::vector<Hit> partHits(const Index& index, const Eigen::Vector3d& p, const Eigen::Vector3d& d) {
+  const auto& mapping = index.mapping();
+  const Eigen::Vector3d m = mapping.toMapped(p);
+  const Eigen::Vector3d own = mapping.line(m.x(), m.y()).down;
+  if (d.cross(own).norm() <= 1e-15 * d.norm() && d.dot(own) > 0) return index.allWorld(p);
   std::vector<Hit> hits;
   for (const LineHit& lh : index.alongLine(p, d)) hits.push_back(lh.hit);
   return hits;
 }
 
-template <class M>
-std::vector<Hit> partHits(const CurvedIndex<M>& index, const Eigen::Vector3d& p,
-                          const Eigen::Vector3d& d, std::size_t part) {
-  const Eigen::Vector3d m = index.mapping().toMapped(p);
-  const MappedLine own = index.mapping().line(m.x(), m.y());
-  if (d.cross(own.down).norm() > 1e-12 || d.dot(own.down) <= 0) {
-    throw Error("scene: part " + std::to_string(part) +
-                " is curved and its transform takes the world's line off its own lines (a "
-                "curved part may only turn about its own axis or centre)");
-  }
-  return index.all(m.x(), m.y());
-}
-
 }  // namespace
+
+bool Scene::onWorldLine(const Eigen::Vector3d& x, const Eigen::Vector3d& down) const {
+  Eigen::Vector3d m;
+  try {
+    m = toMapped(world_, x);
+  } catch (const Error&) {
+    return false;  // the world's singular point (a sphere's centre) is on no line
+  }
+  return lineOf(world_, m.x(), m.y()).down.dot(down) > 0;
+}
 
 std::optional<SceneHit> Scene::nearest(const Eigen::Vector3d& p, Want want) const {
   const bool up = std::visit([](const auto& m) { return m.kHeightUp; }, world_);
@@ -58,12 +59,16 @@ std::optional<SceneHit> Scene::nearest(const Eigen::Vector3d& p, Want want) cons
     const Eigen::Vector3d local = part.fromWorld * p;
     const Eigen::Vector3d localDown = part.fromWorld.linear() * down;
     const std::vector<Hit> hits =
-        std::visit([&](const auto* index) { return partHits(*index, local, localDown, k); }, part.index);
+        std::visit([&](const auto* index) { return partHits(*index, local, localDown); }, part.index);
     for (const Hit& h : hits) {
       SceneHit s;
       s.part = k;
       s.hit = h;
       s.hit.world = part.toWorld * h.world;
+      // A line along any direction crosses a closed part twice, once on the far side of a curved
+      // world's centre or axis: only the crossings on the world's own line through p count (the
+      // world's line there runs the same way).
+      if (!onWorldLine(s.hit.world, down)) continue;
       s.hit.normal = (part.toWorld.linear() * h.normal).normalized();
       if (s.hit.normal.dot(down) > 0) s.hit.normal = -s.hit.normal;
       s.hit.height = toMapped(world_, s.hit.world).z();

@@ -12,13 +12,19 @@
 #include <string>
 
 #include "float_bounds.hpp"
+#include "qota/batch.hpp"
+#include "qota/index.hpp"
 #include "qota/error.hpp"
 #include "qota/memory_budget.hpp"
 
 namespace qota {
+
+static_assert(EditableTerrain<TerrainIndex>);
+
 namespace {
 
 constexpr double kUnitRoundoff = 0x1p-53;
+constexpr double kInf = std::numeric_limits<double>::infinity();
 
 std::uint32_t spreadBits16(std::uint32_t x) {
   x &= 0xffff;
@@ -194,7 +200,7 @@ TerrainIndex::TerrainIndex(const Mesh& mesh, const CartesianMapping& mapping,
   // smallest index), a general mesh's with its tree.
   std::uint64_t fanned = 0;
   for (std::size_t p = 0; p < np; ++p) fanned += mesh.polygon(p).size() > 2 ? mesh.polygon(p).size() - 2 : 0;
-  memory::require("terrain", options.gridFastPath ? memory::kGridIndex : memory::kCartesianIndex, nv, fanned);
+  memory::require("terrain", options.gridFastPath.value_or(true) ? memory::kGridIndex : memory::kCartesianIndex, nv, fanned);
 
   // Map every vertex once, so that polygons sharing a vertex share its mapped coordinates exactly.
   std::vector<Eigen::Vector3d> mapped(nv);
@@ -227,7 +233,7 @@ TerrainIndex::TerrainIndex(const Mesh& mesh, const CartesianMapping& mapping,
     }
     const std::size_t before = pending.size();
     fanPolygon(idx, static_cast<std::uint32_t>(p), pending);
-    if (pending.size() == before) ++stats_.walls;
+    if (pending.size() == before) ++stats_.leftOut;
   }
   stats_.triangles = pending.size();
 
@@ -249,7 +255,7 @@ TerrainIndex::TerrainIndex(const Mesh& mesh, const CartesianMapping& mapping,
   // neighbouring leaves) sit next to each other in memory; a regular grid's in row order instead,
   // so that a walk along a row reads memory in order.
   const std::vector<std::uint32_t> slots =
-      options.gridFastPath ? gridSlots(pending) : std::vector<std::uint32_t>();
+      options.gridFastPath.value_or(true) ? gridSlots(pending) : std::vector<std::uint32_t>();
   if (!pending.empty()) {
     const double su = domain.uhi > domain.ulo ? 65535.0 / (domain.uhi - domain.ulo) : 0.0;
     const double sv = domain.vhi > domain.vlo ? 65535.0 / (domain.vhi - domain.vlo) : 0.0;
@@ -956,12 +962,9 @@ std::optional<Hit> TerrainIndex::above(double u, double v, double z) const {
   return hitAt<false>(u, v, z, nullptr);
 }
 
-void TerrainIndex::heightsBelow(std::span<const Point2> points, double z,
-                                std::span<std::optional<double>> heights) const {
-  if (heights.size() < points.size()) {
-    throw Error("heightsBelow: " + std::to_string(points.size()) + " points but room for " +
-                std::to_string(heights.size()) + " heights");
-  }
+template <class ZOf>
+void TerrainIndex::heightsBelowBatch(std::span<const Point2> points, const ZOf& zOf,
+                                     std::span<std::optional<double>> heights) const {
   // Software pipelining over groups of points: first every point's leaf (the jump table), then
   // every leaf's reference list, then every leaf's triangles, each stage issuing its loads for
   // the whole group before any of them is waited for. A single query waits for three dependent
@@ -1027,7 +1030,7 @@ void TerrainIndex::heightsBelow(std::span<const Point2> points, double z,
             heights[g + i] = std::nullopt;
             continue;
           }
-          heights[g + i] = h <= z ? std::optional<double>(h) : std::nullopt;
+          heights[g + i] = h <= zOf(g + i) ? std::optional<double>(h) : std::nullopt;
         }
         continue;
       }
@@ -1044,7 +1047,7 @@ void TerrainIndex::heightsBelow(std::span<const Point2> points, double z,
       for (std::size_t i = 0; i < n; ++i) {
         const Point2 p = points[g + i];
         double h = 0;
-        heights[g + i] = gridAnswer<false>(p.u, p.v, h) != kOffGrid && h <= z
+        heights[g + i] = gridAnswer<false>(p.u, p.v, h) != kOffGrid && h <= zOf(g + i)
                              ? std::optional<double>(h)
                              : std::nullopt;
       }
@@ -1064,33 +1067,51 @@ void TerrainIndex::heightsBelow(std::span<const Point2> points, double z,
       double h = 0;
       const Point2 p = points[g + i];
       const std::uint32_t t =
-          on[i] ? nearestIn<true>(tree_.leafRange(leaf[i]), Quadtree::singleLayer(leaf[i]), p.u, p.v, z, h)
+          on[i] ? nearestIn<true>(tree_.leafRange(leaf[i]), Quadtree::singleLayer(leaf[i]), p.u, p.v, zOf(g + i), h)
                 : kNone;
       heights[g + i] = t == kNone ? std::nullopt : std::optional<double>(h);
     }
   }
 }
 
+void TerrainIndex::heightsBelow(std::span<const Point2> points, double z,
+                                std::span<std::optional<double>> heights) const {
+  batch::requireRoom("heightsBelow", points.size(), heights.size());
+  heightsBelowBatch(points, [z](std::size_t) { return z; }, heights);
+}
+
+void TerrainIndex::heightsBelow(std::span<const Point2> points, std::span<const double> zs,
+                                std::span<std::optional<double>> heights) const {
+  batch::requireRoom("heightsBelow", points.size(), std::min(heights.size(), zs.size()));
+  heightsBelowBatch(points, [zs](std::size_t i) { return zs[i]; }, heights);
+}
+
+void TerrainIndex::heights(std::span<const Point2> points, std::span<std::optional<double>> heights) const {
+  heightsBelow(points, kInf, heights);
+}
+
 void TerrainIndex::heightsBelowParallel(std::span<const Point2> points, double z,
-                                        std::span<std::optional<double>> heights,
-                                        unsigned threads) const {
-  if (heights.size() < points.size()) {
-    throw Error("heightsBelowParallel: " + std::to_string(points.size()) + " points but room for " +
-                std::to_string(heights.size()) + " heights");
-  }
+                                        std::span<std::optional<double>> heights, unsigned threads) const {
+  batch::requireRoom("heightsBelowParallel", points.size(), heights.size());
   ensureTree();  // built once here, not raced for by the workers (a grid may need it at holes)
-  if (threads == 0) threads = std::max(1u, std::thread::hardware_concurrency());
-  threads = static_cast<unsigned>(std::min<std::size_t>(threads, points.size() / 4096 + 1));
-  if (threads <= 1) return heightsBelow(points, z, heights);
-  std::vector<std::jthread> workers;
-  const std::size_t slice = (points.size() + threads - 1) / threads;
-  for (unsigned k = 1; k < threads; ++k) {
-    const std::size_t lo = std::min(points.size(), k * slice), hi = std::min(points.size(), lo + slice);
-    workers.emplace_back([=, this] {
-      heightsBelow(points.subspan(lo, hi - lo), z, heights.subspan(lo, hi - lo));
-    });
-  }
-  heightsBelow(points.first(std::min(points.size(), slice)), z, heights.first(std::min(points.size(), slice)));
+  batch::inSlices(points.size(), threads, 4096, [&](std::size_t lo, std::size_t hi) {
+    heightsBelowBatch(points.subspan(lo, hi - lo), [z](std::size_t) { return z; }, heights.subspan(lo, hi - lo));
+  });
+}
+
+void TerrainIndex::heightsBelowParallel(std::span<const Point2> points, std::span<const double> zs,
+                                        std::span<std::optional<double>> heights, unsigned threads) const {
+  batch::requireRoom("heightsBelowParallel", points.size(), std::min(heights.size(), zs.size()));
+  ensureTree();
+  batch::inSlices(points.size(), threads, 4096, [&](std::size_t lo, std::size_t hi) {
+    const std::span<const double> z = zs.subspan(lo, hi - lo);
+    heightsBelowBatch(points.subspan(lo, hi - lo), [z](std::size_t i) { return z[i]; }, heights.subspan(lo, hi - lo));
+  });
+}
+
+void TerrainIndex::heightsParallel(std::span<const Point2> points, std::span<std::optional<double>> heights,
+                                   unsigned threads) const {
+  heightsBelowParallel(points, kInf, heights, threads);
 }
 
 double TerrainIndex::heightAt(double u, double v, double z, Quadtree::Cursor* cursor) const {
@@ -1220,9 +1241,7 @@ std::vector<LineHit> TerrainIndex::alongLine(const Eigen::Vector3d& origin,
                                              double tmax) const {
   ensureTree();
   std::vector<LineHit> out;
-  if (!origin.allFinite() || !direction.allFinite() || direction.squaredNorm() == 0) {
-    throw Error("alongLine: the origin and direction must be finite and the direction nonzero");
-  }
+  if (!origin.allFinite() || !direction.allFinite() || direction.squaredNorm() == 0) return out;  // no line
   // The line in the mapped frame: O + t d.
   const Eigen::Vector3d O = mapping_.toMapped(origin);
   const Eigen::Vector3d dn = mapping_.vertical() ? direction : Eigen::Vector3d(mapping_.rotation() * direction);
@@ -1353,7 +1372,7 @@ std::uint32_t TerrainIndex::insertPolygon(std::span<const Eigen::Vector3d> corne
   ++stats_.polygons;
   stats_.vertices = corners2_.size();
   if (pending.empty()) {
-    ++stats_.walls;
+    ++stats_.leftOut;
     return id;
   }
   // Grow the box (and rebuild the tree) when the polygon reaches outside it.
@@ -1408,7 +1427,7 @@ bool TerrainIndex::removePolygon(std::uint32_t polygon) {
     --stats_.triangles;
     if (gridW_) clearGridSlot(it->second);
   }
-  if (first == last) --stats_.walls;
+  if (first == last) --stats_.leftOut;
   trianglesOf_.erase(polygon);
   treeStatsStale_ = true;
   return true;

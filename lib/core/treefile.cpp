@@ -19,7 +19,7 @@ constexpr std::uint32_t kOldestVersion = 3;  // version 2 stored its statistics 
 // Structs written as they are must have no padding, whose bytes would be whatever memory held:
 // the same index must always make the same file.
 static_assert(sizeof(QuadtreeOptions) == 12 && sizeof(QuadtreeStats) == 64 && sizeof(Quadtree::Node) == 8);
-static_assert(sizeof(TerrainStats) == 4 * 8 + sizeof(Box2) + sizeof(QuadtreeStats) + 8);
+static_assert(sizeof(IndexStats) == 6 * 8 + sizeof(Box2) + sizeof(QuadtreeStats) + 8);
 
 // The payload checksum: 8-byte words folded with a multiply-xor step (a few GB/s), the tail
 // bytes as one zero-padded word, the length last.

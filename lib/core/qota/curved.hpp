@@ -40,6 +40,9 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <limits>
+#include <memory>
+#include <mutex>
 #include <optional>
 #include <span>
 #include <unordered_map>
@@ -55,17 +58,6 @@
 
 namespace qota {
 
-struct CurvedStats {
-  std::uint64_t polygons = 0;
-  std::uint64_t triangles = 0;   // in the query structure
-  std::uint64_t degenerate = 0;  // zero-area triangles left out
-  std::uint64_t vertices = 0;
-  std::uint64_t polarNorth = 0, polarSouth = 0;  // triangles in the polar lists
-  Box2 domain;                   // the tree's (u, v) box
-  QuadtreeStats tree;
-  std::uint64_t memoryBytes = 0;
-};
-
 // M is SphericalMapping, CylindricalMapping or GeodeticMapping (explicitly instantiated in
 // curved.cpp). Hits carry heights in the mapping's h, world points and world normals (pointing
 // up, against down).
@@ -76,30 +68,52 @@ class CurvedIndex {
   // non-finite vertices, naming the polygon.
   CurvedIndex(const Mesh& mesh, const M& mapping, const TerrainOptions& options = {});
 
-  // Queries at (u, v) in degrees (u any value, wrapped; v in [-90, 90] for the sphere and the
-  // ellipsoid, else qota::Error), "below" meaning further along down: a smaller radius or
-  // ellipsoid height, a larger distance from a cylinder's axis.
+  // The face of every index (index.hpp): queries at (u, v) in degrees (u any value, wrapped; v in
+  // [-90, 90] for the sphere and the ellipsoid: outside it, or not finite, there is no terrain),
+  // "below" meaning further along down: a smaller radius or ellipsoid height, a larger distance
+  // from a cylinder's axis.
   std::optional<Hit> below(double u, double v, double h) const;
   std::optional<Hit> above(double u, double v, double h) const;
   Bracket bracket(double u, double v, double h) const;
   std::optional<Hit> top(double u, double v) const;  // the highest hit (up = against down)
   std::vector<Hit> all(double u, double v) const;    // every hit, top to bottom
-  // Height-only: the h of top(u, v), or nullopt.
+  // Height only: the h of top(u, v), or of below(u, v, z); nullopt for no terrain.
   std::optional<double> height(double u, double v) const;
+  std::optional<double> heightBelow(double u, double v, double z) const;
   // Temporal coherence: the same queries from a per-object cursor that remembers the last leaf
   // (see TerrainIndex); identical answers.
   std::optional<Hit> below(Quadtree::Cursor& cursor, double u, double v, double h) const;
   std::optional<Hit> above(Quadtree::Cursor& cursor, double u, double v, double h) const;
   std::optional<double> height(Quadtree::Cursor& cursor, double u, double v) const;
-  // height() for many points at once (out[i] for points[i], u = points[i].u, v = points[i].v):
-  // the same answers, with the memory latency of the points overlapped (several times faster on
-  // terrains larger than the cache). out must have room for every point.
+  std::optional<double> heightBelow(Quadtree::Cursor& cursor, double u, double v, double z) const;
+  // Heights for many points at once (out[i] for points[i], u = points[i].u, v = points[i].v),
+  // below one z or zs[i]: the same answers, with the memory latency of the points overlapped
+  // (several times faster on terrains larger than the cache); and the same on several threads.
   void heights(std::span<const Point2> points, std::span<std::optional<double>> out) const;
+  void heightsBelow(std::span<const Point2> points, double z, std::span<std::optional<double>> out) const;
+  void heightsBelow(std::span<const Point2> points, std::span<const double> zs,
+                    std::span<std::optional<double>> out) const;
+  void heightsParallel(std::span<const Point2> points, std::span<std::optional<double>> out,
+                       unsigned threads = 0) const;
+  void heightsBelowParallel(std::span<const Point2> points, double z, std::span<std::optional<double>> out,
+                            unsigned threads = 0) const;
+  void heightsBelowParallel(std::span<const Point2> points, std::span<const double> zs,
+                            std::span<std::optional<double>> out, unsigned threads = 0) const;
 
   // The same at a world point (mapped with the mapping first).
   std::optional<Hit> belowWorld(const Eigen::Vector3d& p) const;
   std::optional<Hit> aboveWorld(const Eigen::Vector3d& p) const;
   Bracket bracketWorld(const Eigen::Vector3d& p) const;
+  std::optional<Hit> topWorld(const Eigen::Vector3d& p) const;
+  std::vector<Hit> allWorld(const Eigen::Vector3d& p) const;
+
+  // Every crossing of any world line origin + t direction, t in [tmin, tmax], nearest t first
+  // (equal t: smaller polygon id), with the exact edge test on the corners' offsets from the
+  // line's origin (neighbours agree on a shared edge). A scan of every triangle: for occasional
+  // lines (a scene's tilted part), not for a stream of queries.
+  std::vector<LineHit> alongLine(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction,
+                                 double tmin = -std::numeric_limits<double>::infinity(),
+                                 double tmax = std::numeric_limits<double>::infinity()) const;
 
   // Dynamic edits, as TerrainIndex's: insertPolygon adds a polygon by its world corners (ids
   // continue after the mesh's), into every leaf its footprint meets (leaves split by the build's
@@ -110,10 +124,13 @@ class CurvedIndex {
   bool removePolygon(std::uint32_t polygon);
 
   const M& mapping() const { return mapping_; }
-  const CurvedStats& stats() const {
+  // Thread-safe with queries and with itself (not with edits, which nothing is).
+  const IndexStats& stats() const {
+    const std::lock_guard<std::mutex> lock(*statsMutex_);
     if (treeStatsStale_) stats_.tree = tree_.stats(), treeStatsStale_ = false;  // after edits
     return stats_;
   }
+  std::uint64_t memoryBytesNow() const { return stats().memoryBytes; }
   const Quadtree& tree() const { return tree_; }
   // Candidate triangles a query at (u, v) looks at.
   std::uint32_t testsAt(double u, double v) const;
@@ -163,6 +180,8 @@ class CurvedIndex {
   void rebuildTree(Box2 root);
 
   double normalizeU(double u) const;
+  bool validQuery(double u, double v) const;  // finite, and within the latitudes where there are any
+  bool mapped(const Eigen::Vector3d& world, Eigen::Vector3d& m) const;  // false: no (u, v, h) there
   bool polar(double v) const;
   // Whether the line meets triangle t; t_out is the line parameter of the hit.
   bool hits(const Tri& t, const Line& line, double& tOut) const;
@@ -187,7 +206,12 @@ class CurvedIndex {
   // below/above/height with or without a cursor.
   template <bool Below>
   std::optional<Hit> hitAt(double u, double v, double h, Quadtree::Cursor* cursor) const;
-  std::optional<double> heightAt(double u, double v, Quadtree::Cursor* cursor) const;
+  std::optional<double> heightAt(double u, double v, double z, Quadtree::Cursor* cursor) const;
+  template <class ZOf>  // z of point i: zOf(i)
+  void heightsBelowBatch(std::span<const Point2> points, const ZOf& zOf, std::span<std::optional<double>> out) const;
+  // The top of the mapping's h ("below" any terrain) in the direction of up.
+  static constexpr double kTop = M::kHeightUp ? std::numeric_limits<double>::infinity()
+                                              : -std::numeric_limits<double>::infinity();
   Eigen::Vector3d localToWorld(const Eigen::Vector3d& local) const;
   Eigen::Vector3d localDirToWorld(const Eigen::Vector3d& local) const;
   Eigen::Vector3d worldToLocal(const Eigen::Vector3d& world) const;
@@ -199,8 +223,9 @@ class CurvedIndex {
   double scale_ = 0;  // max L1 norm of a local vertex: sets the edge tests' error bound
   std::unordered_multimap<std::uint32_t, std::uint32_t> trianglesOf_;  // edits: polygon -> tris
   std::vector<std::uint8_t> removed_;                                  // edits: removed polygons
-  mutable CurvedStats stats_;
+  mutable IndexStats stats_;
   mutable bool treeStatsStale_ = false;
+  std::unique_ptr<std::mutex> statsMutex_ = std::make_unique<std::mutex>();  // (a mutex does not move)
 };
 
 using SphericalIndex = CurvedIndex<SphericalMapping>;

@@ -18,11 +18,9 @@
 
 #include <cmath>
 
-namespace qota {
+#include "qota/vocabulary.hpp"
 
-struct Point2 {
-  double u = 0, v = 0;
-};
+namespace qota {
 
 // Sign (-1, 0, +1) of the exact orient2d(a, b, c), by expansion arithmetic.
 int orient2dSignExact(Point2 a, Point2 b, Point2 c);

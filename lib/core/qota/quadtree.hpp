@@ -30,50 +30,9 @@
 #include "qota/error.hpp"
 #include "qota/memory.hpp"
 #include "qota/predicates.hpp"
+#include "qota/vocabulary.hpp"
 
 namespace qota {
-
-// A closed axis-aligned box [ulo, uhi] x [vlo, vhi]. Empty when ulo > uhi.
-struct Box2 {
-  double ulo = 1, vlo = 1, uhi = 0, vhi = 0;
-  bool empty() const { return !(ulo <= uhi && vlo <= vhi); }
-  bool contains(double u, double v) const { return u >= ulo && u <= uhi && v >= vlo && v <= vhi; }
-};
-
-struct QuadtreeOptions {
-  // The paper's Maxpoly: a node referencing more items than this is split, unless it is at
-  // maxDepth. Smaller values mean fewer polygon tests per query and a larger tree (the paper's
-  // Table 4). 8 keeps a query to about 8 tests at about 1.5 references per polygon.
-  std::uint32_t maxPoly = 8;
-  // The paper's Maxdepth: nodes at this depth (root = 0) are leaves whatever their count. It
-  // bounds the tree where many polygons meet in one point (a fan around a vertex), which no split
-  // can separate. 4^16 leaves is far more than any terrain's polygons.
-  std::uint32_t maxDepth = 16;
-  // Where a node is cut. Midpoint: the middle of its box, the paper's rule; the descent needs no
-  // stored cut, and the top levels go through a jump table. CostModel: along each axis the cut,
-  // among 9 evenly spaced candidates in the middle half of the box, that minimises the expected polygon tests of the two sides
-  // (each side's item count, from the items' bounding boxes, weighted by its share of the box,
-  // as the surface-area heuristic of BVH builders does); cuts are stored per node (16 bytes) and
-  // the descent reads them (no jump table). Only for owners that give the build the items'
-  // boxes (TerrainIndex); others always cut at the midpoint.
-  enum class Cuts : std::uint8_t { Midpoint, CostModel };
-  Cuts cuts = Cuts::Midpoint;
-  // Tree files store this struct as it is: no byte may be left to chance (padding).
-  std::uint8_t reserved[3] = {0, 0, 0};
-};
-
-// The statistics of the paper's Table 4, plus the shape of the tree.
-struct QuadtreeStats {  // (no padding: tree files store it as it is)
-  std::uint64_t nodes = 0;
-  std::uint64_t leaves = 0;
-  std::uint64_t emptyLeaves = 0;
-  std::uint64_t references = 0;         // total leaf references (sum of leaf sizes)
-  std::uint32_t depth = 0;              // deepest leaf (root = 0)
-  std::uint32_t maxLeafItems = 0;
-  double meanLeafItems = 0;             // over all leaves
-  double averageTests = 0;              // leaf size averaged over the domain's area (Table 4)
-  std::uint64_t memoryBytes = 0;        // nodes and references
-};
 
 class Quadtree {
  public:

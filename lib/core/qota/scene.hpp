@@ -6,14 +6,14 @@
 // normal, or outward in a station) and returns the nearest hit among all parts, with the part it
 // came from.
 //
-// Cartesian parts take any transform: while it keeps the world's line along the part's own
-// gravity (a turn about the vertical and any translation), the part's quadtree answers
-// directly; when it does not (a rolling deck; a raft on a planet, whose radial lines are not
-// quite parallel), TerrainIndex::alongLine walks the quadtree along the line's projection, still
-// exact and watertight. Walls (polygons with no area along the part's own gravity) are not in a
-// part's index, so a tilted part's walls are not hit. Curved parts (spherical, cylindrical,
-// geodetic) must keep the world's line on one of their own lines: they may turn about their own
-// axis or centre (a planet's spin, a station's spin), else the query is a qota::Error.
+// Parts take any transform: while it keeps the world's line on one of the part's own lines (a
+// Cartesian part turned about its vertical and moved; a planet spinning about its centre), the
+// part's quadtree answers directly; when it does not (a rolling deck; a raft on a planet, whose
+// radial lines are not quite parallel; a planet moved off the world's centre), the part answers
+// along the world's line with alongLine, still exact and watertight (a walk of the quadtree along
+// the line's projection in a Cartesian part, a scan of its triangles in a curved one). Walls
+// (polygons with no area along a Cartesian part's own gravity) are not in its index, so a tilted
+// part's walls are not hit.
 //
 // Heights in the results are the world mapping's h; "below" is along the world's down. Not
 // thread-safe while transforms change; queries alone may run in parallel.
@@ -61,6 +61,7 @@ class Scene {
   std::optional<SceneHit> top(const Eigen::Vector3d& p) const;
 
  private:
+  bool onWorldLine(const Eigen::Vector3d& x, const Eigen::Vector3d& down) const;
   using AnyIndexPtr = std::variant<const TerrainIndex*, const SphericalIndex*,
                                    const CylindricalIndex*, const GeodeticIndex*>;
   struct Part {

@@ -34,6 +34,7 @@
 #include <Eigen/Core>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <atomic>
 #include <memory>
 #include <mutex>
@@ -47,54 +48,9 @@
 #include "qota/mesh.hpp"
 #include "qota/predicates.hpp"
 #include "qota/quadtree.hpp"
+#include "qota/vocabulary.hpp"
 
 namespace qota {
-
-struct TerrainOptions {
-  QuadtreeOptions tree;
-  // The direct-indexing fast path for regular grids (a raster from loadDem, a Heightfield): when
-  // the mesh is found to be one, a query finds its cell by arithmetic. A point clearly inside
-  // one of the cell's two triangles (farther than 1e-5 cell from its sides) is answered from the
-  // cell's corners alone: the plane is solved from them with the same arithmetic as the
-  // triangle records, so the same bits. A point on or near an edge (a pixel centre) is decided by
-  // the exact test over the triangles of the 3 x 3 cells around it, the smallest polygon id
-  // holding it answering, as in the quadtree's single-layer leaves. So the same answers as the
-  // quadtree (tested), from about 34 bytes per triangle: no triangle records are kept, and
-  // heights that are exact in float (any Int16 or Float32 raster) are read from a float copy.
-  // The records and the quadtree are made when something needs them (edits, shadows,
-  // statistics, tree files).
-  bool gridFastPath = true;
-};
-
-// Where the line through a mapped point meets the terrain.
-struct Hit {
-  double height = 0;         // h in the mapped frame (up = against gravity)
-  Eigen::Vector3d world;     // the point in the world frame
-  Eigen::Vector3d normal;    // unit surface normal in the world frame, pointing up (against gravity)
-  std::uint32_t polygon = 0; // index of the source polygon in the Mesh
-};
-
-// The nearest terrain below and above a point (the paper's floor and ceiling).
-struct Bracket {
-  std::optional<Hit> below;
-  std::optional<Hit> above;
-};
-
-// A hit of an arbitrary line (alongLine): its parameter and the hit.
-struct LineHit {
-  double t = 0;
-  Hit hit;
-};
-
-struct TerrainStats {
-  std::uint64_t polygons = 0;   // polygons in the mesh
-  std::uint64_t triangles = 0;  // triangles in the query structure (polygons are fanned)
-  std::uint64_t walls = 0;      // polygons left out: zero area seen along gravity
-  std::uint64_t vertices = 0;
-  Box2 domain;                  // mapped bounding box of the triangles
-  QuadtreeStats tree;
-  std::uint64_t memoryBytes = 0;  // everything the index holds
-};
 
 class TerrainIndex {
  public:
@@ -117,20 +73,27 @@ class TerrainIndex {
   std::optional<Hit> topWorld(const Eigen::Vector3d& p) const;
   std::vector<Hit> allWorld(const Eigen::Vector3d& p) const;
 
-  // Height-only fast path: the highest terrain height at (u, v) with h <= z, or std::nullopt for
-  // no terrain. For samplers and benchmarks that do not need the normal or the polygon.
+  // Height only, the fast path: the highest terrain height at (u, v) with h <= z (height: any
+  // h), or std::nullopt for no terrain. For samplers and benchmarks that need no normal or polygon.
   std::optional<double> heightBelow(double u, double v, double z) const {
     return unlessNaN(heightAt(u, v, z, nullptr));
   }
-  // heightBelow for many points at once (heights[i] for points[i]): the same answers, with the
-  // memory latency of the points overlapped (several times faster on terrains larger than the
-  // cache). heights must have room for every point.
-  void heightsBelow(std::span<const Point2> points, double z,
-                    std::span<std::optional<double>> heights) const;
+  std::optional<double> height(double u, double v) const { return heightBelow(u, v, kTop); }
+  // Heights for many points at once (out[i] for points[i]), below one z or below zs[i]: the same
+  // answers, with the memory latency of the points overlapped (several times faster on terrains
+  // larger than the cache). out (and zs) must have room for every point.
+  void heights(std::span<const Point2> points, std::span<std::optional<double>> out) const;
+  void heightsBelow(std::span<const Point2> points, double z, std::span<std::optional<double>> out) const;
+  void heightsBelow(std::span<const Point2> points, std::span<const double> zs,
+                    std::span<std::optional<double>> out) const;
   // The same on several threads (0: one per hardware thread), each taking an equal slice of the
   // points; worth it from some ten thousand points. The answers do not depend on the threads.
-  void heightsBelowParallel(std::span<const Point2> points, double z,
-                            std::span<std::optional<double>> heights, unsigned threads = 0) const;
+  void heightsParallel(std::span<const Point2> points, std::span<std::optional<double>> out,
+                       unsigned threads = 0) const;
+  void heightsBelowParallel(std::span<const Point2> points, double z, std::span<std::optional<double>> out,
+                            unsigned threads = 0) const;
+  void heightsBelowParallel(std::span<const Point2> points, std::span<const double> zs,
+                            std::span<std::optional<double>> out, unsigned threads = 0) const;
 
   // Temporal coherence: the same queries starting from a per-object cursor, which remembers the
   // last leaf so that a query a small step from the last one skips the tree descent. Answers are
@@ -139,6 +102,9 @@ class TerrainIndex {
   std::optional<Hit> above(Quadtree::Cursor& cursor, double u, double v, double h) const;
   std::optional<double> heightBelow(Quadtree::Cursor& cursor, double u, double v, double z) const {
     return unlessNaN(heightAt(u, v, z, &cursor));
+  }
+  std::optional<double> height(Quadtree::Cursor& cursor, double u, double v) const {
+    return heightBelow(cursor, u, v, kTop);
   }
 
   // Every crossing of an arbitrary world line origin + t * direction, t in [tmin, tmax], nearest
@@ -194,12 +160,15 @@ class TerrainIndex {
                                                     : stats().memoryBytes;
   }
 
-  // Polygon tests (bbox checks) the query at (u, v) performs: the size of its leaf.
+  // The memory a query at (u, v) looks at: polygon tests (bbox checks), the size of its leaf.
   std::uint32_t testsAt(double u, double v) const;
 
  private:
   friend struct TreeFileAccess;  // the on-disk format (treefile.hpp)
   TerrainIndex() = default;
+  static constexpr double kTop = std::numeric_limits<double>::infinity();  // "below" any terrain
+  template <class ZOf>  // z of point i: zOf(i)
+  void heightsBelowBatch(std::span<const Point2> points, const ZOf& zOf, std::span<std::optional<double>> out) const;
   // Hot per-triangle record, one per triangle, 128 bytes (two cache lines), in Morton order.
   // The plane is solved from corner 0 (h0 + a (u - u0) + b (v - v0)) rather than as a u + b v + c:
   // exact at that corner and with rounding proportional to the local relief, not to the size of
