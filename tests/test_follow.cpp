@@ -499,7 +499,9 @@ TEST(Scene, CurvedWorldMatchesARebuild) {
     const Eigen::Vector3d m = world.toMapped(p);
     const auto b = shifted.below(m.x(), m.y(), m.z());
     ASSERT_EQ(a.has_value(), b.has_value());
-    if (a) EXPECT_NEAR(a->hit.height, b->height, 1e-9 * b->height);
+    if (a) {
+      EXPECT_NEAR(a->hit.height, b->height, 1e-9 * b->height);
+    }
   }
 }
 

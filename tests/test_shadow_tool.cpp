@@ -107,7 +107,9 @@ void checkAgainstSolarFormula(const std::string& mask, double julianDayUT, doubl
   EXPECT_EQ(lit + dark, cells) << what;
   EXPECT_GT(night, cells / 20) << what;
   EXPECT_GT(day, cells / 20) << what;
-  if (polarDay && m.geotransform[3] > 85) EXPECT_GT(polar, 0u) << what;
+  if (polarDay && m.geotransform[3] > 85) {
+    EXPECT_GT(polar, 0u) << what;
+  }
 }
 
 TEST(ShadowTool, WholeGlobeAtOneInstant) {
@@ -177,8 +179,12 @@ TEST(ShadowTool, ProjectedContinentIsPutOnTheEllipsoid) {
       const double lon = x / 6378137.0 / kDeg, lat = (2 * std::atan(std::exp(y / 6378137.0)) - M_PI / 2) / kDeg;
       const double alt = usnoAltitude(2460483.0, lon, lat), v = m.at(c, r);
       if (v == 128) continue;
-      if (alt < -3.5) EXPECT_EQ(v, 0) << lon << ", " << lat;
-      if (alt > 20) EXPECT_EQ(v, 255) << lon << ", " << lat;
+      if (alt < -3.5) {
+        EXPECT_EQ(v, 0) << lon << ", " << lat;
+      }
+      if (alt > 20) {
+        EXPECT_EQ(v, 255) << lon << ", " << lat;
+      }
       ++checked;
     }
   }

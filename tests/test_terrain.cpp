@@ -5,6 +5,7 @@
 
 #include "oracle.hpp"
 #include "qota/error.hpp"
+#include "qota/memory_budget.hpp"
 #include "qota/terrain.hpp"
 #include "random_terrain.hpp"
 
@@ -236,6 +237,39 @@ TEST(TerrainQueries, FanAroundAVertexDeeperThanMaxPoly) {
   const TerrainIndex centred(m, CartesianMapping(), {{4, 10}});
   EXPECT_EQ(centred.stats().tree.depth, 0u);
   EXPECT_EQ(centred.top(0, 0)->height, 1.0);
+}
+
+TEST(TerrainQueries, ATreeOutgrowingTheMemoryLeftStopsWithAnError) {
+  // Slivers 100 times taller than wide (a 2600 x 13 raster of the whole globe): the square cells
+  // that part their columns cut each of them many times, some 20 nodes a triangle, more than the
+  // up-front estimate. With memory for the estimate but not for such a tree, the build stops
+  // with an error instead of meeting the OOM killer.
+  Mesh m;
+  const int nx = 2600, ny = 13;
+  for (int j = 0; j <= ny; ++j) {
+    for (int i = 0; i <= nx; ++i) m.addVertex({360.0 * i / nx, 180.0 * j / ny, double((i * 7 + j * 3) % 11)});
+  }
+  for (int j = 0; j < ny; ++j) {
+    for (int i = 0; i < nx; ++i) {
+      const std::uint32_t a = j * (nx + 1) + i;
+      m.addTriangle(a, a + 1, a + nx + 2);
+      m.addTriangle(a, a + nx + 2, a + nx + 1);
+    }
+  }
+  const qota::TerrainOptions options{.tree = {8, 16}, .gridFastPath = false};
+  const TerrainIndex unlimited(m, CartesianMapping(), options);
+  ASSERT_GT(unlimited.stats().tree.nodes, 1u << 20);  // the tree the check must see
+  qota::memory::setLimit(qota::memory::peakBytes() + (48ull << 20));
+  try {
+    const TerrainIndex limited(m, CartesianMapping(), options);
+    qota::memory::setLimit(0);
+    FAIL() << "built " << limited.stats().tree.nodes << " nodes";
+  } catch (const qota::Error& e) {
+    qota::memory::setLimit(0);
+    const std::string what = e.what();
+    EXPECT_NE(what.find("of memory"), std::string::npos) << what;
+    EXPECT_NE(what.find("raise Maxpoly or lower Maxdepth"), std::string::npos) << what;
+  }
 }
 
 // --- Input rules -----------------------------------------------------------------------------

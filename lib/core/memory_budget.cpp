@@ -1,7 +1,10 @@
 #include "qota/memory_budget.hpp"
 
+#include <sys/resource.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <atomic>
 #include <fstream>
 #include <sstream>
 
@@ -9,6 +12,8 @@
 
 namespace qota::memory {
 namespace {
+
+std::atomic<std::uint64_t> gLimit{0};
 
 // A "Key:   value kB" line of a /proc file, in bytes; 0 when absent.
 std::uint64_t procKib(const char* file, const std::string& wanted) {
@@ -22,13 +27,66 @@ std::uint64_t procKib(const char* file, const std::string& wanted) {
   return 0;
 }
 
+// The first number in a file ("max" and absent files: 0).
+std::uint64_t fileNumber(const std::string& file) {
+  std::ifstream in(file);
+  std::uint64_t n = 0;
+  return in >> n ? n : 0;
+}
+
+// What the process's memory control group still allows (v2, else v1), in bytes; 0 when there is
+// no limit or none is known. In a container MemAvailable is the host's, not the container's.
+std::uint64_t cgroupLeft() {
+  std::ifstream in("/proc/self/cgroup");
+  std::string v2, v1;  // the group's path in each hierarchy
+  for (std::string line; std::getline(in, line);) {
+    if (line.rfind("0::", 0) == 0) v2 = line.substr(3);
+    const auto memory = line.find(":memory:");
+    if (memory != std::string::npos) v1 = line.substr(memory + 8);
+  }
+  const auto left = [](const std::string& limitFile, const std::string& usageFile) -> std::uint64_t {
+    const std::uint64_t limit = fileNumber(limitFile), used = fileNumber(usageFile);
+    if (limit == 0 || limit >= (1ull << 60)) return 0;  // "max", or v1's "no limit"
+    return limit > used ? limit - used : 1;
+  };
+  // The path as this process sees it, else the mount's root (a namespaced container's own).
+  for (const std::string& dir : {"/sys/fs/cgroup" + v2, std::string("/sys/fs/cgroup")}) {
+    if (const auto n = left(dir + "/memory.max", dir + "/memory.current")) return n;
+  }
+  for (const std::string& dir : {"/sys/fs/cgroup/memory" + v1, std::string("/sys/fs/cgroup/memory")}) {
+    if (const auto n = left(dir + "/memory.limit_in_bytes", dir + "/memory.usage_in_bytes")) return n;
+  }
+  return 0;
+}
+
+// What the address-space limit (ulimit -v) still allows; 0 when unlimited.
+std::uint64_t addressSpaceLeft() {
+  rlimit r{};
+  if (getrlimit(RLIMIT_AS, &r) != 0 || r.rlim_cur == RLIM_INFINITY) return 0;
+  const std::uint64_t used = procKib("/proc/self/status", "VmSize:"), limit = r.rlim_cur;
+  return limit > used ? limit - used : 1;
+}
+
 }  // namespace
 
 std::uint64_t availableBytes() {
-  if (const std::uint64_t m = procKib("/proc/meminfo", "MemAvailable:")) return m;
-  const long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGE_SIZE);
-  return pages > 0 && page > 0 ? static_cast<std::uint64_t>(pages) * static_cast<std::uint64_t>(page) : 0;
+  std::uint64_t m = procKib("/proc/meminfo", "MemAvailable:");
+  if (m == 0) {
+    const long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGE_SIZE);
+    m = pages > 0 && page > 0 ? static_cast<std::uint64_t>(pages) * static_cast<std::uint64_t>(page) : 0;
+  }
+  std::uint64_t budgetLeft = 0;
+  if (const std::uint64_t limit = gLimit.load()) {
+    const std::uint64_t resident = procKib("/proc/self/status", "VmRSS:");
+    budgetLeft = limit > resident ? limit - resident : 1;
+  }
+  for (const std::uint64_t limit : {cgroupLeft(), addressSpaceLeft(), budgetLeft}) {
+    if (limit != 0) m = m == 0 ? limit : std::min(m, limit);
+  }
+  return m;
 }
+
+void setLimit(std::uint64_t bytes) { gLimit.store(bytes); }
 
 std::uint64_t peakBytes() { return procKib("/proc/self/status", "VmHWM:"); }
 

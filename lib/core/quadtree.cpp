@@ -3,8 +3,26 @@
 #include <algorithm>
 
 #include <cmath>
+#include <string>
+
+#include "qota/error.hpp"
+#include "qota/memory_budget.hpp"
 
 namespace qota {
+
+void Quadtree::checkMemoryLeft() const {
+  // Enough for the rest of a level's lists and the final copies of the node and reference arrays.
+  const std::uint64_t reserve = 128ull * (1ull << 20) + 12ull * nodes_.size();
+  const std::uint64_t left = memory::availableBytes();
+  if (left != 0 && left < reserve) {
+    throw Error("quadtree: " + std::to_string(nodes_.size()) + " nodes and " +
+                std::to_string(refs_.size()) + " leaf references for " + std::to_string(itemCount_) +
+                " polygons leave " + memory::gib(left) +
+                " of memory: the polygons are too thin or overlap too much for Maxpoly " +
+                std::to_string(options_.maxPoly) + " and Maxdepth " + std::to_string(options_.maxDepth) +
+                "; raise Maxpoly or lower Maxdepth");
+  }
+}
 
 std::uint32_t Quadtree::leafIndex(double u, double v) const {
   std::uint32_t n = 0;

@@ -32,9 +32,13 @@ constexpr PerItem kCurvedIndex{40, 360};
 // A shadow mask: the frame's mesh, the facing, the strips, the cell order. Measured up to 53.
 constexpr PerItem kShadow{40, 70};
 
-// Memory available to this process for new work, in bytes (MemAvailable, else physical memory;
-// 0 when unknown).
+// Memory available to this process for new work, in bytes: the least of MemAvailable (else
+// physical memory), what the memory control group (a container's limit) and ulimit -v still
+// allow, and what setLimit leaves; 0 when none is known.
 std::uint64_t availableBytes();
+// A budget for the whole process (0: none): availableBytes() reports at most `bytes` minus the
+// resident memory, so jobs are refused or stopped as if the machine had that much.
+void setLimit(std::uint64_t bytes);
 // This process's peak resident memory so far (VmHWM), in bytes; 0 when unknown.
 std::uint64_t peakBytes();
 // "1.23 GiB".

@@ -212,6 +212,9 @@ class Quadtree {
     return cut_.empty() ? Point2{lou + half_[depth].u, lov + half_[depth].v} : cut_[n];
   }
   Point2 costCut(const Box2& box, std::uint32_t depth, std::span<const std::uint32_t> items) const;
+  // Called every million nodes a build adds: a tree can outgrow its memory estimate (slivers,
+  // stacks), so stop with an error while some memory is left instead of meeting the OOM killer.
+  void checkMemoryLeft() const;
   BigVector<Node> nodes_;
   BigVector<std::uint32_t> refs_;
   // Jump table: for each cell of the uniform grid at depth jumpDepth_, a copy of the node at that
@@ -446,6 +449,7 @@ void Quadtree::buildNode(std::uint32_t node, const Box2& box, std::uint32_t dept
                 "leaves split down to Maxdepth " + std::to_string(options_.maxDepth) +
                 ": raise Maxpoly or lower Maxdepth");
   }
+  if ((first >> 20) != ((first + 4) >> 20)) checkMemoryLeft();
   std::vector<std::uint32_t>().swap(items);  // free the parent's list before descending
   for (int c = 0; c < 4; ++c) buildNode(first + c, child[c], depth + 1, sub[c], overlaps);
 }

@@ -73,7 +73,7 @@ struct IndexOptions {
   // records are kept, and heights that are exact in float (any Int16 or Float32 raster) are read
   // from a float copy. The records and the quadtree are made when something needs them (edits,
   // shadows, statistics, tree files).
-  std::optional<bool> gridFastPath;
+  std::optional<bool> gridFastPath = std::nullopt;
 };
 using TerrainOptions = IndexOptions;  // the name before every index shared one
 
