@@ -1,9 +1,8 @@
 #include "qota/any_mapping.hpp"
 
-#include <GeographicLib/Constants.hpp>
 #include <map>
-#include <optional>
 #include <sstream>
+#include <utility>
 
 #include "describe.hpp"
 #include "qota/error.hpp"
@@ -30,52 +29,63 @@ MappedLine lineOf(const AnyMapping& mapping, double u, double v) {
   return std::visit([&](const auto& m) { return m.line(u, v); }, mapping);
 }
 
+Eigen::Vector3d MappingParameters::vector(const char* key, const Eigen::Vector3d& fallback) {
+  const auto it = words_.find(key);
+  if (it == words_.end()) return fallback;
+  const Eigen::Vector3d v = detail::parseVector(it->second, "mapping " + mapping_ + " " + key);
+  words_.erase(it);
+  return v;
+}
+
+double MappingParameters::number(const char* key, double fallback) {
+  const auto it = words_.find(key);
+  if (it == words_.end()) return fallback;
+  const double x = detail::parseDouble(it->second, "mapping " + mapping_ + " " + key);
+  words_.erase(it);
+  return x;
+}
+
+namespace {
+
+// The mapping of AnyMapping's alternatives named `name`, from its parameters.
+template <std::size_t I = 0>
+AnyMapping parseAs(const std::string& name, MappingParameters& params) {
+  if constexpr (I < std::variant_size_v<AnyMapping>) {
+    using M = std::variant_alternative_t<I, AnyMapping>;
+    if (name == M::name()) return M::fromParameters(params);
+    return parseAs<I + 1>(name, params);
+  } else {
+    throw Error("unknown mapping '" + name + "' (expected " + mappingNames() + ")");
+  }
+}
+
+}  // namespace
+
+std::string mappingNames() {
+  std::string names;
+  [&]<std::size_t... I>(std::index_sequence<I...>) {
+    ((names += (I == 0 ? "" : I + 1 == sizeof...(I) ? " or " : ", "),
+      names += std::variant_alternative_t<I, AnyMapping>::name()), ...);
+  }(std::make_index_sequence<std::variant_size_v<AnyMapping>>());
+  return names;
+}
+
 AnyMapping parseMapping(const std::string& text) {
   std::istringstream in(text);
   std::string name, word;
   in >> name;
-  std::map<std::string, std::string> params;
+  std::map<std::string, std::string> words;
   while (in >> word) {
     const auto eq = word.find('=');
     if (eq == std::string::npos || eq == 0) {
       throw Error("mapping '" + text + "': '" + word + "' is not key=value");
     }
-    params[word.substr(0, eq)] = word.substr(eq + 1);
+    words[word.substr(0, eq)] = word.substr(eq + 1);
   }
-  // Takes a parameter out of params, so that leftovers can be reported as unknown.
-  auto take = [&](const char* key) -> std::optional<std::string> {
-    auto it = params.find(key);
-    if (it == params.end()) return std::nullopt;
-    std::string value = it->second;
-    params.erase(it);
-    return value;
-  };
-  auto vec = [&](const char* key, Eigen::Vector3d fallback) {
-    const auto v = take(key);
-    return v ? detail::parseVector(*v, std::string("mapping ") + name + " " + key) : fallback;
-  };
-  auto num = [&](const char* key, double fallback) {
-    const auto v = take(key);
-    return v ? detail::parseDouble(*v, std::string("mapping ") + name + " " + key) : fallback;
-  };
-  AnyMapping result;
-  if (name == "cartesian") {
-    const Eigen::Vector3d gravity = vec("gravity", {0, 0, -1});
-    result = CartesianMapping(gravity, vec("origin", Eigen::Vector3d::Zero()));
-  } else if (name == "spherical") {
-    result = SphericalMapping(vec("centre", Eigen::Vector3d::Zero()));
-  } else if (name == "cylindrical") {
-    const Eigen::Vector3d point = vec("point", Eigen::Vector3d::Zero());
-    result = CylindricalMapping(point, vec("axis", {0, 0, 1}));
-  } else if (name == "geodetic") {
-    const double a = num("a", GeographicLib::Constants::WGS84_a());
-    result = GeodeticMapping(a, num("f", GeographicLib::Constants::WGS84_f()));
-  } else {
-    throw Error("unknown mapping '" + name +
-                "' (expected cartesian, spherical, cylindrical or geodetic)");
-  }
-  if (!params.empty()) {
-    throw Error("mapping " + name + ": unknown parameter '" + params.begin()->first + "'");
+  MappingParameters params(name, std::move(words));
+  AnyMapping result = parseAs(name, params);
+  if (!params.left().empty()) {
+    throw Error("mapping " + name + ": unknown parameter '" + params.left().begin()->first + "'");
   }
   return result;
 }

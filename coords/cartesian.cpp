@@ -33,6 +33,11 @@ CartesianMapping::CartesianMapping(const Eigen::Vector3d& gravity, const Eigen::
   }
 }
 
+CartesianMapping CartesianMapping::fromParameters(MappingParameters& p) {
+  const Eigen::Vector3d gravity = p.vector("gravity", {0, 0, -1});
+  return CartesianMapping(gravity, p.vector("origin", Eigen::Vector3d::Zero()));
+}
+
 std::string CartesianMapping::describe() const {
   return std::string(name()) + " gravity=" + formatVector(given_) +
          " origin=" + formatVector(origin_);

@@ -66,6 +66,11 @@ Eigen::Vector3d CylindricalMapping::toWorld(const Eigen::Vector3d& mapped) const
   return fromLocal({mapped.z() * cu, mapped.z() * su, mapped.y()});
 }
 
+CylindricalMapping CylindricalMapping::fromParameters(MappingParameters& p) {
+  const Eigen::Vector3d point = p.vector("point", Eigen::Vector3d::Zero());
+  return CylindricalMapping(point, p.vector("axis", {0, 0, 1}));
+}
+
 std::string CylindricalMapping::describe() const {
   return std::string(name()) + " point=" + detail::formatVector(point_) +
          " axis=" + detail::formatVector(given_);

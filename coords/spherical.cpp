@@ -41,6 +41,10 @@ Eigen::Vector3d SphericalMapping::toMapped(const Eigen::Vector3d& world) const {
   return {longitudeOf(p.x(), p.y()), GeographicLib::Math::atan2d(p.z(), rho), r};
 }
 
+SphericalMapping SphericalMapping::fromParameters(MappingParameters& p) {
+  return SphericalMapping(p.vector("centre", Eigen::Vector3d::Zero()));
+}
+
 std::string SphericalMapping::describe() const {
   return std::string(name()) + " centre=" + detail::formatVector(centre_);
 }

@@ -21,6 +21,7 @@
 #include <string>
 
 #include "qota/mapping.hpp"
+#include "qota/planar.hpp"
 
 namespace qota {
 
@@ -59,10 +60,13 @@ class CartesianMapping {
   const Eigen::Matrix3d& rotation() const { return rotation_; }  // world -> mapped
   // True when gravity is exactly -Z and the mapping is a pure translation.
   bool vertical() const { return vertical_; }
+  // As a planar mapping (planar.hpp).
+  PlanarFrame frame() const { return {rotation_, origin_, vertical_}; }
 
   // "cartesian gravity=gx,gy,gz origin=ox,oy,oz", with round-trip precision (the gravity as
   // given, so that parsing it back builds the identical mapping).
   std::string describe() const;
+  static CartesianMapping fromParameters(MappingParameters& p);  // gravity=, origin=
 
  private:
   Eigen::Vector3d given_;  // the gravity as given, for describe(): an exact round trip

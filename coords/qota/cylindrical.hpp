@@ -17,9 +17,12 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <algorithm>
+#include <cmath>
 #include <limits>
 #include <string>
 
+#include "qota/axial.hpp"
 #include "qota/mapping.hpp"
 
 namespace qota {
@@ -43,6 +46,7 @@ class CylindricalMapping {
     return {-180.0, 180.0, -inf, inf, true};
   }
   std::string describe() const;  // "cylindrical point=x,y,z axis=x,y,z"
+  static CylindricalMapping fromParameters(MappingParameters& p);
 
   const Eigen::Vector3d& axisPoint() const { return point_; }
   const Eigen::Vector3d& axisDirection() const { return axis_; }  // unit
@@ -50,6 +54,26 @@ class CylindricalMapping {
   // Local frame: x, y across the axis, z along it, origin at the axis point.
   Eigen::Vector3d toLocal(const Eigen::Vector3d& world) const;
   Eigen::Vector3d fromLocal(const Eigen::Vector3d& local) const;
+
+  // As an axial mapping (axial.hpp): the line of (u, v) leaves the axis at s = v, outward.
+  static constexpr bool kPoles = false;
+  Eigen::Vector3d directionFromLocal(const Eigen::Vector3d& d) const {
+    return alongZ_ ? d : Eigen::Vector3d(rotation_.transpose() * d);
+  }
+  static AxialLine axialLine(double u, double v) {
+    double su, cu;
+    axial::sinCosDegrees(u, su, cu);
+    return {v, {cu, su, 0.0}, 0.0};
+  }
+  static double footprintHeight(const Eigen::Vector3d&) { return 0.0; }
+  // v is the axial coordinate: the corners' range, padded relative to the coordinates' scale.
+  static void footprintV(const Eigen::Vector3d (&p)[3], const double (&)[3], double scale, double& lo,
+                         double& hi) {
+    lo = std::min({p[0].z(), p[1].z(), p[2].z()});
+    hi = std::max({p[0].z(), p[1].z(), p[2].z()});
+    const double pad = 1e-12 * (std::fabs(lo) + std::fabs(hi) + scale);
+    lo -= pad, hi += pad;
+  }
 
  private:
   Eigen::Vector3d point_;

@@ -15,8 +15,10 @@
 
 #include <Eigen/Core>
 #include <GeographicLib/Geocentric.hpp>
+#include <cmath>
 #include <string>
 
+#include "qota/axial.hpp"
 #include "qota/mapping.hpp"
 
 namespace qota {
@@ -37,6 +39,7 @@ class GeodeticMapping {
   MappedLine line(double u, double v) const { return {toWorld({u, v, 0.0}), -up(u, v)}; }
   MappedDomain domain() const { return {-180.0, 180.0, -90.0, 90.0, true}; }
   std::string describe() const;  // "geodetic a=... f=..."
+  static GeodeticMapping fromParameters(MappingParameters& p);  // WGS84 by default
 
   double a() const { return a_; }
   double f() const { return f_; }
@@ -44,6 +47,22 @@ class GeodeticMapping {
   // Prime-vertical radius of curvature N at latitude v (degrees): the distance along the normal
   // from the surface to the polar axis.
   double primeVerticalRadius(double v) const;
+
+  // As an axial mapping (axial.hpp): the local frame is the world (ECEF); the normal of latitude
+  // v crosses the axis at s = -N e^2 sin(v), and h = t - N along it.
+  static constexpr bool kPoles = true;
+  static Eigen::Vector3d toLocal(const Eigen::Vector3d& world) { return world; }
+  static Eigen::Vector3d fromLocal(const Eigen::Vector3d& local) { return local; }
+  static Eigen::Vector3d directionFromLocal(const Eigen::Vector3d& d) { return d; }
+  AxialLine axialLine(double u, double v) const {
+    double su, cu, sv, cv;
+    axial::sinCosDegrees(u, su, cu);
+    axial::sinCosDegrees(v, sv, cv);
+    const double nprime = a_ / std::sqrt(1.0 - e2_ * sv * sv);
+    return {-nprime * e2_ * sv, {cv * cu, cv * su, sv}, nprime};
+  }
+  double footprintHeight(const Eigen::Vector3d& world) const { return toMapped(world).z(); }
+  void footprintV(const Eigen::Vector3d (&p)[3], const double (&h)[3], double scale, double& lo, double& hi) const;
 
  private:
   double a_, f_, e2_;

@@ -13,15 +13,19 @@
 //   line(u, v)             the world line of (u, v): its point with h = 0 and its unit down
 //   domain()               the (u, v) box and which axis is periodic
 //   describe()             "name key=value ..." that parseMapping reads back (round trip)
+//   fromParameters(params) the mapping from describe()'s key=value words (MappingParameters)
 //   kHeightUp              true when h grows against down (up); false for the cylinder, whose
 //                          h is the distance from the axis while down points away from it
-// AnyMapping is the runtime wrapper the tools use. coords/README.md catalogues every space.
+// Planar mappings add frame() (planar.hpp), curved ones the axial interface (axial.hpp); the
+// indexes are written once over those. AnyMapping (any_mapping.hpp) lists every mapping: adding
+// one is its file and that line. coords/README.md catalogues every space.
 #pragma once
 
 #include <Eigen/Core>
 #include <concepts>
+#include <map>
 #include <string>
-#include <variant>
+#include <utility>
 
 namespace qota {
 
@@ -39,6 +43,22 @@ struct MappedDomain {
   bool periodicU;
 };
 
+// The key=value words of a describe() text, as a mapping's fromParameters reads them: each
+// call takes its key out (the fallback when absent) and throws qota::Error naming a bad value;
+// parseMapping then refuses any word no call took.
+class MappingParameters {
+ public:
+  MappingParameters(std::string mapping, std::map<std::string, std::string> words)
+      : mapping_(std::move(mapping)), words_(std::move(words)) {}
+  Eigen::Vector3d vector(const char* key, const Eigen::Vector3d& fallback);  // "x,y,z"
+  double number(const char* key, double fallback);
+  const std::map<std::string, std::string>& left() const { return words_; }
+
+ private:
+  std::string mapping_;
+  std::map<std::string, std::string> words_;
+};
+
 template <class M>
 concept CoordinateMapping = requires(const M& m, const Eigen::Vector3d& p, double u, double v) {
   { M::name() } -> std::convertible_to<const char*>;
@@ -48,6 +68,7 @@ concept CoordinateMapping = requires(const M& m, const Eigen::Vector3d& p, doubl
   { m.line(u, v) } -> std::same_as<MappedLine>;
   { m.domain() } -> std::same_as<MappedDomain>;
   { m.describe() } -> std::same_as<std::string>;
+  { M::fromParameters(std::declval<MappingParameters&>()) } -> std::same_as<M>;
 };
 
 }  // namespace qota

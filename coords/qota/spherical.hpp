@@ -15,6 +15,7 @@
 #include <Eigen/Core>
 #include <string>
 
+#include "qota/axial.hpp"
 #include "qota/mapping.hpp"
 
 namespace qota {
@@ -36,6 +37,25 @@ class SphericalMapping {
   MappedLine line(double u, double v) const { return {centre_, -up(u, v)}; }
   MappedDomain domain() const { return {-180.0, 180.0, -90.0, 90.0, true}; }
   std::string describe() const;  // "spherical centre=x,y,z"
+  static SphericalMapping fromParameters(MappingParameters& p);
+
+  // As an axial mapping (axial.hpp): the local frame is centred, the lines pass through the centre.
+  static constexpr bool kPoles = true;
+  Eigen::Vector3d toLocal(const Eigen::Vector3d& world) const { return world - centre_; }
+  Eigen::Vector3d fromLocal(const Eigen::Vector3d& local) const { return local + centre_; }
+  static Eigen::Vector3d directionFromLocal(const Eigen::Vector3d& d) { return d; }
+  static AxialLine axialLine(double u, double v) {
+    double su, cu, sv, cv;
+    axial::sinCosDegrees(u, su, cu);
+    axial::sinCosDegrees(v, sv, cv);
+    return {0.0, {cv * cu, cv * su, sv}, 0.0};
+  }
+  static double footprintHeight(const Eigen::Vector3d&) { return 0.0; }
+  // Great-circle arcs: the latitudes the triangle's central projection reaches.
+  static void footprintV(const Eigen::Vector3d (&p)[3], const double (&)[3], double, double& lo, double& hi) {
+    axial::latitudeRange(p, lo, hi);
+    axial::padLatitudes(lo, hi);
+  }
 
   const Eigen::Vector3d& centre() const { return centre_; }
 

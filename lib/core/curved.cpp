@@ -20,15 +20,8 @@ namespace {
 
 constexpr double kEps = 1.1102230246251565e-16;
 constexpr double kInf = std::numeric_limits<double>::infinity();
-// Footprint boxes are widened by this many degrees (u, and v for the angular mappings): far more
-// than the rounding of an angle from atan2 or of a query direction from sincosd (a few 1e-14
-// degrees), far less than any polygon.
-constexpr double kPadDegrees = 1e-9;
-
+using axial::kPadDegrees;
 using GeographicLib::Math;
-
-template <class M>
-constexpr bool kAngularV = !std::is_same_v<M, CylindricalMapping>;  // v is a latitude
 
 
 // The angle range around the z axis of a triangle whose edges each sweep the shorter arc between
@@ -57,37 +50,6 @@ bool angleRange(const Eigen::Vector3d p[3], double& lo, double& hi) {
   return std::fabs(total) < 180.0;  // a loop around the axis sums to +-360
 }
 
-double latitudeOf(const Eigen::Vector3d& p) { return Math::atan2d(p.z(), std::hypot(p.x(), p.y())); }
-
-// Latitude range (degrees) of the central projection of triangle p: vertices plus the interior
-// extremum of each great-circle arc.
-void latitudeRange(const Eigen::Vector3d p[3], double& lo, double& hi) {
-  lo = kInf, hi = -kInf;
-  for (int i = 0; i < 3; ++i) {
-    const Eigen::Vector3d& a = p[i];
-    const Eigen::Vector3d& b = p[(i + 1) % 3];
-    lo = std::min(lo, latitudeOf(a)), hi = std::max(hi, latitudeOf(a));
-    const Eigen::Vector3d n = a.cross(b);
-    if (n.squaredNorm() == 0.0) continue;
-    // The highest point of the great circle with normal n, and the lowest (its opposite).
-    const Eigen::Vector3d top(-n.x() * n.z(), -n.y() * n.z(), n.x() * n.x() + n.y() * n.y());
-    for (const Eigen::Vector3d& q : {top, Eigen::Vector3d(-top)}) {
-      if (a.cross(q).dot(n) > 0.0 && q.cross(b).dot(n) > 0.0) {
-        const double lat = latitudeOf(q);
-        lo = std::min(lo, lat), hi = std::max(hi, lat);
-      }
-    }
-  }
-}
-
-// Geodetic latitude from the latitude chi of the axis-scaled point (x, y, z / (1 - e^2)) and the
-// ratio k of their tangents (see geodeticRange).
-double geodeticFromScaled(double chi, double k) {
-  double s, c;
-  Math::sincosd(chi, s, c);
-  return Math::atan2d(s, k * c);
-}
-
 }  // namespace
 
 template <class M>
@@ -103,17 +65,13 @@ CurvedIndex<M>::CurvedIndex(const Mesh& mesh, const M& mapping, const TerrainOpt
   for (std::size_t p = 0; p < mesh.polygonCount(); ++p) fanned += mesh.polygon(p).size() > 2 ? mesh.polygon(p).size() - 2 : 0;
   memory::require(std::string(M::name()) + " terrain", memory::kCurvedIndex, nv, fanned);
   std::vector<Eigen::Vector3d> local(nv);
-  std::vector<double> vertexHeight;  // geodetic only: ellipsoid height of each vertex
+  std::vector<double> vertexHeight(nv);  // what the mapping's footprints need of each vertex
   for (std::size_t i = 0; i < nv; ++i) {
     // Non-finite vertices (nodata) are allowed while no polygon uses them.
-    local[i] = worldToLocal(mesh.vertices[i]);
-    if (local[i].allFinite()) scale_ = std::max(scale_, local[i].lpNorm<1>());
-  }
-  if constexpr (std::is_same_v<M, GeodeticMapping>) {
-    vertexHeight.resize(nv);
-    for (std::size_t i = 0; i < nv; ++i) {
-      if (local[i].allFinite()) vertexHeight[i] = mapping_.toMapped(mesh.vertices[i]).z();
-    }
+    local[i] = mapping_.toLocal(mesh.vertices[i]);
+    if (!local[i].allFinite()) continue;
+    scale_ = std::max(scale_, local[i].lpNorm<1>());
+    vertexHeight[i] = mapping_.footprintHeight(mesh.vertices[i]);
   }
 
   std::vector<Tri> tris;
@@ -140,9 +98,7 @@ CurvedIndex<M>::CurvedIndex(const Mesh& mesh, const M& mapping, const TerrainOpt
     for (std::size_t k = 1; k + 1 < corners.size(); ++k) {
       const std::uint32_t id[3] = {corners[0], corners[k], corners[k + 1]};
       const Eigen::Vector3d p[3] = {local[id[0]], local[id[1]], local[id[2]]};
-      const double h[3] = {vertexHeight.empty() ? 0.0 : vertexHeight[id[0]],
-                           vertexHeight.empty() ? 0.0 : vertexHeight[id[1]],
-                           vertexHeight.empty() ? 0.0 : vertexHeight[id[2]]};
+      const double h[3] = {vertexHeight[id[0]], vertexHeight[id[1]], vertexHeight[id[2]]};
       Tri t{};
       FootBox box;
       if (!makeTriangle(p, h, static_cast<std::uint32_t>(poly), t, box)) {
@@ -191,15 +147,7 @@ CurvedIndex<M>::CurvedIndex(const Mesh& mesh, const M& mapping, const TerrainOpt
   std::vector<Tri>().swap(tris);
   boxes.swap(sorted);
 
-  // Polar lists: the triangles the exact test finds on the line of each pole.
-  if constexpr (kAngularV<M>) {
-    const Line north = lineAt(0.0, 90.0), south = lineAt(0.0, -90.0);
-    for (std::uint32_t i = 0; i < count; ++i) {
-      double t;
-      if (boxes[i].vhi >= 90.0 && hits(tris_[i], north, t)) polarNorth_.push_back(i);
-      if (boxes[i].vlo <= -90.0 && hits(tris_[i], south, t)) polarSouth_.push_back(i);
-    }
-  }
+  for (std::uint32_t i = 0; i < count; ++i) addToPolarLists(i, boxes[i]);
 
   // Size floor: half the median footprint extent (see Quadtree).
   double minU = 0, minV = 0;
@@ -228,9 +176,9 @@ CurvedIndex<M>::CurvedIndex(const Mesh& mesh, const M& mapping, const TerrainOpt
 }
 
 // The record and footprint box of the triangle with local corners p (vertexHeight: the corners'
-// ellipsoid heights, geodetic only). False for a triangle of zero area.
+// footprintHeight). False for a triangle of zero area.
 template <class M>
-bool CurvedIndex<M>::makeTriangle(const Eigen::Vector3d p[3], const double vertexHeight[3],
+bool CurvedIndex<M>::makeTriangle(const Eigen::Vector3d (&p)[3], const double (&vertexHeight)[3],
                                   std::uint32_t poly, Tri& t, FootBox& box) const {
   const Eigen::Vector3d n = (p[1] - p[0]).cross(p[2] - p[0]);
   if (n.squaredNorm() == 0.0) return false;
@@ -251,55 +199,13 @@ bool CurvedIndex<M>::makeTriangle(const Eigen::Vector3d p[3], const double verte
     const double shift = 360.0 * std::floor((box.ulo + 180.0) / 360.0);
     box.ulo -= shift, box.uhi -= shift;
   }
-  if constexpr (std::is_same_v<M, SphericalMapping>) {
-    latitudeRange(p, box.vlo, box.vhi);
-  } else if constexpr (std::is_same_v<M, GeodeticMapping>) {
-    // On the scaled points (x, y, z / (1 - e^2)) the geocentric latitude chi of a surface
-    // point is its geodetic latitude phi, and a straight edge stays straight, so the arc
-    // extrema bound chi exactly. Off the surface, tan(chi) = k tan(phi) with
-    // k = 1 + e^2 h / ((1 - e^2)(N + h)), N in [a, a / sqrt(1 - e^2)]; phi is monotone in
-    // chi and in k, so the corners of the chi and k ranges bound it. The triangle's heights
-    // lie between its lowest vertex minus its sag below the ellipsoid (edge^2 / (8 radius of
-    // curvature), doubled) and its highest vertex (height is convex).
-    const double e2 = mapping_.e2(), a = mapping_.a();
-    Eigen::Vector3d q[3];
-    double hlo = kInf, hhi = -kInf, edge2 = 0;
-    for (int i = 0; i < 3; ++i) {
-      q[i] = Eigen::Vector3d(p[i].x(), p[i].y(), p[i].z() / (1.0 - e2));
-      hlo = std::min(hlo, vertexHeight[i]), hhi = std::max(hhi, vertexHeight[i]);
-      edge2 = std::max(edge2, (p[i] - p[(i + 1) % 3]).squaredNorm());
-    }
-    hlo -= edge2 / (4.0 * a * (1.0 - e2)) + 1e-9 * a;
-    hhi += 1e-9 * a;
-    double chiLo, chiHi;
-    latitudeRange(q, chiLo, chiHi);
-    if (hlo <= -0.5 * a) {
-      box.vlo = -90.0, box.vhi = 90.0;  // deep inside the ellipsoid: no useful bound
-    } else {
-      double kmin = kInf, kmax = -kInf;
-      for (double h : {hlo, hhi}) {
-        for (double nn : {a, a / std::sqrt(1.0 - e2)}) {
-          const double k = 1.0 + e2 * h / ((1.0 - e2) * (nn + h));
-          kmin = std::min(kmin, k), kmax = std::max(kmax, k);
-        }
-      }
-      box.vlo = std::min(geodeticFromScaled(chiLo, kmin), geodeticFromScaled(chiLo, kmax));
-      box.vhi = std::max(geodeticFromScaled(chiHi, kmin), geodeticFromScaled(chiHi, kmax));
-    }
-  } else {
-    box.vlo = std::min({p[0].z(), p[1].z(), p[2].z()});
-    box.vhi = std::max({p[0].z(), p[1].z(), p[2].z()});
-  }
-  if constexpr (kAngularV<M>) {
+  mapping_.footprintV(p, vertexHeight, scale_, box.vlo, box.vhi);
+  if (M::kPoles && allAngles) {
     // A triangle around the axis may contain a pole, which no vertex or edge reaches.
     double tp;
-    if (allAngles && hits(t, lineAt(0.0, 90.0), tp)) box.vhi = 90.0;
-    if (allAngles && hits(t, lineAt(0.0, -90.0), tp)) box.vlo = -90.0;
-    box.vlo = std::max(-90.0, box.vlo - kPadDegrees);
-    box.vhi = std::min(90.0, box.vhi + kPadDegrees);
-  } else {
-    const double pad = 1e-12 * (std::fabs(box.vlo) + std::fabs(box.vhi) + scale_);
-    box.vlo -= pad, box.vhi += pad;
+    const MappedDomain domain = mapping_.domain();
+    if (hits(t, lineAt(0.0, domain.vhi), tp)) box.vhi = domain.vhi;
+    if (hits(t, lineAt(0.0, domain.vlo), tp)) box.vlo = domain.vlo;
   }
   // Rounded outward to float for the record's quick reject.
   t.ulo = std::nextafter(static_cast<float>(box.ulo), -INFINITY);
@@ -309,67 +215,20 @@ bool CurvedIndex<M>::makeTriangle(const Eigen::Vector3d p[3], const double verte
   return true;
 }
 
+// The polar lists: the triangles the exact test finds on the line of each pole.
 template <class M>
-Eigen::Vector3d CurvedIndex<M>::worldToLocal(const Eigen::Vector3d& world) const {
-  if constexpr (std::is_same_v<M, SphericalMapping>) return world - mapping_.centre();
-  else if constexpr (std::is_same_v<M, CylindricalMapping>) return mapping_.toLocal(world);
-  else return world;
-}
-
-template <class M>
-Eigen::Vector3d CurvedIndex<M>::localToWorld(const Eigen::Vector3d& local) const {
-  if constexpr (std::is_same_v<M, SphericalMapping>) return local + mapping_.centre();
-  else if constexpr (std::is_same_v<M, CylindricalMapping>) return mapping_.fromLocal(local);
-  else return local;
-}
-
-template <class M>
-Eigen::Vector3d CurvedIndex<M>::localDirToWorld(const Eigen::Vector3d& local) const {
-  if constexpr (std::is_same_v<M, CylindricalMapping>) return mapping_.rotation().transpose() * local;
-  else return local;
-}
-
-// sin and cos of an angle in degrees for the query line, inline: reduced exactly to the nearest
-// multiple of 90 degrees (so the axes and the poles come out exact, as with GeographicLib's
-// sincosd), then Taylor series on |r| <= pi/4, whose truncation error is below 2e-17. About five
-// times faster than two libm calls, which matters at a hundred nanoseconds a query.
-inline void sinCosDegrees(double x, double& s, double& c) {
-  const double q = std::nearbyint(x * (1.0 / 90.0));
-  const double r = (x - 90.0 * q) * (M_PI / 180.0);  // x - 90 q is exact for |x| < 2^44
-  const double r2 = r * r;
-  const double sr =
-      r * (1 + r2 * (-1.0 / 6 + r2 * (1.0 / 120 + r2 * (-1.0 / 5040 + r2 * (1.0 / 362880 +
-      r2 * (-1.0 / 39916800 + r2 * (1.0 / 6227020800 + r2 * (-1.0 / 1307674368000))))))));
-  const double cr =
-      1 + r2 * (-0.5 + r2 * (1.0 / 24 + r2 * (-1.0 / 720 + r2 * (1.0 / 40320 + r2 * (-1.0 / 3628800 +
-      r2 * (1.0 / 479001600 + r2 * (-1.0 / 87178291200 + r2 * (1.0 / 20922789888000))))))));
-  switch (static_cast<long long>(q) & 3) {
-    case 0: s = sr, c = cr; break;
-    case 1: s = cr, c = -sr; break;
-    case 2: s = -sr, c = -cr; break;
-    default: s = -cr, c = sr; break;
-  }
-  if (s == 0.0) s = 0.0;  // no negative zeros
-  if (c == 0.0) c = 0.0;
+void CurvedIndex<M>::addToPolarLists(std::uint32_t i, const FootBox& box) {
+  if (!M::kPoles) return;
+  const MappedDomain domain = mapping_.domain();
+  double t;
+  if (box.vhi >= domain.vhi && hits(tris_[i], lineAt(0.0, domain.vhi), t)) polarNorth_.push_back(i);
+  if (box.vlo <= domain.vlo && hits(tris_[i], lineAt(0.0, domain.vlo), t)) polarSouth_.push_back(i);
 }
 
 template <class M>
 typename CurvedIndex<M>::Line CurvedIndex<M>::lineAt(double u, double v) const {
-  Line line{};
-  double su, cu;
-  sinCosDegrees(u, su, cu);
-  if constexpr (std::is_same_v<M, CylindricalMapping>) {
-    line.s = v;
-    line.d[0] = cu, line.d[1] = su, line.d[2] = 0.0;
-  } else {
-    double sv, cv;
-    sinCosDegrees(v, sv, cv);
-    line.d[0] = cv * cu, line.d[1] = cv * su, line.d[2] = sv;
-    if constexpr (std::is_same_v<M, GeodeticMapping>) {
-      line.nprime = mapping_.a() / std::sqrt(1.0 - mapping_.e2() * sv * sv);
-      line.s = -line.nprime * mapping_.e2() * sv;
-    }
-  }
+  const AxialLine a = mapping_.axialLine(u, v);
+  Line line{a.s, {a.d[0], a.d[1], a.d[2]}, a.hOffset, 0.0};
   const double r = scale_ + std::fabs(line.s);
   line.bound = 64.0 * kEps * r * r;
   return line;
@@ -383,9 +242,7 @@ int CurvedIndex<M>::edgeSign(const double* a, const double* b, const Line& line,
   const double* d = line.d;
   double val = d[0] * (a[1] * b[2] - a[2] * b[1]) + d[1] * (a[2] * b[0] - a[0] * b[2]) +
                d[2] * (a[0] * b[1] - a[1] * b[0]);
-  if constexpr (!std::is_same_v<M, SphericalMapping>) {
-    val -= line.s * (d[0] * (a[1] - b[1]) - d[1] * (a[0] - b[0]));
-  }
+  if (line.s != 0.0) val -= line.s * (d[0] * (a[1] - b[1]) - d[1] * (a[0] - b[0]));
   if (val > bound) return 1;
   if (val < -bound) return -1;
   // The bound covers the rounding of the shifted corners below, so both paths give the sign of
@@ -411,15 +268,13 @@ bool CurvedIndex<M>::hits(const Tri& t, const Line& line, double& tOut) const {
 
 template <class M>
 bool CurvedIndex<M>::polar(double v) const {
-  if constexpr (kAngularV<M>) return v == 90.0 || v == -90.0;
-  else return false;
+  return M::kPoles && (v == mapping_.domain().vhi || v == mapping_.domain().vlo);
 }
 
 template <class M>
 bool CurvedIndex<M>::validQuery(double u, double v) const {
   if (!std::isfinite(u) || !std::isfinite(v)) return false;
-  if constexpr (kAngularV<M>) return v >= -90.0 && v <= 90.0;
-  return true;
+  return v >= mapping_.domain().vlo && v <= mapping_.domain().vhi;
 }
 
 template <class M>
@@ -598,8 +453,8 @@ Hit CurvedIndex<M>::makeHit(std::uint32_t i, const Line& line, double tHit) cons
   if (n.dot(up) < 0) n = -n;
   Hit hit;
   hit.height = heightOf(line, tHit);
-  hit.world = localToWorld(Eigen::Vector3d(0, 0, line.s) + tHit * d);
-  hit.normal = localDirToWorld(n);
+  hit.world = mapping_.fromLocal(Eigen::Vector3d(0, 0, line.s) + tHit * d);
+  hit.normal = mapping_.directionFromLocal(n);
   hit.polygon = t.polygon;
   return hit;
 }
@@ -735,8 +590,8 @@ std::vector<LineHit> CurvedIndex<M>::alongLine(const Eigen::Vector3d& origin, co
   if (!origin.allFinite() || !direction.allFinite() || direction.squaredNorm() == 0) return out;
   // The line in the local frame; each live triangle tested exactly on its corners' offsets from
   // the line's origin (the sign of det[a - O; b - O; d] per edge, as TerrainIndex::alongLine).
-  const Eigen::Vector3d O = worldToLocal(origin);
-  const Eigen::Vector3d d = worldToLocal(origin + direction) - O;
+  const Eigen::Vector3d O = mapping_.toLocal(origin);
+  const Eigen::Vector3d d = mapping_.toLocal(origin + direction) - O;
   const double dv[3] = {d.x(), d.y(), d.z()};
   for (std::uint32_t i = 0; i < tris_.size(); ++i) {
     if (!live(i)) continue;
@@ -760,7 +615,7 @@ std::vector<LineHit> CurvedIndex<M>::alongLine(const Eigen::Vector3d& origin, co
     Eigen::Vector3d m;
     if (!mapped(lh.hit.world, m)) continue;
     lh.hit.height = m.z();
-    Eigen::Vector3d normal = localDirToWorld(n.normalized());
+    Eigen::Vector3d normal = mapping_.directionFromLocal(n.normalized());
     if (normal.dot(mapping_.line(m.x(), m.y()).down) > 0) normal = -normal;  // up: against down
     lh.hit.normal = normal;
     lh.hit.polygon = tri.polygon;
@@ -800,11 +655,11 @@ std::uint32_t CurvedIndex<M>::insertPolygon(std::span<const Eigen::Vector3d> cor
   std::vector<Eigen::Vector3d> local;
   std::vector<double> heights;
   for (const Eigen::Vector3d& c : corners) {
-    local.push_back(worldToLocal(c));
+    local.push_back(mapping_.toLocal(c));
     if (!c.allFinite() || !local.back().allFinite()) {
       throw Error("insertPolygon: a corner is not finite");
     }
-    heights.push_back(std::is_same_v<M, GeodeticMapping> ? mapping_.toMapped(c).z() : 0.0);
+    heights.push_back(mapping_.footprintHeight(c));
   }
   for (const auto& p : local) scale_ = std::max(scale_, p.lpNorm<1>());
   ++stats_.polygons;
@@ -826,11 +681,7 @@ std::uint32_t CurvedIndex<M>::insertPolygon(std::span<const Eigen::Vector3d> cor
     tris_.push_back(t);
     if (!trianglesOf_.empty()) trianglesOf_.emplace(id, i);
     ++stats_.triangles;
-    if constexpr (kAngularV<M>) {
-      double tp;
-      if (box.vhi >= 90.0 && hits(t, lineAt(0.0, 90.0), tp)) polarNorth_.push_back(i);
-      if (box.vlo <= -90.0 && hits(t, lineAt(0.0, -90.0), tp)) polarSouth_.push_back(i);
-    }
+    addToPolarLists(i, box);
     // Grow the tree's box to the footprint (all of u when it crosses the seam).
     if (box.vlo < root.vlo || box.vhi > root.vhi) grows = true;
     root.vlo = std::min(root.vlo, box.vlo), root.vhi = std::max(root.vhi, box.vhi);

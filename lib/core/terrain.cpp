@@ -19,7 +19,7 @@
 
 namespace qota {
 
-static_assert(EditableTerrain<TerrainIndex>);
+static_assert(EditableTerrain<TerrainIndex>);  // (and every PlanarIndex<M>: the same core)
 
 namespace {
 
@@ -73,7 +73,7 @@ inline PlaneFit fitPlane(const double u[3], const double v[3], const double h[3]
 
 // fitPlane and the plane's height at (u, v) for kLanes points at once, in SIMD (AVX2 where the
 // processor has it, SSE2 otherwise; chosen at load time). Each lane performs the same IEEE
-// operations in the same order as fitPlane and TerrainIndex::leanHeight, with no fused
+// operations in the same order as fitPlane and PlanarCore::leanHeight, with no fused
 // multiply-add, so the same bits. Inputs are structure-of-arrays: corner k of lane i at
 // [k * kLanes + i]. ok[i] is false where the lane needs the scalar path: a sliver's plane, or a
 // height that the clamp to the corners' range could change.
@@ -185,9 +185,8 @@ int convexOrientation(std::span<const std::uint32_t> idx, std::span<const Point2
 
 }  // namespace
 
-TerrainIndex::TerrainIndex(const Mesh& mesh, const CartesianMapping& mapping,
-                           const TerrainOptions& options)
-    : mapping_(mapping) {
+PlanarCore::PlanarCore(const Mesh& mesh, const PlanarFrame& frame, const IndexOptions& options)
+    : frame_(frame) {
   const std::size_t nv = mesh.vertices.size();
   const std::size_t np = mesh.polygonCount();
   if (nv >= std::numeric_limits<std::uint32_t>::max() || np >= std::numeric_limits<std::uint32_t>::max()) {
@@ -207,7 +206,7 @@ TerrainIndex::TerrainIndex(const Mesh& mesh, const CartesianMapping& mapping,
   corners2_.resize(nv);
   cornerH_.resize(nv);
   for (std::size_t i = 0; i < nv; ++i) {
-    mapped[i] = mapping_.toMapped(mesh.vertices[i]);
+    mapped[i] = frame_.toMapped(mesh.vertices[i]);
     corners2_[i] = {mapped[i].x(), mapped[i].y()};
     cornerH_[i] = mapped[i].z();
   }
@@ -333,7 +332,7 @@ TerrainIndex::TerrainIndex(const Mesh& mesh, const CartesianMapping& mapping,
   }
 }
 
-void TerrainIndex::setUpLeanGrid() {
+void PlanarCore::setUpLeanGrid() {
   gridLean_ = gridAxesF32_ = false;
   gridCellsU_ = gridW_ ? gridW_ - 1.0 : 0.0, gridCellsV_ = gridH_ ? gridH_ - 1.0 : 0.0;
   gridColU_.clear(), gridRowV_.clear(), gridPresent_.clear();
@@ -398,7 +397,7 @@ void TerrainIndex::setUpLeanGrid() {
   }
 }
 
-std::vector<std::uint32_t> TerrainIndex::gridSlots(std::span<const Pending> pending) {
+std::vector<std::uint32_t> PlanarCore::gridSlots(std::span<const Pending> pending) {
   // A regular grid of w x h vertices, two triangles per cell split along the diagonal from
   // vertex x to x + w + 1 (loadDem's and Heightfield's layout). w from the first triangle, then
   // every triangle must be one half of a cell, each half once. Returns each triangle's slot,
@@ -457,7 +456,7 @@ std::vector<std::uint32_t> TerrainIndex::gridSlots(std::span<const Pending> pend
   return slots;
 }
 
-void TerrainIndex::clearGridSlot(std::uint32_t t) {
+void PlanarCore::clearGridSlot(std::uint32_t t) {
   std::array<std::uint32_t, 3> k{cold_[t].corner[0], cold_[t].corner[1], cold_[t].corner[2]};
   std::sort(k.begin(), k.end());
   const std::uint64_t x = k[0], col = x % gridW_, row = x / gridW_;
@@ -471,7 +470,7 @@ void TerrainIndex::clearGridSlot(std::uint32_t t) {
   }
 }
 
-const TerrainIndex::Tri& TerrainIndex::gridRecord(std::uint32_t t, Tri& scratch) const {
+const PlanarCore::Tri& PlanarCore::gridRecord(std::uint32_t t, Tri& scratch) const {
   // A lean grid never reads the records, not even once the tree has made them: they may be
   // being made on another thread.
   if (!gridLean_) return tris_[t];
@@ -479,11 +478,11 @@ const TerrainIndex::Tri& TerrainIndex::gridRecord(std::uint32_t t, Tri& scratch)
   return scratch;
 }
 
-TerrainIndex::Tri TerrainIndex::recordOf(std::uint32_t t) const {
+PlanarCore::Tri PlanarCore::recordOf(std::uint32_t t) const {
   return gridLean_ || t >= tris_.size() ? computeRecord(cold_[t].corner) : tris_[t];
 }
 
-[[gnu::always_inline]] inline TerrainIndex::GridCell TerrainIndex::gridCell(double u, double v) const {
+[[gnu::always_inline]] inline PlanarCore::GridCell PlanarCore::gridCell(double u, double v) const {
   GridCell g{};
   const double du = u - gridU0_, dv = v - gridV0_;
   g.fc = gridInv_[0] * du + gridInv_[1] * dv, g.fr = gridInv_[2] * du + gridInv_[3] * dv;
@@ -503,7 +502,7 @@ TerrainIndex::Tri TerrainIndex::recordOf(std::uint32_t t) const {
   return g;
 }
 
-[[gnu::always_inline]] inline void TerrainIndex::leanCorner(std::uint64_t col, std::uint64_t row,
+[[gnu::always_inline]] inline void PlanarCore::leanCorner(std::uint64_t col, std::uint64_t row,
                                                             std::uint32_t half, int k, double& u,
                                                             double& v, double& h) const {
   const std::uint64_t x = row * gridW_ + col + gridCorner_[half][k];
@@ -520,7 +519,7 @@ TerrainIndex::Tri TerrainIndex::recordOf(std::uint32_t t) const {
   h = gridH32_.empty() ? cornerH_[x] : static_cast<double>(gridH32_[x]);
 }
 
-[[gnu::always_inline]] inline void TerrainIndex::leanCorners(std::uint64_t col, std::uint64_t row,
+[[gnu::always_inline]] inline void PlanarCore::leanCorners(std::uint64_t col, std::uint64_t row,
                                                              std::uint32_t half, double* cu,
                                                              double* cv, double* ch,
                                                              std::size_t stride) const {
@@ -532,7 +531,7 @@ TerrainIndex::Tri TerrainIndex::recordOf(std::uint32_t t) const {
 // clamp where they change nothing: finite slopes of an up-facing plane (nh > 0) give a finite
 // height, slopes that are not finite give none, so nh > 0 and a height within the corners' range
 // stand for all of them.
-[[gnu::always_inline]] inline double TerrainIndex::leanAnswer(std::uint64_t col, std::uint64_t row,
+[[gnu::always_inline]] inline double PlanarCore::leanAnswer(std::uint64_t col, std::uint64_t row,
                                                               std::uint32_t half, double u, double v,
                                                               LeanPlane& p) const {
   double u0, v0, h0, u1, v1, h1, u2, v2, h2;
@@ -552,14 +551,14 @@ TerrainIndex::Tri TerrainIndex::recordOf(std::uint32_t t) const {
 // heightOf's expression on the record the same corners make. The clamp to the corners' height
 // range rounded outward to floats changes nothing for a value inside the range itself, the common
 // case.
-[[gnu::always_inline]] inline double TerrainIndex::leanHeight(const LeanPlane& p, double u, double v) {
+[[gnu::always_inline]] inline double PlanarCore::leanHeight(const LeanPlane& p, double u, double v) {
   const double h = p.h0 + p.a * (u - p.u0) + p.b * (v - p.v0);
   if (h >= p.lo && h <= p.hi) [[likely]] return h;
   return std::clamp(h, static_cast<double>(floatBelow(p.lo)), static_cast<double>(floatAbove(p.hi)));
 }
 
 template <bool NeedId>
-[[gnu::always_inline]] inline std::uint32_t TerrainIndex::gridAnswer(double u, double v, double& h, Quadtree::Cursor* cursor) const {
+[[gnu::always_inline]] inline std::uint32_t PlanarCore::gridAnswer(double u, double v, double& h, Quadtree::Cursor* cursor) const {
   if (gridLean_) {
     const GridCell g = gridCell(u, v);
     if (g.inGrid && g.clear) [[likely]] {
@@ -598,7 +597,7 @@ template <bool NeedId>
   return gridAnswerFromRecords(u, v, h);
 }
 
-[[gnu::noinline]] std::uint32_t TerrainIndex::gridAnswerFromRecords(double u, double v, double& h) const {
+[[gnu::noinline]] std::uint32_t PlanarCore::gridAnswerFromRecords(double u, double v, double& h) const {
   Tri scratch;
   const Tri* rec = nullptr;
   const std::uint32_t t = gridTriangle(u, v, scratch, rec);
@@ -606,7 +605,7 @@ template <bool NeedId>
   return t;
 }
 
-[[gnu::noinline]] std::uint32_t TerrainIndex::gridAnswerNearEdge(double u, double v, double fc, double fr,
+[[gnu::noinline]] std::uint32_t PlanarCore::gridAnswerNearEdge(double u, double v, double fc, double fr,
                                                                 double& h) const {
   Tri scratch;
   const Tri* rec = nullptr;
@@ -615,7 +614,7 @@ template <bool NeedId>
   return t;
 }
 
-std::uint32_t TerrainIndex::gridTriangle(double u, double v, Tri& scratch, const Tri*& rec) const {
+std::uint32_t PlanarCore::gridTriangle(double u, double v, Tri& scratch, const Tri*& rec) const {
   const double du = u - gridU0_, dv = v - gridV0_;
   const double fc = gridInv_[0] * du + gridInv_[1] * dv, fr = gridInv_[2] * du + gridInv_[3] * dv;
   if (fc >= 0 && fr >= 0 && fc < gridW_ - 1 && fr < gridH_ - 1) [[likely]] {
@@ -639,7 +638,7 @@ std::uint32_t TerrainIndex::gridTriangle(double u, double v, Tri& scratch, const
   return gridTriangleNearEdge(u, v, fc, fr, scratch, rec);
 }
 
-std::uint32_t TerrainIndex::gridTriangleNearEdge(double u, double v, double fc, double fr,
+std::uint32_t PlanarCore::gridTriangleNearEdge(double u, double v, double fc, double fr,
                                                  Tri& scratch, const Tri*& rec) const {
   // Beyond a cell off the grid nothing can hold the point; NaN lands here too.
   if (!(fc >= -1 && fr >= -1 && fc <= gridW_ && fr <= gridH_)) return kOffGrid;
@@ -672,7 +671,7 @@ std::uint32_t TerrainIndex::gridTriangleNearEdge(double u, double v, double fc, 
   return best == kNone ? kOffGrid : best;
 }
 
-void TerrainIndex::fanPolygon(std::span<const std::uint32_t> idx, std::uint32_t p,
+void PlanarCore::fanPolygon(std::span<const std::uint32_t> idx, std::uint32_t p,
                               std::vector<Pending>& pending) const {
   const int sign = idx.size() == 3
                        ? orient2dSign(corners2_[idx[0]], corners2_[idx[1]], corners2_[idx[2]])
@@ -690,13 +689,13 @@ void TerrainIndex::fanPolygon(std::span<const std::uint32_t> idx, std::uint32_t 
 // A u + B v + C for every (u, v) in the domain: the rounded A, B, C (one rounding each, two for
 // C's products) and the evaluation (three roundings) stay within 8 units of the magnitude sum;
 // 16 leaves a margin. Returns the triangle's bounding box.
-Box2 TerrainIndex::makeRecord(std::uint32_t t, const Pending& q) {
+Box2 PlanarCore::makeRecord(std::uint32_t t, const Pending& q) {
   cold_[t] = Cold{{q.corner[0], q.corner[1], q.corner[2]}, q.polygon};
   tris_[t] = computeRecord(q.corner);
   return boxOf(t);
 }
 
-TerrainIndex::Tri TerrainIndex::computeRecord(const std::uint32_t corner[3]) const {
+PlanarCore::Tri PlanarCore::computeRecord(const std::uint32_t corner[3]) const {
   Tri r;
   edgeRecord(corner, r);
   planeRecord(corner, r);
@@ -705,7 +704,7 @@ TerrainIndex::Tri TerrainIndex::computeRecord(const std::uint32_t corner[3]) con
 
 // The edge equations, their tolerance and corner 0: cheap, recomputed per query on a compact
 // grid.
-void TerrainIndex::edgeRecord(const std::uint32_t corner[3], Tri& r) const {
+void PlanarCore::edgeRecord(const std::uint32_t corner[3], Tri& r) const {
   double tol = 0;
   for (int k = 0; k < 3; ++k) {
     const Point2 p0 = corners2_[corner[k]], p1 = corners2_[corner[(k + 1) % 3]];
@@ -720,7 +719,7 @@ void TerrainIndex::edgeRecord(const std::uint32_t corner[3], Tri& r) const {
 }
 
 // The plane's slopes and the height range: two divisions, kept per triangle on a compact grid.
-void TerrainIndex::planeRecord(const std::uint32_t corner[3], Tri& r) const {
+void PlanarCore::planeRecord(const std::uint32_t corner[3], Tri& r) const {
   double u[3], v[3], h[3];
   for (int k = 0; k < 3; ++k) {
     u[k] = corners2_[corner[k]].u, v[k] = corners2_[corner[k]].v, h[k] = cornerH_[corner[k]];
@@ -734,7 +733,7 @@ void TerrainIndex::planeRecord(const std::uint32_t corner[3], Tri& r) const {
 // A triangle is referenced from a leaf when its closed projection meets the closed leaf box
 // (separating axes: the box axes, then each edge with its error bound, so that a triangle is
 // dropped only when the box is certainly outside it).
-bool TerrainIndex::overlaps(std::uint32_t t, const Box2& tb, const Box2& b) const {
+bool PlanarCore::overlaps(std::uint32_t t, const Box2& tb, const Box2& b) const {
   const Tri& r = tris_[t];
   if (tb.ulo > b.uhi || tb.uhi < b.ulo || tb.vlo > b.vhi || tb.vhi < b.vlo) return false;
   for (int k = 0; k < 3; ++k) {
@@ -745,7 +744,7 @@ bool TerrainIndex::overlaps(std::uint32_t t, const Box2& tb, const Box2& b) cons
   return true;
 }
 
-Box2 TerrainIndex::boxOf(std::uint32_t t) const {
+Box2 PlanarCore::boxOf(std::uint32_t t) const {
   Box2 bb{INFINITY, INFINITY, -INFINITY, -INFINITY};
   for (std::uint32_t c : cold_[t].corner) {
     bb.ulo = std::min(bb.ulo, corners2_[c].u), bb.uhi = std::max(bb.uhi, corners2_[c].u);
@@ -757,7 +756,7 @@ Box2 TerrainIndex::boxOf(std::uint32_t t) const {
 // Single-layer leaves: where no two of a leaf's triangles overlap, the first one containing a
 // point is the only surface there, and the query stops at it. Their items are put in polygon
 // order so that this first one is also the smallest polygon id, as the tie rule says.
-bool TerrainIndex::prepareLeaf(std::span<std::uint32_t> items) const {
+bool PlanarCore::prepareLeaf(std::span<std::uint32_t> items) const {
   // The pairwise check is quadratic: a leaf this large (a large Maxpoly, or a stack no cut can
   // part) is simply not marked, which only costs the early exit.
   if (items.size() > 64) return false;
@@ -772,7 +771,7 @@ bool TerrainIndex::prepareLeaf(std::span<std::uint32_t> items) const {
   return true;
 }
 
-void TerrainIndex::setTreeFloor(const std::vector<Box2>& boxes) const {
+void PlanarCore::setTreeFloor(const std::vector<Box2>& boxes) const {
   // The size floor of the tree: half the median triangle extent along each axis. Smaller nodes
   // cannot part triangles that are larger than they are (a stack of surfaces seen along a
   // grazing light, a fan), they only multiply references.
@@ -789,7 +788,7 @@ void TerrainIndex::setTreeFloor(const std::vector<Box2>& boxes) const {
   floorV_ = 0.5 * dv[dv.size() / 2];
 }
 
-void TerrainIndex::buildDeferredTree() const {
+void PlanarCore::buildDeferredTree() const {
   if (tris_.size() != cold_.size()) {
     tris_.resize(cold_.size());
     for (std::uint32_t t = 0; t < cold_.size(); ++t) tris_[t] = computeRecord(cold_[t].corner);
@@ -810,7 +809,7 @@ void TerrainIndex::buildDeferredTree() const {
   deferred_->built = true;
 }
 
-bool TerrainIndex::separated(std::uint32_t a, std::uint32_t b) const {
+bool PlanarCore::separated(std::uint32_t a, std::uint32_t b) const {
   // Two counter-clockwise triangles have disjoint interiors exactly when an edge line of one has
   // all corners of the other on its outer side or on it (separating axis theorem). The edge
   // equations decide unless a corner is within their error bound of the line; then the exact
@@ -839,7 +838,7 @@ bool TerrainIndex::separated(std::uint32_t a, std::uint32_t b) const {
   return apart(a, b) || apart(b, a);
 }
 
-bool TerrainIndex::inside(std::uint32_t t, double u, double v) const {
+bool PlanarCore::inside(std::uint32_t t, double u, double v) const {
   const Cold& c = cold_[t];
   const Point2 p{u, v};
   for (int k = 0; k < 3; ++k) {
@@ -848,7 +847,7 @@ bool TerrainIndex::inside(std::uint32_t t, double u, double v) const {
   return true;
 }
 
-inline double TerrainIndex::heightOf(const Tri& t, double u, double v) const {
+inline double PlanarCore::heightOf(const Tri& t, double u, double v) const {
   // The clamp keeps a sliver's extrapolated plane inside its corners' height range.
   return std::clamp(t.h0 + t.a * (u - t.u0) + t.b * (v - t.v0), static_cast<double>(t.hlo),
                     static_cast<double>(t.hhi));
@@ -862,7 +861,7 @@ inline double TerrainIndex::heightOf(const Tri& t, double u, double v) const {
 // then selects without branching on the data, except for the rare point within rounding of an
 // edge, which takes the exact predicate.
 template <bool Below>
-std::uint32_t TerrainIndex::nearest(double u, double v, double z, double& h,
+std::uint32_t PlanarCore::nearest(double u, double v, double z, double& h,
                                     Quadtree::Cursor* cursor) const {
   if (gridW_) {
     const std::uint32_t t = gridAnswer<true>(u, v, h, cursor);
@@ -877,7 +876,7 @@ std::uint32_t TerrainIndex::nearest(double u, double v, double z, double& h,
   return nearestIn<Below>(items, Quadtree::singleLayer(leaf), u, v, z, h);
 }
 
-void TerrainIndex::prefetchTriangles(std::span<const std::uint32_t> items) const {
+void PlanarCore::prefetchTriangles(std::span<const std::uint32_t> items) const {
   for (std::uint32_t t : items) {
     const char* p = reinterpret_cast<const char*>(&tris_[t]);
     __builtin_prefetch(p);
@@ -885,7 +884,7 @@ void TerrainIndex::prefetchTriangles(std::span<const std::uint32_t> items) const
   }
 }
 
-bool TerrainIndex::contains(const Tri& r, std::uint32_t t, double u, double v) const {
+bool PlanarCore::contains(const Tri& r, std::uint32_t t, double u, double v) const {
   const double e0 = r.A[0] * u + r.B[0] * v + r.C[0];
   const double e1 = r.A[1] * u + r.B[1] * v + r.C[1];
   const double e2 = r.A[2] * u + r.B[2] * v + r.C[2];
@@ -895,7 +894,7 @@ bool TerrainIndex::contains(const Tri& r, std::uint32_t t, double u, double v) c
 }
 
 template <bool Below>
-std::uint32_t TerrainIndex::nearestIn(std::span<const std::uint32_t> items, bool singleLayer,
+std::uint32_t PlanarCore::nearestIn(std::span<const std::uint32_t> items, bool singleLayer,
                                       double u, double v, double z, double& h) const {
   if (singleLayer) {
     // One surface: the first triangle containing the point is the answer, if on the right side.
@@ -936,34 +935,34 @@ std::uint32_t TerrainIndex::nearestIn(std::span<const std::uint32_t> items, bool
   return found;
 }
 
-Hit TerrainIndex::makeHit(std::uint32_t t, double u, double v, double h) const {
+Hit PlanarCore::makeHit(std::uint32_t t, double u, double v, double h) const {
   const Tri r = recordOf(t);
   Hit hit;
   hit.height = h;
-  hit.world = mapping_.toWorld(Eigen::Vector3d(u, v, h));
-  hit.normal = mapping_.directionToWorld(Eigen::Vector3d(-r.a, -r.b, 1.0).normalized());
+  hit.world = frame_.toWorld(Eigen::Vector3d(u, v, h));
+  hit.normal = frame_.directionToWorld(Eigen::Vector3d(-r.a, -r.b, 1.0).normalized());
   hit.polygon = cold_[t].polygon;
   return hit;
 }
 
 template <bool Below>
-std::optional<Hit> TerrainIndex::hitAt(double u, double v, double z, Quadtree::Cursor* cursor) const {
+std::optional<Hit> PlanarCore::hitAt(double u, double v, double z, Quadtree::Cursor* cursor) const {
   double h = 0;
   const std::uint32_t t = nearest<Below>(u, v, z, h, cursor);
   if (t == kNone) return std::nullopt;
   return makeHit(t, u, v, h);
 }
 
-std::optional<Hit> TerrainIndex::below(double u, double v, double z) const {
+std::optional<Hit> PlanarCore::below(double u, double v, double z) const {
   return hitAt<true>(u, v, z, nullptr);
 }
 
-std::optional<Hit> TerrainIndex::above(double u, double v, double z) const {
+std::optional<Hit> PlanarCore::above(double u, double v, double z) const {
   return hitAt<false>(u, v, z, nullptr);
 }
 
 template <class ZOf>
-void TerrainIndex::heightsBelowBatch(std::span<const Point2> points, const ZOf& zOf,
+void PlanarCore::heightsBelowBatch(std::span<const Point2> points, const ZOf& zOf,
                                      std::span<std::optional<double>> heights) const {
   // Software pipelining over groups of points: first every point's leaf (the jump table), then
   // every leaf's reference list, then every leaf's triangles, each stage issuing its loads for
@@ -1074,23 +1073,23 @@ void TerrainIndex::heightsBelowBatch(std::span<const Point2> points, const ZOf& 
   }
 }
 
-void TerrainIndex::heightsBelow(std::span<const Point2> points, double z,
+void PlanarCore::heightsBelow(std::span<const Point2> points, double z,
                                 std::span<std::optional<double>> heights) const {
   batch::requireRoom("heightsBelow", points.size(), heights.size());
   heightsBelowBatch(points, [z](std::size_t) { return z; }, heights);
 }
 
-void TerrainIndex::heightsBelow(std::span<const Point2> points, std::span<const double> zs,
+void PlanarCore::heightsBelow(std::span<const Point2> points, std::span<const double> zs,
                                 std::span<std::optional<double>> heights) const {
   batch::requireRoom("heightsBelow", points.size(), std::min(heights.size(), zs.size()));
   heightsBelowBatch(points, [zs](std::size_t i) { return zs[i]; }, heights);
 }
 
-void TerrainIndex::heights(std::span<const Point2> points, std::span<std::optional<double>> heights) const {
+void PlanarCore::heights(std::span<const Point2> points, std::span<std::optional<double>> heights) const {
   heightsBelow(points, kInf, heights);
 }
 
-void TerrainIndex::heightsBelowParallel(std::span<const Point2> points, double z,
+void PlanarCore::heightsBelowParallel(std::span<const Point2> points, double z,
                                         std::span<std::optional<double>> heights, unsigned threads) const {
   batch::requireRoom("heightsBelowParallel", points.size(), heights.size());
   ensureTree();  // built once here, not raced for by the workers (a grid may need it at holes)
@@ -1099,7 +1098,7 @@ void TerrainIndex::heightsBelowParallel(std::span<const Point2> points, double z
   });
 }
 
-void TerrainIndex::heightsBelowParallel(std::span<const Point2> points, std::span<const double> zs,
+void PlanarCore::heightsBelowParallel(std::span<const Point2> points, std::span<const double> zs,
                                         std::span<std::optional<double>> heights, unsigned threads) const {
   batch::requireRoom("heightsBelowParallel", points.size(), std::min(heights.size(), zs.size()));
   ensureTree();
@@ -1109,44 +1108,44 @@ void TerrainIndex::heightsBelowParallel(std::span<const Point2> points, std::spa
   });
 }
 
-void TerrainIndex::heightsParallel(std::span<const Point2> points, std::span<std::optional<double>> heights,
+void PlanarCore::heightsParallel(std::span<const Point2> points, std::span<std::optional<double>> heights,
                                    unsigned threads) const {
   heightsBelowParallel(points, kInf, heights, threads);
 }
 
-double TerrainIndex::heightAt(double u, double v, double z, Quadtree::Cursor* cursor) const {
+double PlanarCore::heightAt(double u, double v, double z, Quadtree::Cursor* cursor) const {
   if (!gridW_) return heightFromTree(u, v, z, cursor);
   double h = 0;  // no need for the triangle's id
   if (gridAnswer<false>(u, v, h, cursor) == kOffGrid || !(h <= z)) return NAN;
   return h;
 }
 
-[[gnu::noinline]] double TerrainIndex::heightFromTree(double u, double v, double z,
+[[gnu::noinline]] double PlanarCore::heightFromTree(double u, double v, double z,
                                                       Quadtree::Cursor* cursor) const {
   double h = 0;
   if (nearest<true>(u, v, z, h, cursor) == kNone) return NAN;
   return h;
 }
 
-std::optional<Hit> TerrainIndex::below(Quadtree::Cursor& cursor, double u, double v,
+std::optional<Hit> PlanarCore::below(Quadtree::Cursor& cursor, double u, double v,
                                        double z) const {
   return hitAt<true>(u, v, z, &cursor);
 }
 
-std::optional<Hit> TerrainIndex::above(Quadtree::Cursor& cursor, double u, double v,
+std::optional<Hit> PlanarCore::above(Quadtree::Cursor& cursor, double u, double v,
                                        double z) const {
   return hitAt<false>(u, v, z, &cursor);
 }
 
-Bracket TerrainIndex::bracket(double u, double v, double h) const {
+Bracket PlanarCore::bracket(double u, double v, double h) const {
   return {below(u, v, h), above(u, v, h)};
 }
 
-std::optional<Hit> TerrainIndex::top(double u, double v) const {
+std::optional<Hit> PlanarCore::top(double u, double v) const {
   return below(u, v, std::numeric_limits<double>::infinity());
 }
 
-std::vector<Hit> TerrainIndex::all(double u, double v) const {
+std::vector<Hit> PlanarCore::all(double u, double v) const {
   ensureTree();
   std::vector<Hit> hits;
   if (!tree_.contains(u, v)) return hits;
@@ -1168,28 +1167,28 @@ std::vector<Hit> TerrainIndex::all(double u, double v) const {
   return unique;
 }
 
-std::optional<Hit> TerrainIndex::belowWorld(const Eigen::Vector3d& p) const {
-  const Eigen::Vector3d m = mapping_.toMapped(p);
+std::optional<Hit> PlanarCore::belowWorld(const Eigen::Vector3d& p) const {
+  const Eigen::Vector3d m = frame_.toMapped(p);
   return below(m.x(), m.y(), m.z());
 }
-std::optional<Hit> TerrainIndex::aboveWorld(const Eigen::Vector3d& p) const {
-  const Eigen::Vector3d m = mapping_.toMapped(p);
+std::optional<Hit> PlanarCore::aboveWorld(const Eigen::Vector3d& p) const {
+  const Eigen::Vector3d m = frame_.toMapped(p);
   return above(m.x(), m.y(), m.z());
 }
-Bracket TerrainIndex::bracketWorld(const Eigen::Vector3d& p) const {
-  const Eigen::Vector3d m = mapping_.toMapped(p);
+Bracket PlanarCore::bracketWorld(const Eigen::Vector3d& p) const {
+  const Eigen::Vector3d m = frame_.toMapped(p);
   return bracket(m.x(), m.y(), m.z());
 }
-std::optional<Hit> TerrainIndex::topWorld(const Eigen::Vector3d& p) const {
-  const Eigen::Vector3d m = mapping_.toMapped(p);
+std::optional<Hit> PlanarCore::topWorld(const Eigen::Vector3d& p) const {
+  const Eigen::Vector3d m = frame_.toMapped(p);
   return top(m.x(), m.y());
 }
-std::vector<Hit> TerrainIndex::allWorld(const Eigen::Vector3d& p) const {
-  const Eigen::Vector3d m = mapping_.toMapped(p);
+std::vector<Hit> PlanarCore::allWorld(const Eigen::Vector3d& p) const {
+  const Eigen::Vector3d m = frame_.toMapped(p);
   return all(m.x(), m.y());
 }
 
-bool TerrainIndex::occludedAbove(double u, double v, double h, std::uint32_t vertex) const {
+bool PlanarCore::occludedAbove(double u, double v, double h, std::uint32_t vertex) const {
   ensureTree();
   if (!tree_.contains(u, v)) return false;
   for (std::uint32_t t : tree_.leafItems(u, v)) {
@@ -1198,7 +1197,7 @@ bool TerrainIndex::occludedAbove(double u, double v, double h, std::uint32_t ver
   return false;
 }
 
-bool TerrainIndex::triangleOccludesAbove(std::uint32_t t, double u, double v, double h,
+bool PlanarCore::triangleOccludesAbove(std::uint32_t t, double u, double v, double h,
                                          std::uint32_t vertex) const {
   const Cold& c = cold_[t];
   if (c.corner[0] == vertex || c.corner[1] == vertex || c.corner[2] == vertex) return false;
@@ -1226,7 +1225,7 @@ bool mappedTriangleAbove(const Eigen::Vector3d& c0, const Eigen::Vector3d& c1, c
   return std::clamp(f.h0 + f.a * (u - p0.u) + f.b * (v - p0.v), lo, hi) > h;
 }
 
-std::uint32_t TerrainIndex::testsAt(double u, double v) const {
+std::uint32_t PlanarCore::testsAt(double u, double v) const {
   ensureTree();
   if (!tree_.contains(u, v)) return 0;
   return static_cast<std::uint32_t>(tree_.leafItems(u, v).size());
@@ -1236,15 +1235,15 @@ std::uint32_t TerrainIndex::testsAt(double u, double v) const {
 
 namespace qota {
 
-std::vector<LineHit> TerrainIndex::alongLine(const Eigen::Vector3d& origin,
+std::vector<LineHit> PlanarCore::alongLine(const Eigen::Vector3d& origin,
                                              const Eigen::Vector3d& direction, double tmin,
                                              double tmax) const {
   ensureTree();
   std::vector<LineHit> out;
   if (!origin.allFinite() || !direction.allFinite() || direction.squaredNorm() == 0) return out;  // no line
   // The line in the mapped frame: O + t d.
-  const Eigen::Vector3d O = mapping_.toMapped(origin);
-  const Eigen::Vector3d dn = mapping_.vertical() ? direction : Eigen::Vector3d(mapping_.rotation() * direction);
+  const Eigen::Vector3d O = frame_.toMapped(origin);
+  const Eigen::Vector3d dn = frame_.directionToMapped(direction);
   // Only the part of the line inside the terrain's height slab can meet it.
   double t0 = tmin, t1 = tmax;
   if (dn.z() != 0) {
@@ -1304,7 +1303,7 @@ std::vector<LineHit> TerrainIndex::alongLine(const Eigen::Vector3d& origin,
     lh.t = tt;
     lh.hit.height = O.z() + tt * dn.z();
     lh.hit.world = origin + tt * direction;
-    lh.hit.normal = mapping_.directionToWorld(n.normalized());
+    lh.hit.normal = frame_.directionToWorld(n.normalized());
     lh.hit.polygon = c.polygon;
     out.push_back(lh);
   }
@@ -1318,7 +1317,7 @@ std::vector<LineHit> TerrainIndex::alongLine(const Eigen::Vector3d& origin,
 
 namespace qota {
 
-void TerrainIndex::rebuildTree(const Box2& domain) {
+void PlanarCore::rebuildTree(const Box2& domain) {
   // The edge tolerances hold for points within the domain: recompute them for the new one.
   umax_ = std::max(std::fabs(domain.ulo), std::fabs(domain.uhi));
   vmax_ = std::max(std::fabs(domain.vlo), std::fabs(domain.vhi));
@@ -1339,7 +1338,7 @@ void TerrainIndex::rebuildTree(const Box2& domain) {
   stats_.domain = domain;
 }
 
-std::uint32_t TerrainIndex::insertPolygon(std::span<const Eigen::Vector3d> corners) {
+std::uint32_t PlanarCore::insertPolygon(std::span<const Eigen::Vector3d> corners) {
   ensureTree();
   ++generation_;
   const auto id = static_cast<std::uint32_t>(stats_.polygons);
@@ -1353,7 +1352,7 @@ std::uint32_t TerrainIndex::insertPolygon(std::span<const Eigen::Vector3d> corne
   std::vector<std::uint32_t> idx;
   const std::size_t firstVertex = corners2_.size();
   for (const Eigen::Vector3d& c : corners) {
-    const Eigen::Vector3d m = mapping_.toMapped(c);
+    const Eigen::Vector3d m = frame_.toMapped(c);
     if (!c.allFinite() || !m.allFinite()) {
       corners2_.resize(firstVertex), cornerH_.resize(firstVertex);
       throw Error("insertPolygon: corner " + describePoint(c) + " is not finite");
@@ -1410,7 +1409,7 @@ std::uint32_t TerrainIndex::insertPolygon(std::span<const Eigen::Vector3d> corne
   return id;
 }
 
-bool TerrainIndex::removePolygon(std::uint32_t polygon) {
+bool PlanarCore::removePolygon(std::uint32_t polygon) {
   ensureTree();
   ++generation_;
   if (polygon >= stats_.polygons) return false;

@@ -3,7 +3,7 @@
 #include <cmath>
 #include <cstring>
 #include <fstream>
-#include <type_traits>
+#include <tuple>
 #include <vector>
 
 #include "qota/any_mapping.hpp"
@@ -140,12 +140,10 @@ class Reader {
   Checksum sum_;
 };
 
-template <class I>
-constexpr std::uint32_t kindOf() {
-  if constexpr (std::is_same_v<I, TerrainIndex>) return 0;
-  else if constexpr (std::is_same_v<I, SphericalIndex>) return 1;
-  else if constexpr (std::is_same_v<I, CylindricalIndex>) return 2;
-  else return 3;
+// A file's kind: its mapping's place in AnyMapping's list (any_mapping.hpp).
+template <class Index>
+std::uint32_t kindOf(const Index& index) {
+  return static_cast<std::uint32_t>(AnyMapping(index.mapping()).index());
 }
 
 }  // namespace
@@ -222,7 +220,7 @@ struct TreeFileAccess {
     }
   }
 
-  static void write(Writer& w, const TerrainIndex& x) {
+  static void write(Writer& w, const PlanarCore& x) {
     x.stats();  // brings the tree statistics up to date after edits
     w.pod(x.hmin_);
     w.pod(x.hmax_);
@@ -243,7 +241,7 @@ struct TreeFileAccess {
     write(w, x.tree_);
   }
 
-  static void read(Reader& r, TerrainIndex& x) {
+  static void read(Reader& r, PlanarCore& x) {
     x.hmin_ = r.pod<double>("heights");
     x.hmax_ = r.pod<double>("heights");
     x.umax_ = r.pod<double>("domain");
@@ -264,20 +262,20 @@ struct TreeFileAccess {
   }
 
   // What a valid file's arrays determine: the lean grid's tables.
-  static void derive(TerrainIndex& x) {
+  static void derive(PlanarCore& x) {
     if (x.gridW_) x.setUpLeanGrid();
   }
   template <class M>
   static void derive(CurvedIndex<M>&) {}
 
-  static void validate(const Reader& r, const TerrainIndex& x) {
+  static void validate(const Reader& r, const PlanarCore& x) {
     if (x.gridW_) {
       if (x.gridW_ < 2 || x.gridH_ < 2 ||
           x.cellTri_.size() != 2ull * (x.gridW_ - 1) * (x.gridH_ - 1)) {
         r.fail("the grid's cell table has the wrong size");
       }
       for (std::uint32_t t : x.cellTri_) {
-        if (t != TerrainIndex::kNone && t >= x.tris_.size()) r.fail("a grid cell references a missing triangle");
+        if (t != PlanarCore::kNone && t >= x.tris_.size()) r.fail("a grid cell references a missing triangle");
       }
       for (double g : {x.gridU0_, x.gridV0_, x.gridInv_[0], x.gridInv_[1], x.gridInv_[2], x.gridInv_[3]}) {
         if (!std::isfinite(g)) r.fail("the grid's geometry is not finite");
@@ -328,13 +326,18 @@ struct TreeFileAccess {
     validate(r, x.tree_, x.tris_.size());
   }
 
-  template <class I>
-  static I load(Reader& r, const AnyMapping& mapping) {
-    I index;
-    using M = std::decay_t<decltype(index.mapping())>;
-    const M* m = std::get_if<M>(&mapping);
-    if (!m) r.fail("its mapping does not match its kind");
-    index.mapping_ = *m;
+  template <PlanarMapping M>
+  static PlanarIndex<M> load(Reader& r, const M& mapping) {
+    PlanarIndex<M> index;
+    index.mapping_ = mapping;
+    index.frame_ = mapping.frame();
+    read(r, index);
+    return index;
+  }
+  template <AxialMapping M>
+  static CurvedIndex<M> load(Reader& r, const M& mapping) {
+    CurvedIndex<M> index;
+    index.mapping_ = mapping;
     read(r, index);
     return index;
   }
@@ -358,7 +361,7 @@ void saveTree(const std::string& path, const Index& index, const TreeSource& sou
   std::ofstream& out = file.stream();
   // The header, with the payload's size and checksum filled in once it is written.
   out.write(kMagic, 8);
-  const std::uint32_t version = kVersion, kind = kindOf<Index>();
+  const std::uint32_t version = kVersion, kind = kindOf(index);
   out.write(reinterpret_cast<const char*>(&version), 4);
   out.write(reinterpret_cast<const char*>(&kind), 4);
   const std::uint64_t zero = 0;
@@ -382,10 +385,12 @@ void saveTree(const std::string& path, const Index& index, const TreeSource& sou
   file.commit();
 }
 
-template void saveTree(const std::string&, const TerrainIndex&, const TreeSource&);
-template void saveTree(const std::string&, const SphericalIndex&, const TreeSource&);
-template void saveTree(const std::string&, const CylindricalIndex&, const TreeSource&);
-template void saveTree(const std::string&, const GeodeticIndex&, const TreeSource&);
+// saveTree for every index of AnyIndex (a mapping added to the list has its tree files).
+template <class... I>
+constexpr auto savers(std::variant<I...>*) {
+  return std::tuple{&saveTree<I>...};
+}
+[[maybe_unused]] const auto kSavers = savers(static_cast<AnyIndex*>(nullptr));
 
 void saveTree(const std::string& path, const AnyIndex& index, const TreeSource& source) {
   std::visit([&](const auto& i) { saveTree(path, i, source); }, index);
@@ -414,7 +419,9 @@ TreeFile loadTree(const std::string& path) {
                 std::to_string(kOldestVersion) + " to " + std::to_string(kVersion) +
                 "; rebuild it from its source with qota build");
   }
-  if (kind > 3) throw Error(path + ": not a valid qota tree file: unknown kind " + std::to_string(kind));
+  if (kind >= std::variant_size_v<AnyMapping>) {
+    throw Error(path + ": not a valid qota tree file: unknown kind " + std::to_string(kind));
+  }
   if (payload != fileSize - 32) {
     throw Error(path + ": not a valid qota tree file: truncated or extended (" +
                 std::to_string(fileSize - 32) + " payload bytes, the header says " +
@@ -439,14 +446,8 @@ TreeFile loadTree(const std::string& path) {
   if (!(source.metresPerUnit > 0) || !std::isfinite(source.metresPerUnit) || source.band < 1) {
     r.fail("bad source band or vertical unit");
   }
-  TreeFile tf{[&]() -> AnyIndex {
-                switch (kind) {
-                  case 0: return TreeFileAccess::load<TerrainIndex>(r, mapping);
-                  case 1: return TreeFileAccess::load<SphericalIndex>(r, mapping);
-                  case 2: return TreeFileAccess::load<CylindricalIndex>(r, mapping);
-                  default: return TreeFileAccess::load<GeodeticIndex>(r, mapping);
-                }
-              }(),
+  if (mapping.index() != kind) r.fail("its mapping does not match its kind");
+  TreeFile tf{std::visit([&](const auto& m) -> AnyIndex { return TreeFileAccess::load(r, m); }, mapping),
               std::move(source)};
   if (r.left() != 0) r.fail("unexpected bytes after the index");
   if (r.checksum() != checksum) r.fail("checksum mismatch (the file is damaged or was altered)");

@@ -140,7 +140,7 @@ class CurvedIndex {
   struct Line {
     double s;
     double d[3];
-    double nprime;  // geodetic: N at the latitude (h = t - N); else 0
+    double hOffset;  // the height of O + t d is t - hOffset (geodetic: N at the latitude; else 0)
     double bound;   // error bound of the filtered edge tests on this line
   };
   Line lineAt(double u, double v) const;
@@ -164,8 +164,9 @@ class CurvedIndex {
   struct FootBox {
     double ulo, uhi, vlo, vhi;
   };
-  bool makeTriangle(const Eigen::Vector3d p[3], const double vertexHeight[3], std::uint32_t poly,
+  bool makeTriangle(const Eigen::Vector3d (&p)[3], const double (&vertexHeight)[3], std::uint32_t poly,
                     Tri& t, FootBox& box) const;
+  void addToPolarLists(std::uint32_t i, const FootBox& box);
   // The tree's overlap test: the record's float box (rounded outward) against a node's box, with
   // the seam; the same at build and on edits.
   bool overlaps(std::uint32_t i, const Box2& b) const {
@@ -186,7 +187,7 @@ class CurvedIndex {
   // Whether the line meets triangle t; t_out is the line parameter of the hit.
   bool hits(const Tri& t, const Line& line, double& tOut) const;
   int edgeSign(const double* a, const double* b, const Line& line, double bound) const;
-  double heightOf(const Line& line, double t) const { return t - line.nprime; }
+  double heightOf(const Line& line, double t) const { return t - line.hOffset; }
   double elevation(double h) const { return M::kHeightUp ? h : -h; }
   // Calls visit(i) for every candidate triangle of (u, v); sets line (to storage) before the
   // first call (the line is computed while the candidates load).
@@ -212,9 +213,6 @@ class CurvedIndex {
   // The top of the mapping's h ("below" any terrain) in the direction of up.
   static constexpr double kTop = M::kHeightUp ? std::numeric_limits<double>::infinity()
                                               : -std::numeric_limits<double>::infinity();
-  Eigen::Vector3d localToWorld(const Eigen::Vector3d& local) const;
-  Eigen::Vector3d localDirToWorld(const Eigen::Vector3d& local) const;
-  Eigen::Vector3d worldToLocal(const Eigen::Vector3d& world) const;
 
   M mapping_;
   BigVector<Tri> tris_;

@@ -1,4 +1,5 @@
-// TerrainIndex: the QOTA terrain query structure for a Cartesian mapping (MERL TR-96-17).
+// TerrainIndex (PlanarIndex<M>): the QOTA terrain query structure for a planar mapping: the
+// Cartesian one with any gravity (MERL TR-96-17), or a local east-north-up frame.
 //
 // Build: every vertex is mapped once to (u, v, h) (so polygons sharing a vertex share its mapped
 // coordinates bit for bit); every convex polygon is split into a fan of triangles in the mapped
@@ -46,16 +47,19 @@
 #include "qota/cartesian.hpp"
 #include "qota/memory.hpp"
 #include "qota/mesh.hpp"
+#include "qota/planar.hpp"
 #include "qota/predicates.hpp"
 #include "qota/quadtree.hpp"
 #include "qota/vocabulary.hpp"
 
 namespace qota {
 
-class TerrainIndex {
+// The planar index's work, written once over the frame of any planar mapping (planar.hpp);
+// PlanarIndex<M> below adds the mapping itself.
+class PlanarCore {
  public:
   // Throws qota::Error for invalid polygons (see the rules above).
-  TerrainIndex(const Mesh& mesh, const CartesianMapping& mapping, const TerrainOptions& options = {});
+  PlanarCore(const Mesh& mesh, const PlanarFrame& frame, const IndexOptions& options = {});
 
 
   // Queries at a point (u, v) of the mapped frame.
@@ -134,7 +138,7 @@ class TerrainIndex {
   // never shade it (they meet its line at the point itself).
   bool occludedAbove(double u, double v, double h, std::uint32_t vertex) const;
 
-  const CartesianMapping& mapping() const { return mapping_; }
+  const PlanarFrame& frame() const { return frame_; }
   // True while the grid fast path is active (TerrainOptions::gridFastPath, a regular grid, no
   // insertion since).
   bool gridFastPath() const { return gridW_ != 0; }
@@ -163,9 +167,11 @@ class TerrainIndex {
   // The memory a query at (u, v) looks at: polygon tests (bbox checks), the size of its leaf.
   std::uint32_t testsAt(double u, double v) const;
 
+ protected:
+  PlanarCore() = default;
+
  private:
   friend struct TreeFileAccess;  // the on-disk format (treefile.hpp)
-  TerrainIndex() = default;
   static constexpr double kTop = std::numeric_limits<double>::infinity();  // "below" any terrain
   template <class ZOf>  // z of point i: zOf(i)
   void heightsBelowBatch(std::span<const Point2> points, const ZOf& zOf, std::span<std::optional<double>> out) const;
@@ -228,7 +234,7 @@ class TerrainIndex {
   bool separated(std::uint32_t a, std::uint32_t b) const;
   void prefetchTriangles(std::span<const std::uint32_t> items) const;
 
-  CartesianMapping mapping_;
+  PlanarFrame frame_;
   mutable BigVector<Tri> tris_;  // empty for a compact grid until the tree is built
   BigVector<Cold> cold_;
   BigVector<Point2> corners2_;  // mapped (u, v) of each vertex, for the exact predicate
@@ -336,6 +342,24 @@ class TerrainIndex {
   mutable TerrainStats stats_;
   mutable bool treeStatsStale_ = false;
 };
+
+// The QOTA index of a planar mapping M: the core above over M's frame, and the mapping.
+template <PlanarMapping M>
+class PlanarIndex : public PlanarCore {
+ public:
+  using Mapping = M;
+  PlanarIndex(const Mesh& mesh, const M& mapping, const IndexOptions& options = {})
+      : PlanarCore(mesh, mapping.frame(), options), mapping_(mapping) {}
+  const M& mapping() const { return mapping_; }
+
+ private:
+  friend struct TreeFileAccess;
+  PlanarIndex() = default;
+  M mapping_;
+};
+
+// The index of the Cartesian mapping (any gravity): the paper's.
+using TerrainIndex = PlanarIndex<CartesianMapping>;
 
 // occludedAbove's exact test of one triangle, from its mapped corners (u, v, h) in the polygon's
 // own order: whether its projection covers (u, v) (closed, by exact predicates) and its plane lies

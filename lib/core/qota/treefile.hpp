@@ -2,8 +2,9 @@
 //
 // Layout (little-endian, as the machine that wrote it; a file from a big-endian machine is
 // refused by its magic):
-//   magic "QOTATREE", u32 version (3), u32 kind (0 cartesian, 1 spherical, 2 cylindrical,
-//   3 geodetic), u64 payload bytes, u64 checksum of the payload;
+//   magic "QOTATREE", u32 version (3), u32 kind (the mapping's place in AnyMapping's list:
+//   0 cartesian, 1 spherical, 2 cylindrical, 3 geodetic, 4 enu), u64 payload bytes, u64 checksum
+//   of the payload;
 //   payload: the mapping's describe() text (parseMapping reads it back exactly), the source
 //   (path, CRS WKT, raster size, geotransform, band and vertical unit when it was a raster), the
 //   index's scalars and
@@ -27,8 +28,7 @@
 #include <string>
 #include <variant>
 
-#include "qota/curved.hpp"
-#include "qota/terrain.hpp"
+#include "qota/any_index.hpp"
 
 namespace qota {
 
@@ -43,8 +43,6 @@ struct TreeSource {
   std::string verticalUnit;     // the raster's vertical unit ("" when it said nothing)
   double metresPerUnit = 1;     // of that unit
 };
-
-using AnyIndex = std::variant<TerrainIndex, SphericalIndex, CylindricalIndex, GeodeticIndex>;
 
 struct TreeFile {
   AnyIndex index;
