@@ -3,7 +3,7 @@
 // is written once over it and never asks which mapping it holds:
 //
 //   kPoles                     v is a latitude: at domain().vlo and vhi every u is one line
-//   toLocal(world), fromLocal(local), directionFromLocal(direction)
+//   toLocal(world), fromLocal(local), directionToLocal(direction), directionFromLocal(direction)
 //                              the local frame: the axis as +z through 0, where lines are simple
 //   axialLine(u, v)            the line of (u, v) in the local frame: (0, 0, s) + t d, d unit at
 //                              angle u around the axis, its point at t having h = t - hOffset
@@ -39,6 +39,7 @@ concept AxialMapping = CoordinateMapping<M> &&
   { M::kPoles } -> std::convertible_to<bool>;
   { m.toLocal(p) } -> std::same_as<Eigen::Vector3d>;
   { m.fromLocal(p) } -> std::same_as<Eigen::Vector3d>;
+  { m.directionToLocal(p) } -> std::same_as<Eigen::Vector3d>;
   { m.directionFromLocal(p) } -> std::same_as<Eigen::Vector3d>;
   { m.axialLine(u, v) } -> std::same_as<AxialLine>;
   { m.footprintHeight(p) } -> std::same_as<double>;

@@ -57,6 +57,9 @@ class CylindricalMapping {
 
   // As an axial mapping (axial.hpp): the line of (u, v) leaves the axis at s = v, outward.
   static constexpr bool kPoles = false;
+  Eigen::Vector3d directionToLocal(const Eigen::Vector3d& d) const {
+    return alongZ_ ? d : Eigen::Vector3d(rotation_ * d);
+  }
   Eigen::Vector3d directionFromLocal(const Eigen::Vector3d& d) const {
     return alongZ_ ? d : Eigen::Vector3d(rotation_.transpose() * d);
   }

@@ -53,6 +53,7 @@ class GeodeticMapping {
   static constexpr bool kPoles = true;
   static Eigen::Vector3d toLocal(const Eigen::Vector3d& world) { return world; }
   static Eigen::Vector3d fromLocal(const Eigen::Vector3d& local) { return local; }
+  static Eigen::Vector3d directionToLocal(const Eigen::Vector3d& d) { return d; }
   static Eigen::Vector3d directionFromLocal(const Eigen::Vector3d& d) { return d; }
   AxialLine axialLine(double u, double v) const {
     double su, cu, sv, cv;

@@ -43,6 +43,7 @@ class SphericalMapping {
   static constexpr bool kPoles = true;
   Eigen::Vector3d toLocal(const Eigen::Vector3d& world) const { return world - centre_; }
   Eigen::Vector3d fromLocal(const Eigen::Vector3d& local) const { return local + centre_; }
+  static Eigen::Vector3d directionToLocal(const Eigen::Vector3d& d) { return d; }
   static Eigen::Vector3d directionFromLocal(const Eigen::Vector3d& d) { return d; }
   static AxialLine axialLine(double u, double v) {
     double su, cu, sv, cv;

@@ -591,7 +591,8 @@ std::vector<LineHit> CurvedIndex<M>::alongLine(const Eigen::Vector3d& origin, co
   // The line in the local frame; each live triangle tested exactly on its corners' offsets from
   // the line's origin (the sign of det[a - O; b - O; d] per edge, as TerrainIndex::alongLine).
   const Eigen::Vector3d O = mapping_.toLocal(origin);
-  const Eigen::Vector3d d = mapping_.toLocal(origin + direction) - O;
+  // The direction turned, not the difference of two far points (which loses its low digits).
+  const Eigen::Vector3d d = mapping_.directionToLocal(direction);
   const double dv[3] = {d.x(), d.y(), d.z()};
   for (std::uint32_t i = 0; i < tris_.size(); ++i) {
     if (!live(i)) continue;
