@@ -152,6 +152,25 @@ struct CartesianRotatedGrid : Planar {
   static IndexOptions options() { return {.tree = {}, .gridFastPath = true}; }
 };
 
+// Earth-centred (ECEF) data in a local east-north-up frame: the heightfield of the first type
+// (without walls) placed around a point on the flank of Mount Rainier, every vertex in ECEF metres.
+struct Enu : Planar {
+  using Index = EnuIndex;
+  using Mapping = EnuMapping;
+  static constexpr const char* kName = "Enu";
+  static Mesh mesh() {
+    // No walls: a wall vertical in the ENU frame is, after the rounding of its ECEF corners, a
+    // sliver seen nearly edge-on, whose crossing height no two roundings agree on.
+    Mesh m = test::randomTerrain({.walls = 0}, 106);
+    const Mapping enu = mapping();
+    for (auto& p : m.vertices) p = enu.toWorld(100.0 * p);
+    return m;
+  }
+  static Mapping mapping() { return EnuMapping(46.85, -121.76, 1500.0); }
+  static bool onLine(const Mapping&, double, double) { return true; }
+  static std::vector<Eigen::Vector3d> singular(const Mapping&) { return {}; }
+};
+
 template <class M>
 struct Axial {
   using Index = CurvedIndex<M>;
@@ -237,7 +256,7 @@ struct Cylindrical : Axial<CylindricalMapping> {
   }
 };
 
-using AllIndexes = ::testing::Types<CartesianVertical, CartesianTilted, CartesianGrid, CartesianRotatedGrid,
+using AllIndexes = ::testing::Types<CartesianVertical, CartesianTilted, CartesianGrid, CartesianRotatedGrid, Enu,
                                     Spherical, Geodetic, Cylindrical>;
 
 struct TraitsName {

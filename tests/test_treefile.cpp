@@ -89,6 +89,11 @@ TEST(TreeFile, EveryKindRoundTrips) {
     const double u = uniform(rng, -122, -121), v = uniform(rng, 46, 47);
     return std::pair(a.top(u, v), b.top(u, v));
   });
+  const EnuIndex local(srtm.dem.mesh, EnuMapping(46.85, -121.76, 1500.0));
+  expectRoundTrip(local, "local.qota", [](const auto& a, const auto& b, std::mt19937_64& rng) {
+    const double u = uniform(rng, -4e4, 4e4), v = uniform(rng, -4e4, 4e4), h = uniform(rng, -1e3, 3e3);
+    return std::pair(a.below(u, v, h), b.below(u, v, h));
+  });
 }
 
 TEST(TreeFile, DamagedFilesAreClearErrors) {

@@ -10,13 +10,15 @@
 
 #include "qota/cartesian.hpp"
 #include "qota/cylindrical.hpp"
+#include "qota/enu.hpp"
 #include "qota/geodetic.hpp"
 #include "qota/planar.hpp"
 #include "qota/spherical.hpp"
 
 namespace qota {
 
-using AnyMapping = std::variant<CartesianMapping, SphericalMapping, CylindricalMapping, GeodeticMapping>;
+using AnyMapping =
+    std::variant<CartesianMapping, SphericalMapping, CylindricalMapping, GeodeticMapping, EnuMapping>;
 
 // Every mapping is a coordinate mapping, and planar (planar.hpp) or axial (axial.hpp).
 static_assert([]<class... M>(std::variant<M...>*) {
@@ -30,7 +32,7 @@ std::string describe(const AnyMapping& mapping);
 std::string mappingNames();
 
 // Reads a describe() text back (exact round trip). Parameters may be omitted (defaults: gravity
-// 0,0,-1 origin 0,0,0; centre 0,0,0; point 0,0,0 axis 0,0,1; WGS84 a and f) and appear in any
+// 0,0,-1 origin 0,0,0; centre 0,0,0; point 0,0,0 axis 0,0,1; WGS84 a and f; lat, lon, h 0) and appear in any
 // order. Throws qota::Error naming the bad word.
 AnyMapping parseMapping(const std::string& text);
 

@@ -5,7 +5,7 @@
 // The quadtree core works in (u, v) only; hits and heights are computed on the 3D polygons and
 // the mapping's line, so they are exact whatever the mapping.
 //
-// Every mapping (cartesian.hpp, spherical.hpp, cylindrical.hpp, geodetic.hpp) provides, at
+// Every mapping (cartesian.hpp, enu.hpp, spherical.hpp, cylindrical.hpp, geodetic.hpp) provides, at
 // compile time for the hot paths:
 //   name()                 "cartesian", "spherical", ...
 //   toMapped(world)        world point -> (u, v, h); throws qota::Error where undefined

@@ -328,8 +328,7 @@ struct TreeFileAccess {
 
   template <PlanarMapping M>
   static PlanarIndex<M> load(Reader& r, const M& mapping) {
-    PlanarIndex<M> index;
-    index.mapping_ = mapping;
+    PlanarIndex<M> index(mapping);
     index.frame_ = mapping.frame();
     read(r, index);
     return index;

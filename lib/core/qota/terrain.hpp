@@ -45,6 +45,7 @@
 #include <vector>
 
 #include "qota/cartesian.hpp"
+#include "qota/enu.hpp"
 #include "qota/memory.hpp"
 #include "qota/mesh.hpp"
 #include "qota/planar.hpp"
@@ -354,12 +355,13 @@ class PlanarIndex : public PlanarCore {
 
  private:
   friend struct TreeFileAccess;
-  PlanarIndex() = default;
+  explicit PlanarIndex(const M& mapping) : mapping_(mapping) {}  // a tree file's, filled by it
   M mapping_;
 };
 
 // The index of the Cartesian mapping (any gravity): the paper's.
 using TerrainIndex = PlanarIndex<CartesianMapping>;
+using EnuIndex = PlanarIndex<EnuMapping>;  // ECEF data in a local east-north-up frame
 
 // occludedAbove's exact test of one triangle, from its mapped corners (u, v, h) in the polygon's
 // own order: whether its projection covers (u, v) (closed, by exact predicates) and its plane lies
