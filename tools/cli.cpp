@@ -39,6 +39,7 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
   CLI::App app{
       "qota: terrain following with the Quick Oriented Terrain Algorithm (MERL TR-96-17, 1996)"};
   app.require_subcommand(1);
+  app.set_version_flag("--version", versionText, "Print qota's version and its libraries' and exit");
 
   SampleOptions sample;
   CLI::App* sampleCmd = app.add_subcommand(

@@ -146,6 +146,10 @@ int build(const BuildOptions& options, std::ostream& out, std::ostream& err);
 
 // The whole qota command: parses argv (argv[0] is the program's name) and runs the subcommand.
 // Never throws: every failure is a message on `err` and exit code 2.
+// `qota --version`: qota's version and those of GDAL and PROJ it runs with and of GeographicLib
+// it was built with, one "name version" per line.
+std::string versionText();
+
 int runCli(int argc, const char* const* argv, std::istream& in, std::ostream& out, std::ostream& err);
 
 }  // namespace qota::tools
