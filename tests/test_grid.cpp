@@ -83,6 +83,19 @@ void expectGridMatchesQuadtree(const Mesh& mesh, const CartesianMapping& mapping
   for (std::size_t i = 0; i < points.size(); ++i) {
     ASSERT_EQ(a[i], b[i]) << i;
   }
+  // Queries on the grid, single, batched or parallel, never build the tree (stats() does).
+  const TerrainIndex lean(mesh, mapping);
+  const std::uint64_t before = lean.memoryBytesNow();
+  lean.heightsBelowParallel(points, 1e300, d, 2);
+  ASSERT_EQ(d, a);
+  std::vector<double> zs(points.size(), 1e300);
+  lean.heightsBelowParallel(points, zs, d, 2);
+  ASSERT_EQ(d, a);
+  lean.heightsBelow(points, 1e300, d);
+  for (std::size_t i = 0; i < points.size(); i += 97) {
+    (void)lean.below(points[i].u, points[i].v, 0.0), (void)lean.above(points[i].u, points[i].v, 0.0);
+  }
+  EXPECT_EQ(lean.memoryBytesNow(), before) << "a query on the grid built the quadtree";
 }
 
 TEST(GridFastPath, RainierMatchesTheQuadtree) {

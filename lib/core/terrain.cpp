@@ -1092,7 +1092,9 @@ void PlanarCore::heights(std::span<const Point2> points, std::span<std::optional
 void PlanarCore::heightsBelowParallel(std::span<const Point2> points, double z,
                                         std::span<std::optional<double>> heights, unsigned threads) const {
   batch::requireRoom("heightsBelowParallel", points.size(), heights.size());
-  ensureTree();  // built once here, not raced for by the workers (a grid may need it at holes)
+  // The tree built once here, not raced for by the workers; the grid fast path never needs it
+  // (off the grid and in holes it answers no terrain itself).
+  if (!gridW_) ensureTree();
   batch::inSlices(points.size(), threads, 4096, [&](std::size_t lo, std::size_t hi) {
     heightsBelowBatch(points.subspan(lo, hi - lo), [z](std::size_t) { return z; }, heights.subspan(lo, hi - lo));
   });
@@ -1101,7 +1103,7 @@ void PlanarCore::heightsBelowParallel(std::span<const Point2> points, double z,
 void PlanarCore::heightsBelowParallel(std::span<const Point2> points, std::span<const double> zs,
                                         std::span<std::optional<double>> heights, unsigned threads) const {
   batch::requireRoom("heightsBelowParallel", points.size(), std::min(heights.size(), zs.size()));
-  ensureTree();
+  if (!gridW_) ensureTree();  // (as above)
   batch::inSlices(points.size(), threads, 4096, [&](std::size_t lo, std::size_t hi) {
     const std::span<const double> z = zs.subspan(lo, hi - lo);
     heightsBelowBatch(points.subspan(lo, hi - lo), [z](std::size_t i) { return z[i]; }, heights.subspan(lo, hi - lo));
