@@ -28,3 +28,18 @@ printf '%s\n' '86.925 27.988' '142.2 11.35' '0 90' '180 -52' '-180 -52' |
   build/tools/qota sample data/etopo20.tif --mapping spherical --world -p 1
 echo "== qota sample $dem --mapping geodetic -w   (lat lon -> height along the WGS84 normal)"
 echo '46.8529 -121.7603' | build/tools/qota sample "$dem" --mapping geodetic -w --world -p 3
+echo "== Python: pip install into build-venv (Debian's /usr/bin/python3), heights for a million points"
+venv=build-venv
+[ -x "$venv/bin/python" ] || /usr/bin/python3 -m venv --system-site-packages "$venv"
+"$venv/bin/pip" install --no-build-isolation --no-deps --quiet .
+"$venv/bin/python" - "$dem" <<'PY'
+import sys, time
+import numpy as np
+import qota
+t = qota.Terrain.from_raster(sys.argv[1])
+x, y = np.meshgrid(np.linspace(-121.9, -121.6, 1000), np.linspace(46.7, 46.95, 1000))
+start = time.perf_counter()
+h = t.heights(x, y)
+print(f"qota {qota.__version__}: {h.size} heights in {time.perf_counter() - start:.3f} s, "
+      f"highest {np.nanmax(h):.0f} m; summit {t.heights(-121.7603, 46.8529):.1f} m")
+PY

@@ -18,6 +18,8 @@ packages=(
   libhowardhinnant-date-dev tzdata  # dates and IANA time zones for qota shadow --time/--tz
   libassimp-dev                 # mesh files (OBJ, PLY, glTF, STL, ...)
   libembree-dev                 # bench/embree_bench: the general ray tracer qota is measured against
+  pybind11-dev python3-dev python3-numpy python3-venv python3-pip python3-setuptools python3-wheel python3-pytest python3-gdal
+                                # the Python package (python/) and its tests
 )
 
 [ $# -gt 0 ] && packages=("$@")

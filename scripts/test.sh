@@ -8,3 +8,5 @@ cmake -S . -B build -DCMAKE_BUILD_TYPE=Release -DQOTA_BUILD_TESTS=ON -DQOTA_BUIL
   -DQOTA_BUILD_BENCH=ON > /dev/null
 cmake --build build -j2
 ctest --test-dir build -j2 --output-on-failure
+# The Python package: pip install into a virtual environment, then pytest.
+./scripts/python-test.sh

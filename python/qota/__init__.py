@@ -1,0 +1,104 @@
+"""qota: terrain heights under points, from rasters, numpy arrays and meshes.
+
+The Quick Oriented Terrain Algorithm's quadtree core, for numpy: every call takes arrays of any
+shape (broadcast together), answers in C++ on every core with the GIL released, and gives NaN
+where there is no terrain (a hole, nodata, outside the data).
+
+    >>> import qota
+    >>> t = qota.Terrain.from_raster("data/mt_rainier_90m.tif")
+    >>> t.heights([-121.7603], [46.8529])          # x, y in the raster's CRS
+    array([4367.4...])
+"""
+from __future__ import annotations
+
+import numpy as _np
+
+from . import _qota
+from ._qota import Error, __version__
+
+__all__ = ["Terrain", "Error", "__version__"]
+
+
+def _gdal_transform(transform):
+    """A GDAL 6-tuple geotransform, from one or from an affine.Affine (rasterio's)."""
+    if all(hasattr(transform, k) for k in "abcdef"):  # affine.Affine: x = a col + b row + c
+        t = transform
+        return [t.c, t.a, t.b, t.f, t.d, t.e]
+    values = [float(v) for v in transform]
+    if len(values) != 6:
+        raise Error(f"transform must have 6 numbers (GDAL's geotransform), got {len(values)}")
+    return values
+
+
+class Terrain:
+    """A terrain seen from above (gravity along -z): the surfaces over each (x, y).
+
+    Build one with from_raster, from_array or from_mesh (or load a file saved by save or
+    `qota build`). Queries take x, y (and z) in the terrain's own coordinates and give heights in
+    its own z unit.
+    """
+
+    def __init__(self, impl: _qota._Terrain):
+        self._t = impl
+
+    @classmethod
+    def from_raster(cls, path, band: int = 1) -> "Terrain":
+        """Any GDAL raster (GeoTIFF, VRT, ...): pixel centres joined into two triangles a cell,
+        nodata cells holes, x and y in the raster's CRS (degrees for a lon/lat raster)."""
+        return cls(_qota._Terrain.from_raster(str(path), int(band)))
+
+    @classmethod
+    def from_array(cls, heights, transform, nodata=None) -> "Terrain":
+        """A 2-D array (rows, columns) of heights with a GDAL geotransform (6 numbers) or an
+        affine.Affine, as from_raster would read the same raster; `nodata` cells are holes."""
+        return cls(_qota._Terrain.from_array(_np.asarray(heights, dtype=_np.float64),
+                                             _gdal_transform(transform),
+                                             None if nodata is None else float(nodata)))
+
+    @classmethod
+    def from_mesh(cls, vertices, triangles) -> "Terrain":
+        """An (N, 3) float array of vertices and an (M, 3) integer array of triangles."""
+        return cls(_qota._Terrain.from_mesh(_np.asarray(vertices, dtype=_np.float64),
+                                            _np.asarray(triangles, dtype=_np.int64)))
+
+    @classmethod
+    def load(cls, path) -> "Terrain":
+        """A tree file written by save or `qota build` (a Cartesian terrain)."""
+        return cls(_qota._Terrain.load(str(path)))
+
+    def save(self, path) -> None:
+        """Writes the terrain with its quadtree (a tree file; load reads it back)."""
+        self._t.save(str(path))
+
+    def _call(self, method, *arrays):
+        b = _np.broadcast_arrays(*[_np.asarray(a, dtype=_np.float64) for a in arrays])
+        flat = [_np.ascontiguousarray(a).ravel() for a in b]
+        return method(*flat).reshape(b[0].shape)
+
+    def heights(self, x, y):
+        """The top surface's height at each (x, y); NaN where there is none."""
+        return self._call(self._t.heights, x, y)
+
+    def below(self, x, y, z):
+        """The height of the nearest surface at or below z at each (x, y, z); NaN if none."""
+        return self._call(self._t.below, x, y, z)
+
+    def above(self, x, y, z):
+        """The height of the nearest surface at or above z at each (x, y, z); NaN if none."""
+        return self._call(self._t.above, x, y, z)
+
+    def bracket(self, x, y, z):
+        """(below, above): the floor and the ceiling around each point."""
+        return self.below(x, y, z), self.above(x, y, z)
+
+    def all(self, x: float, y: float):
+        """Every surface over one point, top first: a list of (height, polygon, normal)."""
+        return self._t.all(float(x), float(y))
+
+    def stats(self) -> dict:
+        """Polygons, triangles, vertices, quadtree nodes and bytes held."""
+        return self._t.stats()
+
+    def __repr__(self) -> str:
+        s = self.stats()
+        return f"qota.Terrain({self._t.source!r}: {s['triangles']} triangles)"

@@ -1,0 +1,207 @@
+"""qota's Python package against independent computations: a numpy brute force over the
+triangles, GDAL's own reading of the raster, exact planes."""
+import os
+import threading
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import qota
+
+DATA = Path(os.environ.get("QOTA_DATA_DIR", Path(__file__).resolve().parents[2] / "data"))
+RAINIER = DATA / "mt_rainier_90m.tif"
+
+
+def brute_force(vertices, triangles, x, y, z=None, below=True):
+    """Per point: the nearest height at or below z (or above) over every triangle containing
+    (x, y) strictly inside (barycentric coordinates > eps), NaN if none; and whether the point is
+    near an edge (then either answer may come)."""
+    out = np.full(x.shape, np.nan)
+    near = np.zeros(x.shape, bool)
+    for tri in triangles:
+        a, b, c = vertices[tri]
+        d = (b[1] - c[1]) * (a[0] - c[0]) + (c[0] - b[0]) * (a[1] - c[1])
+        if d == 0:
+            continue
+        l1 = ((b[1] - c[1]) * (x - c[0]) + (c[0] - b[0]) * (y - c[1])) / d
+        l2 = ((c[1] - a[1]) * (x - c[0]) + (a[0] - c[0]) * (y - c[1])) / d
+        l3 = 1 - l1 - l2
+        m = np.minimum(np.minimum(l1, l2), l3)
+        near |= np.abs(m) < 1e-9
+        inside = m > 1e-9
+        h = l1 * a[2] + l2 * b[2] + l3 * c[2]
+        if z is not None:
+            inside &= (h <= z) if below else (h >= z)
+        take = inside & (np.isnan(out) | ((h > out) if (z is None or below) else (h < out)))
+        out[take] = h[take]
+    return out, near
+
+
+def layered_mesh(rng):
+    """A jittered grid of triangles (a heightfield) and a second, higher layer over part of it."""
+    n = 12
+    gx, gy = np.meshgrid(np.arange(n, dtype=float), np.arange(n, dtype=float))
+    v = np.column_stack([gx.ravel() + rng.uniform(-0.3, 0.3, n * n), gy.ravel() + rng.uniform(-0.3, 0.3, n * n),
+                         rng.uniform(0, 5, n * n)])
+    tris = []
+    for r in range(n - 1):
+        for c in range(n - 1):
+            i = r * n + c
+            tris += [[i, i + 1, i + n + 1], [i, i + n + 1, i + n]]
+    upper = v[: n * 6].copy()
+    upper[:, 2] += 20
+    v = np.vstack([v, upper])
+    tris += [[t[0] + n * n, t[1] + n * n, t[2] + n * n] for t in tris[: 2 * (n - 1) * 5]]
+    return v, np.array(tris)
+
+
+def test_version():
+    assert qota.__version__ == "0.2.0"
+
+
+def test_mesh_queries_match_the_brute_force():
+    rng = np.random.default_rng(1)
+    v, t = layered_mesh(rng)
+    terrain = qota.Terrain.from_mesh(v, t)
+    x, y = rng.uniform(-1, 12, 4000), rng.uniform(-1, 12, 4000)
+    z = rng.uniform(-2, 30, 4000)
+    for got, (want, near) in [
+        (terrain.heights(x, y), brute_force(v, t, x, y)),
+        (terrain.below(x, y, z), brute_force(v, t, x, y, z, True)),
+        (terrain.above(x, y, z), brute_force(v, t, x, y, z, False)),
+    ]:
+        clear = ~near
+        assert np.count_nonzero(clear) > 3900
+        np.testing.assert_array_equal(np.isnan(got[clear]), np.isnan(want[clear]))
+        np.testing.assert_allclose(got[clear & ~np.isnan(want)], want[clear & ~np.isnan(want)], rtol=0, atol=1e-9)
+    lo, hi = terrain.bracket(x, y, z)
+    np.testing.assert_array_equal(lo, terrain.below(x, y, z))
+    np.testing.assert_array_equal(hi, terrain.above(x, y, z))
+
+
+def test_all_lists_every_layer_top_first():
+    rng = np.random.default_rng(2)
+    v, t = layered_mesh(rng)
+    terrain = qota.Terrain.from_mesh(v, t)
+    hits = terrain.all(3.3, 2.2)  # under the upper layer
+    assert len(hits) == 2 and hits[0][0] > hits[1][0] + 10
+    height, polygon, normal = hits[0]
+    assert 0 <= polygon < len(t) and abs(np.linalg.norm(normal) - 1) < 1e-12 and normal[2] > 0
+    assert terrain.all(50, 50) == []
+
+
+def test_shapes_broadcast_and_nan_means_no_terrain():
+    v = np.array([[0, 0, 100], [10, 0, 100], [10, 10, 100], [0, 10, 100]], float)
+    terrain = qota.Terrain.from_mesh(v, [[0, 1, 2], [0, 2, 3]])
+    h = terrain.heights(np.full((3, 4), 2.0), 7.0)
+    assert h.shape == (3, 4) and np.all(h == 100)
+    assert np.isnan(terrain.heights(20.0, 5.0))
+    assert np.isnan(terrain.heights(np.nan, 5.0))
+    assert terrain.below([2.0], [7.0], [50.0]).tolist() == [pytest.approx(np.nan, nan_ok=True)]
+    assert terrain.above([2.0], [7.0], [50.0]).tolist() == [100.0]
+
+
+def test_array_is_the_raster_gdal_reads():
+    from osgeo import gdal
+
+    ds = gdal.Open(str(RAINIER))
+    band = ds.GetRasterBand(1)
+    heights = band.ReadAsArray().astype(np.float64)
+    gt = ds.GetGeoTransform()
+    from_array = qota.Terrain.from_array(heights, gt, nodata=band.GetNoDataValue())
+    from_raster = qota.Terrain.from_raster(RAINIER)
+    rng = np.random.default_rng(3)
+    rows, cols = rng.integers(1, heights.shape[0] - 1, 4000), rng.integers(1, heights.shape[1] - 1, 4000)
+    # Centres with valid neighbours all round (a centre on a hole's outline may go either way).
+    valid = heights != band.GetNoDataValue()
+    keep = np.ones(rows.shape, bool)
+    for dr in (-1, 0, 1):
+        for dc in (-1, 0, 1):
+            keep &= valid[rows + dr, cols + dc]
+    rows, cols = rows[keep], cols[keep]
+    assert rows.size > 1000
+    # Pixel centres carry the vertices: the height there is the pixel's value, as GDAL reads it.
+    x = gt[0] + (cols + 0.5) * gt[1] + (rows + 0.5) * gt[2]
+    y = gt[3] + (cols + 0.5) * gt[4] + (rows + 0.5) * gt[5]
+    np.testing.assert_allclose(from_raster.heights(x, y), heights[rows, cols], rtol=0, atol=1e-6)
+    np.testing.assert_allclose(from_array.heights(x, y), heights[rows, cols], rtol=0, atol=1e-6)
+    # Between centres the same terrain from both.
+    px, py = x + rng.uniform(0.1, 0.4, rows.size) * gt[1], y + rng.uniform(0.1, 0.4, rows.size) * gt[5]
+    np.testing.assert_array_equal(from_array.heights(px, py), from_raster.heights(px, py))
+
+
+class Affine:
+    """What rasterio's affine.Affine offers: x = a col + b row + c, y = d col + e row + f."""
+
+    def __init__(self, a, b, c, d, e, f):
+        self.a, self.b, self.c, self.d, self.e, self.f = a, b, c, d, e, f
+
+
+def test_array_plane_is_exact_and_nodata_are_holes():
+    # z = 2 x + 3 y + 1 at the pixel centres of a 30 x 20 grid, origin (100, 50), 2 by -2 pixels.
+    rows, cols = 20, 30
+    cx = 100 + 2 * (np.arange(cols) + 0.5)
+    cy = 50 - 2 * (np.arange(rows) + 0.5)
+    z = 2 * cx[None, :] + 3 * cy[:, None] + 1
+    z[7, 9] = -9999
+    for transform in [(100, 2, 0, 50, 0, -2), Affine(2, 0, 100, 0, -2, 50)]:
+        terrain = qota.Terrain.from_array(z, transform, nodata=-9999)
+        rng = np.random.default_rng(4)
+        x, y = rng.uniform(cx[0], cx[-1], 3000), rng.uniform(cy[-1], cy[0], 3000)
+        h = terrain.heights(x, y)
+        # The triangles around the nodata centre are holes; they cover the diamond within one
+        # pixel of it (|dx| + |dy| < 1 pixel), and nothing beyond the four squares around it.
+        dx, dy = np.abs(x - cx[9]) / 2, np.abs(y - cy[7]) / 2
+        assert np.all(np.isnan(h[dx + dy < 0.999]))
+        far = np.maximum(dx, dy) > 1.001
+        assert np.count_nonzero(far) > 2900
+        np.testing.assert_allclose(h[far], 2 * x[far] + 3 * y[far] + 1, rtol=1e-12)
+        between = ~far & ~np.isnan(h)
+        np.testing.assert_allclose(h[between], 2 * x[between] + 3 * y[between] + 1, rtol=1e-12)
+
+
+def test_save_and_load_answer_alike(tmp_path):
+    rng = np.random.default_rng(5)
+    v, t = layered_mesh(rng)
+    terrain = qota.Terrain.from_mesh(v, t)
+    terrain.save(tmp_path / "t.qota")
+    back = qota.Terrain.load(tmp_path / "t.qota")
+    x, y = rng.uniform(0, 11, 1000), rng.uniform(0, 11, 1000)
+    np.testing.assert_array_equal(back.heights(x, y), terrain.heights(x, y))
+
+
+def test_errors_name_what_is_wrong(tmp_path):
+    with pytest.raises(qota.Error, match="nonexistent"):
+        qota.Terrain.from_raster(tmp_path / "nonexistent.tif")
+    with pytest.raises(qota.Error, match="names vertex 7"):
+        qota.Terrain.from_mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 7]])
+    with pytest.raises(qota.Error, match=r"\(N, 3\)"):
+        qota.Terrain.from_mesh([[0, 0], [1, 0]], [[0, 1, 1]])
+    with pytest.raises(qota.Error, match="6 numbers"):
+        qota.Terrain.from_array(np.zeros((2, 2)), (0, 1, 0, 0))
+    with pytest.raises(qota.Error, match="singular"):
+        qota.Terrain.from_array(np.zeros((2, 2)), (0, 0, 0, 0, 0, 0))
+    with pytest.raises(qota.Error, match="not finite"):
+        qota.Terrain.from_mesh([[0, 0, np.inf], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]])
+    assert issubclass(qota.Error, ValueError)
+
+
+def test_batches_run_while_other_threads_run():
+    # The GIL is released during a batch: two threads' batches give the same answers as one.
+    terrain = qota.Terrain.from_raster(RAINIER)
+    rng = np.random.default_rng(6)
+    x, y = rng.uniform(-122, -121.5, 200000), rng.uniform(46.6, 47, 200000)
+    want = terrain.heights(x, y)
+    got = [None, None]
+
+    def run(i):
+        got[i] = terrain.heights(x, y)
+
+    threads = [threading.Thread(target=run, args=(i,)) for i in range(2)]
+    for th in threads:
+        th.start()
+    for th in threads:
+        th.join()
+    for g in got:
+        np.testing.assert_array_equal(g, want)
