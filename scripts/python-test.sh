@@ -9,7 +9,8 @@ cd "$(dirname "$0")/.."
 root=$PWD
 ./scripts/install-deps.sh
 venv=${1:-build-venv}
+case $venv in /*) ;; *) venv=$root/$venv ;; esac
 [ -x "$venv/bin/python" ] || /usr/bin/python3 -m venv --system-site-packages "$venv"
 "$venv/bin/pip" install --no-build-isolation --no-deps --quiet "$root"
 cd /
-QOTA_DATA_DIR="$root/data" "$root/$venv/bin/python" -m pytest -q "$root/python/tests"
+QOTA_DATA_DIR="$root/data" "$venv/bin/python" -m pytest -q "$root/python/tests"
