@@ -20,7 +20,7 @@ class CMakeBuild(build_ext):
         build = Path(os.environ.get("QOTA_PYTHON_BUILD_DIR", root / "build-python"))
         subprocess.run(["cmake", "-S", str(root), "-B", str(build), "-DCMAKE_BUILD_TYPE=Release",
                         "-DQOTA_BUILD_PYTHON=ON", "-DQOTA_BUILD_TESTS=OFF", "-DQOTA_BUILD_BENCH=OFF",
-                        "-DQOTA_BUILD_EXAMPLES=OFF", "-DQOTA_BUILD_TOOLS=OFF", "-DQOTA_INSTALL=OFF",
+                        "-DQOTA_BUILD_EXAMPLES=OFF", "-DQOTA_BUILD_TOOLS=ON", "-DQOTA_INSTALL=OFF",
                         "-DCMAKE_POSITION_INDEPENDENT_CODE=ON", f"-DPython_EXECUTABLE={sys.executable}",
                         f"-DCMAKE_LIBRARY_OUTPUT_DIRECTORY={out}"], check=True)
         subprocess.run(["cmake", "--build", str(build), "--target", "qota_python", "-j",

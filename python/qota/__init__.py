@@ -11,12 +11,15 @@ where there is no terrain (a hole, nodata, outside the data).
 """
 from __future__ import annotations
 
+import os as _os
+import tempfile as _tempfile
+
 import numpy as _np
 
 from . import _qota
 from ._qota import Error, __version__
 
-__all__ = ["Terrain", "Error", "__version__"]
+__all__ = ["Terrain", "Error", "__version__", "shadow", "sun_position"]
 
 
 def _gdal_transform(transform):
@@ -102,3 +105,27 @@ class Terrain:
     def __repr__(self) -> str:
         s = self.stats()
         return f"qota.Terrain({self._t.source!r}: {s['triangles']} triangles)"
+
+
+def shadow(dem_path, azimuth=None, altitude=None, *, time=None, tz=None, band=1, z_factor=1.0, output=None):
+    """Where the terrain of a DEM shades itself from the Sun, as `qota shadow` computes it.
+
+    The light from `azimuth` and `altitude` (degrees, gdaldem's -az and -alt), or the Sun at
+    `time` (ISO 8601 with its offset, or `tz`: an offset or an IANA zone name) seen from the DEM's
+    centre. Returns a uint8 array on the DEM's grid (rows, columns): 255 lit, 0 shadow, 128
+    nodata; with `output` the GeoTIFF (or any GDAL format by extension) is kept there too.
+    """
+    if time is None and (azimuth is None or altitude is None):
+        raise Error("give azimuth and altitude, or time")
+    if output is not None:
+        return _qota._shadow(str(dem_path), str(output), azimuth, altitude, time or "", tz or "", int(band),
+                             float(z_factor))
+    with _tempfile.TemporaryDirectory(prefix="qota_shadow_") as folder:
+        return _qota._shadow(str(dem_path), _os.path.join(folder, "shadow.tif"), azimuth, altitude, time or "",
+                             tz or "", int(band), float(z_factor))
+
+
+def sun_position(time, lon, lat, *, tz=None):
+    """The Sun's apparent (azimuth, altitude) in degrees seen from (lon, lat) on the Earth at `time`
+    (ISO 8601 with its offset, or `tz`); azimuth clockwise from north, refraction included."""
+    return _qota._sun_position(str(time), float(lon), float(lat), tz or "")

@@ -14,11 +14,16 @@
 #include <string>
 #include <vector>
 
+#include <sstream>
+
 #include "qota/dem.hpp"
 #include "qota/error.hpp"
+#include "qota/instant.hpp"
+#include "qota/sun.hpp"
 #include "qota/terrain.hpp"
 #include "qota/treefile.hpp"
 #include "qota/version.hpp"
+#include "qota_tools.hpp"
 
 namespace py = pybind11;
 
@@ -218,6 +223,52 @@ Terrain load(const std::string& path) {
   return Terrain(std::move(*index), tf.source.path);
 }
 
+// qota shadow itself (the same cells, the same checks and messages), into `output`, read back.
+py::array_t<std::uint8_t> shadow(const std::string& dem, const std::string& output, std::optional<double> azimuth,
+                                 std::optional<double> altitude, const std::string& time, const std::string& tz,
+                                 int band, double zFactor) {
+  qota::tools::ShadowOptions o;
+  o.source = dem;
+  o.output = output;
+  o.quiet = true;
+  o.band = band;
+  o.azimuth = azimuth;
+  o.altitude = altitude;
+  o.time = time;
+  o.tz = tz;
+  o.zFactor = zFactor;
+  std::ostringstream out, err;
+  int code = 0;
+  {
+    py::gil_scoped_release release;
+    code = qota::tools::shadow(o, out, err);
+  }
+  if (code != 0) {
+    std::string message = err.str();
+    while (!message.empty() && message.back() == '\n') message.pop_back();
+    throw qota::Error(message.empty() ? "qota shadow failed" : message);
+  }
+  qota::ensureGdalRegistered();
+  std::unique_ptr<GDALDataset> ds(GDALDataset::Open(output.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
+  if (!ds) throw qota::Error(output + ": cannot read the shadow raster back");
+  const int w = ds->GetRasterXSize(), h = ds->GetRasterYSize();
+  py::array_t<std::uint8_t> mask({h, w});
+  if (ds->GetRasterBand(1)->RasterIO(GF_Read, 0, 0, w, h, mask.mutable_data(), w, h, GDT_Byte, 0, 0) != CE_None) {
+    throw qota::Error(output + ": cannot read the shadow raster back");
+  }
+  return mask;
+}
+
+// The Sun's apparent azimuth and altitude (degrees) seen from (lon, lat) on the Earth.
+py::tuple sunPosition(const std::string& time, double lon, double lat, const std::string& tz) {
+  if (!std::isfinite(lon) || !(lat >= -90 && lat <= 90)) {
+    throw qota::Error("need a finite longitude and a latitude in [-90, 90]");
+  }
+  const qota::Instant at = qota::parseInstant(time, tz);
+  const qota::SunPosition sun = qota::sunPosition(at.julianDayUT, lon, lat);
+  return py::make_tuple(sun.azimuth, sun.altitude);
+}
+
 }  // namespace
 
 PYBIND11_MODULE(_qota, m) {
@@ -231,6 +282,9 @@ PYBIND11_MODULE(_qota, m) {
       PyErr_SetString(error.ptr(), e.what());
     }
   });
+  m.def("_shadow", &shadow, py::arg("dem"), py::arg("output"), py::arg("azimuth"), py::arg("altitude"),
+        py::arg("time"), py::arg("tz"), py::arg("band"), py::arg("z_factor"));
+  m.def("_sun_position", &sunPosition, py::arg("time"), py::arg("lon"), py::arg("lat"), py::arg("tz"));
   py::class_<Terrain>(m, "_Terrain")
       .def_static("from_raster", &fromRaster, py::arg("path"), py::arg("band") = 0)
       .def_static("from_array", &fromArray, py::arg("heights"), py::arg("transform"), py::arg("nodata") = py::none())

@@ -205,3 +205,36 @@ def test_batches_run_while_other_threads_run():
         th.join()
     for g in got:
         np.testing.assert_array_equal(g, want)
+
+
+def test_shadow_is_the_tools_mask(tmp_path):
+    import subprocess
+
+    from osgeo import gdal
+
+    tool = os.environ.get("QOTA_TOOL", str(Path(__file__).resolve().parents[2] / "build" / "tools" / "qota"))
+    if not Path(tool).exists():
+        pytest.skip("no qota tool built at " + tool)
+    subprocess.run([tool, "shadow", str(RAINIER), "-o", str(tmp_path / "tool.tif"), "-az", "135", "-alt", "20", "-q"],
+                   check=True)
+    ds = gdal.Open(str(tmp_path / "tool.tif"))  # (held: a band outliving its dataset crashes GDAL's bindings)
+    want = ds.GetRasterBand(1).ReadAsArray()
+    got = qota.shadow(RAINIER, azimuth=135, altitude=20)
+    assert got.dtype == np.uint8 and got.shape == want.shape
+    np.testing.assert_array_equal(got, want)
+    assert set(np.unique(got)) <= {0, 128, 255} and (got == 0).any() and (got == 255).any()
+    kept = qota.shadow(RAINIER, time="2024-06-21T18:30", tz="America/Los_Angeles", output=tmp_path / "t.tif")
+    assert (tmp_path / "t.tif").exists() and kept.shape == want.shape
+    with pytest.raises(qota.Error, match="azimuth"):
+        qota.shadow(RAINIER)
+
+
+def test_sun_position_at_noon_on_the_solstice():
+    # Greenwich (0, 51.4769) at 2024-06-21 12:00 UTC, two minutes before solar noon (the equation
+    # of time is -1.7 min): altitude 90 - 51.4769 + 23.44 (the solstice's declination) = 61.96
+    # degrees, plus 0.01 of refraction; the Sun within a degree of due south.
+    az, alt = qota.sun_position("2024-06-21T12:00:00Z", 0.0, 51.4769)
+    assert abs(alt - 61.96) < 0.05
+    assert abs(az - 180) < 1.5
+    with pytest.raises(qota.Error):
+        qota.sun_position("2024-02-30T12:00Z", 0, 0)
