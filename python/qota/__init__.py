@@ -61,8 +61,11 @@ class Terrain:
     @classmethod
     def from_mesh(cls, vertices, triangles) -> "Terrain":
         """An (N, 3) float array of vertices and an (M, 3) integer array of triangles."""
+        triangles = _np.asarray(triangles)
+        if triangles.size and not _np.issubdtype(triangles.dtype, _np.integer):
+            raise Error(f"triangles must be integers (vertex indices), got {triangles.dtype}")
         return cls(_qota._Terrain.from_mesh(_np.asarray(vertices, dtype=_np.float64),
-                                            _np.asarray(triangles, dtype=_np.int64)))
+                                            triangles.astype(_np.int64, copy=False)))
 
     @classmethod
     def load(cls, path) -> "Terrain":

@@ -184,6 +184,14 @@ def test_errors_name_what_is_wrong(tmp_path):
         qota.Terrain.from_array(np.zeros((2, 2)), (0, 0, 0, 0, 0, 0))
     with pytest.raises(qota.Error, match="not finite"):
         qota.Terrain.from_mesh([[0, 0, np.inf], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]])
+    with pytest.raises(qota.Error, match="integers"):
+        qota.Terrain.from_mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0.0, 1.7, 2.0]])
+    with pytest.raises(qota.Error, match="no band 5"):
+        qota.Terrain.from_raster(RAINIER, band=5)
+    with pytest.raises(qota.Error, match="QOTATREE"):
+        qota.Terrain.load(RAINIER)
+    with pytest.raises(ValueError):
+        qota.Terrain.from_mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]]).heights(np.zeros(3), np.zeros(4))
     assert issubclass(qota.Error, ValueError)
 
 
