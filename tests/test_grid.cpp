@@ -4,8 +4,10 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <atomic>
 #include <random>
+#include <span>
 #include <thread>
 
 #include "qota/dem.hpp"
@@ -84,15 +86,19 @@ void expectGridMatchesQuadtree(const Mesh& mesh, const CartesianMapping& mapping
     ASSERT_EQ(a[i], b[i]) << i;
   }
   // Queries on the grid, single, batched or parallel, never build the tree (stats() does).
+  // (A sample of the points: the sanitizer builds run this too.)
   const TerrainIndex lean(mesh, mapping);
   const std::uint64_t before = lean.memoryBytesNow();
-  lean.heightsBelowParallel(points, 1e300, d, 2);
-  ASSERT_EQ(d, a);
-  std::vector<double> zs(points.size(), 1e300);
-  lean.heightsBelowParallel(points, zs, d, 2);
-  ASSERT_EQ(d, a);
-  lean.heightsBelow(points, 1e300, d);
-  for (std::size_t i = 0; i < points.size(); i += 97) {
+  const std::size_t m = std::min<std::size_t>(points.size(), 20000);
+  const std::span<const Point2> some(points.data(), m);
+  std::vector<std::optional<double>> e(m);
+  lean.heightsBelowParallel(some, 1e300, e, 2);
+  ASSERT_TRUE(std::equal(e.begin(), e.end(), a.begin()));
+  const std::vector<double> zs(m, 1e300);
+  lean.heightsBelowParallel(some, zs, e, 2);
+  ASSERT_TRUE(std::equal(e.begin(), e.end(), a.begin()));
+  lean.heightsBelow(some, 1e300, e);
+  for (std::size_t i = 0; i < m; i += 97) {
     (void)lean.below(points[i].u, points[i].v, 0.0), (void)lean.above(points[i].u, points[i].v, 0.0);
   }
   EXPECT_EQ(lean.memoryBytesNow(), before) << "a query on the grid built the quadtree";
