@@ -1,4 +1,5 @@
-"""qota's Python heights against the same triangle interpolation written in numpy alone.
+"""qota's Python heights against the same triangle interpolation written in numpy alone, and
+against the library's C++ batch on the same points (build/bench/batch_bench, when built).
 
     build-venv/bin/python python/bench/bench_numpy.py [DEM] [POINTS]
 
@@ -7,7 +8,10 @@ joined into two triangles a cell, split from the top-left to the bottom-right ce
 cells holes. Prints each side's median of 7 runs with the spread (min to max, the run-to-run
 noise), the ratio, and the largest difference between the answers (rounding only).
 """
+import os
+import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -69,3 +73,13 @@ print(f"qota         {tq:.4f} s  ({tq0:.4f} to {tq1:.4f})  {n / tq / 1e6:6.1f} M
 print(f"qota / numpy: {tn / tq:.1f}x the points per second")
 print(f"answers: {np.count_nonzero(both)} both, {np.count_nonzero(np.isnan(want) != np.isnan(got))} differ in "
       f"having terrain (on hole outlines), largest height difference {np.max(np.abs(want[both] - got[both])):.2e}")
+
+cxx = Path(os.environ.get("QOTA_BATCH_BENCH", Path(__file__).resolve().parents[2] / "build" / "bench" / "batch_bench"))
+if cxx.exists():
+    with tempfile.TemporaryDirectory() as folder:
+        points = Path(folder) / "points.bin"
+        np.concatenate([x, y]).astype(np.float64).tofile(points)
+        line = subprocess.run([str(cxx), dem, str(points)], check=True, capture_output=True, text=True).stdout
+    tc, tc0, tc1 = (float(v) for v in line.split()[1:])
+    print(f"C++ batch    {tc:.4f} s  ({tc0:.4f} to {tc1:.4f})  {n / tc / 1e6:6.1f} M points/s")
+    print(f"Python / C++: {tq / tc:.2f}x the time")
