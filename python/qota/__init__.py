@@ -11,6 +11,7 @@ where there is no terrain (a hole, nodata, outside the data).
 """
 from __future__ import annotations
 
+import errno as _errno
 import os as _os
 import tempfile as _tempfile
 
@@ -33,6 +34,15 @@ def _gdal_transform(transform):
     return values
 
 
+def _local_file(path):
+    """A local path that is not there is FileNotFoundError (an OSError), as Python's own open()
+    gives; GDAL's virtual paths (/vsicurl/...) and connection strings (NAME:...) go to GDAL."""
+    text = _os.fspath(path)
+    if not text.startswith("/vsi") and ":" not in text and not _os.path.exists(text):
+        raise FileNotFoundError(_errno.ENOENT, "no such file", text)
+    return text
+
+
 class Terrain:
     """A terrain seen from above (gravity along -z): the surfaces over each (x, y).
 
@@ -48,7 +58,7 @@ class Terrain:
     def from_raster(cls, path, band: int = 1) -> "Terrain":
         """Any GDAL raster (GeoTIFF, VRT, ...): pixel centres joined into two triangles a cell,
         nodata cells holes, x and y in the raster's CRS (degrees for a lon/lat raster)."""
-        return cls(_qota._Terrain.from_raster(str(path), int(band)))
+        return cls(_qota._Terrain.from_raster(_local_file(path), int(band)))
 
     @classmethod
     def from_array(cls, heights, transform, nodata=None) -> "Terrain":
@@ -70,7 +80,7 @@ class Terrain:
     @classmethod
     def load(cls, path) -> "Terrain":
         """A tree file written by save or `qota build` (a Cartesian terrain)."""
-        return cls(_qota._Terrain.load(str(path)))
+        return cls(_qota._Terrain.load(_local_file(path)))
 
     def save(self, path) -> None:
         """Writes the terrain with its quadtree (a tree file; load reads it back)."""
@@ -81,21 +91,45 @@ class Terrain:
         flat = [_np.ascontiguousarray(a).ravel() for a in b]
         return method(*flat).reshape(b[0].shape)
 
-    def heights(self, x, y):
-        """The top surface's height at each (x, y); NaN where there is none."""
+    def _hits(self, x, y, z, below, polygons, normals):
+        b = _np.broadcast_arrays(*[_np.asarray(a, dtype=_np.float64) for a in (x, y, z)])
+        shape = b[0].shape
+        h, p, n = self._t.hits(*[_np.ascontiguousarray(a).ravel() for a in b], below)
+        out = [h.reshape(shape)]
+        if polygons:
+            out.append(p.reshape(shape))
+        if normals:
+            out.append(n.reshape(shape + (3,)))
+        return tuple(out)
+
+    def heights(self, x, y, *, polygons=False, normals=False):
+        """The top surface's height at each (x, y); NaN where there is none.
+
+        With polygons=True and/or normals=True, a tuple: the heights, then the polygon ids (int64,
+        -1 where none) and/or the unit normals (shape + (3,), NaN where none)."""
+        if polygons or normals:
+            return self._hits(x, y, _np.inf, True, polygons, normals)
         return self._call(self._t.heights, x, y)
 
-    def below(self, x, y, z):
-        """The height of the nearest surface at or below z at each (x, y, z); NaN if none."""
+    def below(self, x, y, z, *, polygons=False, normals=False):
+        """The height of the nearest surface at or below z at each (x, y, z); NaN if none.
+        polygons and normals as for heights."""
+        if polygons or normals:
+            return self._hits(x, y, z, True, polygons, normals)
         return self._call(self._t.below, x, y, z)
 
-    def above(self, x, y, z):
-        """The height of the nearest surface at or above z at each (x, y, z); NaN if none."""
+    def above(self, x, y, z, *, polygons=False, normals=False):
+        """The height of the nearest surface at or above z at each (x, y, z); NaN if none.
+        polygons and normals as for heights."""
+        if polygons or normals:
+            return self._hits(x, y, z, False, polygons, normals)
         return self._call(self._t.above, x, y, z)
 
-    def bracket(self, x, y, z):
-        """(below, above): the floor and the ceiling around each point."""
-        return self.below(x, y, z), self.above(x, y, z)
+    def bracket(self, x, y, z, *, polygons=False, normals=False):
+        """(below, above): the floor and the ceiling around each point (each a tuple with
+        polygons and normals on request)."""
+        return (self.below(x, y, z, polygons=polygons, normals=normals),
+                self.above(x, y, z, polygons=polygons, normals=normals))
 
     def all(self, x: float, y: float):
         """Every surface over one point, top first: a list of (height, polygon, normal)."""
@@ -121,10 +155,10 @@ def shadow(dem_path, azimuth=None, altitude=None, *, time=None, tz=None, band=1,
     if time is None and (azimuth is None or altitude is None):
         raise Error("give azimuth and altitude, or time")
     if output is not None:
-        return _qota._shadow(str(dem_path), str(output), azimuth, altitude, time or "", tz or "", int(band),
+        return _qota._shadow(_local_file(dem_path), str(output), azimuth, altitude, time or "", tz or "", int(band),
                              float(z_factor))
     with _tempfile.TemporaryDirectory(prefix="qota_shadow_") as folder:
-        return _qota._shadow(str(dem_path), _os.path.join(folder, "shadow.tif"), azimuth, altitude, time or "",
+        return _qota._shadow(_local_file(dem_path), _os.path.join(folder, "shadow.tif"), azimuth, altitude, time or "",
                              tz or "", int(band), float(z_factor))
 
 

@@ -16,6 +16,7 @@
 
 #include <sstream>
 
+#include "qota/batch.hpp"
 #include "qota/dem.hpp"
 #include "qota/error.hpp"
 #include "qota/instant.hpp"
@@ -55,6 +56,36 @@ class Terrain {
         out[i] = hit ? std::optional(hit->height) : std::nullopt;
       }
     });
+  }
+
+  // The nearest hit below (or above) z at every point, with what it hit: heights (NaN: none),
+  // polygon ids (-1: none) and unit normals (NaN: none), on every core with the GIL released.
+  py::tuple hits(const Array& x, const Array& y, const Array& z, bool below) const {
+    if (x.ndim() != 1 || y.ndim() != 1 || z.ndim() != 1 || x.shape(0) != y.shape(0) || z.shape(0) != x.shape(0)) {
+      throw qota::Error("x, y and z must be flat arrays of one length");
+    }
+    const auto n = static_cast<std::size_t>(x.shape(0));
+    py::array_t<double> heights(static_cast<py::ssize_t>(n));
+    py::array_t<std::int64_t> polygons(static_cast<py::ssize_t>(n));
+    py::array_t<double> normals({static_cast<py::ssize_t>(n), py::ssize_t{3}});
+    const double *px = x.data(), *py_ = y.data(), *pz = z.data();
+    double* h = heights.mutable_data();
+    std::int64_t* p = polygons.mutable_data();
+    double* nrm = normals.mutable_data();
+    const Eigen::Vector3d o = index_.mapping().origin();
+    {
+      py::gil_scoped_release release;
+      qota::batch::inSlices(n, 0, 4096, [&](std::size_t lo, std::size_t hi) {
+        for (std::size_t i = lo; i < hi; ++i) {
+          const double u = px[i] - o.x(), v = py_[i] - o.y(), w = pz[i] - o.z();
+          const auto hit = below ? index_.below(u, v, w) : index_.above(u, v, w);
+          h[i] = hit ? hit->height + o.z() : kNaN;
+          p[i] = hit ? static_cast<std::int64_t>(hit->polygon) : -1;
+          for (int k = 0; k < 3; ++k) nrm[3 * i + k] = hit ? hit->normal[k] : kNaN;
+        }
+      });
+    }
+    return py::make_tuple(heights, polygons, normals);
   }
 
   // Every surface on the vertical through (x, y), top first: (height, polygon id, normal).
@@ -294,6 +325,7 @@ PYBIND11_MODULE(_qota, m) {
       .def("below", &Terrain::below)
       .def("above", &Terrain::above)
       .def("all", &Terrain::all)
+      .def("hits", &Terrain::hits)
       .def("save", &Terrain::save)
       .def("stats", &Terrain::stats)
       .def_property_readonly("source", &Terrain::source);

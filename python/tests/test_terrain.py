@@ -172,8 +172,13 @@ def test_save_and_load_answer_alike(tmp_path):
 
 
 def test_errors_name_what_is_wrong(tmp_path):
-    with pytest.raises(qota.Error, match="nonexistent"):
+    with pytest.raises(FileNotFoundError, match="nonexistent"):
         qota.Terrain.from_raster(tmp_path / "nonexistent.tif")
+    with pytest.raises(OSError):
+        qota.Terrain.load(tmp_path / "nonexistent.qota")
+    (tmp_path / "empty.tif").write_bytes(b"")
+    with pytest.raises(qota.Error, match="empty.tif"):
+        qota.Terrain.from_raster(tmp_path / "empty.tif")
     with pytest.raises(qota.Error, match="names vertex 7"):
         qota.Terrain.from_mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 7]])
     with pytest.raises(qota.Error, match=r"\(N, 3\)"):
@@ -246,3 +251,28 @@ def test_sun_position_at_noon_on_the_solstice():
     assert abs(az - 180) < 1.5
     with pytest.raises(qota.Error):
         qota.sun_position("2024-02-30T12:00Z", 0, 0)
+
+
+def test_polygons_and_normals_on_request():
+    rng = np.random.default_rng(7)
+    v, t = layered_mesh(rng)
+    terrain = qota.Terrain.from_mesh(v, t)
+    x, y, z = rng.uniform(-1, 12, 3000), rng.uniform(-1, 12, 3000), rng.uniform(-2, 30, 3000)
+    for name, below in [("below", True), ("above", False)]:
+        h, p, n = getattr(terrain, name)(x, y, z, polygons=True, normals=True)
+        np.testing.assert_array_equal(h, getattr(terrain, name)(x, y, z))
+        hit = ~np.isnan(h)
+        assert np.all(p[~hit] == -1) and np.all(np.isnan(n[~hit]))
+        # The polygon holds the point at that height (its plane, from its own corners), and the
+        # normal is its unit normal, facing up.
+        a, b, c = v[t[p[hit], 0]], v[t[p[hit], 1]], v[t[p[hit], 2]]
+        normal = np.cross(b - a, c - a)
+        normal /= np.linalg.norm(normal, axis=1)[:, None]
+        normal *= np.sign(normal[:, 2])[:, None]
+        np.testing.assert_allclose(n[hit], normal, atol=1e-9)
+        point = np.column_stack([x[hit], y[hit], h[hit]])
+        np.testing.assert_allclose(np.einsum("ij,ij->i", point - a, normal), 0, atol=1e-9)
+    h, p = terrain.heights(np.full((2, 3), 3.3), 2.2, polygons=True)
+    assert h.shape == p.shape == (2, 3) and p.dtype == np.int64
+    (lo, lo_n), (hi, hi_n) = terrain.bracket(3.3, 2.2, 10.0, normals=True)
+    assert lo < 10 < hi and lo_n.shape == hi_n.shape == (3,)
