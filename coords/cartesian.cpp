@@ -11,7 +11,7 @@ namespace qota {
 using detail::formatVector;
 
 CartesianMapping::CartesianMapping(const Eigen::Vector3d& gravity, const Eigen::Vector3d& origin)
-    : given_(gravity), origin_(origin) {
+    : given_(gravity) {
   if (!gravity.allFinite() || gravity.squaredNorm() == 0.0) {
     throw Error("cartesian mapping: gravity must be a nonzero finite vector, got (" +
                 formatVector(gravity) + ")");
@@ -19,15 +19,16 @@ CartesianMapping::CartesianMapping(const Eigen::Vector3d& gravity, const Eigen::
   if (!origin.allFinite()) {
     throw Error("cartesian mapping: origin must be finite, got (" + formatVector(origin) + ")");
   }
-  vertical_ = gravity.x() == 0.0 && gravity.y() == 0.0 && gravity.z() < 0.0;
-  if (vertical_) {
+  frame_.origin = origin;
+  frame_.identity = gravity.x() == 0.0 && gravity.y() == 0.0 && gravity.z() < 0.0;
+  if (frame_.identity) {
     gravity_ = Eigen::Vector3d(0, 0, -1);
-    rotation_.setIdentity();
+    frame_.rotation.setIdentity();
   } else {
     gravity_ = gravity.normalized();
     // The minimal rotation taking gravity onto -Z; Eigen handles the antiparallel case (gravity
     // along +Z) by picking a rotation axis perpendicular to it.
-    rotation_ = Eigen::Quaterniond::FromTwoVectors(gravity_, Eigen::Vector3d(0, 0, -1))
+    frame_.rotation = Eigen::Quaterniond::FromTwoVectors(gravity_, Eigen::Vector3d(0, 0, -1))
                     .normalized()
                     .toRotationMatrix();
   }
@@ -40,7 +41,7 @@ CartesianMapping CartesianMapping::fromParameters(MappingParameters& p) {
 
 std::string CartesianMapping::describe() const {
   return std::string(name()) + " gravity=" + formatVector(given_) +
-         " origin=" + formatVector(origin_);
+         " origin=" + formatVector(frame_.origin);
 }
 
 }  // namespace qota

@@ -36,19 +36,10 @@ class CartesianMapping {
   static constexpr const char* name() { return "cartesian"; }
   static constexpr bool kHeightUp = true;
 
-  Eigen::Vector3d toMapped(const Eigen::Vector3d& world) const {
-    if (vertical_) return world - origin_;
-    return rotation_ * (world - origin_);
-  }
-  Eigen::Vector3d toWorld(const Eigen::Vector3d& mapped) const {
-    if (vertical_) return mapped + origin_;
-    return rotation_.transpose() * mapped + origin_;
-  }
+  Eigen::Vector3d toMapped(const Eigen::Vector3d& world) const { return frame_.toMapped(world); }
+  Eigen::Vector3d toWorld(const Eigen::Vector3d& mapped) const { return frame_.toWorld(mapped); }
   // A direction (e.g. a surface normal) from the mapped frame to the world frame.
-  Eigen::Vector3d directionToWorld(const Eigen::Vector3d& mapped) const {
-    if (vertical_) return mapped;
-    return rotation_.transpose() * mapped;
-  }
+  Eigen::Vector3d directionToWorld(const Eigen::Vector3d& mapped) const { return frame_.directionToWorld(mapped); }
   MappedLine line(double u, double v) const { return {toWorld({u, v, 0.0}), gravity_}; }
   MappedDomain domain() const {
     constexpr double inf = std::numeric_limits<double>::infinity();
@@ -56,12 +47,12 @@ class CartesianMapping {
   }
 
   const Eigen::Vector3d& gravity() const { return gravity_; }  // unit
-  const Eigen::Vector3d& origin() const { return origin_; }
-  const Eigen::Matrix3d& rotation() const { return rotation_; }  // world -> mapped
+  const Eigen::Vector3d& origin() const { return frame_.origin; }
+  const Eigen::Matrix3d& rotation() const { return frame_.rotation; }  // world -> mapped
   // True when gravity is exactly -Z and the mapping is a pure translation.
-  bool vertical() const { return vertical_; }
+  bool vertical() const { return frame_.identity; }
   // As a planar mapping (planar.hpp).
-  PlanarFrame frame() const { return {rotation_, origin_, vertical_}; }
+  const PlanarFrame& frame() const { return frame_; }
 
   // "cartesian gravity=gx,gy,gz origin=ox,oy,oz", with round-trip precision (the gravity as
   // given, so that parsing it back builds the identical mapping).
@@ -71,9 +62,7 @@ class CartesianMapping {
  private:
   Eigen::Vector3d given_;  // the gravity as given, for describe(): an exact round trip
   Eigen::Vector3d gravity_;
-  Eigen::Vector3d origin_;
-  Eigen::Matrix3d rotation_;
-  bool vertical_;
+  PlanarFrame frame_;  // R (the rotation taking gravity to -Z) and the origin
 };
 
 }  // namespace qota

@@ -38,7 +38,7 @@ class EnuMapping {
     constexpr double inf = std::numeric_limits<double>::infinity();
     return {-inf, inf, -inf, inf, false};
   }
-  PlanarFrame frame() const { return frame_; }
+  const PlanarFrame& frame() const { return frame_; }
 
   double latitude() const { return lat0_; }
   double longitude() const { return lon0_; }

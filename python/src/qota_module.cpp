@@ -41,18 +41,16 @@ class Terrain {
   Terrain(qota::TerrainIndex index, std::string source) : index_(std::move(index)), source_(std::move(source)) {}
 
   py::array_t<double> heights(const Array& x, const Array& y) const {
-    return batch(x, y, nullptr, [&](auto pts, auto out) { index_.heightsParallel(pts, out); });
+    return batch(x, y, nullptr, [&](auto pts, auto, auto out) { index_.heightsParallel(pts, out); });
   }
   py::array_t<double> below(const Array& x, const Array& y, const Array& z) const {
-    return batch(x, y, &z, [&](auto pts, auto out) {
-      index_.heightsBelowParallel(pts, std::span<const double>(zs_), out);
-    });
+    return batch(x, y, &z, [&](auto pts, auto zs, auto out) { index_.heightsBelowParallel(pts, zs, out); });
   }
   py::array_t<double> above(const Array& x, const Array& y, const Array& z) const {
     // No batch for "above" in the library: one query a point, on this thread.
-    return batch(x, y, &z, [&](auto pts, auto out) {
+    return batch(x, y, &z, [&](auto pts, auto zs, auto out) {
       for (std::size_t i = 0; i < pts.size(); ++i) {
-        const auto hit = index_.above(pts[i].u, pts[i].v, zs_[i]);
+        const auto hit = index_.above(pts[i].u, pts[i].v, zs[i]);
         out[i] = hit ? std::optional(hit->height) : std::nullopt;
       }
     });
@@ -128,6 +126,7 @@ class Terrain {
     const std::size_t n = static_cast<std::size_t>(x.shape(0));
     const Eigen::Vector3d o = index_.mapping().origin();
     std::vector<qota::Point2> pts(n);
+    std::vector<double> zs(z ? n : 0);  // per call: batches run with the GIL released
     std::vector<std::optional<double>> out(n);
     py::array_t<double> result(static_cast<py::ssize_t>(n));
     const double* px = x.data();
@@ -137,11 +136,8 @@ class Terrain {
     {
       py::gil_scoped_release release;
       for (std::size_t i = 0; i < n; ++i) pts[i] = {px[i] - o.x(), py_[i] - o.y()};
-      if (pz) {
-        zs_.resize(n);
-        for (std::size_t i = 0; i < n; ++i) zs_[i] = pz[i] - o.z();
-      }
-      run(std::span<const qota::Point2>(pts), std::span<std::optional<double>>(out));
+      for (std::size_t i = 0; pz && i < n; ++i) zs[i] = pz[i] - o.z();
+      run(std::span<const qota::Point2>(pts), std::span<const double>(zs), std::span<std::optional<double>>(out));
       for (std::size_t i = 0; i < n; ++i) r[i] = out[i] ? *out[i] + o.z() : kNaN;
     }
     return result;
@@ -149,7 +145,6 @@ class Terrain {
 
   qota::TerrainIndex index_;
   std::string source_;
-  mutable std::vector<double> zs_;  // (a Terrain is not shared between Python threads mid-call: the GIL)
 };
 
 qota::TerrainIndex indexOf(const qota::DemTerrain& dem) { return qota::TerrainIndex(dem.mesh, dem.mapping); }
