@@ -92,17 +92,9 @@ std::array<std::uint32_t, 3> RasterGrid::triangle(std::size_t t) const {
 }
 
 std::vector<std::uint32_t> RasterGrid::indices() const {
-  std::vector<std::uint32_t> out;
-  out.reserve(3 * triangleCount());
-  const auto w = static_cast<std::uint32_t>(width_);
-  for (std::uint32_t r = 0; r + 1 < static_cast<std::uint32_t>(height_); ++r) {
-    for (std::uint32_t c = 0; c + 1 < w; ++c) {
-      const std::uint32_t tl = r * w + c, tr = tl + 1, bl = tl + w, br = bl + 1;
-      out.insert(out.end(), {tl, bl, br, tl, br, tr});
-    }
-  }
-  for (const auto& t : extraTriangles_) out.insert(out.end(), t.begin(), t.end());
-  return out;
+  Mesh all;
+  appendTriangles(all, [](std::uint32_t) { return true; });
+  return std::move(all.indices);
 }
 
 int RasterGrid::ring(int row, int col, std::uint32_t out[kMaxRing], bool& closed) const {

@@ -1,5 +1,7 @@
 #include "qota/synthetic.hpp"
 
+#include "qota/raster_grid.hpp"
+
 #include <cmath>
 
 namespace qota {
@@ -60,15 +62,9 @@ Mesh Heightfield::toMesh() const {
   for (int j = 0; j < ny; ++j) {
     for (int i = 0; i < nx; ++i) m.addVertex({x0 + i * cell, y0 + j * cell, at(i, j)});
   }
-  m.indices.reserve(static_cast<std::size_t>(nx - 1) * (ny - 1) * 6);
-  for (int j = 0; j + 1 < ny; ++j) {
-    for (int i = 0; i + 1 < nx; ++i) {
-      const auto a = static_cast<std::uint32_t>(j * nx + i), b = a + 1;
-      const auto c = static_cast<std::uint32_t>(a + nx), d = c + 1;
-      m.addTriangle(a, d, c);  // (i,j) (i+1,j+1) (i,j+1)
-      m.addTriangle(a, b, d);  // (i,j) (i+1,j) (i+1,j+1)
-    }
-  }
+  // The raster rule (raster_grid.hpp) with rows running up y: (i, j) (i+1, j+1) (i, j+1), then
+  // (i, j) (i+1, j) (i+1, j+1), counter-clockwise seen from above.
+  RasterGrid(nx, ny, {}).appendTriangles(m, [](std::uint32_t) { return true; }, 0, /*reverse=*/true);
   return m;
 }
 

@@ -254,7 +254,7 @@ PlanarCore::PlanarCore(const Mesh& mesh, const PlanarFrame& frame, const IndexOp
   // neighbouring leaves) sit next to each other in memory; a regular grid's in row order instead,
   // so that a walk along a row reads memory in order.
   const std::vector<std::uint32_t> slots =
-      options.gridFastPath.value_or(true) ? gridSlots(pending) : std::vector<std::uint32_t>();
+      options.gridFastPath.value_or(true) ? grid_.recognise(corners2_, pending) : std::vector<std::uint32_t>();
   if (!pending.empty()) {
     const double su = domain.uhi > domain.ulo ? 65535.0 / (domain.uhi - domain.ulo) : 0.0;
     const double sv = domain.vhi > domain.vlo ? 65535.0 / (domain.vhi - domain.vlo) : 0.0;
@@ -275,10 +275,7 @@ PlanarCore::PlanarCore(const Mesh& mesh, const PlanarFrame& frame, const IndexOp
     for (std::size_t t = 0; t < keyed.size(); ++t) sorted[t] = pending[keyed[t] & 0xffffffffu];
     pending.swap(sorted);
     if (!slots.empty()) {
-      cellTri_.assign(2ull * (gridW_ - 1) * (gridH_ - 1), kNone);
-      for (std::size_t t = 0; t < keyed.size(); ++t) {
-        cellTri_[keyed[t] >> 32] = static_cast<std::uint32_t>(t);
-      }
+      grid_.fillSlots(keyed);
     }
   }
 
@@ -295,10 +292,10 @@ PlanarCore::PlanarCore(const Mesh& mesh, const PlanarFrame& frame, const IndexOp
   // A grid whose cells all store their corners in the same order keeps no records at all: the
   // fast path computes a cell's plane from its corners (the same arithmetic, so the same bits),
   // and the records are made with the tree when something needs them.
-  if (gridW_) setUpLeanGrid();
-  const bool deferred = gridW_ != 0;
+  if (grid_.on()) grid_.setUpLean(cold_, corners2_, cornerH_);
+  const bool deferred = grid_.on();
   std::vector<Box2> boxes(deferred ? 0 : pending.size());  // build only: bboxes for the overlap test
-  if (!gridLean_) {
+  if (!grid_.lean) {
     tris_.resize(pending.size());
     for (std::size_t t = 0; t < pending.size(); ++t) {
       const Box2 box = makeRecord(static_cast<std::uint32_t>(t), pending[t]);
@@ -307,9 +304,7 @@ PlanarCore::PlanarCore(const Mesh& mesh, const PlanarFrame& frame, const IndexOp
   }
   deferredOptions_ = options.tree;
   baseMemoryBytes_ = cold_.size() * sizeof(Cold) + corners2_.size() * (sizeof(Point2) + sizeof(double)) +
-                     cellTri_.size() * sizeof(std::uint32_t) + gridH32_.size() * sizeof(float) +
-                     (gridColU_.size() + gridRowV_.size()) * sizeof(double) +
-                     gridPresent_.size() * sizeof(std::uint64_t);
+                     grid_.memoryBytes();
   if (deferred) {
     // The grid answers every height query: the tree waits until something needs it.
     deferredTree_ = true;
@@ -332,191 +327,22 @@ PlanarCore::PlanarCore(const Mesh& mesh, const PlanarFrame& frame, const IndexOp
   }
 }
 
-void PlanarCore::setUpLeanGrid() {
-  gridLean_ = gridAxesF32_ = false;
-  gridCellsU_ = gridW_ ? gridW_ - 1.0 : 0.0, gridCellsV_ = gridH_ ? gridH_ - 1.0 : 0.0;
-  gridColU_.clear(), gridRowV_.clear(), gridPresent_.clear();
-  BigVector<float>().swap(gridH32_);
-  // Each half of a cell stores its corners (after fanPolygon's orientation) at fixed offsets from
-  // the cell's first vertex x = row * w + col: find them from the first triangle of each half and
-  // check every triangle.
-  const std::uint64_t w = gridW_;
-  bool seen[2] = {false, false};
-  for (std::uint32_t slot = 0; slot < cellTri_.size(); ++slot) {
-    const std::uint32_t t = cellTri_[slot];
-    if (t == kNone) continue;
-    const std::uint64_t cell = slot / 2, half = slot % 2;
-    const std::uint64_t x = (cell / (w - 1)) * w + cell % (w - 1);
-    for (int k = 0; k < 3; ++k) {
-      const std::int64_t offset = static_cast<std::int64_t>(cold_[t].corner[k]) - static_cast<std::int64_t>(x);
-      if (!seen[half]) {
-        gridCorner_[half][k] = static_cast<std::uint32_t>(offset);
-      } else if (gridCorner_[half][k] != static_cast<std::uint32_t>(offset)) {
-        return;
-      }
-    }
-    seen[half] = true;
-  }
-  for (int half = 0; half < 2; ++half) {
-    for (int k = 0; k < 3; ++k) {
-      const std::uint64_t off = gridCorner_[half][k];
-      if (off != 0 && off != 1 && off != w && off != w + 1) return;
-      gridDc_[half][k] = static_cast<std::uint8_t>(off % w);
-      gridDr_[half][k] = static_cast<std::uint8_t>(off / w);
-    }
-  }
-  gridLean_ = true;
-  // u by column and v by row, when the vertices' coordinates are exactly those (an axis-aligned
-  // grid under a vertical gravity): then a query reads no vertex coordinates.
-  const std::uint64_t h = gridH_;
-  std::vector<double> colU(w), rowV(h);
-  for (std::uint64_t c = 0; c < w; ++c) colU[c] = corners2_[c].u;
-  for (std::uint64_t r = 0; r < h; ++r) rowV[r] = corners2_[r * w].v;
-  bool axes = true;
-  for (std::uint64_t i = 0; i < corners2_.size() && axes; ++i) {
-    axes = corners2_[i].u == colU[i % w] && corners2_[i].v == rowV[i / w];
-  }
-  if (axes) gridColU_.swap(colU), gridRowV_.swap(rowV);
-  // Heights in float when every one is exact in float (Int16 and Float32 rasters): half the bytes
-  // a random query pulls through the cache.
-  bool exact = true;
-  for (std::size_t i = 0; i < cornerH_.size() && exact; ++i) {
-    exact = static_cast<double>(static_cast<float>(cornerH_[i])) == cornerH_[i];
-  }
-  if (exact) {
-    gridH32_.resize(cornerH_.size());
-    for (std::size_t i = 0; i < cornerH_.size(); ++i) gridH32_[i] = static_cast<float>(cornerH_[i]);
-  }
-  gridAxesF32_ = !gridColU_.empty() && !gridH32_.empty();
-  // Which slots hold a triangle, one bit each, unless every one does.
-  if (std::find(cellTri_.begin(), cellTri_.end(), kNone) != cellTri_.end()) {
-    gridPresent_.assign((cellTri_.size() + 63) / 64, 0);
-    for (std::uint64_t slot = 0; slot < cellTri_.size(); ++slot) {
-      if (cellTri_[slot] != kNone) gridPresent_[slot >> 6] |= std::uint64_t{1} << (slot & 63);
-    }
-  }
-}
-
-std::vector<std::uint32_t> PlanarCore::gridSlots(std::span<const Pending> pending) {
-  // A regular grid of w x h vertices, two triangles per cell split along the diagonal from
-  // vertex x to x + w + 1 (loadDem's and Heightfield's layout). w from the first triangle, then
-  // every triangle must be one half of a cell, each half once. Returns each triangle's slot,
-  // 2 * cell + half (the half with corner x + w first), or nothing when the mesh is not a grid.
-  const std::size_t nv = corners2_.size();
-  if (pending.empty()) return {};
-  auto sorted = [](const Pending& q) {
-    std::array<std::uint32_t, 3> k{q.corner[0], q.corner[1], q.corner[2]};
-    std::sort(k.begin(), k.end());
-    return k;
-  };
-  const auto k0 = sorted(pending[0]);
-  const std::uint64_t w = k0[2] - k0[0] - 1;
-  if (w < 2 || nv % w != 0 || nv / w < 2) return {};
-  const std::uint64_t h = nv / w;
-  if (w > 0xffffffffu || 2 * (w - 1) * (h - 1) >= 0xffffffffu) return {};
-  std::vector<std::uint8_t> taken(2 * (w - 1) * (h - 1), 0);
-  std::vector<std::uint32_t> slots(pending.size());
-  for (std::size_t t = 0; t < pending.size(); ++t) {
-    const auto k = sorted(pending[t]);
-    const std::uint64_t x = k[0], col = x % w, row = x / w;
-    if (k[2] != x + w + 1 || col == w - 1 || row >= h - 1 || (k[1] != x + w && k[1] != x + 1)) return {};
-    const std::uint64_t slot = 2 * (row * (w - 1) + col) + (k[1] == x + w ? 0 : 1);
-    if (taken[slot]) return {};  // the same half twice: overlapping, not a grid
-    taken[slot] = 1;
-    slots[t] = static_cast<std::uint32_t>(slot);
-  }
-  // The vertices must lie on the affine grid (u, v) = o + col * a + row * b, to well within a
-  // cell, so that the cell found by arithmetic is the cell (or a neighbour, near its edges).
-  const Point2 o = corners2_[0], pa = corners2_[1], pb = corners2_[w];
-  const double au = pa.u - o.u, av = pa.v - o.v, bu = pb.u - o.u, bv = pb.v - o.v;
-  const double det = au * bv - av * bu;
-  if (!std::isfinite(det) || det == 0) return {};
-  const double cellSize = std::min(std::hypot(au, av), std::hypot(bu, bv));
-  for (std::uint64_t i = 0; i < nv; ++i) {
-    const double c = static_cast<double>(i % w), r = static_cast<double>(i / w);
-    const Point2 p = corners2_[i];
-    const double eu = o.u + c * au + r * bu - p.u, ev = o.v + c * av + r * bv - p.v;
-    if (!(std::hypot(eu, ev) <= 1e-6 * cellSize)) return {};
-  }
-  // And within 1e-6 of their column and row as the query computes them (the fast path's
-  // "clearly inside" margin of 1e-5 cell rests on this).
-  const double inv[4] = {bv / det, -bu / det, -av / det, au / det};
-  for (std::uint64_t i = 0; i < nv; ++i) {
-    const double du = corners2_[i].u - o.u, dv = corners2_[i].v - o.v;
-    const double fc = inv[0] * du + inv[1] * dv, fr = inv[2] * du + inv[3] * dv;
-    if (!(std::fabs(fc - static_cast<double>(i % w)) <= 1e-6 &&
-          std::fabs(fr - static_cast<double>(i / w)) <= 1e-6)) {
-      return {};
-    }
-  }
-  gridW_ = static_cast<std::uint32_t>(w);
-  gridH_ = static_cast<std::uint32_t>(h);
-  gridU0_ = o.u, gridV0_ = o.v;
-  for (int k = 0; k < 4; ++k) gridInv_[k] = inv[k];
-  return slots;
-}
-
-void PlanarCore::clearGridSlot(std::uint32_t t) {
-  std::array<std::uint32_t, 3> k{cold_[t].corner[0], cold_[t].corner[1], cold_[t].corner[2]};
-  std::sort(k.begin(), k.end());
-  const std::uint64_t x = k[0], col = x % gridW_, row = x / gridW_;
-  const std::uint64_t slot = 2 * (row * (gridW_ - 1) + col) + (k[1] == x + gridW_ ? 0 : 1);
-  if (slot < cellTri_.size() && cellTri_[slot] == t) {
-    cellTri_[slot] = kNone;
-    if (gridLean_) {
-      if (gridPresent_.empty()) gridPresent_.assign((cellTri_.size() + 63) / 64, ~std::uint64_t{0});
-      gridPresent_[slot >> 6] &= ~(std::uint64_t{1} << (slot & 63));
-    }
-  }
-}
-
 const PlanarCore::Tri& PlanarCore::gridRecord(std::uint32_t t, Tri& scratch) const {
   // A lean grid never reads the records, not even once the tree has made them: they may be
   // being made on another thread.
-  if (!gridLean_) return tris_[t];
+  if (!grid_.lean) return tris_[t];
   scratch = computeRecord(cold_[t].corner);
   return scratch;
 }
 
 PlanarCore::Tri PlanarCore::recordOf(std::uint32_t t) const {
-  return gridLean_ || t >= tris_.size() ? computeRecord(cold_[t].corner) : tris_[t];
-}
-
-[[gnu::always_inline]] inline PlanarCore::GridCell PlanarCore::gridCell(double u, double v) const {
-  GridCell g{};
-  const double du = u - gridU0_, dv = v - gridV0_;
-  g.fc = gridInv_[0] * du + gridInv_[1] * dv, g.fr = gridInv_[2] * du + gridInv_[3] * dv;
-  g.inGrid = g.fc >= 0 && g.fr >= 0 && g.fc < gridCellsU_ && g.fr < gridCellsV_;
-  if (!g.inGrid) return g;  // also NaN
-  // Signed conversions: in range here, and without the unsigned one's branch.
-  const auto col = static_cast<std::int64_t>(g.fc), row = static_cast<std::int64_t>(g.fr);
-  g.col = static_cast<std::uint64_t>(col), g.row = static_cast<std::uint64_t>(row);
-  // The half of the cell with corner (col, row + 1) lies where the row fraction exceeds the
-  // column fraction.
-  const double xc = g.fc - static_cast<double>(col), xr = g.fr - static_cast<double>(row);
-  g.half = xr > xc ? 0 : 1;
-  g.slot = 2 * (g.row * (gridW_ - 1) + g.col) + g.half;
-  // Clearly inside: farther than 1e-5 cell from the half's sides, with the vertices within 1e-6
-  // cell of their grid positions (gridSlots), so no other triangle can hold the point.
-  g.clear = std::min(std::min(std::min(xc, xr), 1 - std::max(xc, xr)), std::fabs(xr - xc)) > 1e-5;
-  return g;
+  return grid_.lean || t >= tris_.size() ? computeRecord(cold_[t].corner) : tris_[t];
 }
 
 [[gnu::always_inline]] inline void PlanarCore::leanCorner(std::uint64_t col, std::uint64_t row,
                                                             std::uint32_t half, int k, double& u,
                                                             double& v, double& h) const {
-  const std::uint64_t x = row * gridW_ + col + gridCorner_[half][k];
-  if (gridAxesF32_) [[likely]] {  // the common DEM
-    u = gridColU_[col + gridDc_[half][k]], v = gridRowV_[row + gridDr_[half][k]];
-    h = static_cast<double>(gridH32_[x]);
-    return;
-  }
-  if (gridColU_.empty()) {
-    u = corners2_[x].u, v = corners2_[x].v;
-  } else {
-    u = gridColU_[col + gridDc_[half][k]], v = gridRowV_[row + gridDr_[half][k]];
-  }
-  h = gridH32_.empty() ? cornerH_[x] : static_cast<double>(gridH32_[x]);
+  grid_.leanCorner(col, row, half, k, corners2_, cornerH_, u, v, h);
 }
 
 [[gnu::always_inline]] inline void PlanarCore::leanCorners(std::uint64_t col, std::uint64_t row,
@@ -559,8 +385,8 @@ PlanarCore::Tri PlanarCore::recordOf(std::uint32_t t) const {
 
 template <bool NeedId>
 [[gnu::always_inline]] inline std::uint32_t PlanarCore::gridAnswer(double u, double v, double& h, Quadtree::Cursor* cursor) const {
-  if (gridLean_) {
-    const GridCell g = gridCell(u, v);
+  if (grid_.lean) {
+    const detail::GridPath::Cell g = grid_.cell(u, v);
     if (g.inGrid && g.clear) [[likely]] {
       const std::uint64_t slot = g.slot;
       if (cursor && cursor->memo.key == slot && cursor->memo.owner == this &&
@@ -572,10 +398,10 @@ template <bool NeedId>
       std::uint32_t t = kFound;
       bool present;
       if constexpr (NeedId) {
-        t = cellTri_[slot];
+        t = grid_.cellTri[slot];
         present = t != kNone;
       } else {
-        present = slotPresent(slot);
+        present = grid_.slotPresent(slot);
       }
       if (present) [[likely]] {
         LeanPlane p;
@@ -583,7 +409,7 @@ template <bool NeedId>
         if (cursor) {
           auto& m = cursor->memo;
           m.owner = this, m.generation = generation_, m.key = slot;
-          m.item = NeedId ? t : cellTri_[slot];
+          m.item = NeedId ? t : grid_.cellTri[slot];
           // One store each: a copy through a local array made the compiler store it in halves and
           // reload it whole, a store-forwarding stall on every query of a walk.
           m.value[0] = p.a, m.value[1] = p.b, m.value[2] = p.h0, m.value[3] = p.u0;
@@ -615,15 +441,15 @@ template <bool NeedId>
 }
 
 std::uint32_t PlanarCore::gridTriangle(double u, double v, Tri& scratch, const Tri*& rec) const {
-  const double du = u - gridU0_, dv = v - gridV0_;
-  const double fc = gridInv_[0] * du + gridInv_[1] * dv, fr = gridInv_[2] * du + gridInv_[3] * dv;
-  if (fc >= 0 && fr >= 0 && fc < gridW_ - 1 && fr < gridH_ - 1) [[likely]] {
+  const double du = u - grid_.u0, dv = v - grid_.v0;
+  const double fc = grid_.inv[0] * du + grid_.inv[1] * dv, fr = grid_.inv[2] * du + grid_.inv[3] * dv;
+  if (fc >= 0 && fr >= 0 && fc < grid_.w - 1 && fr < grid_.h - 1) [[likely]] {
     const auto col = static_cast<std::uint32_t>(fc), row = static_cast<std::uint32_t>(fr);
     // The half of the cell with corner (col, row + 1) lies where the row fraction exceeds the
     // column fraction.
     const std::uint32_t half = fr - row > fc - col ? 0 : 1;
-    const std::uint64_t slot = 2 * (static_cast<std::uint64_t>(row) * (gridW_ - 1) + col) + half;
-    const std::uint32_t t = cellTri_[slot];
+    const std::uint64_t slot = 2 * (static_cast<std::uint64_t>(row) * (grid_.w - 1) + col) + half;
+    const std::uint32_t t = grid_.cellTri[slot];
     if (t != kNone) {
       // Clearly inside, beyond twice the edge tests' error bound: no other triangle of a grid
       // can hold the point.
@@ -641,8 +467,8 @@ std::uint32_t PlanarCore::gridTriangle(double u, double v, Tri& scratch, const T
 std::uint32_t PlanarCore::gridTriangleNearEdge(double u, double v, double fc, double fr,
                                                  Tri& scratch, const Tri*& rec) const {
   // Beyond a cell off the grid nothing can hold the point; NaN lands here too.
-  if (!(fc >= -1 && fr >= -1 && fc <= gridW_ && fr <= gridH_)) return kOffGrid;
-  const double cellsU = gridW_ - 1, cellsV = gridH_ - 1;
+  if (!(fc >= -1 && fr >= -1 && fc <= grid_.w && fr <= grid_.h)) return kOffGrid;
+  const double cellsU = grid_.w - 1, cellsV = grid_.h - 1;
   const auto col = static_cast<std::int64_t>(std::floor(std::clamp(fc, 0.0, cellsU - 0.5)));
   const auto row = static_cast<std::int64_t>(std::floor(std::clamp(fr, 0.0, cellsV - 0.5)));
   // On or near an edge (a pixel centre, a cell side), in a hole, or just off the grid: every
@@ -654,11 +480,11 @@ std::uint32_t PlanarCore::gridTriangleNearEdge(double u, double v, double fc, do
   const std::int64_t c0 = col - (fc - col < kNear), c1 = col + (col + 1 - fc < kNear);
   const std::int64_t r0 = row - (fr - row < kNear), r1 = row + (row + 1 - fr < kNear);
   std::uint32_t best = kNone;
-  for (std::int64_t r = std::max<std::int64_t>(r0, 0); r <= std::min<std::int64_t>(r1, gridH_ - 2); ++r) {
-    for (std::int64_t c = std::max<std::int64_t>(c0, 0); c <= std::min<std::int64_t>(c1, gridW_ - 2); ++c) {
+  for (std::int64_t r = std::max<std::int64_t>(r0, 0); r <= std::min<std::int64_t>(r1, grid_.h - 2); ++r) {
+    for (std::int64_t c = std::max<std::int64_t>(c0, 0); c <= std::min<std::int64_t>(c1, grid_.w - 2); ++c) {
       for (int half = 0; half < 2; ++half) {
-        const std::uint64_t slot = 2 * (static_cast<std::uint64_t>(r) * (gridW_ - 1) + c) + half;
-        const std::uint32_t t = cellTri_[slot];
+        const std::uint64_t slot = 2 * (static_cast<std::uint64_t>(r) * (grid_.w - 1) + c) + half;
+        const std::uint32_t t = grid_.cellTri[slot];
         if (t == kNone) continue;
         Tri candidateScratch;
         const Tri& candidate = gridRecord(t, candidateScratch);
@@ -863,7 +689,7 @@ inline double PlanarCore::heightOf(const Tri& t, double u, double v) const {
 template <bool Below>
 std::uint32_t PlanarCore::nearest(double u, double v, double z, double& h,
                                     Quadtree::Cursor* cursor) const {
-  if (gridW_) {
+  if (grid_.on()) {
     const std::uint32_t t = gridAnswer<true>(u, v, h, cursor);
     if (t == kOffGrid) return kNone;
     return (Below ? h <= z : h >= z) ? t : kNone;
@@ -971,7 +797,7 @@ void PlanarCore::heightsBelowBatch(std::span<const Point2> points, const ZOf& zO
   constexpr std::size_t kGroup = 16;
   Quadtree::Node leaf[kGroup];
   bool on[kGroup];
-  if (gridW_) {
+  if (grid_.on()) {
     // The grid fast path: first every point's cell and the cache lines of its corners (or, on a
     // grid with records, its triangle ids and then their records), then the answers: on a lean
     // grid the points clearly inside a triangle get their planes and heights in SIMD, sixteen at
@@ -988,34 +814,34 @@ void PlanarCore::heightsBelowBatch(std::span<const Point2> points, const ZOf& zO
       const std::size_t n = std::min(kGroup, points.size() - g);
       for (std::size_t i = 0; i < n; ++i) {
         const Point2 p = points[g + i];
-        const GridCell c = gridCell(p.u, p.v);
+        const detail::GridPath::Cell c = grid_.cell(p.u, p.v);
         inGrid[i] = c.inGrid, lane[i] = false;
         cellCol[i] = c.col, cellRow[i] = c.row, cellHalf[i] = c.half, cellSlot[i] = c.slot;
         if (!c.inGrid) continue;
         const std::uint64_t col = c.col, row = c.row;
-        if (gridLean_) {
+        if (grid_.lean) {
           lane[i] = c.clear;  // its slot's presence is checked below
-          const std::uint64_t x = row * gridW_ + col;
-          if (!gridPresent_.empty()) __builtin_prefetch(&gridPresent_[c.slot >> 6]);
-          if (!gridH32_.empty()) {
-            __builtin_prefetch(&gridH32_[x]), __builtin_prefetch(&gridH32_[x + 1]);
-            __builtin_prefetch(&gridH32_[x + gridW_]), __builtin_prefetch(&gridH32_[x + gridW_ + 1]);
+          const std::uint64_t x = row * grid_.w + col;
+          if (!grid_.presentBits.empty()) __builtin_prefetch(&grid_.presentBits[c.slot >> 6]);
+          if (!grid_.h32.empty()) {
+            __builtin_prefetch(&grid_.h32[x]), __builtin_prefetch(&grid_.h32[x + 1]);
+            __builtin_prefetch(&grid_.h32[x + grid_.w]), __builtin_prefetch(&grid_.h32[x + grid_.w + 1]);
           } else {
             __builtin_prefetch(&cornerH_[x]), __builtin_prefetch(&cornerH_[x + 1]);
-            __builtin_prefetch(&cornerH_[x + gridW_]), __builtin_prefetch(&cornerH_[x + gridW_ + 1]);
+            __builtin_prefetch(&cornerH_[x + grid_.w]), __builtin_prefetch(&cornerH_[x + grid_.w + 1]);
           }
-          if (gridColU_.empty()) {
-            __builtin_prefetch(&corners2_[x]), __builtin_prefetch(&corners2_[x + gridW_ + 1]);
+          if (grid_.colU.empty()) {
+            __builtin_prefetch(&corners2_[x]), __builtin_prefetch(&corners2_[x + grid_.w + 1]);
           }
         } else {
-          __builtin_prefetch(&cellTri_[2 * (row * (gridW_ - 1) + col)]);
+          __builtin_prefetch(&grid_.cellTri[2 * (row * (grid_.w - 1) + col)]);
         }
       }
-      if (gridLean_) {
+      if (grid_.lean) {
         // Gather the lanes' corners (a lane whose slot holds no triangle, and the group's unused
         // lanes, compute on the corners of cell 0 and are thrown away).
         for (std::size_t i = 0; i < kLanes; ++i) {
-          if (i < n && lane[i]) lane[i] = slotPresent(cellSlot[i]);
+          if (i < n && lane[i]) lane[i] = grid_.slotPresent(cellSlot[i]);
           const bool use = i < n && lane[i];
           leanCorners(use ? cellCol[i] : 0, use ? cellRow[i] : 0, use ? cellHalf[i] : 0, cu + i, cv + i,
                       ch + i, kLanes);
@@ -1037,7 +863,7 @@ void PlanarCore::heightsBelowBatch(std::span<const Point2> points, const ZOf& zO
         if (!inGrid[i]) continue;
         const std::uint64_t first = cellSlot[i] - cellHalf[i];  // the cell's two halves
         for (int half = 0; half < 2; ++half) {
-          const std::uint32_t t = cellTri_[first + half];
+          const std::uint32_t t = grid_.cellTri[first + half];
           if (t == kNone) continue;
           __builtin_prefetch(&tris_[t]);
           __builtin_prefetch(reinterpret_cast<const char*>(&tris_[t]) + 64);
@@ -1094,7 +920,7 @@ void PlanarCore::heightsBelowParallel(std::span<const Point2> points, double z,
   batch::requireRoom("heightsBelowParallel", points.size(), heights.size());
   // The tree built once here, not raced for by the workers; the grid fast path never needs it
   // (off the grid and in holes it answers no terrain itself).
-  if (!gridW_) ensureTree();
+  if (!grid_.on()) ensureTree();
   batch::inSlices(points.size(), threads, 4096, [&](std::size_t lo, std::size_t hi) {
     heightsBelowBatch(points.subspan(lo, hi - lo), [z](std::size_t) { return z; }, heights.subspan(lo, hi - lo));
   });
@@ -1103,7 +929,7 @@ void PlanarCore::heightsBelowParallel(std::span<const Point2> points, double z,
 void PlanarCore::heightsBelowParallel(std::span<const Point2> points, std::span<const double> zs,
                                         std::span<std::optional<double>> heights, unsigned threads) const {
   batch::requireRoom("heightsBelowParallel", points.size(), std::min(heights.size(), zs.size()));
-  if (!gridW_) ensureTree();  // (as above)
+  if (!grid_.on()) ensureTree();  // (as above)
   batch::inSlices(points.size(), threads, 4096, [&](std::size_t lo, std::size_t hi) {
     const std::span<const double> z = zs.subspan(lo, hi - lo);
     heightsBelowBatch(points.subspan(lo, hi - lo), [z](std::size_t i) { return z[i]; }, heights.subspan(lo, hi - lo));
@@ -1116,7 +942,7 @@ void PlanarCore::heightsParallel(std::span<const Point2> points, std::span<std::
 }
 
 double PlanarCore::heightAt(double u, double v, double z, Quadtree::Cursor* cursor) const {
-  if (!gridW_) return heightFromTree(u, v, z, cursor);
+  if (!grid_.on()) return heightFromTree(u, v, z, cursor);
   double h = 0;  // no need for the triangle's id
   if (gridAnswer<false>(u, v, h, cursor) == kOffGrid || !(h <= z)) return NAN;
   return h;
@@ -1205,7 +1031,7 @@ bool PlanarCore::triangleOccludesAbove(std::uint32_t t, double u, double v, doub
   if (c.corner[0] == vertex || c.corner[1] == vertex || c.corner[2] == vertex) return false;
   if (c.polygon < removed_.size() && removed_[c.polygon]) return false;
   Tri scratch;
-  const Tri& r = gridLean_ ? (scratch = computeRecord(c.corner)) : tris_[t];
+  const Tri& r = grid_.lean ? (scratch = computeRecord(c.corner)) : tris_[t];
   return contains(r, t, u, v) && heightOf(r, u, v) > h;
 }
 
@@ -1396,9 +1222,7 @@ std::uint32_t PlanarCore::insertPolygon(std::span<const Eigen::Vector3d> corners
     if (!trianglesOf_.empty()) trianglesOf_.emplace(id, t);
   }
   stats_.triangles += pending.size();
-  gridW_ = 0;  // an inserted polygon may overlap the grid: the quadtree answers from now on
-  gridLean_ = false;
-  BigVector<std::uint32_t>().swap(cellTri_);
+  grid_.turnOff();  // an inserted polygon may overlap the grid: the quadtree answers from now on
   if (grows) {
     rebuildTree(domain);
   } else {
@@ -1426,7 +1250,7 @@ bool PlanarCore::removePolygon(std::uint32_t polygon) {
   for (auto it = first; it != last; ++it) {
     tree_.remove(it->second, [this](std::uint32_t i, const Box2& b) { return overlaps(i, boxOf(i), b); });
     --stats_.triangles;
-    if (gridW_) clearGridSlot(it->second);
+    if (grid_.on()) grid_.clearSlot(cold_[it->second], it->second);
   }
   if (first == last) --stats_.leftOut;
   trianglesOf_.erase(polygon);

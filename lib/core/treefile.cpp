@@ -232,12 +232,12 @@ struct TreeFileAccess {
     w.array(x.corners2_);
     w.array(x.cornerH_);
     w.array(x.removed_);
-    w.pod(x.gridW_);
-    w.pod(x.gridH_);
-    w.pod(x.gridU0_);
-    w.pod(x.gridV0_);
-    w.pod(x.gridInv_);
-    w.array(x.cellTri_);
+    w.pod(x.grid_.w);
+    w.pod(x.grid_.h);
+    w.pod(x.grid_.u0);
+    w.pod(x.grid_.v0);
+    w.pod(x.grid_.inv);
+    w.array(x.grid_.cellTri);
     write(w, x.tree_);
   }
 
@@ -252,35 +252,35 @@ struct TreeFileAccess {
     r.array(x.corners2_, "vertices");
     r.array(x.cornerH_, "vertex heights");
     r.array(x.removed_, "removed polygons");
-    x.gridW_ = r.pod<std::uint32_t>("grid");
-    x.gridH_ = r.pod<std::uint32_t>("grid");
-    x.gridU0_ = r.pod<double>("grid");
-    x.gridV0_ = r.pod<double>("grid");
-    for (double& g : x.gridInv_) g = r.pod<double>("grid");
-    r.array(x.cellTri_, "grid cells");
+    x.grid_.w = r.pod<std::uint32_t>("grid");
+    x.grid_.h = r.pod<std::uint32_t>("grid");
+    x.grid_.u0 = r.pod<double>("grid");
+    x.grid_.v0 = r.pod<double>("grid");
+    for (double& g : x.grid_.inv) g = r.pod<double>("grid");
+    r.array(x.grid_.cellTri, "grid cells");
     read(r, x.tree_);
   }
 
   // What a valid file's arrays determine: the lean grid's tables.
   static void derive(PlanarCore& x) {
-    if (x.gridW_) x.setUpLeanGrid();
+    if (x.grid_.on()) x.grid_.setUpLean(x.cold_, x.corners2_, x.cornerH_);
   }
   template <class M>
   static void derive(CurvedIndex<M>&) {}
 
   static void validate(const Reader& r, const PlanarCore& x) {
-    if (x.gridW_) {
-      if (x.gridW_ < 2 || x.gridH_ < 2 ||
-          x.cellTri_.size() != 2ull * (x.gridW_ - 1) * (x.gridH_ - 1)) {
+    if (x.grid_.on()) {
+      if (x.grid_.w < 2 || x.grid_.h < 2 ||
+          x.grid_.cellTri.size() != 2ull * (x.grid_.w - 1) * (x.grid_.h - 1)) {
         r.fail("the grid's cell table has the wrong size");
       }
-      for (std::uint32_t t : x.cellTri_) {
+      for (std::uint32_t t : x.grid_.cellTri) {
         if (t != PlanarCore::kNone && t >= x.tris_.size()) r.fail("a grid cell references a missing triangle");
       }
-      for (double g : {x.gridU0_, x.gridV0_, x.gridInv_[0], x.gridInv_[1], x.gridInv_[2], x.gridInv_[3]}) {
+      for (double g : {x.grid_.u0, x.grid_.v0, x.grid_.inv[0], x.grid_.inv[1], x.grid_.inv[2], x.grid_.inv[3]}) {
         if (!std::isfinite(g)) r.fail("the grid's geometry is not finite");
       }
-      if (std::uint64_t{x.gridW_} * x.gridH_ != x.corners2_.size()) r.fail("the grid does not match its vertices");
+      if (std::uint64_t{x.grid_.w} * x.grid_.h != x.corners2_.size()) r.fail("the grid does not match its vertices");
     }
     if (x.cold_.size() != x.tris_.size()) r.fail("triangle tables differ in length");
     if (x.cornerH_.size() != x.corners2_.size()) r.fail("vertex tables differ in length");

@@ -16,6 +16,7 @@
 
 #include "gdal_errors.hpp"
 #include "qota/error.hpp"
+#include "qota/raster_grid.hpp"
 #include "qota/terrain.hpp"
 
 namespace qota {
@@ -257,16 +258,8 @@ DemTerrain loadDem(const std::string& path, const DemOptions& options) {
   }
   std::vector<double>().swap(z);
 
-  // Two triangles per cell, split along the top-left to bottom-right diagonal.
-  dem.mesh.indices.reserve(triangles * 3);
-  for (std::uint64_t r = 0; r + 1 < h; ++r) {
-    for (std::uint64_t c = 0; c + 1 < w; ++c) {
-      const auto tl = static_cast<std::uint32_t>(r * w + c), tr = tl + 1;
-      const auto bl = static_cast<std::uint32_t>(tl + w), br = bl + 1;
-      if (valid[tl] && valid[bl] && valid[br]) dem.mesh.addTriangle(tl, bl, br);
-      if (valid[tl] && valid[br] && valid[tr]) dem.mesh.addTriangle(tl, br, tr);
-    }
-  }
+  // The grid's triangles (raster_grid.hpp), none with a nodata corner.
+  RasterGrid(dem.width, dem.height, {}).appendTriangles(dem.mesh, [&](std::uint32_t i) { return valid[i] != 0; });
 
   const auto centre = dem.pixelCentre((dem.width - 1) / 2.0, (dem.height - 1) / 2.0);
   dem.mapping = CartesianMapping(Eigen::Vector3d(0, 0, -1), Eigen::Vector3d(centre[0], centre[1], 0));

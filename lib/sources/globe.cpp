@@ -7,6 +7,7 @@
 #include <ogr_spatialref.h>
 
 #include "qota/error.hpp"
+#include "qota/raster_grid.hpp"
 
 namespace qota {
 namespace {
@@ -80,39 +81,36 @@ PlanetTerrain loadPlanet(const std::string& path, const PlanetOptions& options) 
   const int w = dem.width, h = dem.height;
   Mesh& mesh = dem.mesh;
   auto valid = [&](std::uint32_t i) { return std::isfinite(mesh.vertices[i].z()); };
-  // The antimeridian: cells between the last column and the first.
-  planet.wrapsLongitude = std::fabs(w * gt[1] - 360.0) < 0.5 * gt[1];
-  if (planet.wrapsLongitude && w > 1) {
-    for (int r = 0; r + 1 < h; ++r) {
-      const auto tl = static_cast<std::uint32_t>(r * w + w - 1), tr = static_cast<std::uint32_t>(r * w);
-      const auto bl = tl + w, br = tr + w;
-      if (valid(tl) && valid(bl) && valid(br)) mesh.addTriangle(tl, bl, br);
-      if (valid(tl) && valid(br) && valid(tr)) mesh.addTriangle(tl, br, tr);
-    }
-  }
-  // The polar caps: a vertex at the pole fanned to the first (last) row.
-  const double pixel = -gt[5];
-  auto cap = [&](int row, double poleLat) {
+  // The mean height of a row's cells (NaN: none has one), the pole's height when a cap closes it.
+  const auto rowMean = [&](int row) {
     double sum = 0;
     int n = 0;
     for (int c = 0; c < w; ++c) {
       const double z = mesh.vertices[static_cast<std::size_t>(row) * w + c].z();
       if (std::isfinite(z)) sum += z, ++n;
     }
-    if (n == 0) return false;
-    const std::uint32_t pole = mesh.addVertex({0.0, poleLat, sum / n});
-    for (int c = 0; c < w; ++c) {
-      const auto a = static_cast<std::uint32_t>(row * w + c);
-      const auto b = static_cast<std::uint32_t>(row * w + (c + 1) % w);
-      if (valid(a) && valid(b)) mesh.addTriangle(a, b, pole);
-    }
-    return true;
+    return n ? sum / n : NAN;
   };
-  if (planet.wrapsLongitude) {
+  // The closure of the grid (raster_grid.hpp): the antimeridian's cells between the last column
+  // and the first, and a vertex at a pole fanned to the first (last) row when that row is within
+  // a pixel of the pole and has heights.
+  RasterGrid::Closure closure;
+  closure.wrapsColumns = std::fabs(w * gt[1] - 360.0) < 0.5 * gt[1];
+  const double pixel = -gt[5];
+  if (closure.wrapsColumns) {
     const double top = dem.pixelCentre(0, 0)[1], bottom = dem.pixelCentre(0, h - 1)[1];
-    if (90.0 - top <= pixel && top < 90.0) planet.northCap = cap(0, 90.0);
-    if (bottom + 90.0 <= pixel && bottom > -90.0) planet.southCap = cap(h - 1, -90.0);
+    closure.northCap = 90.0 - top <= pixel && top < 90.0 && std::isfinite(rowMean(0));
+    closure.southCap = bottom + 90.0 <= pixel && bottom > -90.0 && std::isfinite(rowMean(h - 1));
   }
+  const RasterGrid grid(w, h, closure);
+  planet.wrapsLongitude = grid.closure().wrapsColumns;
+  planet.northCap = grid.closure().northCap;
+  planet.southCap = grid.closure().southCap;
+  for (const RasterGrid::ExtraVertex& e : grid.extraVertices()) {
+    mesh.addVertex({0.0, 90.0 * e.pole, rowMean(e.pole > 0 ? 0 : h - 1)});
+  }
+  // loadDem made the inner triangles; the closure's follow them.
+  grid.appendTriangles(mesh, valid, grid.innerTriangleCount());
   // Lon/lat/height to the sphere, heights in metres.
   const double metres = dem.verticalUnit.metresPerUnit;
   for (Eigen::Vector3d& p : mesh.vertices) {
@@ -171,17 +169,11 @@ Mesh stationMesh(const Heightfield& relief, const StationOptions& options) {
       mesh.addVertex({r * c, r * s, axial});
     }
   }
-  mesh.indices.reserve(static_cast<std::size_t>(nx) * (ny - 1) * 6);
-  for (int j = 0; j + 1 < ny; ++j) {
-    for (int i = 0; i < nx; ++i) {
-      const auto a = static_cast<std::uint32_t>(j * nx + i);
-      const auto b = static_cast<std::uint32_t>(j * nx + (i + 1) % nx);
-      const std::uint32_t c = a + nx, d = b + nx;
-      auto ok = [&](std::uint32_t k) { return std::isfinite(mesh.vertices[k].x()); };
-      if (ok(a) && ok(c) && ok(d)) mesh.addTriangle(a, c, d);
-      if (ok(a) && ok(d) && ok(b)) mesh.addTriangle(a, d, b);
-    }
-  }
+  // Rows along the axis, columns round it: the grid's rule with the seam closed (raster_grid.hpp);
+  // a window (nodata) makes a hole.
+  RasterGrid(nx, ny, {.wrapsColumns = true}).appendTriangles(mesh, [&](std::uint32_t k) {
+    return std::isfinite(mesh.vertices[k].x());
+  });
   return mesh;
 }
 

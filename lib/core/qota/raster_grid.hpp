@@ -20,10 +20,13 @@
 // reversed, i.e. the same turn as the inner ones, caps included.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <unordered_map>
 #include <vector>
+
+#include "qota/mesh.hpp"
 
 namespace qota {
 
@@ -64,6 +67,30 @@ class RasterGrid {
   std::array<std::uint32_t, 3> triangle(std::size_t t) const;
   // Every triangle's corners, in order, three indices each (a Mesh's indices).
   std::vector<std::uint32_t> indices() const;
+  // Adds to `mesh` the triangles from number `first` on whose three corners are valid
+  // (valid(vertex) is true; a nodata cell makes a hole), in the order above. The mesh's vertex
+  // k must be this grid's vertex k. reverse: each triangle's corners in the opposite turn, for a
+  // grid whose rows run up the screen (y growing with the row), so that its triangles too are
+  // counter-clockwise seen from above.
+  template <class Valid>
+  void appendTriangles(Mesh& mesh, const Valid& valid, std::size_t first = 0, bool reverse = false) const {
+    const auto add = [&](std::uint32_t a, std::uint32_t b, std::uint32_t c) {
+      if (valid(a) && valid(b) && valid(c)) reverse ? mesh.addTriangle(a, c, b) : mesh.addTriangle(a, b, c);
+    };
+    const std::size_t inner = innerTriangleCount();
+    mesh.indices.reserve(mesh.indices.size() + 3 * (triangleCount() - std::min(first, triangleCount())));
+    const auto w = static_cast<std::uint32_t>(width_);
+    for (std::size_t t = first - first % 2; t < inner; t += 2) {  // square by square, in row order
+      const auto square = static_cast<std::uint32_t>(t / 2);
+      const std::uint32_t tl = square / (w - 1) * w + square % (w - 1), tr = tl + 1, bl = tl + w, br = bl + 1;
+      if (t >= first) add(tl, bl, br);
+      add(tl, br, tr);
+    }
+    for (std::size_t t = std::max(first, inner); t < triangleCount(); ++t) {
+      const auto& k = extraTriangles_[t - inner];
+      add(k[0], k[1], k[2]);
+    }
+  }
 
   // The triangles that have cell (row, col) as a corner, in increasing order; returns how many
   // (at most kMaxRing). closed: they go all the way round it (no edge of the surface there).

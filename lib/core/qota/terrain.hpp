@@ -46,6 +46,7 @@
 
 #include "qota/cartesian.hpp"
 #include "qota/enu.hpp"
+#include "qota/grid_path.hpp"
 #include "qota/memory.hpp"
 #include "qota/mesh.hpp"
 #include "qota/planar.hpp"
@@ -142,7 +143,7 @@ class PlanarCore {
   const PlanarFrame& frame() const { return frame_; }
   // True while the grid fast path is active (TerrainOptions::gridFastPath, a regular grid, no
   // insertion since).
-  bool gridFastPath() const { return gridW_ != 0; }
+  bool gridFastPath() const { return grid_.on(); }
   // Thread-safe with queries and with itself (not with edits, which nothing is).
   const TerrainStats& stats() const {
     ensureTree();
@@ -190,16 +191,10 @@ class PlanarCore {
   };
   static_assert(sizeof(Tri) == 128);
 
-  struct Cold {
-    std::uint32_t corner[3];  // mapped vertex indices, counter-clockwise
-    std::uint32_t polygon;    // source polygon
-  };
-
-  // A triangle of a polygon's fan, before it gets its records.
-  struct Pending {
-    std::uint32_t corner[3];
-    std::uint32_t polygon;
-  };
+  // Per triangle, its mapped vertex indices (counter-clockwise) and source polygon; the same
+  // before it gets its records (Pending, a polygon's fan).
+  using Cold = detail::TriangleCorners;
+  using Pending = detail::TriangleCorners;
   void fanPolygon(std::span<const std::uint32_t> idx, std::uint32_t polygon,
                   std::vector<Pending>& pending) const;
   Box2 makeRecord(std::uint32_t t, const Pending& q);
@@ -246,10 +241,9 @@ class PlanarCore {
   std::unordered_multimap<std::uint32_t, std::uint32_t> trianglesOf_;
   std::vector<std::uint8_t> removed_;
   void rebuildTree(const Box2& domain);
-  // The grid fast path (TerrainOptions::gridFastPath): gridW_ vertices per row (0: none), the
-  // inverse of the affine map (col, row) -> mapped (u, v), and per cell the triangle of each half
-  // (the half with corner (col, row + 1) first), kNone where the raster has none.
-  std::vector<std::uint32_t> gridSlots(std::span<const Pending> pending);
+  // The grid fast path (IndexOptions::gridFastPath, grid_path.hpp): where a point falls on a
+  // regular grid and which triangle is there; the plane arithmetic below stays here.
+  detail::GridPath grid_;
   // The triangle holding (u, v) by the grid's rule, with its record, or kOffGrid for none (a
   // hole, off the grid).
   // `record` points at the stored record, or at `scratch` where it was computed.
@@ -286,41 +280,9 @@ class PlanarCore {
                   double& h) const;
   void leanCorners(std::uint64_t col, std::uint64_t row, std::uint32_t half, double* u, double* v,
                    double* h, std::size_t stride) const;
-  // Where (u, v) falls on the grid: its cell and half, and whether it is clearly inside that
-  // half's triangle (farther than 1e-5 cell from its sides); inGrid false off the cells.
-  struct GridCell {
-    double fc, fr;  // column and row, fractional
-    bool inGrid, clear;
-    std::uint64_t col, row, slot;  // slot: 2 * cell + half
-    std::uint32_t half;
-  };
-  GridCell gridCell(double u, double v) const;
-  bool slotPresent(std::uint64_t slot) const {
-    return gridPresent_.empty() || ((gridPresent_[slot >> 6] >> (slot & 63)) & 1);
-  }
   static double leanHeight(const LeanPlane& p, double u, double v);
-  std::uint64_t generation_ = 0;  // edits so far (invalidates cursors' memos)
-  // (Re)derives the lean grid's tables (below) from the vertices and the cell table.
-  void setUpLeanGrid();
-  bool findGridCorners();
-  // The lean grid: every cell's halves keep their corners at fixed offsets from the cell's first
-  // vertex (false: the grid path reads the triangle records). Per half and corner, the column
-  // and row offset (0 or 1); the vertices' u per column and v per row when those are exact (else
-  // empty: read corners2_); the heights as floats when exact (else empty: read cornerH_); one
-  // bit per slot that holds a triangle (empty: all do).
-  bool gridLean_ = false;
-  bool gridAxesF32_ = false;                  // gridColU_ and gridH32_ both in use
-  double gridCellsU_ = 0, gridCellsV_ = 0;    // gridW_ - 1, gridH_ - 1
-  std::uint32_t gridCorner_[2][3] = {{0, 0, 0}, {0, 0, 0}};  // per half: corner offsets from x
-  std::uint8_t gridDc_[2][3] = {}, gridDr_[2][3] = {};
-  std::vector<double> gridColU_, gridRowV_;
-  BigVector<float> gridH32_;
-  std::vector<std::uint64_t> gridPresent_;
   static constexpr std::uint32_t kOffGrid = 0xfffffffeu;
-  void clearGridSlot(std::uint32_t t);                   // a removed triangle
-  std::uint32_t gridW_ = 0, gridH_ = 0;
-  double gridU0_ = 0, gridV0_ = 0, gridInv_[4] = {0, 0, 0, 0};
-  BigVector<std::uint32_t> cellTri_;
+  std::uint64_t generation_ = 0;  // edits so far (invalidates cursors' memos)
   // The quadtree. On a regular grid the fast path answers every height query without it, so it
   // is built on first need (statistics, all(), edits, shadows, tree files), once, thread-safely.
   mutable Quadtree tree_;

@@ -1,0 +1,159 @@
+#include "qota/grid_path.hpp"
+
+#include <array>
+
+namespace qota::detail {
+
+std::vector<std::uint32_t> GridPath::recognise(std::span<const Point2> corners,
+                                               std::span<const TriangleCorners> pending) {
+  // A regular grid of w x h vertices, two triangles per cell split along the diagonal from
+  // vertex x to x + w + 1 (loadDem's and Heightfield's layout). w from the first triangle, then
+  // every triangle must be one half of a cell, each half once. Returns each triangle's slot,
+  // 2 * cell + half (the half with corner x + w first), or nothing when the mesh is not a grid.
+  const std::size_t nv = corners.size();
+  if (pending.empty()) return {};
+  auto sorted = [](const TriangleCorners& q) {
+    std::array<std::uint32_t, 3> k{q.corner[0], q.corner[1], q.corner[2]};
+    std::sort(k.begin(), k.end());
+    return k;
+  };
+  const auto k0 = sorted(pending[0]);
+  // The lattice width from the first triangle (its smallest and largest corners are x, x + w + 1).
+  const std::uint64_t nw = k0[2] - k0[0] - 1;
+  if (nw < 2 || nv % nw != 0 || nv / nw < 2) return {};
+  const std::uint64_t nh = nv / nw;
+  if (nw > 0xffffffffu || 2 * (nw - 1) * (nh - 1) >= 0xffffffffu) return {};
+  std::vector<std::uint8_t> taken(2 * (nw - 1) * (nh - 1), 0);
+  std::vector<std::uint32_t> slots(pending.size());
+  for (std::size_t t = 0; t < pending.size(); ++t) {
+    const auto k = sorted(pending[t]);
+    const std::uint64_t x = k[0], col = x % nw, row = x / nw;
+    if (k[2] != x + nw + 1 || col == nw - 1 || row >= nh - 1 || (k[1] != x + nw && k[1] != x + 1)) return {};
+    const std::uint64_t slot = 2 * (row * (nw - 1) + col) + (k[1] == x + nw ? 0 : 1);
+    if (taken[slot]) return {};  // the same half twice: overlapping, not a grid
+    taken[slot] = 1;
+    slots[t] = static_cast<std::uint32_t>(slot);
+  }
+  // The vertices must lie on the affine grid (u, v) = o + col * a + row * b, to well within a
+  // cell, so that the cell found by arithmetic is the cell (or a neighbour, near its edges).
+  const Point2 o = corners[0], pa = corners[1], pb = corners[nw];
+  const double au = pa.u - o.u, av = pa.v - o.v, bu = pb.u - o.u, bv = pb.v - o.v;
+  const double det = au * bv - av * bu;
+  if (!std::isfinite(det) || det == 0) return {};
+  const double cellSize = std::min(std::hypot(au, av), std::hypot(bu, bv));
+  for (std::uint64_t i = 0; i < nv; ++i) {
+    const double c = static_cast<double>(i % nw), r = static_cast<double>(i / nw);
+    const Point2 p = corners[i];
+    const double eu = o.u + c * au + r * bu - p.u, ev = o.v + c * av + r * bv - p.v;
+    if (!(std::hypot(eu, ev) <= 1e-6 * cellSize)) return {};
+  }
+  // And within 1e-6 of their column and row as the query computes them (the fast path's
+  // "clearly inside" margin of 1e-5 cell rests on this).
+  const double inverse[4] = {bv / det, -bu / det, -av / det, au / det};
+  for (std::uint64_t i = 0; i < nv; ++i) {
+    const double du = corners[i].u - o.u, dv = corners[i].v - o.v;
+    const double fc = inverse[0] * du + inverse[1] * dv, fr = inverse[2] * du + inverse[3] * dv;
+    if (!(std::fabs(fc - static_cast<double>(i % nw)) <= 1e-6 &&
+          std::fabs(fr - static_cast<double>(i / nw)) <= 1e-6)) {
+      return {};
+    }
+  }
+  w = static_cast<std::uint32_t>(nw);
+  h = static_cast<std::uint32_t>(nh);
+  u0 = o.u, v0 = o.v;
+  for (int k = 0; k < 4; ++k) inv[k] = inverse[k];
+  return slots;
+}
+
+void GridPath::fillSlots(std::span<const std::uint64_t> slotThenTriangle) {
+  cellTri.assign(2ull * (w - 1) * (h - 1), kNone);
+  for (std::size_t t = 0; t < slotThenTriangle.size(); ++t) {
+    cellTri[slotThenTriangle[t] >> 32] = static_cast<std::uint32_t>(t);
+  }
+}
+
+void GridPath::setUpLean(std::span<const TriangleCorners> triangles, std::span<const Point2> corners,
+                         std::span<const double> heights) {
+  lean = axesF32 = false;
+  cellsU = w ? w - 1.0 : 0.0, cellsV = h ? h - 1.0 : 0.0;
+  colU.clear(), rowV.clear(), presentBits.clear();
+  BigVector<float>().swap(h32);
+  // Each half of a cell stores its corners (after fanPolygon's orientation) at fixed offsets from
+  // the cell's first vertex x = row * w + col: find them from the first triangle of each half and
+  // check every triangle.
+  bool seen[2] = {false, false};
+  for (std::uint32_t slot = 0; slot < cellTri.size(); ++slot) {
+    const std::uint32_t t = cellTri[slot];
+    if (t == kNone) continue;
+    const std::uint64_t cell = slot / 2, half = slot % 2;
+    const std::uint64_t x = (cell / (w - 1)) * w + cell % (w - 1);
+    for (int k = 0; k < 3; ++k) {
+      const std::int64_t offset = static_cast<std::int64_t>(triangles[t].corner[k]) - static_cast<std::int64_t>(x);
+      if (!seen[half]) {
+        cornerOffset[half][k] = static_cast<std::uint32_t>(offset);
+      } else if (cornerOffset[half][k] != static_cast<std::uint32_t>(offset)) {
+        return;
+      }
+    }
+    seen[half] = true;
+  }
+  for (int half = 0; half < 2; ++half) {
+    for (int k = 0; k < 3; ++k) {
+      const std::uint64_t off = cornerOffset[half][k];
+      if (off != 0 && off != 1 && off != w && off != w + 1ull) return;
+      dc[half][k] = static_cast<std::uint8_t>(off % w);
+      dr[half][k] = static_cast<std::uint8_t>(off / w);
+    }
+  }
+  lean = true;
+  // u by column and v by row, when the vertices' coordinates are exactly those (an axis-aligned
+  // grid under a vertical gravity): then a query reads no vertex coordinates.
+  std::vector<double> cols(w), rows(h);
+  for (std::uint64_t c = 0; c < w; ++c) cols[c] = corners[c].u;
+  for (std::uint64_t r = 0; r < h; ++r) rows[r] = corners[r * w].v;
+  bool axes = true;
+  for (std::uint64_t i = 0; i < corners.size() && axes; ++i) {
+    axes = corners[i].u == cols[i % w] && corners[i].v == rows[i / w];
+  }
+  if (axes) colU.swap(cols), rowV.swap(rows);
+  // Heights in float when every one is exact in float (Int16 and Float32 rasters): half the bytes
+  // a random query pulls through the cache.
+  bool exact = true;
+  for (std::size_t i = 0; i < heights.size() && exact; ++i) {
+    exact = static_cast<double>(static_cast<float>(heights[i])) == heights[i];
+  }
+  if (exact) {
+    h32.resize(heights.size());
+    for (std::size_t i = 0; i < heights.size(); ++i) h32[i] = static_cast<float>(heights[i]);
+  }
+  axesF32 = !colU.empty() && !h32.empty();
+  // Which slots hold a triangle, one bit each, unless every one does.
+  if (std::find(cellTri.begin(), cellTri.end(), kNone) != cellTri.end()) {
+    presentBits.assign((cellTri.size() + 63) / 64, 0);
+    for (std::uint64_t slot = 0; slot < cellTri.size(); ++slot) {
+      if (cellTri[slot] != kNone) presentBits[slot >> 6] |= std::uint64_t{1} << (slot & 63);
+    }
+  }
+}
+
+void GridPath::clearSlot(const TriangleCorners& triangle, std::uint32_t t) {
+  std::array<std::uint32_t, 3> k{triangle.corner[0], triangle.corner[1], triangle.corner[2]};
+  std::sort(k.begin(), k.end());
+  const std::uint64_t x = k[0], col = x % w, row = x / w;
+  const std::uint64_t slot = 2 * (row * (w - 1) + col) + (k[1] == x + w ? 0 : 1);
+  if (slot < cellTri.size() && cellTri[slot] == t) {
+    cellTri[slot] = kNone;
+    if (lean) {
+      if (presentBits.empty()) presentBits.assign((cellTri.size() + 63) / 64, ~std::uint64_t{0});
+      presentBits[slot >> 6] &= ~(std::uint64_t{1} << (slot & 63));
+    }
+  }
+}
+
+void GridPath::turnOff() {
+  w = h = 0;
+  lean = axesF32 = false;
+  BigVector<std::uint32_t>().swap(cellTri);
+}
+
+}  // namespace qota::detail

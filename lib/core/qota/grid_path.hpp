@@ -1,0 +1,134 @@
+// The planar index's regular-grid fast path (an implementation detail of terrain.hpp): on a
+// terrain whose vertices form a w x h lattice and whose triangles are the raster rule's
+// (raster_grid.hpp: two per cell, split from corner (col, row) to (col + 1, row + 1)), the
+// triangle under a point is found by arithmetic (its cell, then which half) instead of by the
+// quadtree. This class owns the grid's tables and that arithmetic: recognising the grid in a
+// triangle list, the cell and half of a point, each slot's triangle, and where a half's corners
+// sit. The index (PlanarCore) keeps the plane arithmetic and decides when to use the path.
+//
+// Slots: 2 * (row * (w - 1) + col) + half, half 0 being the triangle with corner (col, row + 1).
+// A lean grid stores every half's corners at the same offsets from the cell's first vertex, so
+// a query reads the corners straight from the vertex arrays (and keeps no triangle records).
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "qota/memory.hpp"
+#include "qota/vocabulary.hpp"
+
+namespace qota::detail {
+
+// A triangle of the index by its mapped vertex indices (counter-clockwise) and source polygon.
+struct TriangleCorners {
+  std::uint32_t corner[3];
+  std::uint32_t polygon;
+};
+
+class GridPath {
+ public:
+  static constexpr std::uint32_t kNone = 0xffffffffu;  // a slot without a triangle
+
+  // Whether the triangles over the vertices `corners` form a regular grid, vertex i at lattice
+  // (i % w, i / w), every triangle one half of a cell, each half once, and the vertices on an
+  // affine lattice to within 1e-6 of a cell. If so, sets the grid's shape and returns each
+  // triangle's slot; else returns nothing and leaves the path off.
+  std::vector<std::uint32_t> recognise(std::span<const Point2> corners, std::span<const TriangleCorners> triangles);
+  // The slots' triangles once the index has ordered them: triangle t sits in slot slots[t].
+  void fillSlots(std::span<const std::uint64_t> slotThenTriangle);
+  // (Re)derives the lean tables from the triangles, vertices and heights (after recognise, or
+  // after a tree file gave the shape and slots).
+  void setUpLean(std::span<const TriangleCorners> triangles, std::span<const Point2> corners,
+                 std::span<const double> heights);
+  // A removed triangle leaves its slot.
+  void clearSlot(const TriangleCorners& triangle, std::uint32_t t);
+  // Off for good (an inserted polygon may overlap the grid).
+  void turnOff();
+
+  bool on() const { return w != 0; }
+  std::size_t memoryBytes() const {
+    return cellTri.size() * sizeof(std::uint32_t) + h32.size() * sizeof(float) +
+           (colU.size() + rowV.size()) * sizeof(double) + presentBits.size() * sizeof(std::uint64_t);
+  }
+
+  // Where (u, v) falls: its cell and half, and whether it is clearly inside that half's
+  // triangle (farther than 1e-5 cell from its sides); inGrid false off the cells (and for NaN).
+  struct Cell {
+    double fc, fr;  // column and row, fractional
+    bool inGrid, clear;
+    std::uint64_t col, row, slot;
+    std::uint32_t half;
+  };
+  [[gnu::always_inline]] Cell cell(double u, double v) const;
+  bool slotPresent(std::uint64_t slot) const {
+    return presentBits.empty() || ((presentBits[slot >> 6] >> (slot & 63)) & 1);
+  }
+  // Corner k of the triangle in half `half` of cell (col, row) on a lean grid: its mapped (u, v)
+  // and height, from the lattice's axes and float heights when exact, else from the vertices.
+  [[gnu::always_inline]] void leanCorner(std::uint64_t col, std::uint64_t row, std::uint32_t half, int k,
+                                         std::span<const Point2> corners, std::span<const double> heights,
+                                         double& u, double& v, double& h) const;
+  // The vertex index of a cell's first corner.
+  std::uint64_t firstVertex(std::uint64_t col, std::uint64_t row) const { return row * w + col; }
+
+  // The shape: w x h vertices (w == 0: no grid), the inverse of the affine map (col, row) ->
+  // (u, v) about vertex 0, and per slot its triangle (kNone where the terrain has none).
+  std::uint32_t w = 0, h = 0;
+  double u0 = 0, v0 = 0, inv[4] = {0, 0, 0, 0};
+  BigVector<std::uint32_t> cellTri;
+  // The lean tables: per half and corner, the offset from the cell's first vertex and its column
+  // and row offsets (0 or 1); u per column and v per row when the vertices are exactly those
+  // (else empty); heights as floats when exact (else empty); one bit per slot that holds a
+  // triangle (empty: all do).
+  bool lean = false;
+  bool axesF32 = false;  // colU and h32 both in use: the common DEM
+  double cellsU = 0, cellsV = 0;  // w - 1, h - 1
+  std::uint32_t cornerOffset[2][3] = {{0, 0, 0}, {0, 0, 0}};
+  std::uint8_t dc[2][3] = {}, dr[2][3] = {};
+  std::vector<double> colU, rowV;
+  BigVector<float> h32;
+  std::vector<std::uint64_t> presentBits;
+};
+
+[[gnu::always_inline]] inline GridPath::Cell GridPath::cell(double u, double v) const {
+  Cell g{};
+  const double du = u - u0, dv = v - v0;
+  g.fc = inv[0] * du + inv[1] * dv, g.fr = inv[2] * du + inv[3] * dv;
+  g.inGrid = g.fc >= 0 && g.fr >= 0 && g.fc < cellsU && g.fr < cellsV;
+  if (!g.inGrid) return g;  // also NaN
+  // Signed conversions: in range here, and without the unsigned one's branch.
+  const auto col = static_cast<std::int64_t>(g.fc), row = static_cast<std::int64_t>(g.fr);
+  g.col = static_cast<std::uint64_t>(col), g.row = static_cast<std::uint64_t>(row);
+  // The half of the cell with corner (col, row + 1) lies where the row fraction exceeds the
+  // column fraction.
+  const double xc = g.fc - static_cast<double>(col), xr = g.fr - static_cast<double>(row);
+  g.half = xr > xc ? 0 : 1;
+  g.slot = 2 * (g.row * (w - 1) + g.col) + g.half;
+  // Clearly inside: farther than 1e-5 cell from the half's sides, with the vertices within 1e-6
+  // cell of their grid positions (recognise), so no other triangle can hold the point.
+  g.clear = std::min(std::min(std::min(xc, xr), 1 - std::max(xc, xr)), std::fabs(xr - xc)) > 1e-5;
+  return g;
+}
+
+[[gnu::always_inline]] inline void GridPath::leanCorner(std::uint64_t col, std::uint64_t row, std::uint32_t half,
+                                                        int k, std::span<const Point2> corners,
+                                                        std::span<const double> heights, double& u, double& v,
+                                                        double& h) const {
+  const std::uint64_t x = row * w + col + cornerOffset[half][k];
+  if (axesF32) [[likely]] {  // the common DEM
+    u = colU[col + dc[half][k]], v = rowV[row + dr[half][k]];
+    h = static_cast<double>(h32[x]);
+    return;
+  }
+  if (colU.empty()) {
+    u = corners[x].u, v = corners[x].v;
+  } else {
+    u = colU[col + dc[half][k]], v = rowV[row + dr[half][k]];
+  }
+  h = h32.empty() ? heights[x] : static_cast<double>(h32[x]);
+}
+
+}  // namespace qota::detail
