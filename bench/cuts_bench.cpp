@@ -39,7 +39,7 @@ void run(const Terrain& t, std::size_t queries, const std::vector<Setting>& sett
   for (const Setting s : settings) {
     std::vector<std::optional<double>> reference;
     for (const Cuts cuts : {Cuts::Midpoint, Cuts::CostModel}) {
-      qota::TerrainOptions o;
+      qota::IndexOptions o;
       o.gridFastPath = false;
       o.tree = {s.maxPoly, s.maxDepth, cuts};
       const auto t0 = Clock::now();

@@ -259,7 +259,7 @@ void run(const Terrain& t, std::size_t n) {
   std::optional<Timing> qt;
   double quadtreeBytes = 0;
   if (index.gridFastPath()) {
-    qota::TerrainOptions o;
+    qota::IndexOptions o;
     o.gridFastPath = false;
     const qota::TerrainIndex general(t.mesh, t.mapping, o);
     quadtreeBytes = static_cast<double>(general.memoryBytesNow());

@@ -249,39 +249,13 @@ int main(int argc, char** argv) {
       const double along = std::fmod(0.1 * static_cast<double>(i), span);
       track[i] = {along, std::fmod(0.37 + std::floor(0.1 * i / span), span)};
     }
+    // The same calls and the same work as the curved rows (measure): height, heights, a cursor.
     const qota::CartesianMapping mapping;
-    Row row{"cartesian", "fractal heightfield", mesh.polygonCount(), 0, 0, 0, 0, 0, 0, 0, 0, bruteCount};
-    const auto t0 = Clock::now();
-    const qota::TerrainIndex index(mesh, mapping);
-    row.build = seconds(t0, Clock::now());
-    int misses = 0;
-    auto top = [&](double u, double v) -> std::optional<double> {
-      const auto hit = index.top(u, v);
-      return hit ? std::optional<double>(hit->height) : std::nullopt;
-    };
-    row.random = nsPerQuery(random, top, misses);
-    row.misses = misses;
-    row.batch = nsPerBatch(
-        random, [&](auto points, auto out) { index.heightsBelow(points, kInf, out); },
-        [&](double u, double v) { return index.heightBelow(u, v, kInf); }, row.disagreements);
-    row.track = nsPerQuery(track, top, misses);
-    row.misses += misses;
-    qota::Quadtree::Cursor cursor;
-    row.cursor = nsPerQuery(
-        track, [&](double u, double v) { return index.heightBelow(cursor, u, v, kInf); }, misses);
-    row.disagreements += checkCursor(
-        track,
-        [&](qota::Quadtree::Cursor& c, double u, double v) { return index.heightBelow(c, u, v, kInf); },
-        [&](double u, double v) { return index.heightBelow(u, v, kInf); });
-    const auto b0 = Clock::now();
-    for (int i = 0; i < bruteCount; ++i) {
-      const auto t = bruteTop(mesh, Eigen::Vector3d(random[i].u, random[i].v, -1e6),
-                              Eigen::Vector3d(0, 0, 1), true);
-      const auto h = top(random[i].u, random[i].v);
-      if (t.has_value() != h.has_value() || (t && std::fabs(*t - 1e6 - *h) > 1e-6)) ++row.disagreements;
-    }
-    row.brute = seconds(b0, Clock::now()) * 1e9 / bruteCount;
-    printRow(row);
+    printRow(measure<qota::TerrainIndex>(
+        "cartesian", "fractal heightfield", mesh, [&] { return qota::TerrainIndex(mesh, mapping); }, random,
+        track, bruteCount,
+        [](double u, double v) { return LineParts{Eigen::Vector3d(u, v, -1e6), Eigen::Vector3d(0, 0, 1), -1e6}; },
+        true));
   }
   std::printf("\n%-34s %8s %8s %8s %10s %9s\n", "tree file (index only, terrain read)", "build s",
               "write s", "load s", "build/load", "MB");

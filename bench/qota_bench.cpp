@@ -384,7 +384,7 @@ void benchBuild(benchmark::State& state, Terrain& t) {
     t.index = std::move(index);  // frees the previous build outside the timing
     state.ResumeTiming();
   }
-  const qota::TerrainStats& s = t.index->stats();
+  const qota::IndexStats& s = t.index->stats();
   state.counters["B/tri"] = static_cast<double>(s.memoryBytes) / static_cast<double>(s.triangles);
 }
 
@@ -589,7 +589,7 @@ struct Row {
 
 struct TerrainReport {
   std::string name;
-  qota::TerrainStats stats;
+  qota::IndexStats stats;
   std::string buildBench;
   double relief = 1;
   double checksum = 0;

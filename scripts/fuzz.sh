@@ -24,7 +24,7 @@ harnesses=("$@")
 cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPILER=clang++-14 \
   -DQOTA_SANITIZE=address,undefined -DQOTA_BUILD_FUZZERS=ON -DQOTA_BUILD_TESTS=OFF \
   -DQOTA_BUILD_EXAMPLES=OFF -DQOTA_BUILD_BENCH=OFF > /dev/null
-cmake --build build-fuzz -j2 --target $(printf 'fuzz_%s ' "${harnesses[@]}") > build-fuzz/build.log 2>&1 ||
+cmake --build build-fuzz -j2 --target $(printf 'qota_fuzz_%s ' "${harnesses[@]}") > build-fuzz/build.log 2>&1 ||
   { tail -40 build-fuzz/build.log; exit 2; }
 
 # A smaller quarantine, and freed memory returned to the system: the raster harness's RSS would

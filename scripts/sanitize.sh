@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # The whole test suite under AddressSanitizer + UndefinedBehaviorSanitizer (build-asan), then
-# the tests that run threads under ThreadSanitizer (build-tsan). Any report fails the run.
+# the tests that run threads under ThreadSanitizer (build-tsan). Any report fails the run. The
+# ASan build is also the shared-library build (BUILD_SHARED_LIBS=ON): every test runs against
+# libqota*.so, and package.find_package checks the install (SONAMEs, the tool's RPATH).
 #
 #   scripts/sanitize.sh [asan|tsan]     (default: both)
 set -euo pipefail
@@ -15,7 +17,7 @@ export TSAN_OPTIONS=${TSAN_OPTIONS:-halt_on_error=1:second_deadlock_stack=1:supp
 
 if [ "$which" = all ] || [ "$which" = asan ]; then
   cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DQOTA_SANITIZE=address,undefined \
-    -DQOTA_BUILD_TESTS=ON -DQOTA_BUILD_EXAMPLES=ON -DQOTA_BUILD_BENCH=OFF > /dev/null
+    -DQOTA_BUILD_TESTS=ON -DQOTA_BUILD_EXAMPLES=ON -DQOTA_BUILD_BENCH=OFF -DBUILD_SHARED_LIBS=ON > /dev/null
   cmake --build build-asan -j2
   ctest --test-dir build-asan -j2 --output-on-failure --timeout 1200
 fi

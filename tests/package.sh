@@ -3,8 +3,12 @@
 # it with find_package(qota 0.2 CONFIG) (tests/package/) and the examples, then checks pkg-config,
 # the tool, and qota as a subproject (tests/package/parent/).
 #   tests/package.sh BUILD DATA_DIR
+# A shared build (BUILD_SHARED_LIBS=ON) is checked for its SONAMEs and for the installed tool
+# finding its libraries without LD_LIBRARY_PATH. QOTA_CONSUMER_FLAGS: compiler and linker flags
+# for the projects built against the install (a sanitizer build's -fsanitize=...).
 set -euo pipefail
 build=$1 data=$2
+flags=(-DCMAKE_CXX_FLAGS="${QOTA_CONSUMER_FLAGS:-}" -DCMAKE_EXE_LINKER_FLAGS="${QOTA_CONSUMER_FLAGS:-}")
 here=$(cd "$(dirname "$0")" && pwd)
 work=$(mktemp -d "${TMPDIR:-/tmp}/qota_package.XXXXXX")
 trap 'rm -rf "$work"' EXIT
@@ -13,15 +17,25 @@ for f in bin/qota include/qota/terrain.hpp include/qota/version.hpp; do
   [ -e "$work/prefix/$f" ] || { echo "not installed: $f"; exit 1; }
 done
 config=$(ls "$work"/prefix/lib*/cmake/qota/qotaConfig.cmake)
+if grep -q '^BUILD_SHARED_LIBS:BOOL=ON' "$build/CMakeCache.txt"; then
+  version=$(sed -n 's/^CMAKE_PROJECT_VERSION:STATIC=\([0-9]*\.[0-9]*\).*/\1/p' "$build/CMakeCache.txt")
+  for lib in qota qota_core qota_coords; do
+    so=$(ls "$work"/prefix/lib*/lib$lib.so)
+    readelf -d "$so" | grep -q "SONAME.*\[lib$lib.so.$version\]" || { echo "$so: SONAME is not lib$lib.so.$version"; exit 1; }
+  done
+  ldd "$work/prefix/bin/qota" | grep -q "libqota.so.$version => $work/prefix" ||
+    { echo "the installed qota does not load the installed libqota.so.$version"; exit 1; }
+  echo "shared: SONAME lib*.so.$version, the tool loads them from the prefix"
+fi
 pc=$(ls "$work"/prefix/lib*/pkgconfig/qota.pc)
-cmake -S "$here/package" -B "$work/consumer" -DCMAKE_PREFIX_PATH="$work/prefix" -DCMAKE_BUILD_TYPE=Release > /dev/null
+cmake -S "$here/package" -B "$work/consumer" -DCMAKE_PREFIX_PATH="$work/prefix" -DCMAKE_BUILD_TYPE=Release "${flags[@]}" > /dev/null
 cmake --build "$work/consumer" -j2 > /dev/null
 "$work/consumer/core_only"
 "$work/consumer/with_rasters" "$data/mt_rainier_90m.tif"
 PKG_CONFIG_PATH=$(dirname "$pc") pkg-config --modversion qota
 "$work/prefix/bin/qota" --version | head -1
 # The examples as a project of their own against the installed package, built and run.
-cmake -S "$here/../examples" -B "$work/examples" -DCMAKE_PREFIX_PATH="$work/prefix" -DCMAKE_BUILD_TYPE=Release > /dev/null
+cmake -S "$here/../examples" -B "$work/examples" -DCMAKE_PREFIX_PATH="$work/prefix" -DCMAKE_BUILD_TYPE=Release "${flags[@]}" > /dev/null
 cmake --build "$work/examples" -j2 > /dev/null
 ctest --test-dir "$work/examples" -j2 --output-on-failure | grep "tests passed"
 # As a subproject: configured only (the build is the one above), no build type forced.

@@ -100,7 +100,7 @@ TEST(Edits, RandomSequencesMatchARebuild) {
     const Mesh base = test::randomTerrain(spec, seed);
     const CartesianMapping mapping(seed == 2 ? Eigen::Vector3d(0.2, -0.1, -1) : Eigen::Vector3d(0, 0, -1),
                                    Eigen::Vector3d(spec.offsetX, 0, 0));
-    TerrainIndex index(base, mapping, TerrainOptions{{4, 12}});  // small leaves: many splits
+    TerrainIndex index(base, mapping, IndexOptions{{4, 12}});  // small leaves: many splits
     std::vector<std::optional<Polygon>> polygons;
     for (std::size_t p = 0; p < base.polygonCount(); ++p) {
       Polygon corners;

@@ -22,8 +22,8 @@ double uniform(std::mt19937_64& rng, double lo, double hi) {
   return std::uniform_real_distribution<double>(lo, hi)(rng);
 }
 
-TerrainOptions quadtreeOnly() {
-  TerrainOptions o;
+IndexOptions quadtreeOnly() {
+  IndexOptions o;
   o.gridFastPath = false;
   return o;
 }

@@ -44,7 +44,7 @@ TEST(Table4, CostModelCutsAnswerAsMidpointCuts) {
   const std::pair<const qota::Mesh*, qota::CartesianMapping> cases[] = {
       {&city.mesh, qota::CartesianMapping({0, 0, -1}, city.origin)}, {&grid, qota::CartesianMapping()}};
   for (const auto& [mesh, mapping] : cases) {
-    qota::TerrainOptions mid, cost;
+    qota::IndexOptions mid, cost;
     mid.gridFastPath = cost.gridFastPath = false;
     cost.tree.cuts = qota::QuadtreeOptions::Cuts::CostModel;
     const qota::TerrainIndex a(*mesh, mapping, mid), b(*mesh, mapping, cost);

@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <random>
+#include <type_traits>
 
 #include "oracle.hpp"
 #include "qota/error.hpp"
@@ -26,7 +27,7 @@ struct OracleStats {
 
 // Void (gtest's ASSERT needs it); the counts go to `st`.
 void compareWithOracle(const Mesh& mesh, const CartesianMapping& mapping,
-                       const qota::TerrainOptions& options, int queries, std::uint64_t seed,
+                       const qota::IndexOptions& options, int queries, std::uint64_t seed,
                        OracleStats& st) {
   const TerrainIndex index(mesh, mapping, options);
   Eigen::Vector3d lo = mesh.vertices[0], hi = mesh.vertices[0];
@@ -100,7 +101,7 @@ void compareWithOracle(const Mesh& mesh, const CartesianMapping& mapping,
 }
 
 OracleStats compareWithOracle(const Mesh& mesh, const CartesianMapping& mapping,
-                              const qota::TerrainOptions& options, int queries, std::uint64_t seed) {
+                              const qota::IndexOptions& options, int queries, std::uint64_t seed) {
   OracleStats st;
   compareWithOracle(mesh, mapping, options, queries, seed, st);
   return st;
@@ -256,7 +257,7 @@ TEST(TerrainQueries, ATreeOutgrowingTheMemoryLeftStopsWithAnError) {
       m.addTriangle(a, a + nx + 2, a + nx + 1);
     }
   }
-  const qota::TerrainOptions options{.tree = {8, 16}, .gridFastPath = false};
+  const qota::IndexOptions options{.tree = {8, 16}, .gridFastPath = false};
   const TerrainIndex unlimited(m, CartesianMapping(), options);
   ASSERT_GT(unlimited.stats().tree.nodes, 1u << 20);  // the tree the check must see
   qota::memory::setLimit(qota::memory::peakBytes() + (48ull << 20));
@@ -355,3 +356,11 @@ TEST(TerrainQueries, BatchEqualsSingleQueries) {
 }
 
 }  // namespace
+
+// The names of 0.1 still name the same types for one release (deprecated in 0.2).
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wdeprecated-declarations"
+static_assert(std::is_same_v<qota::TerrainOptions, qota::IndexOptions>);
+static_assert(std::is_same_v<qota::TerrainStats, qota::IndexStats>);
+static_assert(std::is_same_v<qota::CurvedStats, qota::IndexStats>);
+#pragma GCC diagnostic pop

@@ -13,7 +13,7 @@
 namespace qota::tools {
 namespace {
 
-void addTreeOptions(CLI::App* app, qota::TerrainOptions& terrain) {
+void addTreeOptions(CLI::App* app, qota::IndexOptions& terrain) {
   app->add_option("--max-poly", terrain.tree.maxPoly,
                   "Maxpoly: split a quadtree node holding more polygons than this")
       ->capture_default_str()

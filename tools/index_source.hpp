@@ -17,7 +17,7 @@ struct SourceOptions {
   double length = 0;                  // cylindrical: station length
   int band = 0;                       // raster band (1-based); 0: the raster's only band
   bool heightsOnly = false;           // only heights at points (sample): no quadtree on a grid
-  TerrainOptions terrain;
+  IndexOptions terrain;
 };
 
 // A tree file is loaded as it is (its own mapping; asking for another is an error). A raster

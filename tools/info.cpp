@@ -99,7 +99,7 @@ int info(const InfoOptions& options, std::ostream& out, std::ostream& err) {
     const TerrainIndex index(dem.mesh, dem.mapping, options.terrain);
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    const TerrainStats& s = index.stats();
+    const IndexStats& s = index.stats();
     const QuadtreeStats& t = s.tree;
 
     out << "source: " << dem.path << '\n';

@@ -57,7 +57,7 @@ struct SampleOptions {
   double radius = 0;
   double length = 0;
   bool swapXY = false;      // input lines are "y x" (lat lon), as GeographicLib's -w
-  TerrainOptions terrain;
+  IndexOptions terrain;
 };
 int sample(const SampleOptions& options, std::istream& in, std::ostream& out, std::ostream& err);
 
@@ -66,7 +66,7 @@ int sample(const SampleOptions& options, std::istream& in, std::ostream& out, st
 struct InfoOptions {
   std::string source;
   int band = 0;  // raster band (1-based); 0: the raster's only band
-  TerrainOptions terrain;
+  IndexOptions terrain;
 };
 int info(const InfoOptions& options, std::ostream& out, std::ostream& err);
 
@@ -105,7 +105,7 @@ struct ShadowOptions {
   double scale = 0;                      // gdaldem's -s (horizontal units per vertical unit)
   std::string png;                       // preview: shadow over a hillshade
   int litValue = 255, shadowValue = 0, nodataValue = 128;
-  TerrainOptions terrain;
+  IndexOptions terrain;
   ShadowSearch search = ShadowSearch::Strips;  // how the occluders are found (same mask)
 };
 int shadow(const ShadowOptions& options, std::ostream& out, std::ostream& err);
@@ -128,7 +128,7 @@ struct RenderTreeOptions {
   int band = 0;     // raster band (1-based); 0: the raster's only band
   int size = 1024;  // pixels along the image's long side
   bool quiet = false;
-  TerrainOptions terrain;
+  IndexOptions terrain;
 };
 int renderTree(const RenderTreeOptions& options, std::ostream& out, std::ostream& err);
 

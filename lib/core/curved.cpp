@@ -53,7 +53,7 @@ bool angleRange(const Eigen::Vector3d p[3], double& lo, double& hi) {
 }  // namespace
 
 template <class M>
-CurvedIndex<M>::CurvedIndex(const Mesh& mesh, const M& mapping, const TerrainOptions& options)
+CurvedIndex<M>::CurvedIndex(const Mesh& mesh, const M& mapping, const IndexOptions& options)
     : mapping_(mapping) {
   if (options.gridFastPath.value_or(false)) {
     throw Error(std::string(M::name()) + " terrain: the grid fast path (IndexOptions::gridFastPath) is for "

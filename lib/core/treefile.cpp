@@ -246,7 +246,7 @@ struct TreeFileAccess {
     x.hmax_ = r.pod<double>("heights");
     x.umax_ = r.pod<double>("domain");
     x.vmax_ = r.pod<double>("domain");
-    x.stats_ = r.pod<TerrainStats>("statistics");
+    x.stats_ = r.pod<IndexStats>("statistics");
     r.array(x.tris_, "triangles");
     r.array(x.cold_, "triangle corners");
     r.array(x.corners2_, "vertices");
@@ -307,7 +307,7 @@ struct TreeFileAccess {
   template <class M>
   static void read(Reader& r, CurvedIndex<M>& x) {
     x.scale_ = r.pod<double>("scale");
-    x.stats_ = r.pod<CurvedStats>("statistics");
+    x.stats_ = r.pod<IndexStats>("statistics");
     r.array(x.tris_, "triangles");
     r.array(x.polarNorth_, "north polar list");
     r.array(x.polarSouth_, "south polar list");

@@ -30,7 +30,7 @@ double shadowReach(const LocalFrame& frame, const Eigen::Vector3d& towardLight) 
 }
 
 std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& towardLight,
-                              const TerrainOptions& options, const Progress& progress,
+                              const IndexOptions& options, const Progress& progress,
                               unsigned threadCount, ShadowSearch search) {
   const auto& vertices = frame.mesh.vertices;
   const std::size_t cellCount = frame.cellCount();

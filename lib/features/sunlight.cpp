@@ -19,7 +19,7 @@ SunPosition sunOverFrame(const LocalFrame& frame, double julianDayUT, const std:
 }
 
 SunlightHours sunlightHours(const LocalFrame& frame, const std::string& source, double startJulianDay,
-                            double endJulianDay, double stepHours, const TerrainOptions& options,
+                            double endJulianDay, double stepHours, const IndexOptions& options,
                             const Progress& progress, ShadowSearch search) {
   SunlightHours out;
   out.elapsedHours = (endJulianDay - startJulianDay) * 24.0;

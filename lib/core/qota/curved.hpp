@@ -66,7 +66,7 @@ class CurvedIndex {
  public:
   // Throws qota::Error for polygons with fewer than 3 vertices, out-of-range indices or
   // non-finite vertices, naming the polygon.
-  CurvedIndex(const Mesh& mesh, const M& mapping, const TerrainOptions& options = {});
+  CurvedIndex(const Mesh& mesh, const M& mapping, const IndexOptions& options = {});
 
   // The face of every index (index.hpp): queries at (u, v) in degrees (u any value, wrapped; v in
   // [-90, 90] for the sphere and the ellipsoid: outside it, or not finite, there is no terrain),

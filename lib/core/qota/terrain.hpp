@@ -141,11 +141,11 @@ class PlanarCore {
   bool occludedAbove(double u, double v, double h, std::uint32_t vertex) const;
 
   const PlanarFrame& frame() const { return frame_; }
-  // True while the grid fast path is active (TerrainOptions::gridFastPath, a regular grid, no
+  // True while the grid fast path is active (IndexOptions::gridFastPath, a regular grid, no
   // insertion since).
   bool gridFastPath() const { return grid_.on(); }
   // Thread-safe with queries and with itself (not with edits, which nothing is).
-  const TerrainStats& stats() const {
+  const IndexStats& stats() const {
     ensureTree();
     const std::lock_guard<std::mutex> lock(deferred_->stats);
     if (treeStatsStale_) {  // after edits, or after the deferred build
@@ -302,7 +302,7 @@ class PlanarCore {
   mutable double floorU_ = 0, floorV_ = 0;  // the tree's node size floor (setTreeFloor)
   void setTreeFloor(const std::vector<Box2>& boxes) const;
   std::uint64_t baseMemoryBytes_ = 0;  // everything but the tree and the triangle records
-  mutable TerrainStats stats_;
+  mutable IndexStats stats_;
   mutable bool treeStatsStale_ = false;
 };
 

@@ -75,7 +75,8 @@ struct IndexOptions {
   // shadows, statistics, tree files).
   std::optional<bool> gridFastPath = std::nullopt;
 };
-using TerrainOptions = IndexOptions;  // the name before every index shared one
+// The names before every index shared one, kept for one release (0.2); to be removed in 0.3.
+using TerrainOptions [[deprecated("use qota::IndexOptions")]] = IndexOptions;
 
 // Where a line of the mapping meets the terrain.
 struct Hit {
@@ -109,7 +110,8 @@ struct IndexStats {
   QuadtreeStats tree;
   std::uint64_t memoryBytes = 0;  // everything the index holds
 };
-using TerrainStats = IndexStats;  // the names before every index shared one
-using CurvedStats = IndexStats;
+// The names before every index shared one, kept for one release (0.2); to be removed in 0.3.
+using TerrainStats [[deprecated("use qota::IndexStats")]] = IndexStats;
+using CurvedStats [[deprecated("use qota::IndexStats")]] = IndexStats;
 
 }  // namespace qota

@@ -60,7 +60,7 @@ enum class ShadowSearch {
   Quadtree,
 };
 std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& towardLight,
-                              const TerrainOptions& options = {}, const Progress& progress = {},
+                              const IndexOptions& options = {}, const Progress& progress = {},
                               unsigned threads = 0, ShadowSearch search = ShadowSearch::Strips);
 
 // How far (metres) a shadow can reach across the raster's edge: relief / tan(altitude).

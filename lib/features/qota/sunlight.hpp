@@ -24,7 +24,7 @@ struct SunlightHours {
 // the Sun is below the horizon of every cell are counted without computing a mask. Throws
 // qota::Error for a step under a minute or longer than the span.
 SunlightHours sunlightHours(const LocalFrame& frame, const std::string& source, double startJulianDay,
-                            double endJulianDay, double stepHours, const TerrainOptions& options = {},
+                            double endJulianDay, double stepHours, const IndexOptions& options = {},
                             const Progress& progress = {}, ShadowSearch search = ShadowSearch::Strips);
 
 }  // namespace qota
