@@ -13,7 +13,7 @@ Terrains come in four mappings (the `qota sample --mapping` ones): "cartesian" (
 the CRS, heights along -z), "spherical" (a lon/lat raster closed into a planet: lon, lat, and the
 radius), "geodetic" (a lon/lat raster on its ellipsoid: lon, lat, and the height along the
 normal) and "cylindrical" (the relief inside a rotating station: angle, axial, and the distance
-from the axis).
+from the axis). rasterio datasets and xarray DataArrays (with rioxarray) are sources too.
 """
 from __future__ import annotations
 
@@ -23,6 +23,7 @@ import tempfile as _tempfile
 
 import numpy as _np
 
+from . import _interop
 from . import _qota
 from ._qota import Error, __version__
 
@@ -32,39 +33,14 @@ __all__ = ["Terrain", "Error", "__version__", "shadow", "sun_position", "MAPPING
 MAPPINGS = ("cartesian", "spherical", "geodetic", "cylindrical")
 
 
-def _gdal_transform(transform) -> list:
-    """A GDAL 6-tuple geotransform, from one or from an affine.Affine (rasterio's)."""
-    if all(hasattr(transform, k) for k in "abcdef"):  # affine.Affine: x = a col + b row + c
-        t = transform
-        return [float(v) for v in (t.c, t.a, t.b, t.f, t.d, t.e)]
-    try:
-        values = [float(v) for v in transform]
-    except (TypeError, ValueError) as e:
-        raise Error(f"transform must be 6 numbers (GDAL's geotransform) or an affine.Affine: {e}") from None
-    if len(values) != 6:
-        raise Error(f"transform must have 6 numbers (GDAL's geotransform), got {len(values)}")
-    return values
-
-
-def _crs_text(crs) -> str:
-    """A CRS as text GDAL reads: a string as it is (WKT, "EPSG:4326", PROJ), an object with
-    to_wkt() (rasterio's or pyproj's CRS) as its WKT, None as ""."""
-    if crs is None:
-        return ""
-    if isinstance(crs, str):
-        return crs
-    if hasattr(crs, "to_wkt"):
-        return crs.to_wkt()
-    raise Error(f"crs must be a string (WKT, EPSG:code, PROJ) or a CRS object with to_wkt(), got {type(crs).__name__}")
-
-
 def _local_file(path):
     """A local path that is not there is FileNotFoundError (an OSError), as Python's own open()
     gives; GDAL's virtual paths (/vsicurl/...) and connection strings (NAME:...) go to GDAL."""
     try:
         text = _os.fspath(path)
     except TypeError:
-        raise Error(f"expected a path (str or os.PathLike), got {type(path).__name__}") from None
+        raise Error(f"expected a path (str or os.PathLike), a rasterio dataset or an xarray.DataArray, "
+                    f"got {type(path).__name__}") from None
     if not text.startswith("/vsi") and ":" not in text and not _os.path.exists(text):
         raise FileNotFoundError(_errno.ENOENT, "no such file", text)
     return text
@@ -129,8 +105,8 @@ class Terrain:
     """A terrain: the surfaces along the lines of a mapping (verticals on a map; radii of a planet;
     ellipsoid normals; rays out from a station's axis).
 
-    Build one with from_raster, from_array or from_mesh, or load a tree file (save, `qota
-    build`). Queries take the mapping's coordinates:
+    Build one with from_raster (a file, a rasterio dataset or a DataArray), from_array, from_xarray
+    or from_mesh, or load a tree file (save, `qota build`). Queries take the mapping's coordinates:
 
     ============  =====================  ======================================================
     mapping       x, y                   heights (and z)
@@ -154,8 +130,11 @@ class Terrain:
     def from_raster(cls, path, band: int = 1, mapping: str = "cartesian", radius=None, length=None) -> "Terrain":
         """A raster as a terrain in a mapping, as `qota sample --mapping --radius --length` reads it.
 
-        path: a GDAL raster (GeoTIFF, VRT, ...; a path or GDAL's /vsi... name).
-        band: 1-based band.
+        path: a GDAL raster (GeoTIFF, VRT, ...; a path or GDAL's /vsi... name), an open rasterio
+            dataset (a local file opened read-only is read from that file, any other, e.g. a
+            MemoryFile, through rasterio: its band, transform, nodata, CRS and unit), or an
+            xarray.DataArray with rioxarray's accessor (as from_xarray).
+        band: 1-based band (for a DataArray: the position along its third dimension).
         mapping: "cartesian": pixel centres joined into two triangles a cell, nodata cells holes,
             x and y in the raster's CRS (degrees for a lon/lat raster); "spherical": a lon/lat
             raster at radius + height along each (lon, lat) (a raster spanning 360 degrees is
@@ -168,8 +147,35 @@ class Terrain:
             radius (default 250). Refused for the other mappings.
         length: cylindrical: the station's length (default 1000). Refused for the others.
         """
-        return cls(_qota._Terrain.from_raster(_local_file(path), int(band), _mapping(mapping),
+        mapping = _mapping(mapping)
+        if _interop.is_dataarray(path):
+            return cls.from_xarray(path, band=band, mapping=mapping, radius=radius, length=length)
+        if _interop.is_xarray_dataset(path):
+            raise Error("an xarray.Dataset: give one of its variables (a DataArray), e.g. ds['elevation']")
+        if _interop.is_rasterio_dataset(path):
+            local = _interop.local_file_of(path)
+            if local is None:
+                return cls._from_grid(_interop.rasterio_grid(path, int(band)), mapping, radius, length)
+            path = local
+        return cls(_qota._Terrain.from_raster(_local_file(path), int(band), mapping,
                                               _number_or_none(radius, "radius"), _number_or_none(length, "length")))
+
+    @classmethod
+    def from_xarray(cls, da, band: int = 1, mapping: str = "cartesian", radius=None, length=None) -> "Terrain":
+        """An xarray.DataArray with rioxarray's `rio` accessor (rioxarray.open_rasterio, or any
+        array with x/y coordinates and a CRS written by rio.write_crs), as from_raster reads the
+        same raster: its values, rio.transform(), rio.nodata (NaN cells are holes too), rio.crs
+        and the `units` attribute (the vertical unit). A 2-D (y, x) array is the band; a 3-D one
+        gives band `band` (1-based) of its third dimension. mapping, radius and length as for
+        from_raster. Needs rioxarray (imported here, on first use)."""
+        if not _interop.is_dataarray(da):
+            raise Error(f"from_xarray takes an xarray.DataArray, got {type(da).__name__}")
+        return cls._from_grid(_interop.dataarray_grid(da, int(band)), _mapping(mapping), radius, length)
+
+    @classmethod
+    def _from_grid(cls, grid, mapping, radius, length) -> "Terrain":
+        return cls.from_array(grid.heights, grid.transform, grid.nodata, crs=grid.crs or None, unit=grid.unit or None,
+                              mapping=mapping, radius=radius, length=length)
 
     @classmethod
     def from_array(cls, heights, transform, nodata=None, *, crs=None, unit=None, mapping: str = "cartesian",
@@ -187,8 +193,8 @@ class Terrain:
             heights in it. None: metres.
         mapping, radius, length: as for from_raster.
         """
-        return cls(_qota._Terrain.from_array(_heights_array(heights), _gdal_transform(transform),
-                                             None if nodata is None else float(nodata), _crs_text(crs),
+        return cls(_qota._Terrain.from_array(_heights_array(heights), _interop.gdal_transform(transform),
+                                             None if nodata is None else float(nodata), _interop.crs_text(crs),
                                              "" if unit is None else str(unit), _mapping(mapping),
                                              _number_or_none(radius, "radius"), _number_or_none(length, "length")))
 
@@ -292,17 +298,46 @@ def _shadow_file(dem_path, output, azimuth, altitude, time, tz, band, z_factor):
                              int(band), float(z_factor))
 
 
+def _shadow_in_memory(dem, azimuth, altitude, time, tz, band, z_factor, output):
+    """qota shadow of a DataArray or a rasterio dataset, as a DataArray on its grid.
+
+    The C++ shadow reads a file: a dataset on a local file is shaded from that file, anything
+    else is written to a temporary GeoTIFF first (float64, with its geotransform, nodata, CRS and
+    vertical unit, which the shadow uses to put heights in metres)."""
+    if _interop.is_rasterio_dataset(dem):
+        template = _interop.dataarray_of_rasterio(dem, int(band))
+        local = _interop.local_file_of(dem)
+        grid = None if local is not None else _interop.rasterio_grid(dem, int(band))
+    else:
+        template = _interop.select_band(dem, int(band))
+        local, grid = None, _interop.dataarray_grid(dem, int(band))
+    if local is not None:
+        mask = _shadow_file(local, output, azimuth, altitude, time, tz, band, z_factor)
+    else:
+        with _tempfile.TemporaryDirectory(prefix="qota_shadow_") as folder:
+            path = _os.path.join(folder, "dem.tif")
+            _qota._write_raster(path, grid.heights, grid.transform, grid.nodata, grid.crs, grid.unit)
+            mask = _shadow_file(path, output, azimuth, altitude, time, tz, 1, z_factor)
+    return _interop.mask_like(template, mask)
+
+
 def shadow(dem_path, azimuth=None, altitude=None, *, time=None, tz=None, band=1, z_factor=1.0, output=None):
     """Where the terrain of a DEM shades itself from the Sun, as `qota shadow` computes it.
 
+    dem_path: a raster file, or an xarray.DataArray (rioxarray) or an open rasterio dataset.
     The light from `azimuth` and `altitude` (degrees, gdaldem's -az and -alt), or the Sun at
     `time` (ISO 8601 with its offset, or `tz`: an offset or an IANA zone name) seen from the DEM's
-    centre. Heights are put in metres by the raster's vertical unit, times z_factor. Returns a
-    uint8 array on the DEM's grid (rows, columns): 255 lit, 0 shadow, 128 nodata; with `output`
-    the GeoTIFF (or any GDAL format by extension) is kept there too.
+    centre. Heights are put in metres by the raster's vertical unit (a DataArray's `units`
+    attribute), times z_factor. Returns uint8 cells on the DEM's grid: 255 lit, 0 shadow, 128
+    nodata; a numpy array (rows, columns) for a file, an xarray.DataArray for a DataArray or a
+    rasterio dataset (its dimensions, coordinates and CRS, nodata 128; a 3-D DEM's band dimension
+    kept with the one band used). With `output` the GeoTIFF (or any GDAL format by extension) is
+    kept there too.
     """
     if time is None and (azimuth is None or altitude is None):
         raise Error("give azimuth and altitude, or time")
+    if _interop.is_dataarray(dem_path) or _interop.is_rasterio_dataset(dem_path):
+        return _shadow_in_memory(dem_path, azimuth, altitude, time, tz, band, z_factor, output)
     return _shadow_file(_local_file(dem_path), output, azimuth, altitude, time, tz, band, z_factor)
 
 

@@ -11,12 +11,18 @@ class Error(ValueError): ...
 _Coords = npt.ArrayLike
 _Path = str | PathLike[str]
 _Mapping = Literal["cartesian", "spherical", "geodetic", "cylindrical"]
+# A raster: a path, an open rasterio dataset, or an xarray.DataArray with rioxarray's accessor
+# (rasterio and xarray are optional, so their types are not named here).
+_Raster = _Path | Any
 
 MAPPINGS: tuple[str, ...]
 
 class Terrain:
     @classmethod
-    def from_raster(cls, path: _Path, band: int = 1, mapping: _Mapping = "cartesian", radius: float | None = None,
+    def from_raster(cls, path: _Raster, band: int = 1, mapping: _Mapping = "cartesian", radius: float | None = None,
+                    length: float | None = None) -> Terrain: ...
+    @classmethod
+    def from_xarray(cls, da: Any, band: int = 1, mapping: _Mapping = "cartesian", radius: float | None = None,
                     length: float | None = None) -> Terrain: ...
     @classmethod
     def from_array(cls, heights: npt.ArrayLike, transform: Any, nodata: float | None = None, *, crs: Any = None,
@@ -41,7 +47,8 @@ class Terrain:
     def all(self, x: float, y: float) -> list[tuple[float, int, tuple[float, float, float]]]: ...
     def stats(self) -> dict[str, int]: ...
 
-def shadow(dem_path: _Path, azimuth: float | None = None, altitude: float | None = None, *, time: str | None = None,
+# A numpy array for a file; an xarray.DataArray for a DataArray or a rasterio dataset.
+def shadow(dem_path: _Raster, azimuth: float | None = None, altitude: float | None = None, *, time: str | None = None,
            tz: str | None = None, band: int = 1, z_factor: float = 1.0,
-           output: _Path | None = None) -> npt.NDArray[np.uint8]: ...
+           output: _Path | None = None) -> npt.NDArray[np.uint8] | Any: ...
 def sun_position(time: str, lon: float, lat: float, *, tz: str | None = None) -> tuple[float, float]: ...
