@@ -20,6 +20,8 @@ packages=(
   libembree-dev                 # bench/embree_bench: the general ray tracer qota is measured against
   pybind11-dev python3-dev python3-numpy python3-venv python3-pip python3-setuptools python3-wheel python3-pytest python3-gdal
                                 # the Python package (python/) and its tests
+  python3-rasterio python3-xarray python3-rioxarray python3-affine
+                                # Python interop (rasterio datasets, DataArrays), optional at runtime
 )
 
 [ $# -gt 0 ] && packages=("$@")

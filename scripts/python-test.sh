@@ -12,5 +12,13 @@ venv=${1:-build-venv}
 case $venv in /*) ;; *) venv=$root/$venv ;; esac
 [ -x "$venv/bin/python" ] || /usr/bin/python3 -m venv --system-site-packages "$venv"
 "$venv/bin/pip" install --no-build-isolation --no-deps --quiet "$root"
+# The qota tool, for the test that holds qota.shadow to the tool's mask: the main build's, else
+# built in the package's CMake folder (its libraries are compiled there already: seconds).
+if [ -z "${QOTA_TOOL:-}" ] && [ ! -x "$root/build/tools/qota" ]; then
+  pybuild=${QOTA_PYTHON_BUILD_DIR:-$root/build-python}
+  case $pybuild in /*) ;; *) pybuild=$root/$pybuild ;; esac
+  cmake --build "$pybuild" --target qota_cli -j "${QOTA_JOBS:-2}" >/dev/null
+  export QOTA_TOOL=$pybuild/tools/qota
+fi
 cd /
 QOTA_DATA_DIR="$root/data" "$venv/bin/python" -m pytest -q "$root/python/tests"

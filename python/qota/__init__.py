@@ -2,12 +2,18 @@
 
 The Quick Oriented Terrain Algorithm's quadtree core, for numpy: every call takes arrays of any
 shape (broadcast together), answers in C++ on every core with the GIL released, and gives NaN
-where there is no terrain (a hole, nodata, outside the data).
+where there is no terrain (a hole, nodata, outside the data, a latitude outside [-90, 90]).
 
     >>> import qota
     >>> t = qota.Terrain.from_raster("data/mt_rainier_90m.tif")
     >>> t.heights([-121.7603], [46.8529])          # x, y in the raster's CRS
     array([4367.4...])
+
+Terrains come in four mappings (the `qota sample --mapping` ones): "cartesian" (a map: x, y in
+the CRS, heights along -z), "spherical" (a lon/lat raster closed into a planet: lon, lat, and the
+radius), "geodetic" (a lon/lat raster on its ellipsoid: lon, lat, and the height along the
+normal) and "cylindrical" (the relief inside a rotating station: angle, axial, and the distance
+from the axis). rasterio datasets and xarray DataArrays (with rioxarray) are sources too.
 """
 from __future__ import annotations
 
@@ -17,84 +23,221 @@ import tempfile as _tempfile
 
 import numpy as _np
 
+from . import _interop
 from . import _qota
 from ._qota import Error, __version__
 
-__all__ = ["Terrain", "Error", "__version__", "shadow", "sun_position"]
+__all__ = ["Terrain", "Error", "__version__", "shadow", "sun_position", "MAPPINGS"]
 
-
-def _gdal_transform(transform):
-    """A GDAL 6-tuple geotransform, from one or from an affine.Affine (rasterio's)."""
-    if all(hasattr(transform, k) for k in "abcdef"):  # affine.Affine: x = a col + b row + c
-        t = transform
-        return [t.c, t.a, t.b, t.f, t.d, t.e]
-    values = [float(v) for v in transform]
-    if len(values) != 6:
-        raise Error(f"transform must have 6 numbers (GDAL's geotransform), got {len(values)}")
-    return values
+#: The mappings a terrain can be built in (Terrain.mapping is one of these).
+MAPPINGS = ("cartesian", "spherical", "geodetic", "cylindrical")
 
 
 def _local_file(path):
     """A local path that is not there is FileNotFoundError (an OSError), as Python's own open()
     gives; GDAL's virtual paths (/vsicurl/...) and connection strings (NAME:...) go to GDAL."""
-    text = _os.fspath(path)
+    try:
+        text = _os.fspath(path)
+    except TypeError:
+        raise Error(f"expected a path (str or os.PathLike), a rasterio dataset or an xarray.DataArray, "
+                    f"got {type(path).__name__}") from None
     if not text.startswith("/vsi") and ":" not in text and not _os.path.exists(text):
         raise FileNotFoundError(_errno.ENOENT, "no such file", text)
     return text
 
 
-class Terrain:
-    """A terrain seen from above (gravity along -z): the surfaces over each (x, y).
+def _mapping(mapping) -> str:
+    if mapping not in MAPPINGS:
+        raise Error(f"mapping {mapping!r} is not one of {', '.join(MAPPINGS)}")
+    return mapping
 
-    Build one with from_raster, from_array or from_mesh (or load a file saved by save or
-    `qota build`). Queries take x, y (and z) in the terrain's own coordinates and give heights in
-    its own z unit.
+
+def _number_or_none(value, name):
+    """An option (radius, length) as a float, or None for the default; what is not a number is
+    refused here, naming the option (the C++ side checks that it is positive and applies)."""
+    if value is None:
+        return None
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        raise Error(f"{name} must be a number, got {value!r}") from None
+
+
+def _coords(value, name):
+    """A query coordinate as a float64 array: any real numbers (ints, floats, their arrays, any
+    byte order or memory layout); complex numbers, strings and the like are refused, naming the
+    argument, rather than cast (numpy would drop an imaginary part, or fail with less to say)."""
+    a = _np.asarray(value)
+    if a.dtype.kind in "iuf":
+        return a.astype(_np.float64, copy=False)
+    if a.dtype.kind == "O":
+        try:
+            return a.astype(_np.float64)
+        except (TypeError, ValueError):
+            pass
+    raise Error(f"{name} must be real numbers, got an array of {a.dtype}")
+
+
+def _broadcast(**arrays):
+    """The arrays broadcast together (qota.Error naming their shapes when they do not)."""
+    values = [_coords(v, k) for k, v in arrays.items()]
+    try:
+        return _np.broadcast_arrays(*values)
+    except ValueError:
+        shapes = ", ".join(f"{k} {v.shape}" for k, v in zip(arrays, values))
+        raise Error(f"the coordinates do not broadcast together: {shapes}") from None
+
+
+def _flat(a):
+    """A broadcast array as the flat, contiguous float64 the C++ side takes (a copy only where the
+    broadcast made it a view with zero strides)."""
+    return _np.ascontiguousarray(a).ravel()
+
+
+def _heights_array(heights):
+    """A 2-D height grid as float64: masked cells (numpy.ma) become NaN, which are holes."""
+    if isinstance(heights, _np.ma.MaskedArray):
+        heights = heights.astype(_np.float64).filled(_np.nan)
+    return _coords(heights, "heights")
+
+
+class Terrain:
+    """A terrain: the surfaces along the lines of a mapping (verticals on a map; radii of a planet;
+    ellipsoid normals; rays out from a station's axis).
+
+    Build one with from_raster (a file, a rasterio dataset or a DataArray), from_array, from_xarray
+    or from_mesh, or load a tree file (save, `qota build`). Queries take the mapping's coordinates:
+
+    ============  =====================  ======================================================
+    mapping       x, y                   heights (and z)
+    ============  =====================  ======================================================
+    cartesian     x, y in the CRS        the source's z, in its own unit
+    spherical     lon, lat (degrees)     the surface's radius, metres from the centre
+    geodetic      lon, lat (degrees)     height along the ellipsoid normal, the raster's unit
+    cylindrical   angle (deg), axial     distance from the axis, metres ("below": farther out)
+    ============  =====================  ======================================================
+
+    "Below" is along the mapping's down (toward the centre; away from a station's axis), "above"
+    against it, and heights() answers the topmost surface. A point with no terrain on its line
+    is NaN; so is a point that has no line (a latitude outside [-90, 90], a coordinate that is NaN
+    or infinite): the batch never raises for one point's values.
     """
 
     def __init__(self, impl: _qota._Terrain):
         self._t = impl
 
     @classmethod
-    def from_raster(cls, path, band: int = 1) -> "Terrain":
-        """Any GDAL raster (GeoTIFF, VRT, ...): pixel centres joined into two triangles a cell,
-        nodata cells holes, x and y in the raster's CRS (degrees for a lon/lat raster)."""
-        return cls(_qota._Terrain.from_raster(_local_file(path), int(band)))
+    def from_raster(cls, path, band: int = 1, mapping: str = "cartesian", radius=None, length=None) -> "Terrain":
+        """A raster as a terrain in a mapping, as `qota sample --mapping --radius --length` reads it.
+
+        path: a GDAL raster (GeoTIFF, VRT, ...; a path or GDAL's /vsi... name), an open rasterio
+            dataset (a local file opened read-only is read from that file, any other, e.g. a
+            MemoryFile, through rasterio: its band, transform, nodata, CRS and unit), or an
+            xarray.DataArray with rioxarray's accessor (as from_xarray).
+        band: 1-based band (for a DataArray: the position along its third dimension).
+        mapping: "cartesian": pixel centres joined into two triangles a cell, nodata cells holes,
+            x and y in the raster's CRS (degrees for a lon/lat raster); "spherical": a lon/lat
+            raster at radius + height along each (lon, lat) (a raster spanning 360 degrees is
+            closed across the antimeridian and at the poles); "geodetic": a lon/lat raster at its
+            heights above its CRS's ellipsoid (WGS84 without one); "cylindrical": the raster as
+            the relief of a station around the z axis, columns the angle (-180 + 360 col / width),
+            rows the axial position (-length / 2 to length / 2), hills rising toward the axis.
+        radius: spherical: the planet's reference radius in metres (default: the CRS's sphere,
+            or its ellipsoid's mean radius, 6371008.8 for WGS84); cylindrical: the station's
+            radius (default 250). Refused for the other mappings.
+        length: cylindrical: the station's length (default 1000). Refused for the others.
+        """
+        mapping = _mapping(mapping)
+        if _interop.is_dataarray(path):
+            return cls.from_xarray(path, band=band, mapping=mapping, radius=radius, length=length)
+        if _interop.is_xarray_dataset(path):
+            raise Error("an xarray.Dataset: give one of its variables (a DataArray), e.g. ds['elevation']")
+        if _interop.is_rasterio_dataset(path):
+            local = _interop.local_file_of(path)
+            if local is None:
+                return cls._from_grid(_interop.rasterio_grid(path, int(band)), mapping, radius, length)
+            path = local
+        return cls(_qota._Terrain.from_raster(_local_file(path), int(band), mapping,
+                                              _number_or_none(radius, "radius"), _number_or_none(length, "length")))
 
     @classmethod
-    def from_array(cls, heights, transform, nodata=None) -> "Terrain":
-        """A 2-D array (rows, columns) of heights with a GDAL geotransform (6 numbers) or an
-        affine.Affine, as from_raster would read the same raster; `nodata` cells are holes."""
-        return cls(_qota._Terrain.from_array(_np.asarray(heights, dtype=_np.float64),
-                                             _gdal_transform(transform),
-                                             None if nodata is None else float(nodata)))
+    def from_xarray(cls, da, band: int = 1, mapping: str = "cartesian", radius=None, length=None) -> "Terrain":
+        """An xarray.DataArray with rioxarray's `rio` accessor (rioxarray.open_rasterio, or any
+        array with x/y coordinates and a CRS written by rio.write_crs), as from_raster reads the
+        same raster: its values, rio.transform(), rio.nodata (NaN cells are holes too), rio.crs
+        and the `units` attribute (the vertical unit). A 2-D (y, x) array is the band; a 3-D one
+        gives band `band` (1-based) of its third dimension. mapping, radius and length as for
+        from_raster. Needs rioxarray (imported here, on first use)."""
+        if not _interop.is_dataarray(da):
+            raise Error(f"from_xarray takes an xarray.DataArray, got {type(da).__name__}")
+        return cls._from_grid(_interop.dataarray_grid(da, int(band)), _mapping(mapping), radius, length)
 
     @classmethod
-    def from_mesh(cls, vertices, triangles) -> "Terrain":
-        """An (N, 3) float array of vertices and an (M, 3) integer array of triangles."""
+    def _from_grid(cls, grid, mapping, radius, length) -> "Terrain":
+        return cls.from_array(grid.heights, grid.transform, grid.nodata, crs=grid.crs or None, unit=grid.unit or None,
+                              mapping=mapping, radius=radius, length=length)
+
+    @classmethod
+    def from_array(cls, heights, transform, nodata=None, *, crs=None, unit=None, mapping: str = "cartesian",
+                   radius=None, length=None) -> "Terrain":
+        """A 2-D array (rows, columns) of heights as from_raster would read the same raster.
+
+        transform: a GDAL geotransform (6 numbers) or an affine.Affine (rasterio's).
+        nodata: cells with this value are holes (so are NaN cells, and masked cells of a
+            numpy.ma array).
+        crs: the CRS, as any text GDAL reads ("EPSG:4326", WKT, PROJ) or an object with to_wkt()
+            (rasterio's or pyproj's CRS); sets the ellipsoid of "geodetic" and the default
+            radius of "spherical". None: no CRS (a lon/lat grid is then taken on WGS84).
+        unit: the heights' unit, as a band's unit type ("m", "ft", "US survey foot", ...);
+            spherical and cylindrical convert heights to metres with it, geodetic takes and gives
+            heights in it. None: metres.
+        mapping, radius, length: as for from_raster.
+        """
+        return cls(_qota._Terrain.from_array(_heights_array(heights), _interop.gdal_transform(transform),
+                                             None if nodata is None else float(nodata), _interop.crs_text(crs),
+                                             "" if unit is None else str(unit), _mapping(mapping),
+                                             _number_or_none(radius, "radius"), _number_or_none(length, "length")))
+
+    @classmethod
+    def from_mesh(cls, vertices, triangles, *, mapping: str = "cartesian") -> "Terrain":
+        """An (N, 3) float array of vertices and an (M, 3) integer array of triangles, in world
+        coordinates of the mapping's default frame: cartesian with gravity -z; spherical about the
+        origin; geodetic in ECEF metres on WGS84; cylindrical about the z axis."""
         triangles = _np.asarray(triangles)
         if triangles.size and not _np.issubdtype(triangles.dtype, _np.integer):
             raise Error(f"triangles must be integers (vertex indices), got {triangles.dtype}")
-        return cls(_qota._Terrain.from_mesh(_np.asarray(vertices, dtype=_np.float64),
-                                            triangles.astype(_np.int64, copy=False)))
+        return cls(_qota._Terrain.from_mesh(_coords(vertices, "vertices"), triangles.astype(_np.int64, copy=False),
+                                            _mapping(mapping)))
 
     @classmethod
     def load(cls, path) -> "Terrain":
-        """A tree file written by save or `qota build` (a Cartesian terrain)."""
+        """A tree file written by save or `qota build`, in the mapping it was built in (see
+        `mapping`). A geodetic tree keeps its raster's vertical unit."""
         return cls(_qota._Terrain.load(_local_file(path)))
 
     def save(self, path) -> None:
-        """Writes the terrain with its quadtree (a tree file; load reads it back)."""
+        """Writes the terrain with its quadtree and mapping (a tree file; load reads it back)."""
         self._t.save(str(path))
 
-    def _call(self, method, *arrays):
-        b = _np.broadcast_arrays(*[_np.asarray(a, dtype=_np.float64) for a in arrays])
-        flat = [_np.ascontiguousarray(a).ravel() for a in b]
-        return method(*flat).reshape(b[0].shape)
+    @property
+    def mapping(self) -> str:
+        """The terrain's mapping: "cartesian", "spherical", "geodetic" or "cylindrical"."""
+        return self._t.mapping
 
-    def _hits(self, x, y, z, below, polygons, normals):
-        b = _np.broadcast_arrays(*[_np.asarray(a, dtype=_np.float64) for a in (x, y, z)])
+    @property
+    def crs(self) -> str | None:
+        """The source raster's CRS as WKT, or None (a mesh, a raster without one)."""
+        return self._t.crs or None
+
+    def _call(self, method, **arrays):
+        b = _broadcast(**arrays)
+        return method(*[_flat(a) for a in b]).reshape(b[0].shape)
+
+    def _hits(self, mode, polygons, normals, **arrays):
+        b = _broadcast(**arrays)
         shape = b[0].shape
-        h, p, n = self._t.hits(*[_np.ascontiguousarray(a).ravel() for a in b], below)
+        flat = [_flat(a) for a in b]
+        h, p, n = self._t.hits(flat[0], flat[1], flat[2] if len(flat) > 2 else None, mode)
         out = [h.reshape(shape)]
         if polygons:
             out.append(p.reshape(shape))
@@ -103,27 +246,28 @@ class Terrain:
         return tuple(out)
 
     def heights(self, x, y, *, polygons=False, normals=False):
-        """The top surface's height at each (x, y); NaN where there is none.
+        """The top surface's height at each (x, y) (the mapping's coordinates); NaN where there is
+        none.
 
         With polygons=True and/or normals=True, a tuple: the heights, then the polygon ids (int64,
-        -1 where none) and/or the unit normals (shape + (3,), NaN where none)."""
+        -1 where none) and/or the unit normals in the world frame (shape + (3,), NaN where none)."""
         if polygons or normals:
-            return self._hits(x, y, _np.inf, True, polygons, normals)
-        return self._call(self._t.heights, x, y)
+            return self._hits("top", polygons, normals, x=x, y=y)
+        return self._call(self._t.heights, x=x, y=y)
 
     def below(self, x, y, z, *, polygons=False, normals=False):
         """The height of the nearest surface at or below z at each (x, y, z); NaN if none.
         polygons and normals as for heights."""
         if polygons or normals:
-            return self._hits(x, y, z, True, polygons, normals)
-        return self._call(self._t.below, x, y, z)
+            return self._hits("below", polygons, normals, x=x, y=y, z=z)
+        return self._call(self._t.below, x=x, y=y, z=z)
 
     def above(self, x, y, z, *, polygons=False, normals=False):
         """The height of the nearest surface at or above z at each (x, y, z); NaN if none.
         polygons and normals as for heights."""
         if polygons or normals:
-            return self._hits(x, y, z, False, polygons, normals)
-        return self._call(self._t.above, x, y, z)
+            return self._hits("above", polygons, normals, x=x, y=y, z=z)
+        return self._call(self._t.above, x=x, y=y, z=z)
 
     def bracket(self, x, y, z, *, polygons=False, normals=False):
         """(below, above): the floor and the ceiling around each point (each a tuple with
@@ -132,7 +276,8 @@ class Terrain:
                 self.above(x, y, z, polygons=polygons, normals=normals))
 
     def all(self, x: float, y: float):
-        """Every surface over one point, top first: a list of (height, polygon, normal)."""
+        """Every surface on the line of one point, top first: a list of (height, polygon,
+        normal)."""
         return self._t.all(float(x), float(y))
 
     def stats(self) -> dict:
@@ -141,25 +286,59 @@ class Terrain:
 
     def __repr__(self) -> str:
         s = self.stats()
-        return f"qota.Terrain({self._t.source!r}: {s['triangles']} triangles)"
+        return f"qota.Terrain({self._t.source!r}, {self.mapping}: {s['triangles']} triangles)"
+
+
+def _shadow_file(dem_path, output, azimuth, altitude, time, tz, band, z_factor):
+    """qota shadow on a raster file, into `output` (or a temporary file), as a uint8 array."""
+    if output is not None:
+        return _qota._shadow(dem_path, str(output), azimuth, altitude, time or "", tz or "", int(band), float(z_factor))
+    with _tempfile.TemporaryDirectory(prefix="qota_shadow_") as folder:
+        return _qota._shadow(dem_path, _os.path.join(folder, "shadow.tif"), azimuth, altitude, time or "", tz or "",
+                             int(band), float(z_factor))
+
+
+def _shadow_in_memory(dem, azimuth, altitude, time, tz, band, z_factor, output):
+    """qota shadow of a DataArray or a rasterio dataset, as a DataArray on its grid.
+
+    The C++ shadow reads a file: a dataset on a local file is shaded from that file, anything
+    else is written to a temporary GeoTIFF first (float64, with its geotransform, nodata, CRS and
+    vertical unit, which the shadow uses to put heights in metres)."""
+    if _interop.is_rasterio_dataset(dem):
+        template = _interop.dataarray_of_rasterio(dem, int(band))
+        local = _interop.local_file_of(dem)
+        grid = None if local is not None else _interop.rasterio_grid(dem, int(band))
+    else:
+        template = _interop.select_band(dem, int(band))
+        local, grid = None, _interop.dataarray_grid(dem, int(band))
+    if local is not None:
+        mask = _shadow_file(local, output, azimuth, altitude, time, tz, band, z_factor)
+    else:
+        with _tempfile.TemporaryDirectory(prefix="qota_shadow_") as folder:
+            path = _os.path.join(folder, "dem.tif")
+            _qota._write_raster(path, grid.heights, grid.transform, grid.nodata, grid.crs, grid.unit)
+            mask = _shadow_file(path, output, azimuth, altitude, time, tz, 1, z_factor)
+    return _interop.mask_like(template, mask)
 
 
 def shadow(dem_path, azimuth=None, altitude=None, *, time=None, tz=None, band=1, z_factor=1.0, output=None):
     """Where the terrain of a DEM shades itself from the Sun, as `qota shadow` computes it.
 
+    dem_path: a raster file, or an xarray.DataArray (rioxarray) or an open rasterio dataset.
     The light from `azimuth` and `altitude` (degrees, gdaldem's -az and -alt), or the Sun at
     `time` (ISO 8601 with its offset, or `tz`: an offset or an IANA zone name) seen from the DEM's
-    centre. Returns a uint8 array on the DEM's grid (rows, columns): 255 lit, 0 shadow, 128
-    nodata; with `output` the GeoTIFF (or any GDAL format by extension) is kept there too.
+    centre. Heights are put in metres by the raster's vertical unit (a DataArray's `units`
+    attribute), times z_factor. Returns uint8 cells on the DEM's grid: 255 lit, 0 shadow, 128
+    nodata; a numpy array (rows, columns) for a file, an xarray.DataArray for a DataArray or a
+    rasterio dataset (its dimensions, coordinates and CRS, nodata 128; a 3-D DEM's band dimension
+    kept with the one band used). With `output` the GeoTIFF (or any GDAL format by extension) is
+    kept there too.
     """
     if time is None and (azimuth is None or altitude is None):
         raise Error("give azimuth and altitude, or time")
-    if output is not None:
-        return _qota._shadow(_local_file(dem_path), str(output), azimuth, altitude, time or "", tz or "", int(band),
-                             float(z_factor))
-    with _tempfile.TemporaryDirectory(prefix="qota_shadow_") as folder:
-        return _qota._shadow(_local_file(dem_path), _os.path.join(folder, "shadow.tif"), azimuth, altitude, time or "",
-                             tz or "", int(band), float(z_factor))
+    if _interop.is_dataarray(dem_path) or _interop.is_rasterio_dataset(dem_path):
+        return _shadow_in_memory(dem_path, azimuth, altitude, time, tz, band, z_factor, output)
+    return _shadow_file(_local_file(dem_path), output, azimuth, altitude, time, tz, band, z_factor)
 
 
 def sun_position(time, lon, lat, *, tz=None):

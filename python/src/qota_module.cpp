@@ -1,7 +1,9 @@
-// qota._qota: the library's terrain index for numpy arrays. The Python side (python/qota/
-// __init__.py) broadcasts and reshapes; here every call takes flat float64 arrays, answers with
-// the library's parallel batches with the GIL released, and maps "no terrain" to NaN.
+// qota._qota: the library's terrain indexes for numpy arrays. The Python side (python/qota/
+// __init__.py) checks, broadcasts and reshapes; here every call takes flat float64 arrays,
+// answers with the library's parallel batches with the GIL released, and maps "no terrain" to
+// NaN. One Terrain class holds an index of any mapping the package reads.
 #include <gdal_priv.h>
+#include <ogr_spatialref.h>
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
@@ -11,12 +13,14 @@
 #include <limits>
 #include <memory>
 #include <optional>
+#include <sstream>
 #include <string>
+#include <variant>
 #include <vector>
 
-#include <sstream>
-
+#include "qota/any_index.hpp"
 #include "qota/batch.hpp"
+#include "qota/curved.hpp"
 #include "qota/dem.hpp"
 #include "qota/error.hpp"
 #include "qota/instant.hpp"
@@ -33,79 +37,133 @@ namespace {
 using Array = py::array_t<double, py::array::c_style | py::array::forcecast>;
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-// A terrain in a Cartesian frame with gravity along -z: queries at world (x, y), heights in the
-// source's own z. The index works in coordinates relative to its mapping's origin (near the
-// data, for precision); the conversion is an exact subtraction.
+// The mappings a Python terrain may be in, as their names ("cartesian", ...): the raster and mesh
+// builders take one of these.
+const char* const kMappings = "cartesian, spherical, geodetic or cylindrical";
+bool knownMapping(const std::string& m) {
+  return m == "cartesian" || m == "spherical" || m == "geodetic" || m == "cylindrical";
+}
+
+// How the Python side's coordinates meet the index's mapped (u, v, h): u = x - du, v = y - dv,
+// h = (z - dh) * scale, and an answer H goes back as H / scale + dh. The three cases:
+//   cartesian: the index works relative to an origin near the data (du, dv, dh), for precision;
+//     the conversion is an exact subtraction, heights stay in the source's own unit;
+//   geodetic: the index's h is metres along the normal, the Python side's the raster's vertical
+//     unit (scale: metres per unit), as `qota sample` reads and prints them;
+//   spherical, cylindrical: metres (the radius, the distance from the axis) on both sides.
+struct Frame {
+  double du = 0, dv = 0, dh = 0, scale = 1;
+  qota::Point2 point(double x, double y) const { return {x - du, y - dv}; }
+  double toIndex(double z) const { return (z - dh) * scale; }
+  double fromIndex(double h) const { return h / scale + dh; }
+};
+
+// The frame of an index read from anywhere; an index the Python package has no coordinates for
+// (a tilted Cartesian frame, east-north-up) is refused.
+Frame frameOf(const qota::AnyIndex& index, const qota::TreeSource& source, const std::string& where) {
+  if (const auto* cartesian = std::get_if<qota::TerrainIndex>(&index)) {
+    if (!cartesian->mapping().vertical()) {
+      throw qota::Error(where + ": a Cartesian terrain with tilted gravity (the Python package reads "
+                        "vertical gravity, spherical, geodetic and cylindrical terrains)");
+    }
+    const Eigen::Vector3d o = cartesian->mapping().origin();
+    return {o.x(), o.y(), o.z(), 1.0};
+  }
+  if (std::holds_alternative<qota::GeodeticIndex>(index)) {
+    const double m = source.metresPerUnit;
+    return {0, 0, 0, m > 0 && std::isfinite(m) ? m : 1.0};
+  }
+  if (std::holds_alternative<qota::SphericalIndex>(index) || std::holds_alternative<qota::CylindricalIndex>(index)) {
+    return {};
+  }
+  throw qota::Error(where + ": a terrain in the " + std::string(qota::tools::mappingNameOf(index)) +
+                    " mapping (the Python package reads cartesian, spherical, geodetic and cylindrical ones)");
+}
+
+// A terrain in any of the mappings above: queries at (x, y[, z]) in the mapping's coordinates
+// (map x, y; lon, lat; angle, axial), heights in its h. Every index answers the same calls, so
+// each query is written once over them (std::visit), with the loops inside the visit: no
+// dispatch per point.
 class Terrain {
  public:
-  Terrain(qota::TerrainIndex index, std::string source) : index_(std::move(index)), source_(std::move(source)) {}
+  explicit Terrain(qota::TreeFile tree)
+      : index_(std::move(tree.index)), source_(std::move(tree.source)), frame_(frameOf(index_, source_, source_.path)) {}
 
   py::array_t<double> heights(const Array& x, const Array& y) const {
-    return batch(x, y, nullptr, [&](auto pts, auto, auto out) { index_.heightsParallel(pts, out); });
+    return batch(x, y, nullptr, [](const auto& index, auto pts, auto, auto out) { index.heightsParallel(pts, out); });
   }
   py::array_t<double> below(const Array& x, const Array& y, const Array& z) const {
-    return batch(x, y, &z, [&](auto pts, auto zs, auto out) { index_.heightsBelowParallel(pts, zs, out); });
+    return batch(x, y, &z, [](const auto& index, auto pts, auto zs, auto out) { index.heightsBelowParallel(pts, zs, out); });
   }
   py::array_t<double> above(const Array& x, const Array& y, const Array& z) const {
-    // No batch for "above" in the library: one query a point, on this thread.
-    return batch(x, y, &z, [&](auto pts, auto zs, auto out) {
-      for (std::size_t i = 0; i < pts.size(); ++i) {
-        const auto hit = index_.above(pts[i].u, pts[i].v, zs[i]);
-        out[i] = hit ? std::optional(hit->height) : std::nullopt;
-      }
+    // No batch for "above" in the library: one query a point, in slices on every core.
+    return batch(x, y, &z, [](const auto& index, auto pts, auto zs, auto out) {
+      qota::batch::inSlices(pts.size(), 0, 4096, [&](std::size_t lo, std::size_t hi) {
+        for (std::size_t i = lo; i < hi; ++i) {
+          const auto hit = index.above(pts[i].u, pts[i].v, zs[i]);
+          out[i] = hit ? std::optional(hit->height) : std::nullopt;
+        }
+      });
     });
   }
 
-  // The nearest hit below (or above) z at every point, with what it hit: heights (NaN: none),
-  // polygon ids (-1: none) and unit normals (NaN: none), on every core with the GIL released.
-  py::tuple hits(const Array& x, const Array& y, const Array& z, bool below) const {
-    if (x.ndim() != 1 || y.ndim() != 1 || z.ndim() != 1 || x.shape(0) != y.shape(0) || z.shape(0) != x.shape(0)) {
-      throw qota::Error("x, y and z must be flat arrays of one length");
-    }
+  // The top hit (mode "top", z unused), or the nearest hit below or above z ("below", "above") at
+  // every point, with what it hit: heights (NaN: none), polygon ids (-1: none) and unit normals in
+  // the world frame (NaN: none), on every core with the GIL released.
+  py::tuple hits(const Array& x, const Array& y, const std::optional<Array>& z, const std::string& mode) const {
+    const int kind = mode == "top" ? 0 : mode == "below" ? 1 : mode == "above" ? 2 : -1;
+    if (kind < 0) throw qota::Error("hits: mode must be top, below or above, not '" + mode + "'");
+    if (kind > 0 && !z) throw qota::Error("hits: " + mode + " needs z");
+    requireFlat(x, y, kind > 0 ? &*z : nullptr);
     const auto n = static_cast<std::size_t>(x.shape(0));
     py::array_t<double> heights(static_cast<py::ssize_t>(n));
     py::array_t<std::int64_t> polygons(static_cast<py::ssize_t>(n));
     py::array_t<double> normals({static_cast<py::ssize_t>(n), py::ssize_t{3}});
-    const double *px = x.data(), *py_ = y.data(), *pz = z.data();
+    const double *px = x.data(), *py_ = y.data(), *pz = kind > 0 ? z->data() : nullptr;
     double* h = heights.mutable_data();
     std::int64_t* p = polygons.mutable_data();
     double* nrm = normals.mutable_data();
-    const Eigen::Vector3d o = index_.mapping().origin();
+    const Frame f = frame_;
     {
       py::gil_scoped_release release;
-      qota::batch::inSlices(n, 0, 4096, [&](std::size_t lo, std::size_t hi) {
-        for (std::size_t i = lo; i < hi; ++i) {
-          const double u = px[i] - o.x(), v = py_[i] - o.y(), w = pz[i] - o.z();
-          const auto hit = below ? index_.below(u, v, w) : index_.above(u, v, w);
-          h[i] = hit ? hit->height + o.z() : kNaN;
-          p[i] = hit ? static_cast<std::int64_t>(hit->polygon) : -1;
-          for (int k = 0; k < 3; ++k) nrm[3 * i + k] = hit ? hit->normal[k] : kNaN;
-        }
-      });
+      std::visit(
+          [&](const auto& index) {
+            qota::batch::inSlices(n, 0, 4096, [&](std::size_t lo, std::size_t hi) {
+              for (std::size_t i = lo; i < hi; ++i) {
+                const qota::Point2 q = f.point(px[i], py_[i]);
+                const auto hit = kind == 0   ? index.top(q.u, q.v)
+                                 : kind == 1 ? index.below(q.u, q.v, f.toIndex(pz[i]))
+                                             : index.above(q.u, q.v, f.toIndex(pz[i]));
+                h[i] = hit ? f.fromIndex(hit->height) : kNaN;
+                p[i] = hit ? static_cast<std::int64_t>(hit->polygon) : -1;
+                for (int k = 0; k < 3; ++k) nrm[3 * i + k] = hit ? hit->normal[k] : kNaN;
+              }
+            });
+          },
+          index_);
     }
     return py::make_tuple(heights, polygons, normals);
   }
 
-  // Every surface on the vertical through (x, y), top first: (height, polygon id, normal).
+  // Every surface on the line of (x, y), top first: (height, polygon id, normal).
   std::vector<py::tuple> all(double x, double y) const {
-    const Eigen::Vector3d o = index_.mapping().origin();
+    const qota::Point2 q = frame_.point(x, y);
+    const std::vector<qota::Hit> hits = std::visit([&](const auto& index) { return index.all(q.u, q.v); }, index_);
     std::vector<py::tuple> out;
-    for (const qota::Hit& h : index_.all(x - o.x(), y - o.y())) {
-      out.push_back(py::make_tuple(h.height + o.z(), h.polygon,
+    for (const qota::Hit& h : hits) {
+      out.push_back(py::make_tuple(frame_.fromIndex(h.height), h.polygon,
                                    py::make_tuple(h.normal.x(), h.normal.y(), h.normal.z())));
     }
     return out;
   }
 
   void save(const std::string& path) const {
-    qota::TreeSource source;
-    source.path = source_;
     py::gil_scoped_release release;
-    qota::saveTree(path, index_, source);
+    qota::saveTree(path, index_, source_);
   }
 
   py::dict stats() const {
-    const qota::IndexStats s = index_.stats();
+    const qota::IndexStats s = std::visit([](const auto& index) { return index.stats(); }, index_);
     py::dict d;
     d["polygons"] = s.polygons;
     d["triangles"] = s.triangles;
@@ -115,16 +173,23 @@ class Terrain {
     return d;
   }
 
-  const std::string& source() const { return source_; }
+  const std::string& source() const { return source_.path; }
+  std::string mapping() const { return qota::tools::mappingNameOf(index_); }
+  const std::string& crs() const { return source_.crsWkt; }
 
  private:
-  template <class Run>
-  py::array_t<double> batch(const Array& x, const Array& y, const Array* z, Run&& run) const {
+  static void requireFlat(const Array& x, const Array& y, const Array* z) {
     if (x.ndim() != 1 || y.ndim() != 1 || x.shape(0) != y.shape(0) || (z && (z->ndim() != 1 || z->shape(0) != x.shape(0)))) {
       throw qota::Error("x, y (and z) must be flat arrays of one length");
     }
+  }
+
+  // Maps the points (and z) into the index's frame, runs run(index, points, zs, out) with the GIL
+  // released, and maps the answers back (NaN for no terrain).
+  template <class Run>
+  py::array_t<double> batch(const Array& x, const Array& y, const Array* z, Run&& run) const {
+    requireFlat(x, y, z);
     const std::size_t n = static_cast<std::size_t>(x.shape(0));
-    const Eigen::Vector3d o = index_.mapping().origin();
     std::vector<qota::Point2> pts(n);
     std::vector<double> zs(z ? n : 0);  // per call: batches run with the GIL released
     std::vector<std::optional<double>> out(n);
@@ -133,38 +198,111 @@ class Terrain {
     const double* py_ = y.data();
     const double* pz = z ? z->data() : nullptr;
     double* r = result.mutable_data();
+    const Frame f = frame_;
     {
       py::gil_scoped_release release;
-      for (std::size_t i = 0; i < n; ++i) pts[i] = {px[i] - o.x(), py_[i] - o.y()};
-      for (std::size_t i = 0; pz && i < n; ++i) zs[i] = pz[i] - o.z();
-      run(std::span<const qota::Point2>(pts), std::span<const double>(zs), std::span<std::optional<double>>(out));
-      for (std::size_t i = 0; i < n; ++i) r[i] = out[i] ? *out[i] + o.z() : kNaN;
+      for (std::size_t i = 0; i < n; ++i) pts[i] = f.point(px[i], py_[i]);
+      for (std::size_t i = 0; pz && i < n; ++i) zs[i] = f.toIndex(pz[i]);
+      std::visit(
+          [&](const auto& index) {
+            run(index, std::span<const qota::Point2>(pts), std::span<const double>(zs),
+                std::span<std::optional<double>>(out));
+          },
+          index_);
+      for (std::size_t i = 0; i < n; ++i) r[i] = out[i] ? f.fromIndex(*out[i]) : kNaN;
     }
     return result;
   }
 
-  qota::TerrainIndex index_;
-  std::string source_;
+  qota::AnyIndex index_;
+  qota::TreeSource source_;
+  Frame frame_;
 };
 
-qota::TerrainIndex indexOf(const qota::DemTerrain& dem) { return qota::TerrainIndex(dem.mesh, dem.mapping); }
-
-Terrain fromRaster(const std::string& path, int band) {
-  py::gil_scoped_release release;
-  qota::DemOptions options;
-  options.band = band;
-  options.lonLatAsCartesian = true;  // heights at points, as gdallocationinfo: x, y in the CRS
-  const qota::DemTerrain dem = qota::loadDem(path, options);
-  return Terrain(indexOf(dem), path);
+// The raster options of `qota sample --mapping --radius --length`, checked as the tool checks
+// them (positive numbers), and refused where they do not apply rather than ignored.
+qota::tools::SourceOptions rasterOptions(const std::string& path, int band, const std::string& mapping,
+                                         std::optional<double> radius, std::optional<double> length) {
+  if (!knownMapping(mapping)) {
+    throw qota::Error("mapping '" + mapping + "' is not one of " + kMappings);
+  }
+  if (radius && !(mapping == "spherical" || mapping == "cylindrical")) {
+    throw qota::Error("radius applies to the spherical and cylindrical mappings, not " + mapping);
+  }
+  if (length && mapping != "cylindrical") {
+    throw qota::Error("length applies to the cylindrical mapping, not " + mapping);
+  }
+  if (radius && !(*radius > 0 && std::isfinite(*radius))) throw qota::Error("radius must be a positive number");
+  if (length && !(*length > 0 && std::isfinite(*length))) throw qota::Error("length must be a positive number");
+  qota::tools::SourceOptions o;
+  o.source = path;
+  o.band = band;
+  o.mapping = mapping;
+  o.radius = radius.value_or(0.0);  // 0: the tool's defaults (the CRS's radius; 250 and 1000)
+  o.length = length.value_or(0.0);
+  return o;
 }
 
-// A numpy array with a GDAL geotransform: written as a GeoTIFF in GDAL's memory file system and
-// read back by loadDem, so the array's terrain is exactly the raster's (pixel centres, nodata
-// holes, the outer half pixel).
-Terrain fromArray(py::array_t<double, py::array::c_style | py::array::forcecast> heights,
-                  const std::vector<double>& transform, std::optional<double> nodata) {
+// A raster in a mapping, as `qota sample --mapping` builds it (the tools' openIndex). The file
+// is first opened as a raster, so that a tree or mesh file is refused here with GDAL's reason
+// rather than read as something else.
+qota::TreeFile rasterTree(const qota::tools::SourceOptions& o) {
+  if (qota::isTreeFile(o.source)) throw qota::Error(o.source + ": a tree file, not a raster (Terrain.load reads it)");
+  qota::DemOptions check;
+  check.band = o.band;
+  check.lonLatAsCartesian = true;
+  qota::describeDem(o.source, check);
+  return qota::tools::openIndex(o);
+}
+
+Terrain fromRaster(const std::string& path, int band, const std::string& mapping, std::optional<double> radius,
+                   std::optional<double> length) {
+  const qota::tools::SourceOptions o = rasterOptions(path, band, mapping, radius, length);
+  py::gil_scoped_release release;
+  return Terrain(rasterTree(o));
+}
+
+// Writes a 2-D float64 array as a one-band Float64 GeoTIFF at `path` (a file, or GDAL's memory
+// file system): the geotransform, nodata, CRS (any text GDAL's SetFromUserInput reads: WKT,
+// EPSG:4326, PROJ) and vertical unit (the band's unit type, which loadDem and qota shadow read)
+// given. The GIL must be released by the caller when it wants; nothing here touches Python.
+void writeRasterFile(const std::string& path, const double* data, int rows, int cols, const std::vector<double>& transform,
+                     std::optional<double> nodata, const std::string& crs, const std::string& unit) {
+  qota::ensureGdalRegistered();
+  OGRSpatialReference srs;
+  if (!crs.empty()) {
+    CPLPushErrorHandler(CPLQuietErrorHandler);  // the message is ours; GDAL's would go to stderr
+    const OGRErr read = srs.SetFromUserInput(crs.c_str());
+    CPLPopErrorHandler();
+    if (read != OGRERR_NONE) {
+      throw qota::Error("crs '" + crs.substr(0, 80) + "' is not a coordinate reference system GDAL knows");
+    }
+  }
+  GDALDriver* gtiff = GetGDALDriverManager()->GetDriverByName("GTiff");
+  std::unique_ptr<GDALDataset> ds(gtiff->Create(path.c_str(), cols, rows, 1, GDT_Float64, nullptr));
+  if (!ds) throw qota::Error(path + ": cannot create the raster for the array");
+  double gt[6];
+  std::copy(transform.begin(), transform.end(), gt);
+  ds->SetGeoTransform(gt);
+  if (!crs.empty()) ds->SetSpatialRef(&srs);
+  GDALRasterBand* b = ds->GetRasterBand(1);
+  if (nodata) b->SetNoDataValue(*nodata);
+  if (!unit.empty()) b->SetUnitType(unit.c_str());
+  if (b->RasterIO(GF_Write, 0, 0, cols, rows, const_cast<double*>(data), cols, rows, GDT_Float64, 0, 0) != CE_None) {
+    throw qota::Error(path + ": cannot write the array into the raster");
+  }
+  ds.reset();  // closed: flushed for whoever reads it next
+}
+
+// The checks on an array and its geotransform that GDAL would not make (or would make with a
+// less clear message).
+void checkGrid(const py::array_t<double, py::array::c_style | py::array::forcecast>& heights,
+               const std::vector<double>& transform) {
   if (heights.ndim() != 2 || heights.shape(0) < 1 || heights.shape(1) < 1) {
     throw qota::Error("heights must be a 2-D array (rows, columns) of at least one value");
+  }
+  if (heights.shape(0) > std::numeric_limits<int>::max() || heights.shape(1) > std::numeric_limits<int>::max()) {
+    throw qota::Error("heights has more rows or columns than GDAL takes");
   }
   if (transform.size() != 6) throw qota::Error("transform must have 6 numbers (GDAL's geotransform)");
   for (double t : transform) {
@@ -173,40 +311,52 @@ Terrain fromArray(py::array_t<double, py::array::c_style | py::array::forcecast>
   if (transform[1] * transform[5] - transform[2] * transform[4] == 0) {
     throw qota::Error("transform is singular (a pixel of zero area)");
   }
+}
+
+void writeRaster(const std::string& path, py::array_t<double, py::array::c_style | py::array::forcecast> heights,
+                 const std::vector<double>& transform, std::optional<double> nodata, const std::string& crs,
+                 const std::string& unit) {
+  checkGrid(heights, transform);
   const int rows = static_cast<int>(heights.shape(0)), cols = static_cast<int>(heights.shape(1));
-  static std::atomic<unsigned> counter{0};
-  const std::string path = "/vsimem/qota_python_" + std::to_string(counter++) + ".tif";
   const double* data = heights.data();
   py::gil_scoped_release release;
-  qota::ensureGdalRegistered();
-  {
-    GDALDriver* gtiff = GetGDALDriverManager()->GetDriverByName("GTiff");
-    std::unique_ptr<GDALDataset> ds(gtiff->Create(path.c_str(), cols, rows, 1, GDT_Float64, nullptr));
-    if (!ds) throw qota::Error("cannot create the in-memory raster for the array");
-    double gt[6];
-    std::copy(transform.begin(), transform.end(), gt);
-    ds->SetGeoTransform(gt);
-    GDALRasterBand* b = ds->GetRasterBand(1);
-    if (nodata) b->SetNoDataValue(*nodata);
-    if (b->RasterIO(GF_Write, 0, 0, cols, rows, const_cast<double*>(data), cols, rows, GDT_Float64, 0, 0) != CE_None) {
-      VSIUnlink(path.c_str());
-      throw qota::Error("cannot write the array into the in-memory raster");
-    }
-  }
+  writeRasterFile(path, data, rows, cols, transform, nodata, crs, unit);
+}
+
+// A numpy array with a GDAL geotransform: written as a GeoTIFF in GDAL's memory file system and
+// read back as from_raster reads a file, so the array's terrain is exactly the raster's (pixel
+// centres, nodata holes), in any mapping.
+Terrain fromArray(py::array_t<double, py::array::c_style | py::array::forcecast> heights,
+                  const std::vector<double>& transform, std::optional<double> nodata, const std::string& crs,
+                  const std::string& unit, const std::string& mapping, std::optional<double> radius,
+                  std::optional<double> length) {
+  checkGrid(heights, transform);
+  static std::atomic<unsigned> counter{0};
+  const std::string path = "/vsimem/qota_python_" + std::to_string(counter++) + ".tif";
+  const qota::tools::SourceOptions o = rasterOptions(path, 1, mapping, radius, length);
+  const int rows = static_cast<int>(heights.shape(0)), cols = static_cast<int>(heights.shape(1));
+  const double* data = heights.data();
+  py::gil_scoped_release release;
   try {
-    qota::DemOptions options;
-    options.lonLatAsCartesian = true;
-    const qota::DemTerrain dem = qota::loadDem(path, options);
+    writeRasterFile(path, data, rows, cols, transform, nodata, crs, unit);
+    qota::TreeFile tree = rasterTree(o);
     VSIUnlink(path.c_str());
-    return Terrain(indexOf(dem), "<array>");
+    tree.source.path = "<array>";
+    return Terrain(std::move(tree));
   } catch (...) {
     VSIUnlink(path.c_str());
     throw;
   }
 }
 
+// A mesh in world coordinates, in a mapping's default frame, as `qota build --mapping` reads a
+// mesh file: cartesian with gravity -Z (the origin at the centre of the footprint, z 0, so
+// heights stay in the mesh's own z), a sphere about the origin, the WGS84 ellipsoid in ECEF
+// metres, a cylinder about the z axis.
 Terrain fromMesh(py::array_t<double, py::array::c_style | py::array::forcecast> vertices,
-                 py::array_t<std::int64_t, py::array::c_style | py::array::forcecast> triangles) {
+                 py::array_t<std::int64_t, py::array::c_style | py::array::forcecast> triangles,
+                 const std::string& mapping) {
+  if (!knownMapping(mapping)) throw qota::Error("mapping '" + mapping + "' is not one of " + kMappings);
   if (vertices.ndim() != 2 || vertices.shape(1) != 3) throw qota::Error("vertices must be an (N, 3) array");
   if (triangles.ndim() != 2 || triangles.shape(1) != 3) throw qota::Error("triangles must be an (M, 3) array");
   const auto n = static_cast<std::size_t>(vertices.shape(0)), m = static_cast<std::size_t>(triangles.shape(0));
@@ -232,21 +382,25 @@ Terrain fromMesh(py::array_t<double, py::array::c_style | py::array::forcecast> 
     mesh.indices.push_back(static_cast<std::uint32_t>(t[k]));
   }
   if (n == 0 || m == 0) throw qota::Error("the mesh has no triangles");
-  // The origin at the centre of the footprint (z 0, so heights stay in the mesh's own z).
-  const Eigen::Vector3d origin(0.5 * (lo.x() + hi.x()), 0.5 * (lo.y() + hi.y()), 0.0);
-  return Terrain(qota::TerrainIndex(mesh, qota::CartesianMapping({0, 0, -1}, origin)), "<mesh>");
+  const auto index = [&]() -> qota::AnyIndex {
+    if (mapping == "spherical") return qota::SphericalIndex(mesh, qota::SphericalMapping());
+    if (mapping == "geodetic") return qota::GeodeticIndex(mesh, qota::GeodeticMapping());
+    if (mapping == "cylindrical") return qota::CylindricalIndex(mesh, qota::CylindricalMapping());
+    const Eigen::Vector3d origin(0.5 * (lo.x() + hi.x()), 0.5 * (lo.y() + hi.y()), 0.0);
+    return qota::TerrainIndex(mesh, qota::CartesianMapping({0, 0, -1}, origin));
+  };
+  qota::TreeSource source;
+  source.path = "<mesh>";
+  return Terrain(qota::TreeFile{index(), source});
 }
 
+// A tree file, in the mapping it was built in.
 Terrain load(const std::string& path) {
-  qota::TreeFile tf = [&] {
-    py::gil_scoped_release release;
-    return qota::loadTree(path);
-  }();
-  auto* index = std::get_if<qota::TerrainIndex>(&tf.index);
-  if (!index || !index->mapping().vertical()) {
-    throw qota::Error(path + ": not a Cartesian terrain with vertical gravity (the Python package reads those)");
-  }
-  return Terrain(std::move(*index), tf.source.path);
+  py::gil_scoped_release release;
+  qota::TreeFile tree = qota::loadTree(path);
+  frameOf(tree.index, tree.source, path);  // refused naming the tree file, not its source
+  if (tree.source.path.empty()) tree.source.path = path;
+  return Terrain(std::move(tree));
 }
 
 // qota shadow itself (the same cells, the same checks and messages), into `output`, read back.
@@ -311,17 +465,24 @@ PYBIND11_MODULE(_qota, m) {
   m.def("_shadow", &shadow, py::arg("dem"), py::arg("output"), py::arg("azimuth"), py::arg("altitude"),
         py::arg("time"), py::arg("tz"), py::arg("band"), py::arg("z_factor"));
   m.def("_sun_position", &sunPosition, py::arg("time"), py::arg("lon"), py::arg("lat"), py::arg("tz"));
+  m.def("_write_raster", &writeRaster, py::arg("path"), py::arg("heights"), py::arg("transform"),
+        py::arg("nodata") = py::none(), py::arg("crs") = "", py::arg("unit") = "");
   py::class_<Terrain>(m, "_Terrain")
-      .def_static("from_raster", &fromRaster, py::arg("path"), py::arg("band") = 0)
-      .def_static("from_array", &fromArray, py::arg("heights"), py::arg("transform"), py::arg("nodata") = py::none())
-      .def_static("from_mesh", &fromMesh, py::arg("vertices"), py::arg("triangles"))
+      .def_static("from_raster", &fromRaster, py::arg("path"), py::arg("band"), py::arg("mapping"),
+                  py::arg("radius") = py::none(), py::arg("length") = py::none())
+      .def_static("from_array", &fromArray, py::arg("heights"), py::arg("transform"), py::arg("nodata") = py::none(),
+                  py::arg("crs") = "", py::arg("unit") = "", py::arg("mapping") = "cartesian",
+                  py::arg("radius") = py::none(), py::arg("length") = py::none())
+      .def_static("from_mesh", &fromMesh, py::arg("vertices"), py::arg("triangles"), py::arg("mapping") = "cartesian")
       .def_static("load", &load, py::arg("path"))
       .def("heights", &Terrain::heights)
       .def("below", &Terrain::below)
       .def("above", &Terrain::above)
       .def("all", &Terrain::all)
-      .def("hits", &Terrain::hits)
+      .def("hits", &Terrain::hits, py::arg("x"), py::arg("y"), py::arg("z"), py::arg("mode"))
       .def("save", &Terrain::save)
       .def("stats", &Terrain::stats)
-      .def_property_readonly("source", &Terrain::source);
+      .def_property_readonly("source", &Terrain::source)
+      .def_property_readonly("mapping", &Terrain::mapping)
+      .def_property_readonly("crs", &Terrain::crs);
 }
