@@ -322,40 +322,8 @@ TEST(TerrainInput, ErrorsNameThePolygon) {
 
 }  // namespace
 
-namespace {
-
-TEST(TerrainQueries, BatchEqualsSingleQueries) {
-  // Multi-layer terrain (plates over a holed heightfield), tilted gravity, points inside, outside,
-  // on vertices and NaN: heightsBelow must give exactly what heightBelow gives, point by point.
-  const Mesh mesh = qota::test::randomTerrain({}, 31);
-  const TerrainIndex index(mesh, CartesianMapping(Eigen::Vector3d(0.1, 0.05, -1)));
-  std::mt19937_64 rng(8);
-  const auto& d = index.stats().domain;
-  std::uniform_real_distribution<double> uu(d.ulo - 1, d.uhi + 1), vv(d.vlo - 1, d.vhi + 1);
-  std::vector<qota::Point2> points;
-  for (int i = 0; i < 20000; ++i) points.push_back({uu(rng), vv(rng)});
-  for (std::size_t i = 0; i < mesh.vertices.size(); i += 7) {
-    const Eigen::Vector3d m = index.mapping().toMapped(mesh.vertices[i]);
-    points.push_back({m.x(), m.y()});
-  }
-  points.push_back({NAN, 0});
-  for (const double z : {std::numeric_limits<double>::infinity(), 0.0, -3.0}) {
-    std::vector<std::optional<double>> heights(points.size());
-    index.heightsBelow(points, z, heights);
-    for (std::size_t i = 0; i < points.size(); ++i) {
-      ASSERT_EQ(heights[i], index.heightBelow(points[i].u, points[i].v, z)) << i;
-      const auto hit = index.below(points[i].u, points[i].v, z);
-      ASSERT_EQ(hit.has_value(), heights[i].has_value());
-      if (hit) {
-        ASSERT_EQ(hit->height, *heights[i]);
-      }
-    }
-  }
-  std::vector<std::optional<double>> tooSmall(3);
-  EXPECT_THROW(index.heightsBelow(points, 0.0, tooSmall), qota::Error);
-}
-
-}  // namespace
+// Batches against single queries: IndexFace.BatchesAnswerAsSingleQueriesBitForBit
+// (test_index_typed.cpp), for this index and every other.
 
 // The names of 0.1 still name the same types for one release (deprecated in 0.2).
 #pragma GCC diagnostic push

@@ -87,7 +87,17 @@ Frame frameOf(const qota::AnyIndex& index, const qota::TreeSource& source, const
 class Terrain {
  public:
   explicit Terrain(qota::TreeFile tree)
-      : index_(std::move(tree.index)), source_(std::move(tree.source)), frame_(frameOf(index_, source_, source_.path)) {}
+      : index_(std::move(tree.index)), source_(std::move(tree.source)), frame_(frameOf(index_, source_, source_.path)) {
+    // A raster's footprint in the cartesian and geodetic mappings (a map, lon/lat on the
+    // ellipsoid): the outer half-pixel rule, as `qota sample` keeps it (dem.hpp).
+    const bool map = std::holds_alternative<qota::TerrainIndex>(index_) || std::holds_alternative<qota::GeodeticIndex>(index_);
+    if (map && source_.width > 0 && source_.height > 0) {
+      qota::DemTerrain grid;
+      grid.width = source_.width, grid.height = source_.height;
+      grid.geotransform = source_.geotransform;
+      footprint_ = std::move(grid);
+    }
+  }
 
   py::array_t<double> heights(const Array& x, const Array& y) const {
     return batch(x, y, nullptr, [](const auto& index, auto pts, auto, auto out) { index.heightsParallel(pts, out); });
@@ -130,7 +140,7 @@ class Terrain {
           [&](const auto& index) {
             qota::batch::inSlices(n, 0, 4096, [&](std::size_t lo, std::size_t hi) {
               for (std::size_t i = lo; i < hi; ++i) {
-                const qota::Point2 q = f.point(px[i], py_[i]);
+                const qota::Point2 q = place(px[i], py_[i]);
                 const auto hit = kind == 0   ? index.top(q.u, q.v)
                                  : kind == 1 ? index.below(q.u, q.v, f.toIndex(pz[i]))
                                              : index.above(q.u, q.v, f.toIndex(pz[i]));
@@ -147,7 +157,7 @@ class Terrain {
 
   // Every surface on the line of (x, y), top first: (height, polygon id, normal).
   std::vector<py::tuple> all(double x, double y) const {
-    const qota::Point2 q = frame_.point(x, y);
+    const qota::Point2 q = place(x, y);
     const std::vector<qota::Hit> hits = std::visit([&](const auto& index) { return index.all(q.u, q.v); }, index_);
     std::vector<py::tuple> out;
     for (const qota::Hit& h : hits) {
@@ -184,6 +194,18 @@ class Terrain {
     }
   }
 
+  // The index's (u, v) of the point (x, y): on a raster's footprint, a point of the outer half
+  // pixel answers with the height of the nearest point on the outermost pixel centres' lines, and
+  // a point off the raster has no terrain (NaN, which no index holds).
+  qota::Point2 place(double x, double y) const {
+    if (footprint_) {
+      const auto p = footprint_->surfacePoint(x, y);
+      if (!p) return {kNaN, kNaN};
+      x = (*p)[0], y = (*p)[1];
+    }
+    return frame_.point(x, y);
+  }
+
   // Maps the points (and z) into the index's frame, runs run(index, points, zs, out) with the GIL
   // released, and maps the answers back (NaN for no terrain).
   template <class Run>
@@ -201,7 +223,7 @@ class Terrain {
     const Frame f = frame_;
     {
       py::gil_scoped_release release;
-      for (std::size_t i = 0; i < n; ++i) pts[i] = f.point(px[i], py_[i]);
+      for (std::size_t i = 0; i < n; ++i) pts[i] = place(px[i], py_[i]);
       for (std::size_t i = 0; pz && i < n; ++i) zs[i] = f.toIndex(pz[i]);
       std::visit(
           [&](const auto& index) {
@@ -217,6 +239,7 @@ class Terrain {
   qota::AnyIndex index_;
   qota::TreeSource source_;
   Frame frame_;
+  std::optional<qota::DemTerrain> footprint_;  // a raster's, for the outer half pixel
 };
 
 // The raster options of `qota sample --mapping --radius --length`, checked as the tool checks

@@ -276,3 +276,46 @@ def test_polygons_and_normals_on_request():
     assert h.shape == p.shape == (2, 3) and p.dtype == np.int64
     (lo, lo_n), (hi, hi_n) = terrain.bracket(3.3, 2.2, 10.0, normals=True)
     assert lo < 10 < hi and lo_n.shape == hi_n.shape == (3,)
+
+
+def test_outer_half_pixel_takes_the_nearest_centres_height():
+    """The rule of `qota sample` (README "The outer half pixel"): a point between the outermost
+    pixel centres and the raster's edge answers the height at the nearest point on the centres'
+    lines, which is linear between two centres along the line (the triangles' outer side); off
+    the raster, NaN. Expected values computed here: np.interp along the outermost rows and
+    columns, the brute force inside."""
+    rng = np.random.default_rng(7)
+    heights = rng.uniform(0, 100, (3, 4))
+    transform = (100.0, 10.0, 0.0, 500.0, 0.0, -10.0)  # 4 x 3 pixels of 10 m, top-left (100, 500)
+    terrain = qota.Terrain.from_array(heights, transform)
+    xs = 105 + 10 * np.arange(4)  # pixel centres
+    ys = 495 - 10 * np.arange(3)
+    x = rng.uniform(100, 140, 3000)  # the whole footprint, outer half pixel included
+    y = rng.uniform(470, 500, 3000)
+    cx, cy = np.clip(x, xs[0], xs[-1]), np.clip(y, ys[-1], ys[0])
+    inx, iny = cx == x, cy == y
+    want = np.full(x.shape, np.nan)
+    row = np.where(y > ys[0], 0, 2)  # the outermost row a clamped y lies on
+    col = np.where(x < xs[0], 0, 3)
+    only_y = inx & ~iny
+    want[only_y] = [np.interp(cx[i], xs, heights[row[i]]) for i in np.flatnonzero(only_y)]
+    only_x = ~inx & iny
+    want[only_x] = [np.interp(cy[i], ys[::-1], heights[::-1, col[i]]) for i in np.flatnonzero(only_x)]
+    corner = ~inx & ~iny
+    want[corner] = heights[row[corner], col[corner]]
+    # Inside: the pixel centres' triangles by the raster rule, brute force.
+    cols, rows = np.meshgrid(np.arange(4), np.arange(3))
+    v = np.column_stack([xs[cols.ravel()], ys[rows.ravel()], heights.ravel()])
+    t = []
+    for r in range(2):
+        for c in range(3):
+            i = r * 4 + c
+            t += [[i, i + 4, i + 5], [i, i + 5, i + 1]]
+    inner, near = brute_force(v, np.array(t), x, y)
+    want[inx & iny] = inner[inx & iny]
+    check = ~(inx & iny & near)
+    assert np.count_nonzero(~(inx & iny)) > 1000 and np.count_nonzero(corner) > 100
+    np.testing.assert_allclose(terrain.heights(x, y)[check], want[check], rtol=0, atol=1e-9)
+    # Off the raster: no terrain.
+    off = terrain.heights(np.array([99.999, 140.001, 120.0, 120.0]), np.array([480.0, 480.0, 500.001, 469.999]))
+    assert np.isnan(off).all()
