@@ -13,7 +13,6 @@
 #include "qota/mesh_io.hpp"
 
 namespace qota::tools {
-namespace {
 
 bool isRaster(const std::string& path) {
   ensureGdalRegistered();
@@ -22,6 +21,8 @@ bool isRaster(const std::string& path) {
       static_cast<GDALDataset*>(GDALOpenEx(path.c_str(), GDAL_OF_RASTER, nullptr, nullptr, nullptr)));
   return ds != nullptr;
 }
+
+namespace {
 
 TreeSource sourceOf(const DemTerrain& dem) {
   return {dem.path,          dem.crsWkt, dem.width,
@@ -49,11 +50,15 @@ const char* mappingNameOf(const AnyIndex& index) {
   return std::visit([](const auto& i) { return i.mapping().name(); }, index);
 }
 
-TreeFile openIndex(const SourceOptions& o) {
+void requireSource(const std::string& path) {
   // GDAL's virtual paths (/vsizip/, /vsicurl/...) are not on the file system.
-  if (o.source.rfind("/vsi", 0) != 0 && !std::filesystem::exists(o.source)) {
-    throw Error(o.source + ": cannot open: no such file");
+  if (path.rfind("/vsi", 0) != 0 && !std::filesystem::exists(path)) {
+    throw Error(path + ": cannot open: no such file");
   }
+}
+
+TreeFile openIndex(const SourceOptions& o) {
+  requireSource(o.source);
   DemOptions demOptions;
   demOptions.band = o.band;
   demOptions.lonLatAsCartesian = true;

@@ -35,6 +35,11 @@ TreeFile openIndex(const SourceOptions& options);
 // loaders estimate it before reading a raster: the process, the terrain and its index.
 std::uint64_t estimatedPeakBytes(const TreeFile& tree, const SourceOptions& options);
 
+// Whether GDAL opens the file as a raster (else it is read as a mesh or a tree file).
+bool isRaster(const std::string& path);
+// Throws qota::Error "PATH: cannot open: no such file" for a local file that is not there.
+void requireSource(const std::string& path);
+
 // The mapping name of an index ("cartesian", ...).
 const char* mappingNameOf(const AnyIndex& index);
 

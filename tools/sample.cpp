@@ -2,19 +2,27 @@
 #include <ogr_spatialref.h>
 
 #include <charconv>
+#include <cmath>
+#include <exception>
 #include <fstream>
 #include <functional>
 #include <iostream>
+#include <limits>
 #include <memory>
+#include <mutex>
 #include <optional>
+#include <span>
 #include <string_view>
 #include <type_traits>
 #include <vector>
 
 #include "index_source.hpp"
+#include "qota/batch.hpp"
 #include "qota/curved.hpp"
 #include "qota/dem.hpp"
 #include "qota/error.hpp"
+#include "qota/raster_sampler.hpp"
+#include "qota/treefile.hpp"
 #include "qota_tools.hpp"
 #include "text_output.hpp"
 
@@ -99,10 +107,42 @@ struct Answer {
   Eigen::Vector3d world = Eigen::Vector3d::Zero();
   std::string token, problem;
 };
-// (x, y) in the input's order after -w; z: the query height, or null for the top surface.
-using Surface = std::function<Answer(double x, double y, const double* z)>;
-
 Answer outside(const char* token, std::string problem) { return {std::nullopt, {}, token, std::move(problem)}; }
+
+// A point of a line: (x, y) in the input's order after -w and --srs, z the query height.
+struct Query {
+  double x = 0, y = 0, z = 0;
+};
+
+// The terrain of options.source with its queries, answered a batch at a time (answers[i] for
+// queries[i]; hasZ: every query has its height). Called on one thread; it may use several.
+using Surface = std::function<void(std::span<const Query> queries, bool hasZ, std::span<Answer> answers)>;
+
+// Runs work(lo, hi) over [0, n) on every core (slices of at least minPerThread); an exception in a slice is rethrown here.
+template <class Work>
+void inParallel(std::size_t n, std::size_t minPerThread, Work&& work) {
+  std::exception_ptr failure;
+  std::mutex lock;
+  batch::inSlices(n, 0, minPerThread, [&](std::size_t lo, std::size_t hi) {
+    try {
+      work(lo, hi);
+    } catch (...) {
+      const std::lock_guard<std::mutex> hold(lock);
+      if (!failure) failure = std::current_exception();
+    }
+  });
+  if (failure) std::rethrow_exception(failure);
+}
+
+// A surface answered point by point (a const index: any number of threads at once).
+template <class One>
+Surface pointByPoint(One one) {
+  return [one = std::move(one)](std::span<const Query> q, bool hasZ, std::span<Answer> out) {
+    inParallel(q.size(), 4096, [&](std::size_t lo, std::size_t hi) {
+      for (std::size_t i = lo; i < hi; ++i) out[i] = one(q[i].x, q[i].y, hasZ ? &q[i].z : nullptr);
+    });
+  };
+}
 
 // The raster grid a tree was built from (its footprint, for the outer half-pixel rule), or
 // nothing for a mesh source.
@@ -115,9 +155,59 @@ std::shared_ptr<const DemTerrain> gridOf(const TreeSource& source) {
   return grid;
 }
 
-// The terrain of options.source (a tree file, or a raster or mesh in options.mapping), with its
-// query. The index lives in the returned closure.
-Surface openSurface(const SampleOptions& options) {
+// The outer half-pixel rule on a raster's footprint (dem.hpp): (x, y) moved onto the nearest
+// point of the outermost pixel centres' lines; false (with the problem) off the raster.
+bool onSurface(const DemTerrain* grid, double& x, double& y, std::string& problem) {
+  if (!grid) return true;
+  const auto p = grid->surfacePoint(x, y);
+  if (!p) {
+    problem = "point (" + formatNumber(x) + ", " + formatNumber(y) + ") is off the raster";
+    return false;
+  }
+  x = (*p)[0], y = (*p)[1];
+  return true;
+}
+
+// A raster in the Cartesian mapping, read tile by tile (RasterSampler): memory bounded by the
+// tile cache, never the whole raster; the same answers as its whole terrain.
+Surface rasterSurface(std::shared_ptr<RasterSampler> sampler) {
+  return [sampler](std::span<const Query> q, bool hasZ, std::span<Answer> out) {
+    const DemTerrain& dem = sampler->dem();
+    std::vector<double> xs(q.size()), ys(q.size()), zs(hasZ ? q.size() : 0);
+    std::vector<std::optional<double>> heights(q.size());
+    for (std::size_t i = 0; i < q.size(); ++i) {
+      xs[i] = q[i].x, ys[i] = q[i].y;
+      if (hasZ) zs[i] = q[i].z;
+      out[i] = Answer{};
+      if (!onSurface(&dem, xs[i], ys[i], out[i].problem)) {
+        out[i].token = "none";
+        xs[i] = ys[i] = std::numeric_limits<double>::quiet_NaN();  // off: no terrain
+      }
+    }
+    sampler->heights(xs, ys, zs, heights);
+    for (std::size_t i = 0; i < q.size(); ++i) {
+      if (!out[i].problem.empty() || !heights[i]) continue;
+      out[i].height = heights[i];
+      out[i].world = Eigen::Vector3d(q[i].x, q[i].y, *heights[i]);
+    }
+  };
+}
+
+// The terrain of options.source: a raster in the Cartesian mapping through the tile sampler,
+// else an index (a tree file, a mesh, or a raster in a curved mapping) queried point by point.
+Surface openSurface(const SampleOptions& options, TreeSource& source) {
+  const bool cartesian = options.mapping.empty() || options.mapping == "cartesian";
+  if (cartesian && !isTreeFile(options.source)) {
+    requireSource(options.source);
+    if (isRaster(options.source)) {
+      RasterSampler::Options so;
+      so.band = options.band;
+      auto sampler = std::make_shared<RasterSampler>(options.source, so);
+      const DemTerrain& dem = sampler->dem();
+      source.path = dem.path, source.crsWkt = dem.crsWkt;
+      return rasterSurface(std::move(sampler));
+    }
+  }
   SourceOptions so;
   so.source = options.source;
   so.mapping = options.mapping;
@@ -128,33 +218,15 @@ Surface openSurface(const SampleOptions& options) {
   so.terrain = options.terrain;
   auto tree = std::make_shared<TreeFile>(openIndex(so));
   if (tree->source.path.empty()) tree->source.path = options.source;
+  source = tree->source;
   const std::shared_ptr<const DemTerrain> grid = gridOf(tree->source);
-  // Points off the raster, and the outer half pixel: the height of the nearest point on the
-  // outermost pixel centres' lines (dem.hpp). xy is moved there; false when off the raster.
-  const auto onSurface = [grid](double& x, double& y, std::string& problem) {
-    if (!grid) return true;
-    const auto p = grid->surfacePoint(x, y);
-    if (!p) {
-      problem = "point (" + formatNumber(x) + ", " + formatNumber(y) + ") is off the raster";
-      return false;
-    }
-    x = (*p)[0], y = (*p)[1];
-    return true;
-  };
 
   if (const TerrainIndex* index = std::get_if<TerrainIndex>(&tree->index)) {
-    std::shared_ptr<OGRCoordinateTransformation> transform = makeTransform(options.srs, tree->source);
     const CartesianMapping& mapping = index->mapping();
-    return [tree, index, mapping, transform, onSurface, srs = options.srs](double x0, double y0,
-                                                                           const double* z) {
-      double x = x0, y = y0;
-      if (transform && !transform->Transform(1, &x, &y)) {
-        return outside("error", "cannot transform (" + formatNumber(x0) + ", " + formatNumber(y0) +
-                                    ") from " + srs + " to the source's CRS");
-      }
+    return pointByPoint([tree, index, mapping, grid](double x, double y, const double* z) {
       const double px = x, py = y;
       std::string problem;
-      if (!onSurface(x, y, problem)) return outside("none", problem);
+      if (!onSurface(grid.get(), x, y, problem)) return outside("none", problem);
       const Eigen::Vector3d m = mapping.toMapped(Eigen::Vector3d(x, y, z ? *z : 0.0));
       const std::optional<Hit> hit = z ? index->below(m.x(), m.y(), m.z()) : index->top(m.x(), m.y());
       if (!hit) return Answer{};
@@ -162,7 +234,7 @@ Surface openSurface(const SampleOptions& options) {
       // index works around the centre of its box, a raster's around its centre at z = 0).
       const double height = mapping.vertical() ? hit->world.z() : -hit->world.dot(mapping.gravity());
       return Answer{height, Eigen::Vector3d(px, py, height), "", ""};
-    };
+    });
   }
   if (!options.srs.empty()) {
     throw Error("--srs applies to the cartesian mapping only; the " +
@@ -177,25 +249,222 @@ Surface openSurface(const SampleOptions& options) {
         using Index = std::decay_t<decltype(index)>;
         constexpr bool kGeodetic = std::is_same_v<Index, GeodeticIndex>;
         constexpr bool kLatitude = !std::is_same_v<Index, CylindricalIndex>;
-        return [tree, &index, onSurface, metres](double u, double v, const double* z) {
+        return pointByPoint([tree, &index, grid, metres](double u, double v, const double* z) {
           if (kLatitude && !(v >= -90.0 && v <= 90.0)) {
             return outside("error", "latitude " + formatNumber(v) + " is outside [-90, 90]");
           }
           std::string problem;
-          if (kGeodetic && !onSurface(u, v, problem)) return outside("none", problem);
+          if (kGeodetic && !onSurface(grid.get(), u, v, problem)) return outside("none", problem);
           const double scale = kGeodetic ? metres : 1.0;
           const std::optional<Hit> hit = z ? index.below(u, v, *z * scale) : index.top(u, v);
           if (!hit) return Answer{};
           return Answer{hit->height / scale, hit->world, "", ""};
-        };
+        });
       },
       tree->index);
 }
 
-// What a line's answer is followed by: the fields after its coordinates, if any.
-void passThrough(std::ostream& out, const PointLine& p) {
-  if (!p.rest.empty()) out << p.separator << p.rest;
+// Appends a number as formatNumber writes it, without a string per number.
+void appendNumber(std::string& out, double value, int precision) {
+  char buf[340 + kMaxPrecision];
+  precision = std::min(precision, kMaxPrecision);
+  const auto r = precision < 0 ? std::to_chars(buf, buf + sizeof buf, value)
+                               : std::to_chars(buf, buf + sizeof buf, value, std::chars_format::fixed, precision);
+  if (r.ec != std::errc()) throw Error("cannot format a number");
+  out.append(buf, r.ptr);
 }
+
+// A line's outcome: its output text is written in order; a failure's message goes to stderr.
+struct LineResult {
+  std::string_view line;
+  PointLine p;
+  std::string problem;      // parse error, or the surface's
+  std::string token;        // printed in place of the height when there is a problem
+  std::uint32_t query = 0;  // its query's index when p.count > 0
+};
+
+// The line loop: input read in large blocks and cut into lines; each batch of lines parsed on
+// both cores, transformed (--srs) and answered as one batch, formatted on both cores, written
+// in order. The text of every line is as the line-by-line loop wrote it.
+class LineLoop {
+ public:
+  LineLoop(const SampleOptions& options, const Surface& surface, OGRCoordinateTransformation* transform,
+           std::ostream& output, std::ostream& err, std::string where)
+      : o_(options), surface_(surface), transform_(transform), out_(output), err_(err), where_(std::move(where)) {}
+
+  // Reads `in` to its end. Returns whether any line failed.
+  bool run(std::istream& in) {
+    constexpr std::size_t kBlock = 1 << 22;
+    std::string data;
+    std::size_t start = 0;  // first byte of the next line in data
+    std::vector<std::string_view> lines;
+    for (bool end = false; !end;) {
+      data.erase(0, start);
+      start = 0;
+      const std::size_t kept = data.size();
+      data.resize(kept + kBlock);
+      in.read(data.data() + kept, static_cast<std::streamsize>(kBlock));
+      data.resize(kept + static_cast<std::size_t>(in.gcount()));
+      end = !in;
+      if (in.bad()) throw Error(where_ + ": read error");
+      lines.clear();
+      for (std::size_t nl; (nl = data.find('\n', start)) != std::string::npos; start = nl + 1) {
+        lines.emplace_back(data.data() + start, nl - start);
+      }
+      if (end && start < data.size()) {  // a last line without its newline
+        lines.emplace_back(data.data() + start, data.size() - start);
+        start = data.size();
+      }
+      constexpr std::size_t kBatch = 1 << 16;
+      for (std::size_t b = 0; b < lines.size(); b += kBatch) {
+        batchOf(std::span<const std::string_view>(lines).subspan(b, std::min(kBatch, lines.size() - b)));
+      }
+    }
+    return failed_;
+  }
+
+ private:
+  void batchOf(std::span<const std::string_view> lines) {
+    const std::size_t n = lines.size();
+    const int want = o_.queryZ ? 3 : 2;
+    results_.resize(n);
+    const std::uint64_t first = lineNo_ + 1;
+    lineNo_ += n;
+    // Parse.
+    inParallel(n, 2048, [&](std::size_t lo, std::size_t hi) {
+      for (std::size_t i = lo; i < hi; ++i) {
+        LineResult& r = results_[i];
+        r = LineResult{};
+        r.line = lines[i];
+        if (o_.header && first + i == 1) continue;  // (written as the header)
+        r.problem = parsePointLine(lines[i], want, r.p);
+        if (!r.problem.empty()) {
+          r.token = "error";
+          if (first + i == 1 && !o_.header) r.problem += " (a header line? --header skips it)";
+        }
+      }
+    });
+    // Queries, placed (--srs), answered.
+    queries_.clear();
+    for (std::size_t i = 0; i < n; ++i) {
+      LineResult& r = results_[i];
+      if (!r.problem.empty() || r.p.count == 0) continue;
+      r.query = static_cast<std::uint32_t>(queries_.size());
+      Query q;
+      q.x = o_.swapXY ? r.p.v[1] : r.p.v[0], q.y = o_.swapXY ? r.p.v[0] : r.p.v[1], q.z = r.p.v[2];
+      queries_.push_back(q);
+    }
+    answers_.assign(queries_.size(), Answer{});
+    std::vector<std::uint8_t> placed(queries_.size(), 1);
+    if (transform_ && !queries_.empty()) {
+      std::vector<double> xs(queries_.size()), ys(queries_.size());
+      std::vector<int> ok(queries_.size(), 0);
+      for (std::size_t k = 0; k < queries_.size(); ++k) xs[k] = queries_[k].x, ys[k] = queries_[k].y;
+      transform_->Transform(static_cast<int>(queries_.size()), xs.data(), ys.data(), nullptr, ok.data());
+      for (std::size_t k = 0; k < queries_.size(); ++k) {
+        if (ok[k] && std::isfinite(xs[k]) && std::isfinite(ys[k])) {
+          queries_[k].x = xs[k], queries_[k].y = ys[k];
+        } else {
+          placed[k] = 0;
+          answers_[k] = outside("error", "cannot transform (" + formatNumber(queries_[k].x) + ", " +
+                                             formatNumber(queries_[k].y) + ") from " + o_.srs +
+                                             " to the source's CRS");
+        }
+      }
+    }
+    answer(placed);
+    // Format.
+    const std::size_t slices = std::max<std::size_t>(1, std::min<std::size_t>(2, n / 2048));
+    const std::size_t each = (n + slices - 1) / slices;
+    std::vector<std::string> text(slices);
+    inParallel(slices, 1, [&](std::size_t lo, std::size_t hi) {
+      for (std::size_t s = lo; s < hi; ++s) {
+        std::string& t = text[s];
+        t.reserve(each * 24);
+        for (std::size_t i = s * each; i < std::min(n, (s + 1) * each); ++i) format(i, first + i, t);
+      }
+    });
+    for (std::size_t s = 0; s < slices; ++s) out_.write(text[s].data(), static_cast<std::streamsize>(text[s].size()));
+    for (std::size_t i = 0; i < n; ++i) {
+      if (results_[i].problem.empty()) continue;
+      err_ << "qota sample: " << where_ << ':' << first + i << ": " << results_[i].problem << '\n';
+      failed_ = true;
+    }
+  }
+
+  // The surface's answers for the placed queries, in one batch.
+  void answer(const std::vector<std::uint8_t>& placed) {
+    std::vector<Query> q;
+    std::vector<std::uint32_t> at;
+    for (std::size_t k = 0; k < queries_.size(); ++k) {
+      if (placed[k]) q.push_back(queries_[k]), at.push_back(static_cast<std::uint32_t>(k));
+    }
+    std::vector<Answer> a(q.size());
+    surface_(q, o_.queryZ, a);
+    for (std::size_t j = 0; j < q.size(); ++j) answers_[at[j]] = std::move(a[j]);
+  }
+
+  void format(std::size_t i, std::uint64_t lineNo, std::string& t) {
+    LineResult& r = results_[i];
+    if (o_.header && lineNo == 1) {
+      header(r.line, t);
+      return;
+    }
+    if (r.problem.empty() && r.p.count > 0) {
+      const Answer& a = answers_[r.query];
+      if (!a.problem.empty()) {
+        r.problem = a.problem, r.token = a.token;
+      } else if (!a.height) {
+        t += "none";
+      } else {
+        appendNumber(t, *a.height, o_.precision);
+        if (o_.printWorld) {
+          for (int k = 0; k < 3; ++k) t += r.p.separator, appendNumber(t, a.world[k], o_.precision);
+        }
+      }
+    }
+    if (!r.problem.empty()) t += r.token;
+    if (r.problem.empty() || r.p.count > 0) passThrough(t, r.p);
+    t += '\n';
+  }
+
+  // The header's coordinate names become the answer's; its other names pass through.
+  void header(std::string_view line, std::string& t) const {
+    const int want = o_.queryZ ? 3 : 2;
+    PointLine p;
+    std::size_t i = 0;
+    for (int k = 0; k < want; ++k) {
+      while (i < line.size() && isSeparator(line[i])) ++i;
+      while (i < line.size() && !isSeparator(line[i])) ++i;
+    }
+    if (i < line.size()) p.separator = line[i] == ',' || line[i] == '\t' ? line[i] : ' ';
+    while (i < line.size() && isSeparator(line[i])) ++i;
+    std::string_view rest = line.substr(i);
+    if (!rest.empty() && rest.back() == '\r') rest.remove_suffix(1);
+    p.rest = rest;
+    const char s = p.separator;
+    t += "height";
+    if (o_.printWorld) (((t += s) += 'x') += s) += 'y', (t += s) += 'z';
+    passThrough(t, p);
+    t += '\n';
+  }
+
+  static void passThrough(std::string& t, const PointLine& p) {
+    if (!p.rest.empty()) t += p.separator, t += p.rest;
+  }
+
+  const SampleOptions& o_;
+  const Surface& surface_;
+  OGRCoordinateTransformation* transform_;
+  std::ostream& out_;
+  std::ostream& err_;
+  std::string where_;
+  std::uint64_t lineNo_ = 0;
+  bool failed_ = false;
+  std::vector<LineResult> results_;
+  std::vector<Query> queries_;
+  std::vector<Answer> answers_;
+};
 
 }  // namespace
 
@@ -205,13 +474,15 @@ int sample(const SampleOptions& options, std::istream& in, std::ostream& out, st
       throw Error("-p " + std::to_string(options.precision) + ": at most " +
                   std::to_string(kMaxPrecision) + " decimals");
     }
-    const Surface surface = openSurface(options);
+    TreeSource source;
+    const Surface surface = openSurface(options, source);
+    const std::unique_ptr<OGRCoordinateTransformation> transform = makeTransform(options.srs, source);
 
     std::ifstream file;
     std::istream* input = &in;
     std::string where = "stdin";
     if (!options.inputFile.empty()) {
-      file.open(options.inputFile);
+      file.open(options.inputFile, std::ios::binary);
       if (!file) throw Error(options.inputFile + ": cannot read");
       input = &file;
       where = options.inputFile;
@@ -223,61 +494,8 @@ int sample(const SampleOptions& options, std::istream& in, std::ostream& out, st
       output = &outFile->stream();
     }
 
-    const int want = options.queryZ ? 3 : 2;
-    bool failed = false;
-    std::string line;
-    for (std::uint64_t lineNo = 1; std::getline(*input, line); ++lineNo) {
-      const auto fail = [&](const std::string& token, const std::string& message) {
-        *output << token;
-        err << "qota sample: " << where << ':' << lineNo << ": " << message << '\n';
-        failed = true;
-      };
-      PointLine p;
-      if (options.header && lineNo == 1) {
-        // The header's coordinate names become the answer's; its other names pass through.
-        std::size_t i = 0;
-        for (int k = 0; k < want; ++k) {
-          while (i < line.size() && isSeparator(line[i])) ++i;
-          while (i < line.size() && !isSeparator(line[i])) ++i;
-        }
-        if (i < line.size()) p.separator = line[i] == ',' || line[i] == '\t' ? line[i] : ' ';
-        while (i < line.size() && isSeparator(line[i])) ++i;
-        std::string_view rest(line);
-        rest = rest.substr(i);
-        if (!rest.empty() && rest.back() == '\r') rest.remove_suffix(1);
-        p.rest = rest;
-        const char s = p.separator;
-        *output << "height";
-        if (options.printWorld) *output << s << 'x' << s << 'y' << s << 'z';
-        passThrough(*output, p);
-        *output << '\n';
-        continue;
-      }
-      if (const std::string problem = parsePointLine(line, want, p); !problem.empty()) {
-        fail("error", problem + (lineNo == 1 && !options.header ? " (a header line? --header skips it)" : ""));
-        *output << '\n';
-        continue;
-      }
-      if (p.count == 0) {
-        *output << '\n';
-        continue;
-      }
-      const double x = options.swapXY ? p.v[1] : p.v[0], y = options.swapXY ? p.v[0] : p.v[1];
-      const Answer answer = surface(x, y, options.queryZ ? &p.v[2] : nullptr);
-      if (!answer.problem.empty()) {
-        fail(answer.token, answer.problem);
-      } else if (!answer.height) {
-        *output << "none";
-      } else {
-        *output << formatNumber(*answer.height, options.precision);
-        if (options.printWorld) {
-          for (int k = 0; k < 3; ++k) *output << p.separator << formatNumber(answer.world[k], options.precision);
-        }
-      }
-      passThrough(*output, p);
-      *output << '\n';
-    }
-    if (input->bad()) throw Error(where + ": read error");
+    LineLoop loop(options, surface, transform.get(), *output, err, where);
+    const bool failed = loop.run(*input);
     if (outFile) {
       outFile->commit();
     } else {

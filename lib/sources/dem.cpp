@@ -166,6 +166,41 @@ DemTerrain openDem(const std::string& path, const DemOptions& options,
   return dem;
 }
 
+// A raw band value's height: the band's scale and offset applied; NaN for none (the nodata
+// value, NaN or infinite, or a scale that overflows).
+struct HeightRule {
+  bool hasNodata = false, rescale = false;
+  int hasScale = 0, hasOffset = 0;
+  double nodata = 0, scale = 1, offset = 0;
+
+  HeightRule(GDALRasterBand* band, const DemTerrain& dem)
+      : hasNodata(dem.nodata.has_value()), nodata(dem.nodata.value_or(0.0)) {
+    scale = band->GetScale(&hasScale), offset = band->GetOffset(&hasOffset);
+    rescale = (hasScale && scale != 1.0) || (hasOffset && offset != 0.0);
+  }
+  double operator()(double value) const {
+    bool ok = std::isfinite(value) && !(hasNodata && value == nodata);
+    if (ok && rescale) {
+      value = value * (hasScale ? scale : 1.0) + (hasOffset ? offset : 0.0);
+      ok = std::isfinite(value);  // a scale can overflow: no height, not infinity
+    }
+    return ok ? value : NAN;
+  }
+};
+
+// Reads pixels [col, col + w) x [row, row + h) of the band as heights (NaN: none), row-major.
+void readHeights(const DemTerrain& dem, GDALRasterBand* band, int col, int row, int w, int h,
+                 std::vector<double>& out) {
+  out.resize(static_cast<std::size_t>(w) * h);
+  if (out.empty()) return;
+  QuietGdalErrors quiet;
+  if (band->RasterIO(GF_Read, col, row, w, h, out.data(), w, h, GDT_Float64, 0, 0) != CE_None) {
+    throw Error(dem.path + ": cannot read band " + std::to_string(dem.band) + gdalMessage());
+  }
+  const HeightRule rule(band, dem);
+  for (double& z : out) z = rule(z);
+}
+
 }  // namespace
 
 std::optional<double> metresPerLengthUnit(const std::string& unitText) {
@@ -196,6 +231,31 @@ std::optional<std::array<double, 2>> DemTerrain::surfacePoint(double x, double y
   return pixelCentre(c - 0.5, r - 0.5);
 }
 
+CartesianMapping DemTerrain::centredMapping() const {
+  const auto centre = pixelCentre((width - 1) / 2.0, (height - 1) / 2.0);
+  return CartesianMapping(Eigen::Vector3d(0, 0, -1), Eigen::Vector3d(centre[0], centre[1], 0));
+}
+
+struct DemWindows::Open {
+  std::unique_ptr<GDALDataset> ds;
+  GDALRasterBand* band = nullptr;
+};
+
+DemWindows::DemWindows(const std::string& path, const DemOptions& options) : open_(std::make_unique<Open>()) {
+  dem_ = openDem(path, options, open_->ds, open_->band);
+  dem_.mapping = dem_.centredMapping();
+}
+
+DemWindows::~DemWindows() = default;
+
+void DemWindows::read(int col, int row, int w, int h, std::vector<double>& out) const {
+  if (col < 0 || row < 0 || w < 0 || h < 0 || col + w > dem_.width || row + h > dem_.height) {
+    throw Error(dem_.path + ": window (" + std::to_string(col) + ", " + std::to_string(row) + ") + (" +
+                std::to_string(w) + " x " + std::to_string(h) + ") is not on the raster");
+  }
+  readHeights(dem_, open_->band, col, row, w, h, out);
+}
+
 DemTerrain describeDem(const std::string& path, const DemOptions& options) {
   std::unique_ptr<GDALDataset> ds;
   GDALRasterBand* band = nullptr;
@@ -207,8 +267,6 @@ DemTerrain loadDem(const std::string& path, const DemOptions& options) {
   GDALRasterBand* band = nullptr;
   DemTerrain dem = openDem(path, options, ds, band);
   QuietGdalErrors quiet;
-  const bool hasNodata = dem.nodata.has_value();
-  const double nodata = dem.nodata.value_or(0.0);
 
   // Refuse what cannot fit before allocating: the raster as doubles, the mesh, and the index.
   const std::uint64_t w = static_cast<std::uint64_t>(dem.width);
@@ -226,14 +284,8 @@ DemTerrain loadDem(const std::string& path, const DemOptions& options) {
                 "or resample it");
   }
 
-  std::vector<double> z(vertices);
-  if (vertices && band->RasterIO(GF_Read, 0, 0, dem.width, dem.height, z.data(), dem.width,
-                                 dem.height, GDT_Float64, 0, 0) != CE_None) {
-    throw Error(path + ": cannot read band " + std::to_string(dem.band) + gdalMessage());
-  }
-  int hasScale = 0, hasOffset = 0;
-  const double scale = band->GetScale(&hasScale), offset = band->GetOffset(&hasOffset);
-  const bool rescale = (hasScale && scale != 1.0) || (hasOffset && offset != 0.0);
+  std::vector<double> z;
+  readHeights(dem, band, 0, 0, dem.width, dem.height, z);
 
   // Vertices: every pixel centre; a nodata pixel gets NaN height and no triangle uses it.
   std::vector<std::uint8_t> valid(vertices);
@@ -241,19 +293,10 @@ DemTerrain loadDem(const std::string& path, const DemOptions& options) {
   for (std::uint64_t r = 0; r < h; ++r) {
     for (std::uint64_t c = 0; c < w; ++c) {
       const std::uint64_t i = r * w + c;
-      double value = z[i];
-      bool ok = std::isfinite(value) && !(hasNodata && value == nodata);
-      if (ok && rescale) {
-        value = value * (hasScale ? scale : 1.0) + (hasOffset ? offset : 0.0);
-        ok = std::isfinite(value);  // a scale can overflow: no height, not infinity
-      }
-      if (!ok) {
-        ++dem.nodataCells;
-        value = NAN;
-      }
-      valid[i] = ok;
+      valid[i] = !std::isnan(z[i]);
+      dem.nodataCells += !valid[i];
       const auto xy = dem.pixelCentre(static_cast<double>(c), static_cast<double>(r));
-      dem.mesh.vertices[i] = Eigen::Vector3d(xy[0], xy[1], value);
+      dem.mesh.vertices[i] = Eigen::Vector3d(xy[0], xy[1], z[i]);
     }
   }
   std::vector<double>().swap(z);
@@ -261,8 +304,7 @@ DemTerrain loadDem(const std::string& path, const DemOptions& options) {
   // The grid's triangles (raster_grid.hpp), none with a nodata corner.
   RasterGrid(dem.width, dem.height, {}).appendTriangles(dem.mesh, [&](std::uint32_t i) { return valid[i] != 0; });
 
-  const auto centre = dem.pixelCentre((dem.width - 1) / 2.0, (dem.height - 1) / 2.0);
-  dem.mapping = CartesianMapping(Eigen::Vector3d(0, 0, -1), Eigen::Vector3d(centre[0], centre[1], 0));
+  dem.mapping = dem.centredMapping();
   return dem;
 }
 

@@ -35,8 +35,10 @@
 
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "qota/cartesian.hpp"
 #include "qota/memory_budget.hpp"
@@ -97,6 +99,8 @@ struct DemTerrain {
   // arithmetic, so a clamped point lies exactly on the centres' line of a north-up raster).
   // std::nullopt off the raster.
   std::optional<std::array<double, 2>> surfacePoint(double x, double y) const;
+  // The frame of loadDem's terrain: gravity -Z, origin at the raster's centre, z = 0.
+  CartesianMapping centredMapping() const;
 };
 
 // The geometry of a raster, without reading its pixels: size, geotransform, CRS, band, nodata,
@@ -107,6 +111,29 @@ DemTerrain describeDem(const std::string& path, const DemOptions& options = {});
 // no such band (or several and none was named), has a unit type that is not a length, is in
 // longitude/latitude without lonLatAsCartesian, or is too large for the memory limit.
 DemTerrain loadDem(const std::string& path, const DemOptions& options = {});
+
+// A raster open for reading windows of heights, for work that never holds the whole raster
+// (RasterSampler, tiled jobs): the description (as describeDem, with `mapping` set as loadDem
+// sets it, no mesh) and the heights of any window with loadDem's rule (the band's scale and
+// offset applied; NaN for nodata, NaN, infinite or overflowing values). GDAL reads the blocks
+// under the window through its block cache. One object per thread: reads are not thread-safe.
+class DemWindows {
+ public:
+  DemWindows(const std::string& path, const DemOptions& options = {});
+  ~DemWindows();
+  DemWindows(const DemWindows&) = delete;
+  DemWindows& operator=(const DemWindows&) = delete;
+
+  const DemTerrain& dem() const { return dem_; }
+  // Heights of pixels [col, col + w) x [row, row + h), row-major, into out. Throws qota::Error
+  // naming the file for a window off the raster or a failed read.
+  void read(int col, int row, int w, int h, std::vector<double>& out) const;
+
+ private:
+  struct Open;
+  DemTerrain dem_;
+  std::unique_ptr<Open> open_;
+};
 
 // Registers GDAL's drivers once; safe to call from anywhere.
 void ensureGdalRegistered();

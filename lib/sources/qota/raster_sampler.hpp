@@ -1,0 +1,84 @@
+// Heights under points of a raster of any size, read tile by tile: the answers of loadDem's
+// whole terrain under its TerrainIndex (dem.hpp: pixel centres, the raster rule's triangles,
+// nodata holes), bit for bit, in memory bounded by a tile cache instead of by the raster.
+//
+// A tile is a square of tileSize x tileSize cells (the squares between four pixel centres) and
+// its index is built from a window of pixels one cell wider on every side: every triangle that
+// can hold a point of the tile's cells, neighbours across its sides included, is in it, with the
+// vertices, mapping (origin at the raster's centre) and triangle order of the whole terrain. So
+// a point on a tile's side, a pixel centre or beside a hole gets the same triangle, plane and
+// bits as from the whole raster; tests hold it to that on real and synthetic rasters.
+//
+// Points are world (x, y) on the raster's footprint: callers apply the outer half-pixel rule
+// (DemTerrain::surfacePoint) first, as for the whole terrain; a point off the cells has no
+// terrain. Batches are grouped by tile, so random points over a raster far larger than the cache
+// read each tile once per batch.
+#pragma once
+
+#include <cstdint>
+#include <list>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <span>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "qota/dem.hpp"
+#include "qota/terrain.hpp"
+
+namespace qota {
+
+class RasterSampler {
+ public:
+  struct Options {
+    int band = 0;                           // as DemOptions::band
+    bool lonLatAsCartesian = true;          // heights at points only (see DemOptions)
+    std::uint64_t cacheBytes = 128u << 20;  // the tiles' indexes kept between batches
+    int tileSize = 256;                     // cells per tile side
+  };
+
+  // Opens the raster (describeDem's checks); reads nothing else yet. Throws qota::Error.
+  RasterSampler(const std::string& path, const Options& options);
+
+  const DemTerrain& dem() const { return windows_.dem(); }
+
+  // out[i]: the highest terrain height at or below zs[i] (the top when zs is empty) at world
+  // (xs[i], ys[i]), in the raster's own unit; std::nullopt for none. Tiles missing from the
+  // cache are built on every core. Not to be called from two threads at once (it keeps the cache).
+  void heights(std::span<const double> xs, std::span<const double> ys, std::span<const double> zs,
+               std::span<std::optional<double>> out);
+
+  // What it has done: tiles built, and the bytes of the tiles cached now.
+  std::uint64_t tilesBuilt() const { return tilesBuilt_; }
+  std::uint64_t cachedBytes() const { return cachedBytes_; }
+
+ private:
+  struct Tile {
+    std::optional<TerrainIndex> index;  // none: no terrain in the tile
+    std::uint64_t bytes = 0;
+    std::uint64_t key = 0;
+  };
+  std::uint64_t tileKey(double x, double y) const;  // kOff for a point off the cells
+  const Tile* cached(std::uint64_t key);            // null: not in the cache
+  void keep(Tile tile);                              // into the cache, evicting the oldest
+  // A tile's index from its window (window: a reusable buffer); thread-safe.
+  Tile build(std::uint64_t key, std::vector<double>& window) const;
+  // out[i] for the points i in `which`, all in the tile.
+  void answer(const Tile& tile, std::span<const std::uint32_t> which, std::span<const double> xs,
+              std::span<const double> ys, std::span<const double> zs, std::span<std::optional<double>> out) const;
+
+  static constexpr std::uint64_t kOff = ~std::uint64_t{0};
+  Options options_;
+  DemWindows windows_;
+  CartesianMapping mapping_;
+  std::int64_t tilesX_ = 0, tilesY_ = 0;
+  // Least recently used at the back.
+  std::list<Tile> tiles_;
+  std::unordered_map<std::uint64_t, std::list<Tile>::iterator> byKey_;
+  std::uint64_t cachedBytes_ = 0, tilesBuilt_ = 0;
+  mutable std::mutex readLock_;  // the dataset reads one window at a time
+};
+
+}  // namespace qota

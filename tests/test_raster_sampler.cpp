@@ -1,0 +1,148 @@
+// RasterSampler (tile by tile) against the whole terrain (loadDem + TerrainIndex, the path
+// qota sample took before, whose answers the oracle tests hold): the same height, bit for bit,
+// at random points, pixel centres, cell sides, tile sides, beside and inside holes, with tiles
+// small enough that boundaries are everywhere and a cache small enough to evict.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <random>
+#include <vector>
+
+#include "qota/dem.hpp"
+#include "qota/raster_sampler.hpp"
+#include "qota/terrain.hpp"
+#include "raster_files.hpp"
+
+namespace {
+
+using qota::DemTerrain;
+using qota::RasterSampler;
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+// The whole terrain's answer at world (x, y) (already on the surface): the top, or the nearest
+// at or below z, as the world point's z.
+std::optional<double> wholeAnswer(const qota::TerrainIndex& index, double x, double y, const double* z) {
+  const Eigen::Vector3d m = index.mapping().toMapped(Eigen::Vector3d(x, y, z ? *z : 0.0));
+  const auto hit = z ? index.below(m.x(), m.y(), m.z()) : index.top(m.x(), m.y());
+  if (!hit) return std::nullopt;
+  return hit->world.z();
+}
+
+// Points that find every special place of a raster: random ones over the footprint and beyond
+// it, every pixel centre of a few rows and columns, the midpoints of cell sides and diagonals,
+// the outer half pixel, all put on the surface by the outer half-pixel rule (off: NaN).
+void makePoints(const DemTerrain& dem, std::uint64_t seed, std::vector<double>& xs, std::vector<double>& ys) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> uc(-0.3, dem.width + 0.3), ur(-0.3, dem.height + 0.3);
+  std::vector<std::array<double, 2>> pix;  // (col, row) in pixel coordinates
+  for (int i = 0; i < 20000; ++i) pix.push_back({uc(rng), ur(rng)});
+  for (int r = 0; r < dem.height; r += std::max(1, dem.height / 7)) {
+    for (int c = 0; c < dem.width; ++c) {
+      pix.push_back({c + 0.5, r + 0.5});                // a centre
+      pix.push_back({c + 1.0, r + 0.5});                // a row's side
+      pix.push_back({c + 0.5, r + 1.0});                // a column's side
+      pix.push_back({c + 1.0, r + 1.0});                // a diagonal's midpoint
+      pix.push_back({c + 0.75, r + 0.75 + 1e-12});      // beside the diagonal
+    }
+  }
+  for (int c = 0; c < dem.width; c += std::max(1, dem.width / 7)) {
+    for (int r = 0; r < dem.height; ++r) pix.push_back({c + 0.5, r + 0.9}), pix.push_back({c + 0.2, r + 0.5});
+  }
+  for (const auto& [c, r] : pix) {
+    const auto xy = dem.pixelCentre(c - 0.5, r - 0.5);
+    const auto p = dem.surfacePoint(xy[0], xy[1]);
+    xs.push_back(p ? (*p)[0] : kNaN);
+    ys.push_back(p ? (*p)[1] : kNaN);
+  }
+}
+
+// Every point, top and below a random z, from a sampler with the given tile size and cache.
+void expectSameAsWhole(const std::string& path, int band, int tileSize, std::uint64_t cacheBytes, std::uint64_t seed) {
+  const DemTerrain dem = qota::loadDem(path, {.band = band, .lonLatAsCartesian = true});
+  const qota::TerrainIndex whole(dem.mesh, dem.mapping);
+  RasterSampler sampler(path, {.band = band, .cacheBytes = cacheBytes, .tileSize = tileSize});
+  std::vector<double> xs, ys;
+  makePoints(dem, seed, xs, ys);
+  std::mt19937_64 rng(seed + 1);
+  double lo = INFINITY, hi = -INFINITY;
+  for (const auto& v : dem.mesh.vertices) {
+    if (std::isfinite(v.z())) lo = std::min(lo, v.z()), hi = std::max(hi, v.z());
+  }
+  std::uniform_real_distribution<double> uz(lo - 1, hi + 1);
+  std::vector<double> zs(xs.size());
+  for (double& z : zs) z = uz(rng);
+  std::vector<std::optional<double>> top(xs.size()), below(xs.size());
+  sampler.heights(xs, ys, {}, top);
+  sampler.heights(xs, ys, zs, below);
+  int hits = 0;
+  for (std::size_t i = 0; i < xs.size(); ++i) {
+    const auto want = wholeAnswer(whole, xs[i], ys[i], nullptr);
+    const auto wantBelow = wholeAnswer(whole, xs[i], ys[i], &zs[i]);
+    ASSERT_EQ(top[i], want) << "point " << i << " (" << xs[i] << ", " << ys[i] << "), tile " << tileSize;
+    ASSERT_EQ(below[i], wantBelow) << "point " << i << " below " << zs[i] << ", tile " << tileSize;
+    hits += top[i].has_value();
+  }
+  EXPECT_GT(hits, static_cast<int>(xs.size() / 2));
+  if (cacheBytes < (1u << 20)) {
+    EXPECT_LE(sampler.cachedBytes(), std::max<std::uint64_t>(cacheBytes, 1u << 20));
+  }
+}
+
+TEST(RasterSampler, RainierTileByTileIsTheWholeTerrain) {
+  // 1201 x 1201 pixels: tiles of 64 cells (19 x 19 of them), a cache of a few tiles.
+  expectSameAsWhole(QOTA_DATA_DIR "/mt_rainier_90m.tif", 0, 64, 4u << 20, 1);
+}
+
+TEST(RasterSampler, HolesScaleAndTinyTiles) {
+  // A 23 x 17 Int16 raster with nodata blobs across tile sides, a scale and an offset, and a
+  // rotated geotransform: tiles of 1 to 5 cells, a cache of one tile.
+  std::mt19937_64 rng(5);
+  const int w = 23, h = 17;
+  std::vector<double> v(static_cast<std::size_t>(w) * h);
+  for (double& x : v) x = std::floor(std::uniform_real_distribution<double>(-300, 3000)(rng));
+  for (int r = 0; r < h; ++r) {
+    for (int c = 0; c < w; ++c) {
+      if ((c - 6) * (c - 6) + (r - 5) * (r - 5) <= 4 || (c == 15 && r > 8) || (r == 3 && c > 17)) {
+        v[static_cast<std::size_t>(r) * w + c] = -9999;
+      }
+    }
+  }
+  const auto path = qota::test::scratchPath("sampler_holes.tif");
+  qota::test::RasterSpec spec;
+  spec.width = w, spec.height = h;
+  spec.geotransform = {500000.0, 30.0, 4.0, 5200000.0, -3.0, -30.0};
+  spec.bands = {v};
+  spec.nodata = -9999;
+  spec.type = GDT_Int16;
+  qota::test::writeRaster(path, spec);
+  {  // scale and offset on the band
+    qota::ensureGdalRegistered();
+    std::unique_ptr<GDALDataset> ds(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_UPDATE));
+    ds->GetRasterBand(1)->SetScale(0.25);
+    ds->GetRasterBand(1)->SetOffset(-7.5);
+  }
+  for (int tile = 1; tile <= 5; ++tile) {
+    SCOPED_TRACE(tile);
+    expectSameAsWhole(path.string(), 1, tile, 1, 10 + tile);
+  }
+}
+
+TEST(RasterSampler, OneRowOrColumnHasNoCellsAndOffIsNone) {
+  const auto path = qota::test::scratchPath("sampler_row.tif");
+  qota::test::RasterSpec spec;
+  spec.width = 9, spec.height = 1;
+  spec.bands = {std::vector<double>(9, 5.0)};
+  qota::test::writeRaster(path, spec);
+  RasterSampler sampler(path.string(), {});
+  std::vector<double> xs{0.5, 4.5, 100, kNaN}, ys{-0.5, -0.5, -0.5, 0};
+  std::vector<std::optional<double>> out(4, 1.0);
+  sampler.heights(xs, ys, {}, out);
+  for (const auto& h : out) EXPECT_FALSE(h.has_value());  // the whole terrain has no triangle either
+  EXPECT_THROW(RasterSampler("/nonexistent/qota.tif", {}), qota::Error);
+  std::vector<std::optional<double>> small(1);
+  EXPECT_THROW(sampler.heights(xs, ys, {}, small), qota::Error);
+}
+
+}  // namespace
