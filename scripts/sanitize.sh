@@ -27,5 +27,5 @@ if [ "$which" = all ] || [ "$which" = tsan ]; then
   cmake --build build-tsan -j2 --target qota_tests
   # The tests whose code runs threads: shadows (the strips and cell passes), parallel batches,
   # the deferred quadtree, statistics read while others query.
-  build-tsan/tests/qota_tests --gtest_filter='*Thread*:*Parallel*:*Concurren*:Shadow*:*Deferred*:GridFast*:*Batch*'
+  build-tsan/tests/qota_tests --gtest_filter='*Thread*:*Parallel*:*Concurren*:Shadow*:*Deferred*:GridFast*:*Batch*:RasterSampler.*:SampleTool.*'
 fi

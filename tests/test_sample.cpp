@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <iomanip>
 #include <random>
 #include <sstream>
 
@@ -424,6 +425,57 @@ TEST(SampleTool, CylindricalIsTheRayTriangleBruteForce) {
     EXPECT_NEAR(std::stod(out[k]), *t, 1e-6) << u << ' ' << v;
   }
   EXPECT_GT(hits, 80);
+}
+
+}  // namespace
+
+namespace {
+
+// A 40834 x 40834 VRT (1.7 G pixels: the whole terrain would need about 730 GiB) made of the
+// Rainier tile 34 x 34 times: sampled tile by tile, pixel centres answer the pixel values GDAL
+// reads from the source tile, and a random point of a copy answers as the same point of the
+// tile itself would, up to the plane's rounding at other coordinates.
+TEST(SampleTool, ARasterFarLargerThanMemoryIsSampledByTiles) {
+  const std::string dem = QOTA_DATA_DIR "/mt_rainier_90m.tif";
+  const int n = 34, size = 1201;
+  const auto vrt = scratchPath("mosaic_34x34.vrt");
+  {
+    std::ofstream f(vrt);
+    f << "<VRTDataset rasterXSize=\"" << n * size << "\" rasterYSize=\"" << n * size << "\">\n"
+      << "<SRS>EPSG:4326</SRS>\n<GeoTransform>-122.000416666666666, 0.000833333333333333, 0, "
+         "47.000416666666666, 0, -0.000833333333333333</GeoTransform>\n"
+      << "<VRTRasterBand dataType=\"Int16\" band=\"1\">\n";
+    for (int r = 0; r < n; ++r) {
+      for (int c = 0; c < n; ++c) {
+        f << "<SimpleSource><SourceFilename relativeToVRT=\"0\">" << dem << "</SourceFilename><SourceBand>1</SourceBand>"
+          << "<SrcRect xOff=\"0\" yOff=\"0\" xSize=\"" << size << "\" ySize=\"" << size << "\"/><DstRect xOff=\""
+          << c * size << "\" yOff=\"" << r * size << "\" xSize=\"" << size << "\" ySize=\"" << size
+          << "\"/></SimpleSource>\n";
+      }
+    }
+    f << "</VRTRasterBand>\n</VRTDataset>\n";
+  }
+  const qota::test::RasterValues tile = qota::test::readRaster(dem);
+  const double step = 0.000833333333333333;
+  std::mt19937_64 rng(3);
+  std::uniform_int_distribution<int> pick(0, size - 1), copy(0, n - 1);
+  std::ostringstream in;
+  std::vector<double> want;
+  for (int k = 0; k < 200; ++k) {
+    const int col = pick(rng), row = pick(rng), cc = copy(rng), cr = copy(rng);
+    // The centre of pixel (col, row) of copy (cc, cr), with the geotransform's arithmetic.
+    const double x = -122.000416666666666 + (cc * size + col + 0.5) * step;
+    const double y = 47.000416666666666 + (cr * size + row + 0.5) * -step;
+    in << std::setprecision(17) << x << ' ' << y << '\n';
+    want.push_back(tile.values[static_cast<std::size_t>(row) * size + col]);
+  }
+  const ToolRun run = sample(on(vrt.string()), in.str());
+  ASSERT_EQ(run.code, 0) << run.err;
+  const std::vector<std::string> lines = linesOf(run.out);
+  ASSERT_EQ(lines.size(), want.size());
+  for (std::size_t i = 0; i < want.size(); ++i) {
+    EXPECT_NEAR(std::stod(lines[i]), want[i], 1e-9) << "line " << i + 1;
+  }
 }
 
 }  // namespace

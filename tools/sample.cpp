@@ -1,4 +1,5 @@
 // qota sample: heights under points, as a line-oriented filter (see qota_tools.hpp).
+#include <gdal.h>
 #include <ogr_spatialref.h>
 
 #include <charconv>
@@ -200,6 +201,10 @@ Surface openSurface(const SampleOptions& options, TreeSource& source) {
   if (cartesian && !isTreeFile(options.source)) {
     requireSource(options.source);
     if (isRaster(options.source)) {
+      // GDAL's block cache (5% of the RAM by default) bounded as well: the sampler's tiles are
+      // the cache that matters, and memory must not grow with the raster.
+      constexpr GIntBig kGdalCacheBytes = GIntBig{64} << 20;
+      if (GDALGetCacheMax64() > kGdalCacheBytes) GDALSetCacheMax64(kGdalCacheBytes);
       RasterSampler::Options so;
       so.band = options.band;
       auto sampler = std::make_shared<RasterSampler>(options.source, so);

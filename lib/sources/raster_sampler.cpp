@@ -20,14 +20,18 @@ RasterSampler::RasterSampler(const std::string& path, const Options& options)
       mapping_(windows_.dem().mapping) {
   if (options_.tileSize < 1) throw Error("RasterSampler: tileSize must be at least 1");
   const DemTerrain& d = dem();
-  const std::int64_t s = options_.tileSize;
-  tilesX_ = d.width > 1 ? (d.width - 1 + s - 1) / s : 0;
-  tilesY_ = d.height > 1 ? (d.height - 1 + s - 1) / s : 0;
+  const int sizes[2] = {options_.tileSize, std::min(options_.tileSize, kSmallTile)};
+  for (int l = 0; l < 2; ++l) {
+    const std::int64_t s = sizes[l];
+    levels_[l] = {static_cast<int>(s), d.width > 1 ? (d.width - 1 + s - 1) / s : 0,
+                  d.height > 1 ? (d.height - 1 + s - 1) / s : 0};
+  }
 }
 
-std::uint64_t RasterSampler::tileKey(double x, double y) const {
+std::uint64_t RasterSampler::tileKey(double x, double y, int level) const {
   const DemTerrain& d = dem();
-  if (tilesX_ == 0 || tilesY_ == 0) return kOff;  // one row or column of pixels: no cells
+  const Level& L = levels_[level];
+  if (L.tilesX == 0 || L.tilesY == 0) return kOff;  // one row or column of pixels: no cells
   const auto [col, row] = d.pixelOf(x, y);
   if (!(col >= 0 && col <= d.width && row >= 0 && row <= d.height)) return kOff;  // NaN too
   // The cell (square of four centres) below the point, clamped onto the cells: a point on the
@@ -36,14 +40,15 @@ std::uint64_t RasterSampler::tileKey(double x, double y) const {
   const auto cell = [](double p, int size) {
     return std::clamp<std::int64_t>(static_cast<std::int64_t>(std::floor(p - 0.5)), 0, size - 2);
   };
-  const std::int64_t tx = cell(col, d.width) / options_.tileSize, ty = cell(row, d.height) / options_.tileSize;
-  return static_cast<std::uint64_t>(ty * tilesX_ + tx);
+  const std::int64_t tx = cell(col, d.width) / L.size, ty = cell(row, d.height) / L.size;
+  return static_cast<std::uint64_t>(ty * L.tilesX + tx) << 1 | static_cast<std::uint64_t>(level);
 }
 
 RasterSampler::Tile RasterSampler::build(std::uint64_t key, std::vector<double>& window) const {
   const DemTerrain& d = dem();
-  const std::int64_t s = options_.tileSize;
-  const std::int64_t tx = static_cast<std::int64_t>(key) % tilesX_, ty = static_cast<std::int64_t>(key) / tilesX_;
+  const Level& L = levels_[key & 1];
+  const std::int64_t s = L.size, index = static_cast<std::int64_t>(key >> 1);
+  const std::int64_t tx = index % L.tilesX, ty = index / L.tilesX;
   // The tile's cells are [tx s, (tx + 1) s) x [ty s, (ty + 1) s); its pixels one more on each
   // side (the far corners of the last cells, and the apron).
   const auto span = [s](std::int64_t t, int size) {
@@ -127,15 +132,25 @@ void RasterSampler::heights(std::span<const double> xs, std::span<const double> 
     throw Error("RasterSampler::heights: " + std::to_string(n) + " x, " + std::to_string(ys.size()) + " y, " +
                 std::to_string(zs.size()) + " z and room for " + std::to_string(out.size()) + " answers");
   }
-  // The points of each tile, in their order.
+  // Each point's large tile, and how many points each has: a large tile pays for its build
+  // (about 60 ns a triangle) when many points share it, or when it is cached already; the other
+  // points take small tiles (a window of 19 x 19 pixels), so a few points spread over a huge
+  // raster build little more than their own cells.
+  std::vector<std::uint64_t> keys(n);
+  std::unordered_map<std::uint64_t, std::uint32_t> perLarge;
+  for (std::size_t i = 0; i < n; ++i) {
+    keys[i] = tileKey(xs[i], ys[i], 0);
+    if (keys[i] != kOff) ++perLarge[keys[i]];
+  }
   std::unordered_map<std::uint64_t, std::vector<std::uint32_t>> byTile;
   for (std::size_t i = 0; i < n; ++i) {
-    const std::uint64_t key = tileKey(xs[i], ys[i]);
+    std::uint64_t key = keys[i];
     if (key == kOff) {
       out[i] = std::nullopt;
-    } else {
-      byTile[key].push_back(static_cast<std::uint32_t>(i));
+      continue;
     }
+    if (perLarge[key] < kLargeTilePoints && !byKey_.count(key)) key = tileKey(xs[i], ys[i], 1);
+    byTile[key].push_back(static_cast<std::uint32_t>(i));
   }
   // Cached tiles answer at once; the others are built a few at a time on every core (each
   // thread reads its window in turn, then builds its index), answer, and join the cache.

@@ -12,7 +12,8 @@
 // Points are world (x, y) on the raster's footprint: callers apply the outer half-pixel rule
 // (DemTerrain::surfacePoint) first, as for the whole terrain; a point off the cells has no
 // terrain. Batches are grouped by tile, so random points over a raster far larger than the cache
-// read each tile once per batch.
+// read each tile once per batch; a large tile is built only where a batch has many points (or it
+// is cached), else small tiles of 16 cells, so sparse points cost a small window each.
 #pragma once
 
 #include <cstdint>
@@ -60,7 +61,9 @@ class RasterSampler {
     std::uint64_t bytes = 0;
     std::uint64_t key = 0;
   };
-  std::uint64_t tileKey(double x, double y) const;  // kOff for a point off the cells
+  // A tile's key: its index at `level` (0: tileSize cells a side, 1: small tiles) and the level;
+  // kOff for a point off the cells.
+  std::uint64_t tileKey(double x, double y, int level) const;
   const Tile* cached(std::uint64_t key);            // null: not in the cache
   void keep(Tile tile);                              // into the cache, evicting the oldest
   // A tile's index from its window (window: a reusable buffer); thread-safe.
@@ -73,7 +76,13 @@ class RasterSampler {
   Options options_;
   DemWindows windows_;
   CartesianMapping mapping_;
-  std::int64_t tilesX_ = 0, tilesY_ = 0;
+  struct Level {
+    int size = 0;                         // cells a side
+    std::int64_t tilesX = 0, tilesY = 0;  // tiles across and down
+  };
+  static constexpr int kSmallTile = 4;
+  static constexpr std::uint32_t kLargeTilePoints = 256;  // points a batch needs in a large tile to build it
+  Level levels_[2];
   // Least recently used at the back.
   std::list<Tile> tiles_;
   std::unordered_map<std::uint64_t, std::list<Tile>::iterator> byKey_;
