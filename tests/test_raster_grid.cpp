@@ -119,4 +119,24 @@ TEST(RasterGrid, SurfacePointClampsTheOuterHalfPixel) {
   EXPECT_FALSE(dem.surfacePoint(104, 43.9));
 }
 
+// The rule read backwards finds every inner triangle from its corners in any order, and nothing
+// else: not the other diagonal, not a triangle across the row's end, not the closure's.
+TEST(RasterGrid, InnerTriangleWithIsTheRuleBackwards) {
+  const RasterGrid g(5, 4, {.border = true});
+  for (std::size_t t = 0; t < g.innerTriangleCount(); ++t) {
+    const auto k = g.triangle(t);
+    EXPECT_EQ(g.innerTriangleWith(k[0], k[1], k[2]), t);
+    EXPECT_EQ(g.innerTriangleWith(k[2], k[0], k[1]), t);
+    EXPECT_EQ(g.innerTriangleWith(k[1], k[0], k[2]), t);
+  }
+  for (std::size_t t = g.innerTriangleCount(); t < g.triangleCount(); ++t) {
+    const auto k = g.triangle(t);
+    EXPECT_FALSE(g.innerTriangleWith(k[0], k[1], k[2]).has_value()) << "closure triangle " << t;
+  }
+  EXPECT_FALSE(g.innerTriangleWith(1, 5, 6).has_value());   // (TR, BL, BR): the other diagonal
+  EXPECT_FALSE(g.innerTriangleWith(4, 9, 10).has_value());  // from the last column across the row's end
+  EXPECT_FALSE(g.innerTriangleWith(15, 16, 21).has_value()); // below the last row
+  EXPECT_FALSE(g.innerTriangleWith(0, 0, 6).has_value());
+}
+
 }  // namespace

@@ -1,15 +1,19 @@
 #include "qota/grid_path.hpp"
 
+#include <algorithm>
 #include <array>
+
+#include "qota/raster_grid.hpp"
 
 namespace qota::detail {
 
 std::vector<std::uint32_t> GridPath::recognise(std::span<const Point2> corners,
                                                std::span<const TriangleCorners> pending) {
-  // A regular grid of w x h vertices, two triangles per cell split along the diagonal from
-  // vertex x to x + w + 1 (loadDem's and Heightfield's layout). w from the first triangle, then
-  // every triangle must be one half of a cell, each half once. Returns each triangle's slot,
-  // 2 * cell + half (the half with corner x + w first), or nothing when the mesh is not a grid.
+  // A regular grid of w x h vertices whose triangles are the raster rule's inner ones
+  // (raster_grid.hpp: two a cell, split along the diagonal from vertex x to x + w + 1), each
+  // once: w from the first triangle, then every triangle must be the rule's. A slot is the
+  // rule's inner triangle number, 2 * cell + half (half 0 has corner x + w). Returns each
+  // triangle's slot, or nothing when the mesh is not such a grid.
   const std::size_t nv = corners.size();
   if (pending.empty()) return {};
   auto sorted = [](const TriangleCorners& q) {
@@ -23,13 +27,14 @@ std::vector<std::uint32_t> GridPath::recognise(std::span<const Point2> corners,
   if (nw < 2 || nv % nw != 0 || nv / nw < 2) return {};
   const std::uint64_t nh = nv / nw;
   if (nw > 0xffffffffu || 2 * (nw - 1) * (nh - 1) >= 0xffffffffu) return {};
+  const RasterGrid lattice(static_cast<int>(nw), static_cast<int>(nh), {});
   std::vector<std::uint8_t> taken(2 * (nw - 1) * (nh - 1), 0);
   std::vector<std::uint32_t> slots(pending.size());
   for (std::size_t t = 0; t < pending.size(); ++t) {
-    const auto k = sorted(pending[t]);
-    const std::uint64_t x = k[0], col = x % nw, row = x / nw;
-    if (k[2] != x + nw + 1 || col == nw - 1 || row >= nh - 1 || (k[1] != x + nw && k[1] != x + 1)) return {};
-    const std::uint64_t slot = 2 * (row * (nw - 1) + col) + (k[1] == x + nw ? 0 : 1);
+    const TriangleCorners& q = pending[t];
+    const std::optional<std::uint64_t> found = lattice.innerTriangleWith(q.corner[0], q.corner[1], q.corner[2]);
+    if (!found) return {};
+    const std::uint64_t slot = *found;
     if (taken[slot]) return {};  // the same half twice: overlapping, not a grid
     taken[slot] = 1;
     slots[t] = static_cast<std::uint32_t>(slot);
@@ -137,10 +142,11 @@ void GridPath::setUpLean(std::span<const TriangleCorners> triangles, std::span<c
 }
 
 void GridPath::clearSlot(const TriangleCorners& triangle, std::uint32_t t) {
-  std::array<std::uint32_t, 3> k{triangle.corner[0], triangle.corner[1], triangle.corner[2]};
-  std::sort(k.begin(), k.end());
-  const std::uint64_t x = k[0], col = x % w, row = x / w;
-  const std::uint64_t slot = 2 * (row * (w - 1) + col) + (k[1] == x + w ? 0 : 1);
+  const std::optional<std::uint64_t> found =
+      RasterGrid(static_cast<int>(w), static_cast<int>(h), {}).innerTriangleWith(triangle.corner[0], triangle.corner[1],
+                                                                                 triangle.corner[2]);
+  if (!found) return;
+  const std::uint64_t slot = *found;
   if (slot < cellTri.size() && cellTri[slot] == t) {
     cellTri[slot] = kNone;
     if (lean) {

@@ -1,5 +1,6 @@
 #include "qota/raster_grid.hpp"
 
+#include <algorithm>
 #include <cassert>
 
 namespace qota {
@@ -45,10 +46,11 @@ RasterGrid::RasterGrid(int width, int height, Closure closure)
     return cell(r, c);
   };
 
-  // Every lattice square that is not an inner one, split as the inner ones.
+  // Every lattice square that is not an inner one, split as the inner ones (none without a
+  // border or a seam: then every square is inner, and nothing here walks the cells).
   const int rFirst = top ? -1 : 0, rLast = bottom ? h : h - 1;
   const int squares = k.wrapsColumns ? w : cLast - cFirst;  // per lattice row
-  for (int r = rFirst; r < rLast; ++r) {
+  for (int r = rFirst; r < rLast && (k.border || k.wrapsColumns); ++r) {
     for (int s = 0; s < squares; ++s) {
       const int c = cFirst + s, right = k.wrapsColumns ? (c + 1) % w : c + 1;
       if (r >= 0 && r + 1 < h && c >= 0 && c + 1 < w) continue;  // inner
@@ -89,6 +91,21 @@ std::array<std::uint32_t, 3> RasterGrid::triangle(std::size_t t) const {
   const auto bl = static_cast<std::uint32_t>(tl + w), br = bl + 1;
   if (t % 2 == 0) return {tl, bl, br};
   return {tl, br, tr};
+}
+
+std::optional<std::uint64_t> RasterGrid::innerTriangleWith(std::uint32_t a, std::uint32_t b, std::uint32_t c) const {
+  std::array<std::uint32_t, 3> k{a, b, c};
+  std::sort(k.begin(), k.end());
+  const auto w = static_cast<std::uint64_t>(width_);
+  const std::uint64_t x = k[0], col = w ? x % w : 0, row = w ? x / w : 0;
+  // Both halves of the square (row, col) run along its diagonal TL = x to BR = x + w + 1.
+  if (w < 2 || col + 1 >= w || row + 1 >= static_cast<std::uint64_t>(height_) || k[2] != x + w + 1) {
+    return std::nullopt;
+  }
+  const std::uint64_t first = 2 * (row * (w - 1) + col);
+  if (k[1] == x + w) return first;      // (TL, BL, BR)
+  if (k[1] == x + 1) return first + 1;  // (TL, BR, TR)
+  return std::nullopt;
 }
 
 std::vector<std::uint32_t> RasterGrid::indices() const {

@@ -3,8 +3,10 @@
 // (raster_grid.hpp: two per cell, split from corner (col, row) to (col + 1, row + 1)), the
 // triangle under a point is found by arithmetic (its cell, then which half) instead of by the
 // quadtree. This class owns the grid's tables and that arithmetic: recognising the grid in a
-// triangle list, the cell and half of a point, each slot's triangle, and where a half's corners
-// sit. The index (PlanarCore) keeps the plane arithmetic and decides when to use the path.
+// triangle list (each triangle checked against the raster rule, RasterGrid::innerTriangleWith:
+// the rule is written there only), the cell and half of a point, each slot's triangle, and where
+// a half's corners sit. The index (PlanarCore) keeps the plane arithmetic and decides when to
+// use the path.
 //
 // Slots: 2 * (row * (w - 1) + col) + half, half 0 being the triangle with corner (col, row + 1).
 // A lean grid stores every half's corners at the same offsets from the cell's first vertex, so

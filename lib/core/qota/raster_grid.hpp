@@ -23,6 +23,7 @@
 #include <algorithm>
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <unordered_map>
 #include <vector>
 
@@ -65,6 +66,9 @@ class RasterGrid {
 
   // The corners of triangle t, inner ones first, in the order described above.
   std::array<std::uint32_t, 3> triangle(std::size_t t) const;
+  // The rule read backwards: the inner triangle whose corners are {a, b, c} in any order (the
+  // planar index finds a grid in any mesh by it), or std::nullopt for none.
+  std::optional<std::uint64_t> innerTriangleWith(std::uint32_t a, std::uint32_t b, std::uint32_t c) const;
   // Every triangle's corners, in order, three indices each (a Mesh's indices).
   std::vector<std::uint32_t> indices() const;
   // Adds to `mesh` the triangles from number `first` on whose three corners are valid
