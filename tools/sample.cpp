@@ -2,6 +2,7 @@
 #include <gdal.h>
 #include <ogr_spatialref.h>
 
+#include <array>
 #include <charconv>
 #include <cmath>
 #include <exception>
@@ -158,9 +159,10 @@ std::shared_ptr<const DemTerrain> gridOf(const TreeSource& source) {
 
 // The outer half-pixel rule on a raster's footprint (dem.hpp): (x, y) moved onto the nearest
 // point of the outermost pixel centres' lines; false (with the problem) off the raster.
-bool onSurface(const DemTerrain* grid, double& x, double& y, std::string& problem) {
+bool onSurface(const DemTerrain* grid, double& x, double& y, std::string& problem,
+               const std::array<double, 6>* inverse = nullptr) {
   if (!grid) return true;
-  const auto p = grid->surfacePoint(x, y);
+  const auto p = inverse ? grid->surfacePoint(x, y, *inverse) : grid->surfacePoint(x, y);
   if (!p) {
     problem = "point (" + formatNumber(x) + ", " + formatNumber(y) + ") is off the raster";
     return false;
@@ -174,13 +176,14 @@ bool onSurface(const DemTerrain* grid, double& x, double& y, std::string& proble
 Surface rasterSurface(std::shared_ptr<RasterSampler> sampler) {
   return [sampler](std::span<const Query> q, bool hasZ, std::span<Answer> out) {
     const DemTerrain& dem = sampler->dem();
+    const std::array<double, 6> inverse = dem.inverseGeotransform();
     std::vector<double> xs(q.size()), ys(q.size()), zs(hasZ ? q.size() : 0);
     std::vector<std::optional<double>> heights(q.size());
     for (std::size_t i = 0; i < q.size(); ++i) {
       xs[i] = q[i].x, ys[i] = q[i].y;
       if (hasZ) zs[i] = q[i].z;
       out[i] = Answer{};
-      if (!onSurface(&dem, xs[i], ys[i], out[i].problem)) {
+      if (!onSurface(&dem, xs[i], ys[i], out[i].problem, &inverse)) {
         out[i].token = "none";
         xs[i] = ys[i] = std::numeric_limits<double>::quiet_NaN();  // off: no terrain
       }

@@ -39,11 +39,16 @@ std::array<double, 2> DemTerrain::pixelCentre(double col, double row) const {
           g[3] + (col + 0.5) * g[4] + (row + 0.5) * g[5]};
 }
 
-std::array<double, 2> DemTerrain::pixelOf(double x, double y) const {
-  double inv[6];
-  double gt[6];
+std::array<double, 6> DemTerrain::inverseGeotransform() const {
+  double gt[6], inv[6];
   std::copy(geotransform.begin(), geotransform.end(), gt);
-  if (!GDALInvGeoTransform(gt, inv)) return {NAN, NAN};
+  if (!GDALInvGeoTransform(gt, inv)) return {NAN, NAN, NAN, NAN, NAN, NAN};
+  return {inv[0], inv[1], inv[2], inv[3], inv[4], inv[5]};
+}
+
+std::array<double, 2> DemTerrain::pixelOf(double x, double y) const { return pixelOf(x, y, inverseGeotransform()); }
+
+std::array<double, 2> DemTerrain::pixelOf(double x, double y, const std::array<double, 6>& inv) const {
   return {inv[0] + x * inv[1] + y * inv[2], inv[3] + x * inv[4] + y * inv[5]};
 }
 
@@ -223,7 +228,12 @@ std::optional<double> metresPerLengthUnit(const std::string& unitText) {
 }
 
 std::optional<std::array<double, 2>> DemTerrain::surfacePoint(double x, double y) const {
-  const auto [col, row] = pixelOf(x, y);
+  return surfacePoint(x, y, inverseGeotransform());
+}
+
+std::optional<std::array<double, 2>> DemTerrain::surfacePoint(double x, double y,
+                                                               const std::array<double, 6>& inverse) const {
+  const auto [col, row] = pixelOf(x, y, inverse);
   if (!(col >= 0 && col <= width && row >= 0 && row <= height)) return std::nullopt;
   const double c = std::clamp(col, 0.5, width - 0.5), r = std::clamp(row, 0.5, height - 0.5);
   if (c == col && r == row) return std::array<double, 2>{x, y};

@@ -20,6 +20,7 @@ RasterSampler::RasterSampler(const std::string& path, const Options& options)
       mapping_(windows_.dem().mapping) {
   if (options_.tileSize < 1) throw Error("RasterSampler: tileSize must be at least 1");
   const DemTerrain& d = dem();
+  inverse_ = d.inverseGeotransform();
   const int sizes[2] = {options_.tileSize, std::min(options_.tileSize, kSmallTile)};
   for (int l = 0; l < 2; ++l) {
     const std::int64_t s = sizes[l];
@@ -32,7 +33,7 @@ std::uint64_t RasterSampler::tileKey(double x, double y, int level) const {
   const DemTerrain& d = dem();
   const Level& L = levels_[level];
   if (L.tilesX == 0 || L.tilesY == 0) return kOff;  // one row or column of pixels: no cells
-  const auto [col, row] = d.pixelOf(x, y);
+  const auto [col, row] = d.pixelOf(x, y, inverse_);
   if (!(col >= 0 && col <= d.width && row >= 0 && row <= d.height)) return kOff;  // NaN too
   // The cell (square of four centres) below the point, clamped onto the cells: a point on the
   // outermost centres' lines (the outer half-pixel rule put it there) belongs to the cells

@@ -91,6 +91,10 @@ struct DemTerrain {
   // Fractional pixel coordinates (col, row) of a world point (col, row in [0, width] x [0, height]
   // on the raster).
   std::array<double, 2> pixelOf(double x, double y) const;
+  // The same with the inverse geotransform computed once (inverseGeotransform()), for callers
+  // that convert many points; the same bits.
+  std::array<double, 6> inverseGeotransform() const;
+  std::array<double, 2> pixelOf(double x, double y, const std::array<double, 6>& inverse) const;
   // True when the world point lies on the raster's footprint.
   bool onRaster(double x, double y) const;
   // The point whose height answers for (x, y) under the outer half-pixel rule: (x, y) itself
@@ -99,6 +103,7 @@ struct DemTerrain {
   // arithmetic, so a clamped point lies exactly on the centres' line of a north-up raster).
   // std::nullopt off the raster.
   std::optional<std::array<double, 2>> surfacePoint(double x, double y) const;
+  std::optional<std::array<double, 2>> surfacePoint(double x, double y, const std::array<double, 6>& inverse) const;
   // The frame of loadDem's terrain: gravity -Z, origin at the raster's centre, z = 0.
   CartesianMapping centredMapping() const;
 };

@@ -16,6 +16,7 @@
 // is cached), else small tiles of 16 cells, so sparse points cost a small window each.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <list>
 #include <memory>
@@ -83,6 +84,7 @@ class RasterSampler {
   static constexpr int kSmallTile = 4;
   static constexpr std::uint32_t kLargeTilePoints = 256;  // points a batch needs in a large tile to build it
   Level levels_[2];
+  std::array<double, 6> inverse_{};  // the raster's inverse geotransform
   // Least recently used at the back.
   std::list<Tile> tiles_;
   std::unordered_map<std::uint64_t, std::list<Tile>::iterator> byKey_;
