@@ -120,7 +120,8 @@ struct Query {
 // queries[i]; hasZ: every query has its height). Called on one thread; it may use several.
 using Surface = std::function<void(std::span<const Query> queries, bool hasZ, std::span<Answer> answers)>;
 
-// Runs work(lo, hi) over [0, n) on every core (slices of at least minPerThread); an exception in a slice is rethrown here.
+// Runs work(lo, hi) over [0, n) on every core (slices of at least minPerThread); an exception in
+// a slice is rethrown here (a worker thread must not end the process).
 template <class Work>
 void inParallel(std::size_t n, std::size_t minPerThread, Work&& work) {
   std::exception_ptr failure;
