@@ -135,8 +135,8 @@ void RasterSampler::heights(std::span<const double> xs, std::span<const double> 
   }
   // Each point's large tile, and how many points each has: a large tile pays for its build
   // (about 60 ns a triangle) when many points share it, or when it is cached already; the other
-  // points take small tiles (a window of 19 x 19 pixels), so a few points spread over a huge
-  // raster build little more than their own cells.
+  // points take small tiles (4 cells a side: windows of 7 x 7 pixels), so a few points spread
+  // over a huge raster build little more than their own cells.
   std::vector<std::uint64_t> keys(n);
   std::unordered_map<std::uint64_t, std::uint32_t> perLarge;
   for (std::size_t i = 0; i < n; ++i) {
