@@ -122,12 +122,19 @@ TEST(RasterGrid, SurfacePointClampsTheOuterHalfPixel) {
 // The rule read backwards finds every inner triangle from its corners in any order, and nothing
 // else: not the other diagonal, not a triangle across the row's end, not the closure's.
 TEST(RasterGrid, InnerTriangleWithIsTheRuleBackwards) {
-  const RasterGrid g(5, 4, {.border = true});
-  for (std::size_t t = 0; t < g.innerTriangleCount(); ++t) {
-    const auto k = g.triangle(t);
-    EXPECT_EQ(g.innerTriangleWith(k[0], k[1], k[2]), t);
-    EXPECT_EQ(g.innerTriangleWith(k[2], k[0], k[1]), t);
-    EXPECT_EQ(g.innerTriangleWith(k[1], k[0], k[2]), t);
+  // The documented numbering (raster_grid.hpp): the square (row, col) of a w-wide grid holds
+  // triangles 2 (row (w - 1) + col), (TL, BL, BR), and the one after, (TL, BR, TR).
+  const int w = 5, h = 4;
+  const RasterGrid g(w, h, {.border = true});
+  for (std::uint32_t r = 0; r + 1 < h; ++r) {
+    for (std::uint32_t c = 0; c + 1 < w; ++c) {
+      const std::uint32_t tl = r * w + c, tr = tl + 1, bl = tl + w, br = bl + 1;
+      const std::uint64_t first = 2 * (r * (w - 1) + c);
+      EXPECT_EQ(g.innerTriangleWith(tl, bl, br), first);
+      EXPECT_EQ(g.innerTriangleWith(br, tl, bl), first);
+      EXPECT_EQ(g.innerTriangleWith(tl, br, tr), first + 1);
+      EXPECT_EQ(g.innerTriangleWith(tr, br, tl), first + 1);
+    }
   }
   for (std::size_t t = g.innerTriangleCount(); t < g.triangleCount(); ++t) {
     const auto k = g.triangle(t);
