@@ -16,8 +16,7 @@ namespace qota {
 
 RasterSampler::RasterSampler(const std::string& path, const Options& options)
     : options_(options),
-      windows_(path, DemOptions{.band = options.band, .lonLatAsCartesian = options.lonLatAsCartesian}),
-      mapping_(windows_.dem().mapping) {
+      windows_(path, DemOptions{.band = options.band, .lonLatAsCartesian = options.lonLatAsCartesian}) {
   if (options_.tileSize < 1) throw Error("RasterSampler: tileSize must be at least 1");
   const DemTerrain& d = dem();
   inverse_ = d.inverseGeotransform();
@@ -79,7 +78,7 @@ RasterSampler::Tile RasterSampler::build(std::uint64_t key, std::vector<double>&
   Tile tile;
   tile.key = key;
   if (!mesh.indices.empty()) {
-    tile.index.emplace(mesh, mapping_);
+    tile.index.emplace(mesh, dem().mapping);
     tile.bytes = tile.index->memoryBytesNow();
   }
   tile.bytes += sizeof(Tile) + 64;
@@ -118,7 +117,7 @@ void RasterSampler::answer(const Tile& tile, std::span<const std::uint32_t> whic
   std::vector<std::optional<double>> answers(which.size());
   for (std::size_t k = 0; k < which.size(); ++k) {
     const std::uint32_t i = which[k];
-    const Eigen::Vector3d m = mapping_.toMapped(Eigen::Vector3d(xs[i], ys[i], zs.empty() ? 0.0 : zs[i]));
+    const Eigen::Vector3d m = dem().mapping.toMapped(Eigen::Vector3d(xs[i], ys[i], zs.empty() ? 0.0 : zs[i]));
     points[k] = {m.x(), m.y()};
     below[k] = zs.empty() ? kTop : m.z();
   }

@@ -76,7 +76,6 @@ class RasterSampler {
   static constexpr std::uint64_t kOff = ~std::uint64_t{0};
   Options options_;
   DemWindows windows_;
-  CartesianMapping mapping_;
   struct Level {
     int size = 0;                         // cells a side
     std::int64_t tilesX = 0, tilesY = 0;  // tiles across and down
