@@ -31,12 +31,22 @@ double shadowReach(const LocalFrame& frame, const Eigen::Vector3d& towardLight) 
 
 std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& towardLight,
                               const IndexOptions& options, const Progress& progress,
-                              unsigned threadCount, ShadowSearch search) {
+                              unsigned threadCount, ShadowSearch search, std::optional<CellWindow> testOnly) {
   const auto& vertices = frame.mesh.vertices;
   const std::size_t cellCount = frame.cellCount();
   if (frame.valid.size() != cellCount || vertices.size() < cellCount) {
     throw Error("shadow mask: the frame's cells and vertices do not match its size");
   }
+  const CellWindow test = testOnly.value_or(CellWindow{0, 0, frame.width, frame.height});
+  if (test.col < 0 || test.row < 0 || test.width < 0 || test.height < 0 || test.col + test.width > frame.width ||
+      test.row + test.height > frame.height) {
+    throw Error("shadow mask: the cells to test are not all in the frame");
+  }
+  const std::size_t testCount = test.cellCount();
+  const auto tested = [&](std::size_t i) {
+    const auto c = static_cast<int>(i % frame.width), r = static_cast<int>(i / frame.width);
+    return c >= test.col && c < test.col + test.width && r >= test.row && r < test.row + test.height;
+  };
   std::vector<Light> out(cellCount, Light::NoData);
   const auto report = [&](double done, const char* message) {
     if (progress && !progress(done, message)) throw Error("shadow computation cancelled");
@@ -48,7 +58,7 @@ std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& to
   if (!frame.body.ellipsoid && light.z() <= 0) {
     // A flat frame with the light at or below the horizon: no direct light anywhere.
     for (std::size_t i = 0; i < cellCount; ++i) {
-      if (frame.valid[i]) out[i] = Light::Shadow;
+      if (frame.valid[i] && tested(i)) out[i] = Light::Shadow;
     }
     report(1.0, "light below the horizon");
     return out;
@@ -89,18 +99,21 @@ std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& to
       for (std::size_t g; !stop && (g = next++) < groups;) {
         body(g);
         const std::size_t done = cellsDone += cellsOf(g);
-        const double fraction = static_cast<double>(done) / static_cast<double>(2 * std::max<std::size_t>(1, cellCount));
+        const double fraction = static_cast<double>(done) / static_cast<double>(2 * std::max<std::size_t>(1, testCount));
         if (reporter && progress && !progress(0.3 + 0.7 * fraction, "testing cells")) stop = true;
       }
     };
     inThreads(workers, [&](unsigned k) { work(k == 0); });
   };
-  const auto rowCells = [&](std::size_t) { return width; };
+  // Rows of the cells tested: test.row + r, columns [first, last).
+  const std::size_t first = static_cast<std::size_t>(test.col), last = first + static_cast<std::size_t>(test.width);
+  const auto rowCells = [&](std::size_t) { return last - first; };
   std::vector<std::uint8_t> facing;  // facingOf every triangle
   const BodyRays bodyRays(frame, light);
   const auto attachedPass = [&](unsigned workers) {
-    inParallel(workers, static_cast<std::size_t>(frame.height), rowCells, [&](std::size_t r) {
-      for (std::size_t i = r * width; i < (r + 1) * width; ++i) {
+    inParallel(workers, static_cast<std::size_t>(test.height), rowCells, [&](std::size_t k) {
+      const std::size_t r = k + static_cast<std::size_t>(test.row);
+      for (std::size_t i = r * width + first; i < r * width + last; ++i) {
         if (!frame.valid[i]) continue;
         std::uint32_t grid[RasterGrid::kMaxRing];
         bool closed = false;
@@ -130,8 +143,9 @@ std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& to
     attachedPass(threads);
     if (occluders.polygonCount() > 0) {
       const TerrainIndex index(occluders, mapping, options);
-      inParallel(threads, static_cast<std::size_t>(frame.height), rowCells, [&](std::size_t r) {
-        for (std::size_t i = r * width; i < (r + 1) * width; ++i) {
+      inParallel(threads, static_cast<std::size_t>(test.height), rowCells, [&](std::size_t k) {
+        const std::size_t r = k + static_cast<std::size_t>(test.row);
+        for (std::size_t i = r * width + first; i < r * width + last; ++i) {
           if (out[i] != Light::Lit) continue;
           const Eigen::Vector3d m = mapping.toMapped(vertices[i]);
           if (index.occludedAbove(m.x(), m.y(), m.z(), static_cast<std::uint32_t>(i))) out[i] = Light::Shadow;
@@ -143,15 +157,19 @@ std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& to
     const HorizonStrips strips(frame, light, std::min(frame.pixelSizeX, frame.pixelSizeY), facing, threads, winding);
     report(0.3, "testing cells");
     attachedPass(threads);
-    std::vector<std::uint32_t> stripOf(cellCount), order(cellCount);
+    // The tested cells (k-th in row order: cell testCell(k)) by strip.
+    const auto testCell = [&](std::size_t k) {
+      return (k / (last - first) + static_cast<std::size_t>(test.row)) * width + first + k % (last - first);
+    };
+    std::vector<std::uint32_t> stripOf(testCount), order(testCount);
     std::vector<std::uint64_t> start(strips.stripCount() + 2, 0);  // the last: cells in none
-    for (std::size_t i = 0; i < cellCount; ++i) {
-      stripOf[i] = static_cast<std::uint32_t>(strips.stripOf(vertices[i]));
-      ++start[stripOf[i] + 1];
+    for (std::size_t k = 0; k < testCount; ++k) {
+      stripOf[k] = static_cast<std::uint32_t>(strips.stripOf(vertices[testCell(k)]));
+      ++start[stripOf[k] + 1];
     }
     for (std::size_t g = 1; g < start.size(); ++g) start[g] += start[g - 1];
     std::vector<std::uint64_t> fill(start.begin(), start.end() - 1);
-    for (std::size_t i = 0; i < cellCount; ++i) order[fill[stripOf[i]]++] = static_cast<std::uint32_t>(i);
+    for (std::size_t k = 0; k < testCount; ++k) order[fill[stripOf[k]]++] = static_cast<std::uint32_t>(testCell(k));
     inParallel(threads, start.size() - 1, [&](std::size_t g) { return start[g + 1] - start[g]; }, [&](std::size_t g) {
       std::uint64_t hint = 0;
       for (std::uint64_t k = start[g]; k < start[g + 1]; ++k) {

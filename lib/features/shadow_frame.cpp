@@ -33,46 +33,6 @@ OGRSpatialReference rasterCrs(const DemTerrain& dem) {
   return srs;
 }
 
-// Fills NaN heights from their neighbours, rim inwards (onion peeling, as gdal_fillnodata does in
-// spirit): each pass gives every void cell next to known cells the mean of those, until none is
-// left. A raster with no data at all becomes flat at 0.
-void fillVoids(std::vector<double>& z, int w, int h) {
-  std::vector<std::size_t> todo;
-  for (std::size_t i = 0; i < z.size(); ++i) {
-    if (!std::isfinite(z[i])) todo.push_back(i);
-  }
-  std::vector<std::pair<std::size_t, double>> fills;
-  while (!todo.empty()) {
-    fills.clear();
-    std::vector<std::size_t> still;
-    for (std::size_t i : todo) {
-      const int c = static_cast<int>(i % w), r = static_cast<int>(i / w);
-      double sum = 0;
-      int count = 0;
-      for (int dr = -1; dr <= 1; ++dr) {
-        for (int dc = -1; dc <= 1; ++dc) {
-          const int cc = c + dc, rr = r + dr;
-          if ((dr || dc) && cc >= 0 && rr >= 0 && cc < w && rr < h) {
-            const double v = z[static_cast<std::size_t>(rr) * w + cc];
-            if (std::isfinite(v)) sum += v, ++count;
-          }
-        }
-      }
-      if (count) {
-        fills.push_back({i, sum / count});
-      } else {
-        still.push_back(i);
-      }
-    }
-    if (fills.empty()) {  // nothing known anywhere
-      for (std::size_t i : still) z[i] = 0;
-      break;
-    }
-    for (const auto& [i, v] : fills) z[i] = v;
-    todo.swap(still);
-  }
-}
-
 // Metres per unit of the DEM's heights: its vertical unit, or -s for a raster without one, times
 // -z.
 double heightMetres(const DemTerrain& dem, const FrameOptions& o, const OGRSpatialReference* srs) {
@@ -193,6 +153,53 @@ Eigen::Vector3d LocalFrame::towardSun(const SunPosition& sun) const {
   return towardSunEnu(inFrame);
 }
 
+// Onion peeling (shadow_frame.hpp).
+void fillVoids(std::vector<double>& z, int w, int h, std::vector<std::uint32_t>* levels) {
+  if (levels) levels->assign(z.size(), 0);
+  std::uint32_t pass = 0;
+  std::vector<std::size_t> todo;
+  for (std::size_t i = 0; i < z.size(); ++i) {
+    if (!std::isfinite(z[i])) todo.push_back(i);
+  }
+  std::vector<std::pair<std::size_t, double>> fills;
+  while (!todo.empty()) {
+    fills.clear();
+    std::vector<std::size_t> still;
+    for (std::size_t i : todo) {
+      const int c = static_cast<int>(i % w), r = static_cast<int>(i / w);
+      double sum = 0;
+      int count = 0;
+      for (int dr = -1; dr <= 1; ++dr) {
+        for (int dc = -1; dc <= 1; ++dc) {
+          const int cc = c + dc, rr = r + dr;
+          if ((dr || dc) && cc >= 0 && rr >= 0 && cc < w && rr < h) {
+            const double v = z[static_cast<std::size_t>(rr) * w + cc];
+            if (std::isfinite(v)) sum += v, ++count;
+          }
+        }
+      }
+      if (count) {
+        fills.push_back({i, sum / count});
+      } else {
+        still.push_back(i);
+      }
+    }
+    if (fills.empty()) {  // nothing known anywhere
+      for (std::size_t i : still) z[i] = 0;
+      if (levels) {
+        for (std::size_t i : still) (*levels)[i] = kNeverFilled;
+      }
+      break;
+    }
+    ++pass;
+    for (const auto& [i, v] : fills) {
+      z[i] = v;
+      if (levels) (*levels)[i] = pass;
+    }
+    todo.swap(still);
+  }
+}
+
 LocalFrame localFrame(const DemTerrain& dem, bool flat, double pixelSize) {
   FrameOptions o;
   o.flat = flat;
@@ -200,69 +207,134 @@ LocalFrame localFrame(const DemTerrain& dem, bool flat, double pixelSize) {
   return localFrame(dem, o);
 }
 
-LocalFrame localFrame(const DemTerrain& dem, const FrameOptions& o) {
-  LocalFrame f;
+namespace {
+
+OGRSpatialReference basisCrs(const FrameBasis& b) { return rasterCrs(b.raster); }
+
+}  // namespace
+
+FrameBasis frameBasis(const DemTerrain& dem, const FrameOptions& o) {
+  FrameBasis b;
+  b.raster = dem;
+  b.raster.mesh = {};
+  b.options = o;
+  LocalFrame& f = b.shared;
   f.width = dem.width;
   f.height = dem.height;
   const int w = dem.width, h = dem.height;
-  const std::size_t n = f.cellCount();
-  if (w < 1 || h < 1 || dem.mesh.vertices.size() != n) {
-    throw Error(dem.path + ": not a raster grid (" + std::to_string(dem.mesh.vertices.size()) +
-                " vertices for " + std::to_string(w) + " x " + std::to_string(h) + " cells)");
-  }
+  if (w < 1 || h < 1) throw Error(dem.path + ": a raster of " + std::to_string(w) + " x " + std::to_string(h) + " cells");
   std::optional<OGRSpatialReference> srs;
   if (!dem.crsWkt.empty()) srs = rasterCrs(dem);
   f.metresPerUnit = heightMetres(dem, o, srs ? &*srs : nullptr);
-
-  // Heights in metres with the voids filled (for occlusion only), and which cells have data.
-  std::vector<double> z(n);
-  f.valid.resize(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    z[i] = dem.mesh.vertices[i].z() * f.metresPerUnit;
-    f.valid[i] = std::isfinite(z[i]);
-    if (f.valid[i] && !(std::fabs(z[i]) <= kMaxHeight)) {
-      throw Error(dem.path + ": the height at pixel (" + std::to_string(i % w) + ", " + std::to_string(i / w) +
-                  ") is " + std::to_string(z[i]) + " m, beyond any terrain (1e9 m); is it nodata, or the wrong unit?");
-    }
-  }
-  f.minHeight = INFINITY;
-  f.maxHeight = -INFINITY;
-  for (std::size_t i = 0; i < n; ++i) {
-    if (f.valid[i]) f.minHeight = std::min(f.minHeight, z[i]), f.maxHeight = std::max(f.maxHeight, z[i]);
-  }
-  if (!(f.minHeight <= f.maxHeight)) f.minHeight = f.maxHeight = 0;
-  fillVoids(z, w, h);
-
   const auto& gt = dem.geotransform;
   const double cc = (w - 1) / 2.0, cr = (h - 1) / 2.0;
   const auto centre = dem.pixelCentre(cc, cr);
-  const bool geographic = srs && srs->IsGeographic();
+  b.geographic = srs && srs->IsGeographic();
   const bool ellipsoid = srs && !o.flat;
   f.body.name = srs ? celestialBody(dem.crsWkt) : "";
 
   // The closure: the outer half pixel always; round the globe and over the poles on an ellipsoid.
-  RasterGrid::Closure closure;
-  closure.border = true;
-  if (ellipsoid && geographic && gt[2] == 0 && gt[4] == 0 && gt[1] > 0 && gt[5] < 0) {
-    closure.wrapsColumns = std::fabs(w * gt[1] - 360.0) < 0.5 * gt[1];
+  b.closure.border = true;
+  if (ellipsoid && b.geographic && gt[2] == 0 && gt[4] == 0 && gt[1] > 0 && gt[5] < 0) {
+    b.closure.wrapsColumns = std::fabs(w * gt[1] - 360.0) < 0.5 * gt[1];
     const double top = dem.pixelCentre(0, 0)[1], bottom = dem.pixelCentre(0, h - 1)[1];
-    closure.northCap = closure.wrapsColumns && 90.0 - top <= -gt[5] && top < 90.0;
-    closure.southCap = closure.wrapsColumns && bottom + 90.0 <= -gt[5] && bottom > -90.0;
+    b.closure.northCap = b.closure.wrapsColumns && 90.0 - top <= -gt[5] && top < 90.0;
+    b.closure.southCap = b.closure.wrapsColumns && bottom + 90.0 <= -gt[5] && bottom > -90.0;
+  }
+  if (!srs) {
+    if (!(o.pixelSize > 0) || !std::isfinite(o.pixelSize)) {
+      throw Error(dem.path + ": the raster has no coordinate reference system, so the size of its "
+                  "pixels in metres is unknown; give it with --pixel-size METRES");
+    }
+    f.description = "pixel grid, " + std::to_string(o.pixelSize) + " m per pixel (no CRS)";
+    return b;
+  }
+  demEllipsoid(dem, b.a, b.flattening);
+  double lon0 = centre[0], lat0 = centre[1];
+  if (!b.geographic) {
+    OGRSpatialReference geo;
+    geo.CopyGeogCSFrom(&*srs);
+    geo.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+    std::unique_ptr<OGRCoordinateTransformation> toGeo(OGRCreateCoordinateTransformation(&*srs, &geo));
+    std::unique_ptr<OGRCoordinateTransformation> toGrid(OGRCreateCoordinateTransformation(&geo, &*srs));
+    if (!toGeo || !toGrid) throw Error(dem.path + ": its CRS cannot be converted to longitude/latitude");
+    if (!toGeo->Transform(1, &lon0, &lat0)) throw Error(dem.path + ": its centre cannot be converted to longitude/latitude");
+    // Where true north points on the grid at the centre (for a flat projected frame).
+    double nx = lon0, ny = lat0 + 0.01;
+    if (toGrid->Transform(1, &nx, &ny)) f.trueNorthFromY = std::atan2(nx - centre[0], ny - centre[1]) / kDeg;
+  }
+  f.geographicLocation = true;
+  f.centreLon = lon0;
+  f.centreLat = lat0;
+  if (ellipsoid) {
+    const GeographicLib::Geocentric earth(b.a, b.flattening);
+    f.body.ellipsoid = true;
+    f.body.a = b.a;
+    f.body.b = b.a * (1 - b.flattening);
+    f.body.rotation = enuRotation(lat0, lon0);
+    earth.Forward(lat0, lon0, 0, f.body.origin.x(), f.body.origin.y(), f.body.origin.z());
+    f.trueNorthFromY = 0;
+    f.description = std::string(b.geographic ? "" : "projected grid put ") + "on the " +
+                    (f.body.name.empty() ? "" : f.body.name + " ") + "ellipsoid (a = " + std::to_string(b.a) +
+                    " m), east-north-up at the centre" + (b.closure.wrapsColumns ? ", closed round the globe" : "") +
+                    (b.closure.northCap || b.closure.southCap ? " and over the poles" : "");
+  } else {
+    f.description = b.geographic ? "flat east-north-up metres around the centre (--flat)" : "projected grid metres (--flat)";
+  }
+  return b;
+}
+
+void heightsInMetres(const FrameBasis& b, const CellWindow& window, std::vector<double>& z, std::vector<std::uint8_t>& valid) {
+  const std::size_t n = static_cast<std::size_t>(window.width) * window.height;
+  if (z.size() != n) throw Error(b.raster.path + ": a window of heights of the wrong size");
+  valid.resize(n);
+  const double metres = b.shared.metresPerUnit;
+  for (std::size_t i = 0; i < n; ++i) {
+    z[i] *= metres;
+    valid[i] = std::isfinite(z[i]);
+    if (valid[i] && !(std::fabs(z[i]) <= kMaxHeight)) {
+      throw Error(b.raster.path + ": the height at pixel (" + std::to_string(window.col + i % window.width) + ", " +
+                  std::to_string(window.row + i / window.width) + ") is " + std::to_string(z[i]) +
+                  " m, beyond any terrain (1e9 m); is it nodata, or the wrong unit?");
+    }
+  }
+}
+
+LocalFrame windowFrame(const FrameBasis& b, const CellWindow& window, std::vector<double> z, std::vector<std::uint8_t> valid) {
+  const DemTerrain& dem = b.raster;
+  const int w = window.width, h = window.height;
+  const std::size_t n = static_cast<std::size_t>(w) * h;
+  if (w < 1 || h < 1 || window.col < 0 || window.row < 0 || window.col + w > dem.width || window.row + h > dem.height ||
+      z.size() != n || valid.size() != n) {
+    throw Error(dem.path + ": window (" + std::to_string(window.col) + ", " + std::to_string(window.row) + ") of " +
+                std::to_string(w) + " x " + std::to_string(h) + " cells is not on the raster or not its heights");
+  }
+  LocalFrame f = b.shared;
+  f.width = w;
+  f.height = h;
+  f.window = window;
+  f.valid = std::move(valid);
+  const bool whole = w == dem.width && h == dem.height;
+  const RasterGrid::Closure& closure = b.closure;
+  if (!whole && (closure.wrapsColumns || closure.northCap || closure.southCap)) {
+    throw Error(dem.path + ": the raster is closed round the globe, so it is shadowed whole, not by windows");
   }
   f.grid = RasterGrid(w, h, closure);
   f.gridMesh = true;
 
-  // Every vertex: where it stands in pixel coordinates, and its height in metres.
+  // Every vertex: where it stands in the raster's pixel coordinates, and its height in metres.
   const std::size_t vertexCount = f.grid.vertexCount();
   std::vector<double> col(vertexCount), row(vertexCount), height(vertexCount);
   std::vector<int> pole(vertexCount, 0);
   for (std::size_t i = 0; i < n; ++i) {
-    col[i] = static_cast<double>(i % w) + 0.5, row[i] = static_cast<double>(i / w) + 0.5, height[i] = z[i];
+    col[i] = static_cast<double>(window.col + static_cast<int>(i % w)) + 0.5;
+    row[i] = static_cast<double>(window.row + static_cast<int>(i / w)) + 0.5;
+    height[i] = z[i];
   }
   for (std::size_t k = 0; k < f.grid.extraVertices().size(); ++k) {
     const RasterGrid::ExtraVertex& e = f.grid.extraVertices()[k];
     const std::size_t i = n + k;
-    col[i] = e.col, row[i] = e.row, pole[i] = e.pole;
+    col[i] = e.col + window.col, row[i] = e.row + window.row, pole[i] = e.pole;
     if (e.pole == 0) {
       height[i] = z[e.cell];
       continue;
@@ -272,67 +344,49 @@ LocalFrame localFrame(const DemTerrain& dem, const FrameOptions& o) {
     for (std::size_t c = 0; c < static_cast<std::size_t>(w); ++c) sum += z[r * w + c];
     height[i] = sum / w;
   }
+  z = {};
+  const auto& gt = dem.geotransform;
   const auto source = [&](std::size_t i, double& x, double& y) {
     x = gt[0] + col[i] * gt[1] + row[i] * gt[2];
     y = gt[3] + col[i] * gt[4] + row[i] * gt[5];
   };
+  const double cc = (dem.width - 1) / 2.0, cr = (dem.height - 1) / 2.0;
+  const auto centre = dem.pixelCentre(cc, cr);
 
   f.mesh.vertices.resize(vertexCount);
-  if (!srs) {
-    if (!(o.pixelSize > 0) || !std::isfinite(o.pixelSize)) {
-      throw Error(dem.path + ": the raster has no coordinate reference system, so the size of its "
-                  "pixels in metres is unknown; give it with --pixel-size METRES");
-    }
+  if (dem.crsWkt.empty()) {
     // Pixel grid, rows running south.
+    const double s = b.options.pixelSize;
     for (std::size_t i = 0; i < vertexCount; ++i) {
-      f.mesh.vertices[i] = {(col[i] - 0.5 - cc) * o.pixelSize, -(row[i] - 0.5 - cr) * o.pixelSize, height[i]};
+      f.mesh.vertices[i] = {(col[i] - 0.5 - cc) * s, -(row[i] - 0.5 - cr) * s, height[i]};
     }
-    f.description = "pixel grid, " + std::to_string(o.pixelSize) + " m per pixel (no CRS)";
   } else {
-    double a = 0, fl = 0;
-    demEllipsoid(dem, a, fl);
-    // Longitude and latitude of every vertex (and of the centre), on the CRS's own ellipsoid.
+    const OGRSpatialReference srs = basisCrs(b);
+    const bool ellipsoid = f.body.ellipsoid;
+    // Longitude and latitude of every vertex, on the CRS's own ellipsoid.
     std::vector<double> lon(vertexCount), lat(vertexCount);
-    double lon0 = centre[0], lat0 = centre[1];
     for (std::size_t i = 0; i < vertexCount; ++i) source(i, lon[i], lat[i]);
-    if (!geographic) {
+    if (!b.geographic && ellipsoid) {
       OGRSpatialReference geo;
-      geo.CopyGeogCSFrom(&*srs);
+      geo.CopyGeogCSFrom(&srs);
       geo.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-      std::unique_ptr<OGRCoordinateTransformation> toGeo(OGRCreateCoordinateTransformation(&*srs, &geo));
-      std::unique_ptr<OGRCoordinateTransformation> toGrid(OGRCreateCoordinateTransformation(&geo, &*srs));
-      if (!toGeo || !toGrid) throw Error(dem.path + ": its CRS cannot be converted to longitude/latitude");
-      if (!toGeo->Transform(1, &lon0, &lat0)) {
-        throw Error(dem.path + ": its centre cannot be converted to longitude/latitude");
-      }
-      if (ellipsoid) {
-        std::vector<int> ok(vertexCount, 0);
-        toGeo->Transform(vertexCount, lon.data(), lat.data(), nullptr, ok.data());
-        for (std::size_t i = 0; i < vertexCount; ++i) {
-          if (!ok[i] || !std::isfinite(lon[i]) || !std::isfinite(lat[i])) {
-            throw Error(dem.path + ": pixel (" + std::to_string(col[i]) + ", " + std::to_string(row[i]) +
-                        ") cannot be converted to longitude/latitude; shadow it with --flat");
-          }
+      std::unique_ptr<OGRCoordinateTransformation> toGeo(OGRCreateCoordinateTransformation(&srs, &geo));
+      if (!toGeo) throw Error(dem.path + ": its CRS cannot be converted to longitude/latitude");
+      std::vector<int> ok(vertexCount, 0);
+      toGeo->Transform(vertexCount, lon.data(), lat.data(), nullptr, ok.data());
+      for (std::size_t i = 0; i < vertexCount; ++i) {
+        if (!ok[i] || !std::isfinite(lon[i]) || !std::isfinite(lat[i])) {
+          throw Error(dem.path + ": pixel (" + std::to_string(col[i]) + ", " + std::to_string(row[i]) +
+                      ") cannot be converted to longitude/latitude; shadow it with --flat");
         }
       }
-      // Where true north points on the grid at the centre (for a flat projected frame).
-      double nx = lon0, ny = lat0 + 0.01;
-      if (toGrid->Transform(1, &nx, &ny)) f.trueNorthFromY = std::atan2(nx - centre[0], ny - centre[1]) / kDeg;
     }
-    f.geographicLocation = true;
-    f.centreLon = lon0;
-    f.centreLat = lat0;
     for (std::size_t i = 0; i < vertexCount; ++i) {
       if (pole[i]) lon[i] = 0, lat[i] = 90.0 * pole[i];
     }
+    const double lon0 = f.centreLon, lat0 = f.centreLat;
     if (ellipsoid) {
-      const GeographicLib::Geocentric earth(a, fl);
-      f.body.ellipsoid = true;
-      f.body.a = a;
-      f.body.b = a * (1 - fl);
-      f.body.rotation = enuRotation(lat0, lon0);
-      earth.Forward(lat0, lon0, 0, f.body.origin.x(), f.body.origin.y(), f.body.origin.z());
-      f.trueNorthFromY = 0;
+      const GeographicLib::Geocentric earth(b.a, b.flattening);
       for (std::size_t i = 0; i < vertexCount; ++i) {
         if (!(std::fabs(lat[i]) <= 90.0)) {
           throw Error(dem.path + ": pixel (" + std::to_string(col[i]) + ", " + std::to_string(row[i]) +
@@ -342,39 +396,45 @@ LocalFrame localFrame(const DemTerrain& dem, const FrameOptions& o) {
         earth.Forward(lat[i], lon[i], height[i], X.x(), X.y(), X.z());
         f.mesh.vertices[i] = f.body.rotation * (X - f.body.origin);
       }
-      f.description = std::string(geographic ? "" : "projected grid put ") + "on the " +
-                      (f.body.name.empty() ? "" : f.body.name + " ") + "ellipsoid (a = " +
-                      std::to_string(a) + " m), east-north-up at the centre" +
-                      (closure.wrapsColumns ? ", closed round the globe" : "") +
-                      (closure.northCap || closure.southCap ? " and over the poles" : "");
-    } else if (geographic) {
+    } else if (b.geographic) {
       // Longitude and latitude scaled linearly by the ellipsoid's radii of curvature at the
       // centre: no curvature.
-      const double e2 = fl * (2 - fl), s = std::sin(lat0 * kDeg);
+      const double fl = b.flattening, e2 = fl * (2 - fl), s = std::sin(lat0 * kDeg);
       const double wq = std::sqrt(1 - e2 * s * s);
-      const double nRad = a / wq, mRad = a * (1 - e2) / (wq * wq * wq);
+      const double nRad = b.a / wq, mRad = b.a * (1 - e2) / (wq * wq * wq);
       for (std::size_t i = 0; i < vertexCount; ++i) {
         f.mesh.vertices[i] = {(lon[i] - lon0) * kDeg * nRad * std::cos(lat0 * kDeg), (lat[i] - lat0) * kDeg * mRad,
                               height[i]};
       }
-      f.description = "flat east-north-up metres around the centre (--flat)";
     } else {
-      const double unit = srs->GetLinearUnits();
+      const double unit = srs.GetLinearUnits();
       for (std::size_t i = 0; i < vertexCount; ++i) {
         double x, y;
         source(i, x, y);
         f.mesh.vertices[i] = {(x - centre[0]) * unit, (y - centre[1]) * unit, height[i]};
       }
-      f.description = "projected grid metres (--flat)";
     }
   }
   f.mesh.indices = f.grid.indices();
+  return f;
+}
+
+void completeBasis(FrameBasis& b, double minHeight, double maxHeight, const LocalFrame& centre) {
+  LocalFrame& f = b.shared;
+  f.minHeight = minHeight, f.maxHeight = maxHeight;
+  if (!(f.minHeight <= f.maxHeight)) f.minHeight = f.maxHeight = 0;
+  const int w = b.raster.width, h = b.raster.height;
+  // The centre square's top-left cell, in the centre frame's own numbering.
+  const int cc = (w - 1) / 2 - centre.window.col, cr = (h - 1) / 2 - centre.window.row;
   if (w > 1 && h > 1) {
+    if (cc < 0 || cr < 0 || cc + 1 >= centre.width || cr + 1 >= centre.height) {
+      throw Error(b.raster.path + ": the window given for the frame's centre does not hold it");
+    }
     // Every vertex has a position (voids are filled), so the centre's neighbours give the size.
-    const std::size_t ci = static_cast<std::size_t>(std::floor(cr)) * w + static_cast<std::size_t>(std::floor(cc));
-    const auto& v = f.mesh.vertices;
+    const std::size_t ci = static_cast<std::size_t>(cr) * centre.width + static_cast<std::size_t>(cc);
+    const auto& v = centre.mesh.vertices;
     f.pixelSizeX = (v[ci + 1] - v[ci]).head<2>().norm();
-    f.pixelSizeY = (v[ci + w] - v[ci]).head<2>().norm();
+    f.pixelSizeY = (v[ci + centre.width] - v[ci]).head<2>().norm();
   }
   // Below this height a ray is inside the body: the lowest terrain, less a margin for the chords
   // between pixel centres (a triangle sags below its corners by less than d^2 / 2R on a sphere,
@@ -384,12 +444,44 @@ LocalFrame localFrame(const DemTerrain& dem, const FrameOptions& o) {
   // Which way the grid's triangles turn seen from above: the same for all of them (the rows and
   // columns keep their orientation on the ellipsoid), so the centre's first one tells.
   if (w > 1 && h > 1) {
-    const std::size_t t = 2 * ((h - 1) / 2 * static_cast<std::size_t>(w - 1) + (w - 1) / 2);
-    const auto c = f.grid.triangle(t);
-    const auto& v = f.mesh.vertices;
-    const Eigen::Vector3d normal = (v[c[1]] - v[c[0]]).cross(v[c[2]] - v[c[0]]);
-    f.gridWinding = normal.dot(f.upAt(v[c[0]])) >= 0 ? 1 : -1;
+    const std::uint32_t tl = static_cast<std::uint32_t>(static_cast<std::size_t>(cr) * centre.width + cc);
+    const std::uint32_t bl = tl + static_cast<std::uint32_t>(centre.width), br = bl + 1;
+    const auto& v = centre.mesh.vertices;
+    const Eigen::Vector3d normal = (v[bl] - v[tl]).cross(v[br] - v[tl]);
+    f.gridWinding = normal.dot(centre.upAt(v[tl])) >= 0 ? 1 : -1;
   }
+  b.complete = true;
+}
+
+void adoptBasis(LocalFrame& frame, const FrameBasis& b) {
+  frame.minHeight = b.shared.minHeight, frame.maxHeight = b.shared.maxHeight;
+  frame.pixelSizeX = b.shared.pixelSizeX, frame.pixelSizeY = b.shared.pixelSizeY;
+  frame.body.lowest = b.shared.body.lowest;
+  frame.gridWinding = b.shared.gridWinding;
+}
+
+LocalFrame localFrame(const DemTerrain& dem, const FrameOptions& o) {
+  const int w = dem.width, h = dem.height;
+  const std::size_t n = static_cast<std::size_t>(std::max(w, 0)) * static_cast<std::size_t>(std::max(h, 0));
+  if (w < 1 || h < 1 || dem.mesh.vertices.size() != n) {
+    throw Error(dem.path + ": not a raster grid (" + std::to_string(dem.mesh.vertices.size()) + " vertices for " +
+                std::to_string(w) + " x " + std::to_string(h) + " cells)");
+  }
+  FrameBasis basis = frameBasis(dem, o);
+  const CellWindow whole{0, 0, w, h};
+  // Heights in metres with the voids filled (for occlusion only), and which cells have data.
+  std::vector<double> z(n);
+  std::vector<std::uint8_t> valid;
+  for (std::size_t i = 0; i < n; ++i) z[i] = dem.mesh.vertices[i].z();
+  heightsInMetres(basis, whole, z, valid);
+  double lo = INFINITY, hi = -INFINITY;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (valid[i]) lo = std::min(lo, z[i]), hi = std::max(hi, z[i]);
+  }
+  fillVoids(z, w, h);
+  LocalFrame f = windowFrame(basis, whole, std::move(z), std::move(valid));
+  completeBasis(basis, lo, hi, f);
+  adoptBasis(f, basis);
   return f;
 }
 

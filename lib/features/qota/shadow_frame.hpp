@@ -36,6 +36,13 @@
 
 namespace qota {
 
+// A rectangle of a raster's cells: columns [col, col + width), rows [row, row + height).
+struct CellWindow {
+  int col = 0, row = 0, width = 0, height = 0;
+  std::size_t cellCount() const { return static_cast<std::size_t>(width) * static_cast<std::size_t>(height); }
+  bool operator==(const CellWindow&) const = default;
+};
+
 // How a DEM becomes a frame (see above).
 struct FrameOptions {
   bool flat = false;      // no curvature: lon/lat scaled linearly, a projected grid as it is
@@ -84,6 +91,9 @@ struct LocalFrame {
     double lowest = 0;  // the height (metres) below which a ray is in the body (see above)
   } body;
 
+  // Where these cells lie in the raster: the whole of it, or a window (windowFrame).
+  CellWindow window;
+
   std::size_t cellCount() const { return static_cast<std::size_t>(width) * height; }
   // The unit upward normal of the body at frame point p ((0, 0, 1) in a flat frame).
   Eigen::Vector3d upAt(const Eigen::Vector3d& p) const;
@@ -111,6 +121,50 @@ class BodyRays {
 };
 
 LocalFrame localFrame(const DemTerrain& dem, const FrameOptions& options);
+
+// A frame of one window of a raster, equal to the whole raster's frame on its cells: the same
+// origin, body, units, height range and vertex arithmetic, so each vertex has the whole frame's
+// bits. A shadow computed in a window whose cells reach far enough around a tile (shadow_tiles.hpp)
+// is the whole raster's shadow on that tile. The surface is closed by the outer half pixel on
+// every side of the window (on sides inside the raster that is terrain the whole raster does not
+// have; shadow_tiles.hpp keeps it beyond the reach of any ray it tests).
+//
+// What every window shares, found without the raster's heights (frameBasis) and then from them
+// (completeBasis: the height range of the valid cells in metres, and a window's frame holding
+// the centre square, whose vertices give the pixel size and the triangles' turn).
+struct FrameBasis {
+  DemTerrain raster;   // the raster's description (no mesh)
+  FrameOptions options;
+  LocalFrame shared;   // the fields every window's frame copies (no mesh, cells or grid)
+  RasterGrid::Closure closure;  // the whole raster's
+  bool geographic = false;
+  double a = 0, flattening = 0;  // the CRS's ellipsoid
+  bool complete = false;         // completeBasis was called
+};
+// Throws qota::Error as localFrame does (a CRS that cannot be read, a raster without CRS and no
+// pixelSize, -z/-s out of range).
+FrameBasis frameBasis(const DemTerrain& raster, const FrameOptions& options);
+// Raw heights of `window` (row-major; NaN where no data) to metres in place, and which have data.
+// Throws qota::Error naming the pixel for a height beyond 1e9 m.
+void heightsInMetres(const FrameBasis& basis, const CellWindow& window, std::vector<double>& heights,
+                     std::vector<std::uint8_t>& valid);
+// The frame of `window`: heights in metres with the voids filled (fillVoids), valid per cell.
+// A raster closed round the globe has only the whole window.
+LocalFrame windowFrame(const FrameBasis& basis, const CellWindow& window, std::vector<double> heights,
+                       std::vector<std::uint8_t> valid);
+void completeBasis(FrameBasis& basis, double minHeight, double maxHeight, const LocalFrame& centre);
+// Copies what completeBasis found into a frame made before it.
+void adoptBasis(LocalFrame& frame, const FrameBasis& basis);
+
+// Fills NaN heights from their neighbours, rim inwards (onion peeling, as gdal_fillnodata does in
+// spirit): each pass gives every void cell next to known cells the mean of those, until none is
+// left. A window with no data at all becomes flat at 0. levels (optional): per cell, the pass
+// that filled it (0: had data; kNeverFilled: nothing to fill from). A cell filled at pass L
+// depends only on the cells within L of it (Chebyshev distance), and its pass only on those
+// within 2L: so a window's fill equals the whole raster's at every void cell with 2L cells of the
+// window around it (or the raster's edge).
+constexpr std::uint32_t kNeverFilled = 0xffffffffu;
+void fillVoids(std::vector<double>& heights, int width, int height, std::vector<std::uint32_t>* levels = nullptr);
 // pixelSize: metres per pixel for a raster without CRS (0: refuse such a raster).
 LocalFrame localFrame(const DemTerrain& dem, bool flat, double pixelSize = 0);
 

@@ -22,9 +22,11 @@ struct SunlightHours {
 // Hours of direct sunlight between two instants (Julian days, UT), in steps of `stepHours`
 // (the last step may be shorter): a cell lit at a step's middle counts the whole step. Steps when
 // the Sun is below the horizon of every cell are counted without computing a mask. Throws
-// qota::Error for a step under a minute or longer than the span.
+// qota::Error for a step under a minute or longer than the span. testOnly: as shadowMask's (the
+// other cells get 0).
 SunlightHours sunlightHours(const LocalFrame& frame, const std::string& source, double startJulianDay,
                             double endJulianDay, double stepHours, const IndexOptions& options = {},
-                            const Progress& progress = {}, ShadowSearch search = ShadowSearch::Strips);
+                            const Progress& progress = {}, ShadowSearch search = ShadowSearch::Strips,
+                            std::optional<CellWindow> testOnly = std::nullopt);
 
 }  // namespace qota

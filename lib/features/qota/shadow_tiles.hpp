@@ -1,0 +1,115 @@
+// Shadows and sunlight hours of a raster of any size, one tile at a time, in memory bounded by
+// the tile instead of by the raster, equal cell for cell to the whole raster's (shadowMask and
+// sunlightHours over localFrame).
+//
+// A tile is computed in a window of the raster: the tile and a halo around it, holding every
+// triangle that can shade one of its cells. Every window's frame is the whole raster's
+// (windowFrame: the same origin, body, height range, vertex bits, triangles and corner order),
+// and a cell's shadow is decided by exact tests against the triangles its ray may meet, so what
+// the window holds decides nothing but which triangles are there to test.
+//
+// The halo. A ray from a cell toward the light rises light.z per unit of its length and moves
+// |light.xy| across; an occluder lies no higher than the frame's top zTop (the raster's highest
+// cell, or 0 on an ellipsoid when that is higher: the ellipsoid falls away below the tangent plane
+// at the centre, so no point at height h stands above max(h, 0) in the frame), so a ray meets
+// terrain only within D = (zTop - the tile's lowest cell) |light.xy| / light.z of its cell, seen
+// from above, and only toward the light. In pixels, that displacement is turned by the grid's
+// Jacobian (exact for flat frames, whose grid is affine; on an ellipsoid, the larger of its
+// values at the tile and at the far end of the reach, with a quarter more for its change in
+// between), plus 3 cells: the triangle that holds the meeting point, the ring of triangles round
+// every tile cell (attached shadow), and the outer half pixel the window's frame adds on its sides
+// inside the raster (terrain the raster does not have, kept beyond any ray's reach by this).
+// Sides away from the light get the 3 cells only.
+//
+// Voids are filled for occlusion (fillVoids) by onion peeling, whose value at a void cell depends
+// on the cells within twice its fill level: each window's heights are filled over a larger
+// window, grown until every void cell of the window passes that test, so its fill is the whole
+// raster's. A void too wide for the memory allowed is refused, with its size.
+//
+// Not tiled: a raster closed round the globe (its frame has a seam and poles); on an ellipsoid a
+// light at or below the horizon at the centre (its shadows reach without bound). Both are
+// shadowed whole when they fit, else refused.
+#pragma once
+
+#include <Eigen/Core>
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "qota/dem.hpp"
+#include "qota/shadow.hpp"
+#include "qota/shadow_frame.hpp"
+#include "qota/sunlight.hpp"
+
+namespace qota {
+
+class ShadowTiles {
+ public:
+  // Opens the raster and reads it once, by rows, for what every window shares: the height range
+  // and the frame's centre (frameBasis, completeBasis). progress: that pass's fraction.
+  ShadowTiles(const std::string& path, const DemOptions& dem, const FrameOptions& frame, const Progress& progress = {});
+  ~ShadowTiles();
+  ShadowTiles(const ShadowTiles&) = delete;
+  ShadowTiles& operator=(const ShadowTiles&) = delete;
+
+  const DemTerrain& dem() const;
+  const FrameBasis& basis() const { return basis_; }
+  // The whole raster's frame without its cells: description, centre, body, heights, pixel size,
+  // towardSun and horizonSlack's inputs.
+  const LocalFrame& frame() const { return basis_.shared; }
+  // Cells with data in the raster.
+  std::uint64_t validCells() const { return validCells_; }
+
+  // Cells of halo beyond each side of `tile` (west, east, north, south: columns before and after,
+  // rows above and below) for these lights, clipped to the raster. Throws qota::Error for a light
+  // whose shadows reach without bound (see above). tileLowest: the tile's lowest valid height in
+  // metres, or the raster's (frame().minHeight) for the worst case.
+  std::array<int, 4> halo(const CellWindow& tile, const std::vector<Eigen::Vector3d>& lights, double tileLowest) const;
+  // The window a tile is computed in: the tile and its halo.
+  CellWindow windowOf(const CellWindow& tile, const std::array<int, 4>& halo) const;
+
+  // The most bytes a window of this many cells takes at its peak (measured; see the .cpp).
+  static std::uint64_t bytesPerWindowCell();
+  // The largest square tile side (a multiple of `multiple`, at least `multiple`) whose worst-case
+  // window under these lights fits in `bytes`; 0 when none does.
+  int tileSideFor(std::uint64_t bytes, const std::vector<Eigen::Vector3d>& lights, int multiple) const;
+
+  // The light at every cell of `tile` (row-major), as shadowMask gives it over the whole raster.
+  // bytes: the most the window may take (bytesPerWindowCell each); 0: no limit. Throws qota::Error
+  // when it would take more, naming what it needs.
+  std::vector<Light> mask(const CellWindow& tile, const Eigen::Vector3d& light, const IndexOptions& options = {},
+                          unsigned threads = 0, ShadowSearch search = ShadowSearch::Strips,
+                          std::uint64_t bytes = 0) const;
+  // Hours of direct sunlight at every cell of `tile`, as sunlightHours gives them over the whole
+  // raster (the same steps and rule). lights: the light of every step that may be lit (for the
+  // halo; sunlightSteps gives them).
+  SunlightHours hours(const CellWindow& tile, double startJulianDay, double endJulianDay, double stepHours,
+                      const std::vector<Eigen::Vector3d>& lights, const IndexOptions& options = {},
+                      ShadowSearch search = ShadowSearch::Strips, std::uint64_t bytes = 0) const;
+  // The lights of the steps of a span (sunlightHours's steps) with the Sun above the horizon at
+  // the centre less the frame's slack bound: the lights a tile's halo must serve. slack: how far
+  // below the centre's horizon the Sun may be while some cell sees it (degrees; the whole
+  // raster's, or larger).
+  std::vector<Eigen::Vector3d> sunlightSteps(double startJulianDay, double endJulianDay, double stepHours,
+                                             double slack) const;
+  // A bound on the whole raster's LocalFrame::horizonSlack, from its outermost cells (the tilt
+  // between the centre's up and a cell's is largest on the raster's rim), without reading it all.
+  double horizonSlack() const { return slack_; }
+
+ private:
+  struct Open;
+  // The filled heights (metres) and validity of `window`, equal to the whole raster's fill there.
+  void readFilled(const CellWindow& window, std::vector<double>& heights, std::vector<std::uint8_t>& valid,
+                  std::uint64_t bytes) const;
+  LocalFrame windowOfTile(const CellWindow& tile, const std::vector<Eigen::Vector3d>& lights, std::uint64_t bytes,
+                          CellWindow& window) const;
+
+  std::unique_ptr<Open> open_;
+  FrameBasis basis_;
+  std::uint64_t validCells_ = 0;
+  double slack_ = 0;
+};
+
+}  // namespace qota

@@ -1,0 +1,208 @@
+// Shadows by tiles equal the whole raster's shadow (shadowMask and sunlightHours over
+// localFrame, themselves held to brute force in test_shadow.cpp) cell for cell: several tile
+// sizes, suns low and high from every side, voids and nodata across tile edges, on the ellipsoid,
+// flat, projected (north up and rotated) and without CRS.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+
+#include "qota/error.hpp"
+#include "qota/instant.hpp"
+#include "qota/shadow.hpp"
+#include "qota/shadow_tiles.hpp"
+#include "qota/sunlight.hpp"
+#include "raster_files.hpp"
+
+namespace {
+
+using qota::CellWindow;
+using qota::Light;
+namespace test = qota::test;
+
+constexpr double kNodata = -9999;
+
+// A part of the Rainier DEM (real relief: the summit and its valleys), with voids: a round one
+// and a long thin one across where tiles meet, and scattered nodata cells. In `crs` with the
+// geotransform `gt` (the Rainier pixel's own when empty).
+std::string rainierPart(const std::string& name, const std::string& crs, std::array<double, 6> gt = {}) {
+  const test::RasterValues all = test::readRaster(QOTA_DATA_DIR "/mt_rainier_90m.tif");
+  constexpr int w = 150, h = 130, c0 = 520, r0 = 560;
+  test::RasterSpec s;
+  s.width = w, s.height = h;
+  s.crs = crs;
+  if (gt == std::array<double, 6>{}) {
+    gt = all.geotransform;
+    gt[0] += c0 * gt[1], gt[3] += r0 * gt[5];
+  }
+  s.geotransform = gt;
+  s.nodata = kNodata;
+  std::vector<double> z(static_cast<std::size_t>(w) * h);
+  for (int r = 0; r < h; ++r) {
+    for (int c = 0; c < w; ++c) {
+      double v = all.at(c0 + c, r0 + r);
+      if (v < -1000) v = kNodata;  // the DEM's own voids
+      if (std::hypot(c - 64, r - 48) < 7) v = kNodata;          // round void on tile corners
+      if (r == 75 && c > 20 && c < 140) v = kNodata;            // a thin one along a row
+      if ((c * 7919 + r * 104729) % 97 == 0) v = kNodata;       // scattered cells
+      z[static_cast<std::size_t>(r) * w + c] = v;
+    }
+  }
+  s.bands = {z};
+  const auto path = test::scratchPath(name);
+  test::writeRaster(path, s);
+  return path.string();
+}
+
+// Every cell of the whole raster's mask against the tiles', for several tile sizes.
+void expectTilesEqualWhole(const std::string& path, const qota::FrameOptions& frameOptions,
+                           const std::vector<std::pair<double, double>>& suns, const std::vector<int>& sides) {
+  const qota::DemTerrain dem = qota::loadDem(path, {.lonLatAsCartesian = true});
+  const qota::LocalFrame whole = qota::localFrame(dem, frameOptions);
+  const qota::ShadowTiles tiles(path, {.lonLatAsCartesian = true}, frameOptions);
+  ASSERT_EQ(tiles.frame().minHeight, whole.minHeight);
+  ASSERT_EQ(tiles.frame().maxHeight, whole.maxHeight);
+  ASSERT_EQ(tiles.frame().pixelSizeX, whole.pixelSizeX);
+  ASSERT_EQ(tiles.frame().body.lowest, whole.body.lowest);
+  for (const auto& [azimuth, altitude] : suns) {
+    const Eigen::Vector3d light = whole.towardSun({azimuth, altitude});
+    const std::vector<Light> expected = qota::shadowMask(whole, light);
+    std::size_t lit = 0;
+    for (Light l : expected) lit += l == Light::Lit;
+    for (int side : sides) {
+      std::size_t differ = 0;
+      for (int row = 0; row < dem.height; row += side) {
+        for (int col = 0; col < dem.width; col += side) {
+          const CellWindow tile{col, row, std::min(side, dem.width - col), std::min(side, dem.height - row)};
+          const std::vector<Light> got = tiles.mask(tile, light);
+          for (int r = 0; r < tile.height; ++r) {
+            for (int c = 0; c < tile.width; ++c) {
+              differ += got[static_cast<std::size_t>(r) * tile.width + c] !=
+                        expected[static_cast<std::size_t>(row + r) * dem.width + col + c];
+            }
+          }
+        }
+      }
+      EXPECT_EQ(differ, 0u) << path << ": sun " << azimuth << "/" << altitude << ", tiles of " << side;
+    }
+    // Neither all lit nor all dark: the comparison means something.
+    EXPECT_GT(lit, 0u);
+    EXPECT_LT(lit, expected.size() * 99 / 100) << azimuth << "/" << altitude;
+  }
+}
+
+const std::vector<std::pair<double, double>> kSuns = {{315, 6}, {100, 35}, {200, 75}, {0, 15}, {90, 4}, {247, 10}};
+
+TEST(ShadowTiles, EqualTheWholeRasterOnTheEllipsoid) {
+  const std::string path = rainierPart("tiles_geographic.tif", "EPSG:4326");
+  expectTilesEqualWhole(path, {}, kSuns, {23, 64});
+  expectTilesEqualWhole(path, {}, {{315, 6}, {135, 20}}, {9, 150});
+}
+
+TEST(ShadowTiles, EqualTheWholeRasterFlat) {
+  const std::string path = rainierPart("tiles_flat.tif", "EPSG:4326");
+  expectTilesEqualWhole(path, {.flat = true}, kSuns, {23, 64});
+}
+
+TEST(ShadowTiles, EqualTheWholeRasterOnAProjectedGrid) {
+  // The same heights on a UTM grid of 90 m, north up and turned by a few degrees.
+  const std::string north = rainierPart("tiles_utm.tif", "EPSG:32610", {594000, 90, 0, 5190000, 0, -90});
+  expectTilesEqualWhole(north, {.flat = true}, kSuns, {23, 64});
+  expectTilesEqualWhole(north, {}, {{315, 6}, {100, 35}, {0, 15}}, {31});
+  const std::string turned =
+      rainierPart("tiles_utm_turned.tif", "EPSG:32610", {594000, 89.5, 9.4, 5190000, 9.4, -89.5});
+  expectTilesEqualWhole(turned, {.flat = true}, kSuns, {23, 64});
+}
+
+TEST(ShadowTiles, EqualTheWholeRasterWithoutCrs) {
+  const std::string path = rainierPart("tiles_nocrs.tif", "", {0, 1, 0, 0, 0, 1});
+  expectTilesEqualWhole(path, {.pixelSize = 90}, {{315, 6}, {100, 35}, {90, 4}}, {23, 64});
+}
+
+TEST(ShadowTiles, SunlightHoursEqualTheWholeRasters) {
+  const std::string path = rainierPart("tiles_hours.tif", "EPSG:4326");
+  const qota::DemTerrain dem = qota::loadDem(path, {.lonLatAsCartesian = true});
+  const qota::LocalFrame whole = qota::localFrame(dem, qota::FrameOptions{});
+  const qota::ShadowTiles tiles(path, {.lonLatAsCartesian = true}, {});
+  const qota::LocalSpan span = qota::localSpan("2024-06-21", "America/Los_Angeles", 6, 20);
+  const double start = span.start.julianDayUT, end = span.end.julianDayUT;
+  const qota::SunlightHours expected = qota::sunlightHours(whole, path, start, end, 1.5);
+  EXPECT_GE(tiles.horizonSlack(), whole.horizonSlack());
+  const auto lights = tiles.sunlightSteps(start, end, 1.5, tiles.horizonSlack());
+  ASSERT_FALSE(lights.empty());
+  for (int side : {40, 150}) {
+    std::size_t differ = 0;
+    for (int row = 0; row < dem.height; row += side) {
+      for (int col = 0; col < dem.width; col += side) {
+        const CellWindow tile{col, row, std::min(side, dem.width - col), std::min(side, dem.height - row)};
+        const qota::SunlightHours got = tiles.hours(tile, start, end, 1.5, lights);
+        EXPECT_EQ(got.steps, expected.steps);
+        for (int r = 0; r < tile.height; ++r) {
+          for (int c = 0; c < tile.width; ++c) {
+            differ += got.hours[static_cast<std::size_t>(r) * tile.width + c] !=
+                      expected.hours[static_cast<std::size_t>(row + r) * dem.width + col + c];
+          }
+        }
+      }
+    }
+    EXPECT_EQ(differ, 0u) << "tiles of " << side;
+  }
+}
+
+TEST(ShadowTiles, RefusesWhatCannotBeTiledExactly) {
+  const std::string path = rainierPart("tiles_refused.tif", "EPSG:4326");
+  const qota::ShadowTiles tiles(path, {.lonLatAsCartesian = true}, {});
+  const CellWindow tile{0, 0, 30, 30};
+  // A sun below the centre's horizon on the ellipsoid: its shadows reach without bound.
+  try {
+    (void)tiles.mask(tile, tiles.frame().towardSun({270, -0.2}));
+    ADD_FAILURE() << "no error";
+  } catch (const qota::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("without bound"), std::string::npos) << e.what();
+  }
+  // A window over the memory allowed, naming both.
+  try {
+    (void)tiles.mask(tile, tiles.frame().towardSun({135, 3}), {}, 0, qota::ShadowSearch::Strips, 100000);
+    ADD_FAILURE() << "no error";
+  } catch (const qota::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("allowed"), std::string::npos) << e.what();
+  }
+  // Tiles that fit a budget: their worst window fits it, a larger side's does not.
+  const std::vector<Eigen::Vector3d> lights{tiles.frame().towardSun({135, 60})};
+  const std::uint64_t budget = 8000 * qota::ShadowTiles::bytesPerWindowCell();
+  const int side = tiles.tileSideFor(budget, lights, 16);
+  EXPECT_GE(side, 16);
+  EXPECT_LT(side, 90);
+  const CellWindow centre{(150 - side) / 2, (130 - side) / 2, side, std::min(side, 130)};
+  EXPECT_LE(tiles.windowOf(centre, tiles.halo(centre, lights, tiles.frame().minHeight)).cellCount(), 8000u);
+  EXPECT_EQ(tiles.tileSideFor(1000, lights, 16), 0);
+}
+
+// A raster of all voids but a corner, tiled: the fill reaches across the window to where the
+// data is, the same as the whole raster's.
+TEST(ShadowTiles, WideVoidsFillAsOverTheWholeRaster) {
+  test::RasterSpec s;
+  s.width = 120, s.height = 90;
+  s.crs = "EPSG:32610";
+  s.geotransform = {594000, 30, 0, 5190000, 0, -30};
+  s.nodata = kNodata;
+  std::vector<double> z(static_cast<std::size_t>(s.width) * s.height, kNodata);
+  for (int r = 0; r < s.height; ++r) {
+    for (int c = 0; c < s.width; ++c) {
+      // High ground west, low ground south: the void between them is filled as a slope that
+      // shades the low ground at a low sun from the north-west, which a fill from the low
+      // ground alone would not.
+      double v = kNodata;
+      if (c < 30) v = 1500 + 20 * ((c * 13 + r * 7) % 11);
+      if (r > 70) v = 100 + 5 * ((c * 13 + r * 7) % 11);
+      if (c > 100 && r < 10) v = 600;
+      z[static_cast<std::size_t>(r) * s.width + c] = v;
+    }
+  }
+  s.bands = {z};
+  const auto path = test::scratchPath("tiles_wide_void.tif").string();
+  test::writeRaster(path, s);
+  expectTilesEqualWhole(path, {.flat = true}, {{315, 6}, {0, 8}, {100, 35}, {200, 20}}, {16, 50});
+}
+
+}  // namespace
