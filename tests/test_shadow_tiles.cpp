@@ -4,6 +4,7 @@
 // flat, projected (north up and rotated) and without CRS.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -147,6 +148,55 @@ TEST(ShadowTiles, SunlightHoursEqualTheWholeRasters) {
     }
     EXPECT_EQ(differ, 0u) << "tiles of " << side;
   }
+}
+
+// Heights given by blocks with their overlap (as Dask gives them) to tiles restored from a state
+// in another object, as from another process: the whole raster's mask.
+TEST(ShadowTiles, BlocksWithTheirOverlapFromARestoredState) {
+  const std::string path = rainierPart("tiles_blocks.tif", "EPSG:4326");
+  const qota::DemTerrain dem = qota::loadDem(path, {.lonLatAsCartesian = true});
+  const qota::LocalFrame whole = qota::localFrame(dem, qota::FrameOptions{});
+  const qota::ShadowTiles restored = qota::ShadowTiles::restore(qota::ShadowTiles(path, {.lonLatAsCartesian = true}, {}).state());
+  EXPECT_EQ(restored.frame().body.lowest, whole.body.lowest);
+  test::RasterValues raw = test::readRaster(path);
+  for (double& v : raw.values) v = v == kNodata ? NAN : v;
+  for (const auto& [azimuth, altitude] : std::vector<std::pair<double, double>>{{315, 6}, {100, 35}}) {
+    const Eigen::Vector3d light = whole.towardSun({azimuth, altitude});
+    const std::vector<Light> expected = qota::shadowMask(whole, light);
+    constexpr int side = 48;
+    const std::array<int, 4> halo = restored.haloFor(side, side, {light});
+    const int overlap = *std::max_element(halo.begin(), halo.end()) + 40;  // and room for the voids' fill
+    std::size_t differ = 0;
+    for (int row = 0; row < dem.height; row += side) {
+      for (int col = 0; col < dem.width; col += side) {
+        const CellWindow tile{col, row, std::min(side, dem.width - col), std::min(side, dem.height - row)};
+        const CellWindow block{std::max(0, col - overlap), std::max(0, row - overlap),
+                               std::min(dem.width, col + tile.width + overlap) - std::max(0, col - overlap),
+                               std::min(dem.height, row + tile.height + overlap) - std::max(0, row - overlap)};
+        std::vector<double> heights;
+        for (int r = block.row; r < block.row + block.height; ++r) {
+          for (int c = block.col; c < block.col + block.width; ++c) heights.push_back(raw.at(c, r));
+        }
+        const std::vector<Light> got = restored.maskFromHeights(block, heights, tile, light);
+        for (int r = 0; r < tile.height; ++r) {
+          for (int c = 0; c < tile.width; ++c) {
+            differ += got[static_cast<std::size_t>(r) * tile.width + c] !=
+                      expected[static_cast<std::size_t>(row + r) * dem.width + col + c];
+          }
+        }
+      }
+    }
+    EXPECT_EQ(differ, 0u) << azimuth << "/" << altitude;
+  }
+  // Too little overlap is an error naming what the tile needs.
+  const CellWindow tile{50, 50, 20, 20};
+  try {
+    (void)restored.maskFromHeights(tile, std::vector<double>(tile.cellCount(), 1500.0), tile, whole.towardSun({315, 6}));
+    ADD_FAILURE() << "no error";
+  } catch (const qota::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("larger overlap"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(qota::ShadowTiles::restore("qota-shadow-tiles 1\npath 3 abc\nwidth zz\n"), qota::Error);
 }
 
 TEST(ShadowTiles, RefusesWhatCannotBeTiledExactly) {

@@ -3,8 +3,10 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <mutex>
+#include <sstream>
 
 #include "qota/error.hpp"
 #include "qota/memory_budget.hpp"
@@ -30,13 +32,15 @@ struct Local {
 
 }  // namespace
 
-struct ShadowTiles::Open {
-  explicit Open(const std::string& path, const DemOptions& options) : windows(path, options) {}
-  DemWindows windows;
+struct ShadowTiles::Source {
+  std::unique_ptr<DemWindows> windows;  // when reading a file
+  HeightReader reader;
   mutable std::mutex lock;  // one read at a time
   void read(const CellWindow& w, std::vector<double>& out) const {
     const std::lock_guard<std::mutex> guard(lock);
-    windows.read(w.col, w.row, w.width, w.height, out);
+    out.resize(w.cellCount());
+    reader(w, out);
+    if (out.size() != w.cellCount()) throw Error("a height reader gave " + std::to_string(out.size()) + " heights for " + std::to_string(w.cellCount()) + " cells");
   }
 };
 
@@ -77,8 +81,29 @@ Eigen::Vector2d pixelsOf(const Local& l, const Eigen::Vector3d& d) {
 
 ShadowTiles::ShadowTiles(const std::string& path, const DemOptions& demOptions, const FrameOptions& frameOptions,
                          const Progress& progress)
-    : open_(std::make_unique<Open>(path, demOptions)) {
-  basis_ = frameBasis(open_->windows.dem(), frameOptions);
+    : source_(std::make_unique<Source>()) {
+  source_->windows = std::make_unique<DemWindows>(path, demOptions);
+  const DemWindows* windows = source_->windows.get();
+  source_->reader = [windows](const CellWindow& w, std::vector<double>& out) {
+    windows->read(w.col, w.row, w.width, w.height, out);
+  };
+  basis_ = frameBasis(windows->dem(), frameOptions);
+  passOverHeights(progress);
+}
+
+ShadowTiles::ShadowTiles(const DemTerrain& description, HeightReader read, const FrameOptions& frameOptions,
+                         const Progress& progress)
+    : source_(std::make_unique<Source>()) {
+  source_->reader = std::move(read);
+  basis_ = frameBasis(description, frameOptions);
+  passOverHeights(progress);
+}
+
+ShadowTiles::ShadowTiles(ShadowTiles&&) noexcept = default;
+ShadowTiles& ShadowTiles::operator=(ShadowTiles&&) noexcept = default;
+
+void ShadowTiles::passOverHeights(const Progress& progress) {
+  const std::string& path = basis_.raster.path;
   const int w = basis_.raster.width, h = basis_.raster.height;
   const RasterGrid::Closure& closure = basis_.closure;
   if (closure.wrapsColumns || closure.northCap || closure.southCap) {
@@ -91,7 +116,7 @@ ShadowTiles::ShadowTiles(const std::string& path, const DemOptions& demOptions, 
   std::vector<std::uint8_t> valid;
   for (int r = 0; r < h; r += rowsAtOnce) {
     const CellWindow rows{0, r, w, std::min(rowsAtOnce, h - r)};
-    open_->read(rows, z);
+    source_->read(rows, z);
     heightsInMetres(basis_, rows, z, valid);
     for (std::size_t i = 0; i < z.size(); ++i) {
       if (valid[i]) lo = std::min(lo, z[i]), hi = std::max(hi, z[i]), ++validCells_;
@@ -136,8 +161,6 @@ ShadowTiles::ShadowTiles(const std::string& path, const DemOptions& demOptions, 
 
 ShadowTiles::~ShadowTiles() = default;
 
-const DemTerrain& ShadowTiles::dem() const { return open_->windows.dem(); }
-
 std::uint64_t ShadowTiles::bytesPerWindowCell() {
   // A window's frame at the mask's peak: vertices (24), validity and light (2), the triangles'
   // corners (24) and facing (2), the strips (24 a triangle entry, up to about 2 entries a cell
@@ -149,6 +172,14 @@ std::uint64_t ShadowTiles::bytesPerWindowCell() {
 
 std::array<int, 4> ShadowTiles::halo(const CellWindow& tile, const std::vector<Eigen::Vector3d>& lights,
                                      double tileLowest) const {
+  std::array<int, 4> out = reach(tile, lights, tileLowest);
+  out[0] = std::min(out[0], tile.col), out[1] = std::min(out[1], basis_.raster.width - tile.col - tile.width);
+  out[2] = std::min(out[2], tile.row), out[3] = std::min(out[3], basis_.raster.height - tile.row - tile.height);
+  return out;
+}
+
+std::array<int, 4> ShadowTiles::reach(const CellWindow& tile, const std::vector<Eigen::Vector3d>& lights,
+                                      double tileLowest) const {
   std::array<int, 4> out{0, 0, 0, 0};
   const LocalFrame& f = basis_.shared;
   const Local here = localAt(basis_, tile.col + tile.width / 2, tile.row + tile.height / 2);
@@ -176,8 +207,6 @@ std::array<int, 4> ShadowTiles::halo(const CellWindow& tile, const std::vector<E
     out[2] = std::max(out[2], side(-p.y())), out[3] = std::max(out[3], side(p.y()));
   }
   for (int& s : out) s += kHaloCells;
-  out[0] = std::min(out[0], tile.col), out[1] = std::min(out[1], basis_.raster.width - tile.col - tile.width);
-  out[2] = std::min(out[2], tile.row), out[3] = std::min(out[3], basis_.raster.height - tile.row - tile.height);
   return out;
 }
 
@@ -186,28 +215,14 @@ CellWindow ShadowTiles::windowOf(const CellWindow& tile, const std::array<int, 4
 }
 
 int ShadowTiles::tileSideFor(std::uint64_t bytes, const std::vector<Eigen::Vector3d>& lights, int multiple) const {
-  const LocalFrame& f = basis_.shared;
   const int w = basis_.raster.width, h = basis_.raster.height;
   const std::uint64_t most = bytes / bytesPerWindowCell();
   // Whether tiles of `side` fit; a larger side never takes a smaller window.
   const auto fits = [&](int side) {
-    // The worst window: the tile's lowest cell at the raster's lowest, less on an ellipsoid the
-    // fall of the surface across the tile, at the centre and the four corners.
-    std::uint64_t worst = 0;
-    for (const auto& [c, r] : {std::pair{0.5, 0.5}, std::pair{0.0, 0.0}, std::pair{1.0, 0.0}, std::pair{0.0, 1.0},
-                               std::pair{1.0, 1.0}}) {
-      const CellWindow tile{std::clamp(static_cast<int>(c * (w - side)), 0, std::max(0, w - side)),
-                            std::clamp(static_cast<int>(r * (h - side)), 0, std::max(0, h - side)), std::min(side, w),
-                            std::min(side, h)};
-      double lowest = f.minHeight;
-      if (f.body.ellipsoid) {
-        const Local l = localAt(basis_, tile.col, tile.row);
-        const double across = side * (l.east.norm() + l.south.norm());
-        lowest -= 1.5 * across * across / (2 * f.body.b * f.body.b / f.body.a);
-      }
-      worst = std::max<std::uint64_t>(worst, windowOf(tile, halo(tile, lights, lowest)).cellCount());
-    }
-    return worst <= most;
+    const std::array<int, 4> o = haloFor(side, side, lights);
+    const auto across = static_cast<std::uint64_t>(std::min(w, std::min(side, w) + o[0] + o[1]));
+    const auto down = static_cast<std::uint64_t>(std::min(h, std::min(side, h) + o[2] + o[3]));
+    return across * down <= most;
   };
   int lo = 0, hi = (std::max(w, h) + multiple - 1) / multiple;  // in multiples: lo fits (0: none), hi + 1 does not
   if (fits(hi * multiple)) return hi * multiple;
@@ -218,8 +233,44 @@ int ShadowTiles::tileSideFor(std::uint64_t bytes, const std::vector<Eigen::Vecto
   return lo * multiple;
 }
 
+namespace {
+
+// Whether the fill over `fill` (levels from fillVoids) is the whole raster's at every void cell of
+// `region` (inside `fill`): each has twice its level of room to the fill's sides inside the raster.
+bool filledAsWhole(const CellWindow& fill, const std::vector<std::uint8_t>& valid, const std::vector<std::uint32_t>& levels,
+                   const CellWindow& region, int rasterWidth, int rasterHeight) {
+  constexpr std::int64_t kFree = std::int64_t{1} << 40;  // no side there: the raster's edge
+  for (int r = region.row; r < region.row + region.height; ++r) {
+    for (int c = region.col; c < region.col + region.width; ++c) {
+      const std::size_t i = static_cast<std::size_t>(r - fill.row) * fill.width + (c - fill.col);
+      if (valid[i]) continue;
+      const std::int64_t room = std::min({fill.col > 0 ? c - fill.col : kFree,
+                                          fill.col + fill.width < rasterWidth ? fill.col + fill.width - 1 - c : kFree,
+                                          fill.row > 0 ? r - fill.row : kFree,
+                                          fill.row + fill.height < rasterHeight ? fill.row + fill.height - 1 - r : kFree});
+      if (room < kFree && (levels[i] == kNeverFilled || room < 2 * static_cast<std::int64_t>(levels[i]))) return false;
+    }
+  }
+  return true;
+}
+
+// The part `inner` of a window's cells.
+template <class T>
+std::vector<T> crop(const std::vector<T>& all, const CellWindow& outer, const CellWindow& inner) {
+  std::vector<T> out(inner.cellCount());
+  for (int r = 0; r < inner.height; ++r) {
+    const std::size_t from = static_cast<std::size_t>(r + inner.row - outer.row) * outer.width + (inner.col - outer.col);
+    std::copy_n(all.begin() + static_cast<std::ptrdiff_t>(from), inner.width,
+                out.begin() + static_cast<std::ptrdiff_t>(r) * inner.width);
+  }
+  return out;
+}
+
+}  // namespace
+
 void ShadowTiles::readFilled(const CellWindow& window, std::vector<double>& heights, std::vector<std::uint8_t>& valid,
                              std::uint64_t bytes) const {
+  if (!source_) throw Error(basis_.raster.path + ": tiles restored from a state read no heights; give them");
   const int rw = basis_.raster.width, rh = basis_.raster.height;
   std::vector<double> z;
   std::vector<std::uint8_t> ok;
@@ -233,57 +284,36 @@ void ShadowTiles::readFilled(const CellWindow& window, std::vector<double>& heig
                   " is too wide to fill the same way as over the whole raster within the memory allowed (" +
                   memory::gib(bytes) + "); fill it first (gdal_fillnodata) or allow more memory");
     }
-    open_->read(fill, z);
+    source_->read(fill, z);
     heightsInMetres(basis_, fill, z, ok);
     fillVoids(z, fill.width, fill.height, &levels);
-    // Room from a cell to the fill window's sides inside the raster (unbounded at the raster's edge).
-    const int big = 1 << 30;
-    bool exact = true;
-    for (int r = window.row; r < window.row + window.height && exact; ++r) {
-      for (int c = window.col; c < window.col + window.width; ++c) {
-        const std::size_t i = static_cast<std::size_t>(r - fill.row) * fill.width + (c - fill.col);
-        if (ok[i]) continue;
-        const std::int64_t room = std::min({fill.col > 0 ? c - fill.col : big,
-                                            fill.col + fill.width < rw ? fill.col + fill.width - 1 - c : big,
-                                            fill.row > 0 ? r - fill.row : big,
-                                            fill.row + fill.height < rh ? fill.row + fill.height - 1 - r : big});
-        if (room < big && (levels[i] == kNeverFilled || room < 2 * static_cast<std::int64_t>(levels[i]))) {
-          exact = false;
-          break;
-        }
-      }
-    }
-    if (!exact) continue;
-    heights.resize(window.cellCount());
-    valid.resize(window.cellCount());
-    for (int r = 0; r < window.height; ++r) {
-      const std::size_t from = static_cast<std::size_t>(r + window.row - fill.row) * fill.width + (window.col - fill.col);
-      std::copy_n(z.begin() + static_cast<std::ptrdiff_t>(from), window.width, heights.begin() + static_cast<std::ptrdiff_t>(r) * window.width);
-      std::copy_n(ok.begin() + static_cast<std::ptrdiff_t>(from), window.width, valid.begin() + static_cast<std::ptrdiff_t>(r) * window.width);
-    }
+    if (!filledAsWhole(fill, ok, levels, window, rw, rh)) continue;
+    heights = crop(z, fill, window);
+    valid = crop(ok, fill, window);
     return;
   }
 }
 
+double ShadowTiles::lowestOf(const CellWindow& tile, std::vector<double> z, const std::vector<std::uint8_t>& valid) const {
+  if (std::find(valid.begin(), valid.end(), 1) == valid.end()) return INFINITY;
+  const Local here = localAt(basis_, tile.col + tile.width / 2, tile.row + tile.height / 2);
+  fillVoids(z, tile.width, tile.height);  // positions only: the valid cells' do not depend on it
+  const LocalFrame alone = windowFrame(basis_, tile, std::move(z), valid);
+  double lowest = INFINITY;
+  for (std::size_t i = 0; i < tile.cellCount(); ++i) {
+    if (valid[i]) lowest = std::min(lowest, (alone.mesh.vertices[i] - here.origin).dot(here.up));
+  }
+  return lowest;
+}
+
 LocalFrame ShadowTiles::windowOfTile(const CellWindow& tile, const std::vector<Eigen::Vector3d>& lights,
                                      std::uint64_t bytes, CellWindow& window) const {
-  // The tile alone first: its lowest cell above its centre's tangent plane.
+  if (!source_) throw Error(basis_.raster.path + ": tiles restored from a state read no heights; give them");
   std::vector<double> z;
   std::vector<std::uint8_t> valid;
-  open_->read(tile, z);
+  source_->read(tile, z);
   heightsInMetres(basis_, tile, z, valid);
-  double lowest = INFINITY;
-  {
-    const Local here = localAt(basis_, tile.col + tile.width / 2, tile.row + tile.height / 2);
-    const bool any = std::find(valid.begin(), valid.end(), 1) != valid.end();
-    if (any) {
-      fillVoids(z, tile.width, tile.height);  // positions only: the valid cells' do not depend on it
-      const LocalFrame alone = windowFrame(basis_, tile, std::move(z), valid);
-      for (std::size_t i = 0; i < tile.cellCount(); ++i) {
-        if (valid[i]) lowest = std::min(lowest, (alone.mesh.vertices[i] - here.origin).dot(here.up));
-      }
-    }
-  }
+  const double lowest = lowestOf(tile, std::move(z), valid);
   if (!std::isfinite(lowest)) {  // no data: nothing to test
     window = tile;
     return {};
@@ -298,19 +328,60 @@ LocalFrame ShadowTiles::windowOfTile(const CellWindow& tile, const std::vector<E
   return windowFrame(basis_, window, std::move(z), std::move(valid));
 }
 
+LocalFrame ShadowTiles::givenWindow(const CellWindow& given, std::vector<double> z, const CellWindow& tile,
+                                    const std::vector<Eigen::Vector3d>& lights) const {
+  const int rw = basis_.raster.width, rh = basis_.raster.height;
+  const auto inside = [](const CellWindow& in, const CellWindow& out) {
+    return in.col >= out.col && in.row >= out.row && in.col + in.width <= out.col + out.width &&
+           in.row + in.height <= out.row + out.height;
+  };
+  if (given.col < 0 || given.row < 0 || given.col + given.width > rw || given.row + given.height > rh ||
+      z.size() != given.cellCount() || !inside(tile, given) || tile.width < 1 || tile.height < 1) {
+    throw Error(basis_.raster.path + ": heights of cells " + cells(given) + " (" + std::to_string(z.size()) +
+                " given) for the tile " + cells(tile) + ": not on the raster or not around the tile");
+  }
+  std::vector<std::uint8_t> valid;
+  heightsInMetres(basis_, given, z, valid);
+  const double lowest = lowestOf(tile, crop(z, given, tile), crop(valid, given, tile));
+  if (!std::isfinite(lowest)) return {};
+  const CellWindow window = windowOf(tile, halo(tile, lights, lowest));
+  if (!inside(window, given)) {
+    throw Error(basis_.raster.path + ": the tile " + cells(tile) + " needs the cells " + cells(window) +
+                " around it (its halo), but only " + cells(given) + " are given; give a larger overlap (haloFor)");
+  }
+  std::vector<std::uint32_t> levels;
+  fillVoids(z, given.width, given.height, &levels);
+  if (!filledAsWhole(given, valid, levels, window, rw, rh)) {
+    throw Error(basis_.raster.path + ": a void (cells without data) near the tile " + cells(tile) +
+                " is too wide to fill the same way as over the whole raster from the cells " + cells(given) +
+                "; give a larger overlap or fill the voids first (gdal_fillnodata)");
+  }
+  return windowFrame(basis_, window, crop(z, given, window), crop(valid, given, window));
+}
+
+namespace {
+
+std::vector<Light> tileMask(const LocalFrame& frame, const CellWindow& tile, const Eigen::Vector3d& light,
+                            const IndexOptions& options, unsigned threads, ShadowSearch search) {
+  if (frame.cellCount() == 0) return std::vector<Light>(tile.cellCount(), Light::NoData);
+  const CellWindow& window = frame.window;
+  const CellWindow inside{tile.col - window.col, tile.row - window.row, tile.width, tile.height};
+  return crop(shadowMask(frame, light, options, {}, threads, search, inside), CellWindow{0, 0, window.width, window.height},
+              inside);
+}
+
+}  // namespace
+
 std::vector<Light> ShadowTiles::mask(const CellWindow& tile, const Eigen::Vector3d& light, const IndexOptions& options,
                                      unsigned threads, ShadowSearch search, std::uint64_t bytes) const {
   CellWindow window;
-  const LocalFrame frame = windowOfTile(tile, {light}, bytes, window);
-  std::vector<Light> out(tile.cellCount(), Light::NoData);
-  if (frame.cellCount() == 0) return out;
-  const CellWindow inside{tile.col - window.col, tile.row - window.row, tile.width, tile.height};
-  const std::vector<Light> all = shadowMask(frame, light, options, {}, threads, search, inside);
-  for (int r = 0; r < tile.height; ++r) {
-    std::copy_n(all.begin() + static_cast<std::ptrdiff_t>(r + inside.row) * window.width + inside.col, tile.width,
-                out.begin() + static_cast<std::ptrdiff_t>(r) * tile.width);
-  }
-  return out;
+  return tileMask(windowOfTile(tile, {light}, bytes, window), tile, light, options, threads, search);
+}
+
+std::vector<Light> ShadowTiles::maskFromHeights(const CellWindow& window, std::vector<double> heights, const CellWindow& tile,
+                                                const Eigen::Vector3d& light, const IndexOptions& options, unsigned threads,
+                                                ShadowSearch search) const {
+  return tileMask(givenWindow(window, std::move(heights), tile, {light}), tile, light, options, threads, search);
 }
 
 std::vector<Eigen::Vector3d> ShadowTiles::sunlightSteps(double startJulianDay, double endJulianDay, double stepHours,
@@ -329,11 +400,9 @@ std::vector<Eigen::Vector3d> ShadowTiles::sunlightSteps(double startJulianDay, d
   return out;
 }
 
-SunlightHours ShadowTiles::hours(const CellWindow& tile, double startJulianDay, double endJulianDay, double stepHours,
-                                 const std::vector<Eigen::Vector3d>& lights, const IndexOptions& options,
-                                 ShadowSearch search, std::uint64_t bytes) const {
-  CellWindow window;
-  const LocalFrame frame = windowOfTile(tile, lights, bytes, window);
+SunlightHours ShadowTiles::tileHours(const LocalFrame& frame, const CellWindow& tile, double startJulianDay,
+                                     double endJulianDay, double stepHours, const IndexOptions& options,
+                                     ShadowSearch search) const {
   if (frame.cellCount() == 0) {  // no data: no hours (sunlightHours's zeros), its steps counted alike
     SunlightHours none;
     none.elapsedHours = (endJulianDay - startJulianDay) * 24.0;
@@ -341,21 +410,148 @@ SunlightHours ShadowTiles::hours(const CellWindow& tile, double startJulianDay, 
     none.hours.assign(tile.cellCount(), 0.0);
     return none;
   }
-  // Every step the window's own sunlightHours computes is among `lights` when its slack is
-  // within the bound they were chosen with.
-  if (frame.horizonSlack() > slack_ + 1e-9 && frame.body.ellipsoid) {
-    throw Error(basis_.raster.path + ": the horizon slack of cells " + cells(window) + " exceeds the raster's bound");
+  // Every step the window's own sunlightHours computes is among the halo's lights when its slack
+  // is within the bound they were chosen with.
+  if (frame.body.ellipsoid && frame.horizonSlack() > slack_ + 1e-9) {
+    throw Error(basis_.raster.path + ": the horizon slack of cells " + cells(frame.window) + " exceeds the raster's bound");
   }
+  const CellWindow& window = frame.window;
   const CellWindow inside{tile.col - window.col, tile.row - window.row, tile.width, tile.height};
   SunlightHours all = sunlightHours(frame, basis_.raster.path, startJulianDay, endJulianDay, stepHours, options, {},
                                     search, inside);
-  std::vector<double> out(tile.cellCount());
-  for (int r = 0; r < tile.height; ++r) {
-    std::copy_n(all.hours.begin() + static_cast<std::ptrdiff_t>(r + inside.row) * window.width + inside.col, tile.width,
-                out.begin() + static_cast<std::ptrdiff_t>(r) * tile.width);
-  }
-  all.hours = std::move(out);
+  all.hours = crop(all.hours, CellWindow{0, 0, window.width, window.height}, inside);
   return all;
+}
+
+SunlightHours ShadowTiles::hours(const CellWindow& tile, double startJulianDay, double endJulianDay, double stepHours,
+                                 const std::vector<Eigen::Vector3d>& lights, const IndexOptions& options,
+                                 ShadowSearch search, std::uint64_t bytes) const {
+  CellWindow window;
+  return tileHours(windowOfTile(tile, lights, bytes, window), tile, startJulianDay, endJulianDay, stepHours, options, search);
+}
+
+SunlightHours ShadowTiles::hoursFromHeights(const CellWindow& window, std::vector<double> heights, const CellWindow& tile,
+                                            double startJulianDay, double endJulianDay, double stepHours,
+                                            const std::vector<Eigen::Vector3d>& lights, const IndexOptions& options,
+                                            ShadowSearch search) const {
+  return tileHours(givenWindow(window, std::move(heights), tile, lights), tile, startJulianDay, endJulianDay, stepHours,
+                   options, search);
+}
+
+std::array<int, 4> ShadowTiles::haloFor(int tileWidth, int tileHeight, const std::vector<Eigen::Vector3d>& lights) const {
+  const LocalFrame& f = basis_.shared;
+  const int w = basis_.raster.width, h = basis_.raster.height;
+  std::array<int, 4> out{0, 0, 0, 0};
+  const int tw = std::min(tileWidth, w), th = std::min(tileHeight, h);
+  // Unclipped by the raster's edges: the tile's halo as if the raster went on, at the centre and
+  // the corners (on an ellipsoid the pixels' size changes across the raster).
+  for (const auto& [c, r] : {std::pair{0.5, 0.5}, std::pair{0.0, 0.0}, std::pair{1.0, 0.0}, std::pair{0.0, 1.0},
+                             std::pair{1.0, 1.0}}) {
+    const CellWindow tile{static_cast<int>(c * (w - tw)), static_cast<int>(r * (h - th)), tw, th};
+    double lowest = f.minHeight;
+    if (f.body.ellipsoid) {
+      const Local l = localAt(basis_, tile.col, tile.row);
+      const double across = std::max(tw, th) * (l.east.norm() + l.south.norm());
+      lowest -= 1.5 * across * across / (2 * f.body.b * f.body.b / f.body.a);
+    }
+    const std::array<int, 4> one = reach(tile, lights, lowest);
+    for (int k = 0; k < 4; ++k) out[k] = std::max(out[k], one[k]);
+  }
+  return out;
+}
+
+namespace {
+
+// state()'s text: one "name value" a line; numbers in hexadecimal floating point (every bit), text
+// as its length and its bytes.
+struct StateWriter {
+  std::ostringstream out;
+  void number(const char* name, double v) {
+    char buffer[64];
+    const auto end = std::to_chars(buffer, buffer + sizeof buffer, v, std::chars_format::hex).ptr;
+    out << name << ' ' << std::string(buffer, end) << '\n';
+  }
+  void text(const char* name, const std::string& v) { out << name << ' ' << v.size() << ' ' << v << '\n'; }
+};
+
+struct StateReader {
+  std::istringstream in;
+  std::string expect(const char* name) {
+    std::string got;
+    if (!(in >> got) || got != name) throw Error(std::string("a shadow tiles state without its '") + name + "'");
+    in.get();
+    return got;
+  }
+  double number(const char* name) {
+    expect(name);
+    std::string word;
+    in >> word;
+    double v = 0;
+    const auto [end, ec] = std::from_chars(word.data(), word.data() + word.size(), v, std::chars_format::hex);
+    if (ec != std::errc() || end != word.data() + word.size()) {
+      throw Error(std::string("a shadow tiles state with '") + name + "' not a number: " + word);
+    }
+    return v;
+  }
+  std::string text(const char* name) {
+    expect(name);
+    std::size_t n = 0;
+    if (!(in >> n) || n > (1u << 24)) throw Error(std::string("a shadow tiles state with a bad '") + name + "'");
+    in.get();
+    std::string v(n, '\0');
+    if (!in.read(v.data(), static_cast<std::streamsize>(n))) throw Error(std::string("a shadow tiles state cut in '") + name + "'");
+    return v;
+  }
+};
+
+}  // namespace
+
+std::string ShadowTiles::state() const {
+  StateWriter w;
+  w.out << "qota-shadow-tiles 1\n";
+  const DemTerrain& d = basis_.raster;
+  const LocalFrame& f = basis_.shared;
+  w.text("path", d.path);
+  w.number("width", d.width), w.number("height", d.height);
+  for (double g : d.geotransform) w.number("gt", g);
+  w.text("crs", d.crsWkt);
+  w.text("unit", d.verticalUnit.name);
+  w.number("metresPerUnit", d.verticalUnit.metresPerUnit);
+  w.number("flat", basis_.options.flat), w.number("pixelSize", basis_.options.pixelSize);
+  w.number("zFactor", basis_.options.zFactor), w.number("scale", basis_.options.scale);
+  w.number("minHeight", f.minHeight), w.number("maxHeight", f.maxHeight);
+  w.number("pixelSizeX", f.pixelSizeX), w.number("pixelSizeY", f.pixelSizeY);
+  w.number("lowest", f.body.lowest), w.number("winding", f.gridWinding);
+  w.number("slack", slack_), w.number("validCells", static_cast<double>(validCells_));
+  return w.out.str();
+}
+
+ShadowTiles ShadowTiles::restore(const std::string& state) {
+  StateReader r{std::istringstream(state)};
+  std::string magic;
+  int version = 0;
+  if (!(r.in >> magic >> version) || magic != "qota-shadow-tiles" || version != 1) {
+    throw Error("not a shadow tiles state of this version of qota");
+  }
+  DemTerrain d;
+  d.path = r.text("path");
+  d.width = static_cast<int>(r.number("width")), d.height = static_cast<int>(r.number("height"));
+  for (double& g : d.geotransform) g = r.number("gt");
+  d.crsWkt = r.text("crs");
+  d.verticalUnit.name = r.text("unit");
+  d.verticalUnit.metresPerUnit = r.number("metresPerUnit");
+  FrameOptions o;
+  o.flat = r.number("flat") != 0, o.pixelSize = r.number("pixelSize");
+  o.zFactor = r.number("zFactor"), o.scale = r.number("scale");
+  ShadowTiles t;
+  t.basis_ = frameBasis(d, o);
+  LocalFrame& f = t.basis_.shared;
+  f.minHeight = r.number("minHeight"), f.maxHeight = r.number("maxHeight");
+  f.pixelSizeX = r.number("pixelSizeX"), f.pixelSizeY = r.number("pixelSizeY");
+  f.body.lowest = r.number("lowest"), f.gridWinding = static_cast<int>(r.number("winding"));
+  t.slack_ = r.number("slack"), t.validCells_ = static_cast<std::uint64_t>(r.number("validCells"));
+  t.basis_.complete = true;
+  return t;
 }
 
 }  // namespace qota

@@ -34,6 +34,7 @@
 #include <Eigen/Core>
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -50,11 +51,23 @@ class ShadowTiles {
   // Opens the raster and reads it once, by rows, for what every window shares: the height range
   // and the frame's centre (frameBasis, completeBasis). progress: that pass's fraction.
   ShadowTiles(const std::string& path, const DemOptions& dem, const FrameOptions& frame, const Progress& progress = {});
+  // Heights of a window of the raster, as DemWindows reads them: row-major, in the raster's unit
+  // (scale and offset applied), NaN where there is no data.
+  using HeightReader = std::function<void(const CellWindow& window, std::vector<double>& heights)>;
+  // The same from any source of heights (a Dask array, ...); description: the raster's size,
+  // geotransform, CRS, vertical unit and path (for messages), as describeDem gives them. `read`
+  // may be called from one thread at a time only.
+  ShadowTiles(const DemTerrain& description, HeightReader read, const FrameOptions& frame, const Progress& progress = {});
+  // Text that makes the same tiles in another process (restore), without reading the raster
+  // again: the description, the frame's options and what the pass over the heights found, the
+  // numbers bit for bit. Tiles restored have no source: only the ...FromHeights calls.
+  std::string state() const;
+  static ShadowTiles restore(const std::string& state);
   ~ShadowTiles();
-  ShadowTiles(const ShadowTiles&) = delete;
-  ShadowTiles& operator=(const ShadowTiles&) = delete;
+  ShadowTiles(ShadowTiles&&) noexcept;
+  ShadowTiles& operator=(ShadowTiles&&) noexcept;
 
-  const DemTerrain& dem() const;
+  const DemTerrain& dem() const { return basis_.raster; }
   const FrameBasis& basis() const { return basis_; }
   // The whole raster's frame without its cells: description, centre, body, heights, pixel size,
   // towardSun and horizonSlack's inputs.
@@ -94,19 +107,47 @@ class ShadowTiles {
   // raster's, or larger).
   std::vector<Eigen::Vector3d> sunlightSteps(double startJulianDay, double endJulianDay, double stepHours,
                                              double slack) const;
+  // mask and hours from heights given instead of read: `window` (and its heights, as HeightReader
+  // gives them) must hold the tile and its halo, and enough around its voids to fill them as over
+  // the whole raster (see above); else qota::Error says what it lacks. For Dask: `window` is a
+  // block with its overlap (at least haloFor's), `tile` the block.
+  std::vector<Light> maskFromHeights(const CellWindow& window, std::vector<double> heights, const CellWindow& tile,
+                                     const Eigen::Vector3d& light, const IndexOptions& options = {},
+                                     unsigned threads = 0, ShadowSearch search = ShadowSearch::Strips) const;
+  SunlightHours hoursFromHeights(const CellWindow& window, std::vector<double> heights, const CellWindow& tile,
+                                 double startJulianDay, double endJulianDay, double stepHours,
+                                 const std::vector<Eigen::Vector3d>& lights, const IndexOptions& options = {},
+                                 ShadowSearch search = ShadowSearch::Strips) const;
+  // The most halo any tile of this size (at most; tiles at the raster's edges are smaller) needs
+  // under these lights, per side (west, east, north, south): an overlap for blocks of that size.
+  std::array<int, 4> haloFor(int tileWidth, int tileHeight, const std::vector<Eigen::Vector3d>& lights) const;
+
   // A bound on the whole raster's LocalFrame::horizonSlack, from its outermost cells (the tilt
   // between the centre's up and a cell's is largest on the raster's rim), without reading it all.
   double horizonSlack() const { return slack_; }
 
  private:
-  struct Open;
+  struct Source;
+  ShadowTiles() = default;
+  void passOverHeights(const Progress& progress);
   // The filled heights (metres) and validity of `window`, equal to the whole raster's fill there.
   void readFilled(const CellWindow& window, std::vector<double>& heights, std::vector<std::uint8_t>& valid,
                   std::uint64_t bytes) const;
+  // The tile's lowest valid cell above its centre's tangent plane (+inf for none); heights in
+  // metres, valid per cell.
+  double lowestOf(const CellWindow& tile, std::vector<double> heights, const std::vector<std::uint8_t>& valid) const;
   LocalFrame windowOfTile(const CellWindow& tile, const std::vector<Eigen::Vector3d>& lights, std::uint64_t bytes,
                           CellWindow& window) const;
+  // The frame of a window given whole (...FromHeights), checked to hold the tile's halo and fill;
+  // an empty frame for a tile without data.
+  // halo before clipping to the raster.
+  std::array<int, 4> reach(const CellWindow& tile, const std::vector<Eigen::Vector3d>& lights, double tileLowest) const;
+  SunlightHours tileHours(const LocalFrame& frame, const CellWindow& tile, double startJulianDay, double endJulianDay,
+                          double stepHours, const IndexOptions& options, ShadowSearch search) const;
+  LocalFrame givenWindow(const CellWindow& window, std::vector<double> heights, const CellWindow& tile,
+                         const std::vector<Eigen::Vector3d>& lights) const;
 
-  std::unique_ptr<Open> open_;
+  std::unique_ptr<Source> source_;
   FrameBasis basis_;
   std::uint64_t validCells_ = 0;
   double slack_ = 0;
