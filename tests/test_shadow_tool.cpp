@@ -57,8 +57,10 @@ double usnoAltitude(double julianDayUT, double lon, double lat) {
 }
 
 // A crop of a raster written as its own GeoTIFF (columns c0 .. c1 - 1, rows r0 .. r1 - 1).
-std::string crop(const RasterValues& r, const std::string& crs, int c0, int c1, int r0, int r1, const std::string& name) {
+std::string crop(const RasterValues& r, const std::string& crs, int c0, int c1, int r0, int r1, const std::string& name,
+                 std::optional<double> nodata = std::nullopt) {
   RasterSpec s;
+  s.nodata = nodata;
   s.width = c1 - c0, s.height = r1 - r0;
   s.geotransform = r.geotransform;
   s.geotransform[0] += c0 * r.geotransform[1];
@@ -429,6 +431,138 @@ TEST(ShadowTool, TinyAltitudePrintsNumbers) {
   ASSERT_EQ(run.code, 0) << run.err;
   for (char ch : run.out) EXPECT_TRUE(ch == '\n' || (ch >= 32 && ch < 127)) << static_cast<int>(ch);
   EXPECT_TRUE(std::regex_search(run.out, std::regex("shadow reach: [0-9.]+e\\+[0-9]+ m"))) << run.out;
+}
+
+// By tiles: every cell as the whole raster's run, the mask and the hours, for tile sizes that do
+// and do not divide the raster, with the DEM's own voids across tile edges.
+TEST(ShadowTool, TilesEqualTheWholeRaster) {
+  const RasterValues rainier = qota::test::readRaster(QOTA_DATA_DIR "/mt_rainier_90m.tif");
+  const std::string dem = crop(rainier, "EPSG:4326", 380, 700, 420, 690, "tool_tiles_dem.tif", -32768);
+  for (const auto& [azimuth, altitude] : std::vector<std::pair<double, double>>{{315, 7}, {140, 40}}) {
+    ShadowOptions whole = options(dem, "tool_tiles_whole.tif");
+    whole.azimuth = azimuth, whole.altitude = altitude;
+    ASSERT_EQ(shadow(whole).code, 0);
+    const RasterValues expected = qota::test::readRaster(whole.output);
+    for (int side : {64, 128, 320}) {
+      ShadowOptions tiled = whole;
+      tiled.output = scratchPath("tool_tiles_tiled.tif").string();
+      tiled.tileSize = side;
+      const ShadowRun run = shadow(tiled);
+      ASSERT_EQ(run.code, 0) << run.err;
+      const RasterValues got = qota::test::readRaster(tiled.output);
+      ASSERT_EQ(got.values.size(), expected.values.size());
+      EXPECT_EQ(got.geotransform, expected.geotransform);
+      EXPECT_TRUE(got.values == expected.values) << azimuth << "/" << altitude << ", tiles of " << side;
+    }
+  }
+  ShadowOptions whole = options(dem, "tool_tiles_hours_whole.tif");
+  whole.time = "2024-06-21";
+  whole.tz = "America/Los_Angeles";
+  whole.hours = std::array<double, 3>{6, 20, 2};
+  ASSERT_EQ(shadow(whole).code, 0);
+  ShadowOptions tiled = whole;
+  tiled.output = scratchPath("tool_tiles_hours_tiled.tif").string();
+  tiled.tileSize = 96;
+  const ShadowRun run = shadow(tiled);
+  ASSERT_EQ(run.code, 0) << run.err;
+  EXPECT_TRUE(qota::test::readRaster(tiled.output).values == qota::test::readRaster(whole.output).values);
+}
+
+// One tile per run (for a batch scheduler), assembled: the whole raster's values, as a GeoTIFF
+// and as a VRT; a missing tile, a tile twice and a tile off the grid are errors naming them.
+TEST(ShadowTool, TilesForBatchSchedulersAssemble) {
+  const RasterValues rainier = qota::test::readRaster(QOTA_DATA_DIR "/mt_rainier_90m.tif");
+  const std::string dem = crop(rainier, "EPSG:4326", 400, 610, 450, 630, "tool_batch_dem.tif", -32768);
+  ShadowOptions whole = options(dem, "tool_batch_whole.tif");
+  whole.azimuth = 250, whole.altitude = 12;
+  ASSERT_EQ(shadow(whole).code, 0);
+  const RasterValues expected = qota::test::readRaster(whole.output);
+  std::vector<std::string> tiles;
+  for (int row = 0; row < 3; ++row) {
+    for (int col = 0; col < 4; ++col) {
+      ShadowOptions one = whole;
+      one.output = scratchPath("tool_batch_" + std::to_string(col) + "_" + std::to_string(row) + ".tif").string();
+      one.tileSize = 64;
+      one.tile = std::array<int, 2>{col, row};
+      const ShadowRun run = shadow(one);
+      ASSERT_EQ(run.code, 0) << run.err;
+      tiles.push_back(one.output);
+    }
+  }
+  const auto assemble = [](const std::vector<std::string>& from, const std::string& to) {
+    qota::tools::AssembleOptions a;
+    a.tiles = from;
+    a.output = scratchPath(to).string();
+    a.quiet = true;
+    std::ostringstream out, err;
+    const int code = qota::tools::assemble(a, out, err);
+    return ShadowRun{code, out.str(), err.str()};
+  };
+  for (const char* name : {"tool_batch_all.tif", "tool_batch_all.vrt"}) {
+    const ShadowRun run = assemble(tiles, name);
+    ASSERT_EQ(run.code, 0) << run.err;
+    const RasterValues got = qota::test::readRaster(scratchPath(name).string());
+    EXPECT_EQ(got.geotransform, expected.geotransform) << name;
+    EXPECT_TRUE(got.values == expected.values) << name;
+  }
+  // Tile 3,2 missing: named, nothing written.
+  std::vector<std::string> some(tiles.begin(), tiles.end() - 1);
+  std::filesystem::remove(scratchPath("tool_batch_missing.tif"));
+  ShadowRun run = assemble(some, "tool_batch_missing.tif");
+  EXPECT_EQ(run.code, 2);
+  EXPECT_NE(run.err.find("--tile 3,2"), std::string::npos) << run.err;
+  EXPECT_FALSE(std::filesystem::exists(scratchPath("tool_batch_missing.tif")));
+  some.push_back(tiles[0]);
+  run = assemble(some, "tool_batch_twice.tif");
+  EXPECT_NE(run.err.find("given twice"), std::string::npos) << run.err;
+  // A tile from another run (another tile grid), and one past the grid's end.
+  ShadowOptions other = whole;
+  other.output = scratchPath("tool_batch_other.tif").string();
+  other.tileSize = 32;
+  other.tile = std::array<int, 2>{0, 0};
+  ASSERT_EQ(shadow(other).code, 0);
+  some = tiles;
+  some[0] = other.output;
+  run = assemble(some, "tool_batch_other_all.tif");
+  EXPECT_NE(run.err.find("from another run"), std::string::npos) << run.err;
+  other.tile = std::array<int, 2>{7, 0};
+  run = shadow(other);
+  EXPECT_EQ(run.code, 2);
+  EXPECT_NE(run.err.find("columns 0..6"), std::string::npos) << run.err;
+}
+
+TEST(ShadowTool, MemoryLimitsAndTileOptionsAreChecked) {
+  ShadowOptions o = options(QOTA_DATA_DIR "/mt_rainier_90m.tif", "tool_memory.tif");
+  o.altitude = 20;
+  o.maxMemory = 100ull << 20;  // less than the process and GDAL's cache
+  ShadowRun run = shadow(o);
+  EXPECT_EQ(run.code, 2);
+  EXPECT_NE(run.err.find("allow more"), std::string::npos) << run.err;
+  // A budget the whole raster does not fit in: by tiles, within it.
+  o.maxMemory = 300ull << 20;
+  o.quiet = false;
+  run = shadow(o);
+  ASSERT_EQ(run.code, 0) << run.err;
+  EXPECT_NE(run.out.find("by tiles"), std::string::npos) << run.out;
+  o.quiet = true;
+  o.maxMemory = 0;
+  o.tileSize = 100;  // not a multiple of 16
+  EXPECT_NE(shadow(o).err.find("multiple of 16"), std::string::npos);
+  o.tileSize = 0;
+  o.tile = std::array<int, 2>{0, 0};
+  EXPECT_NE(shadow(o).err.find("needs --tile-size"), std::string::npos);
+  o.tile.reset();
+  o.tileSize = 256;
+  o.png = scratchPath("tool_memory.png").string();
+  EXPECT_NE(shadow(o).err.find("--png"), std::string::npos);
+  o.png.clear();
+  o.format = "PNG";
+  EXPECT_NE(shadow(o).err.find("GeoTIFF"), std::string::npos);
+  EXPECT_EQ(qota::tools::parseByteSize("64M"), 64ull << 20);
+  EXPECT_EQ(qota::tools::parseByteSize("1.5GiB"), 3ull << 29);
+  EXPECT_EQ(qota::tools::parseByteSize("2g"), 2ull << 30);
+  EXPECT_EQ(qota::tools::parseByteSize("300000"), 300000u);
+  for (const char* bad : {"", "2X", "-1G", "G", "nan", "1e30T"}) EXPECT_THROW(qota::tools::parseByteSize(bad), qota::Error) << bad;
 }
 
 }  // namespace

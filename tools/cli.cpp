@@ -153,6 +153,20 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
       ->capture_default_str();
   shadowCmd->add_option("--nodata-value", shadow.nodataValue, "Output value (and nodata) of cells without data")
       ->capture_default_str();
+  std::string maxMemory;
+  shadowCmd->add_option("--max-memory", maxMemory,
+                        "Memory the run may take (64M, 2G...); a raster whose whole shadow would not fit "
+                        "is shadowed by tiles with halos (the same values), streamed into a tiled GeoTIFF "
+                        "or COG. Default: three quarters of the memory available");
+  shadowCmd->add_option("--tile-size", shadow.tileSize,
+                        "Shadow by tiles of N x N cells (a multiple of 16), whatever the raster's size")
+      ->check(CLI::Range(16, 1 << 20));
+  std::vector<int> tileAt;
+  shadowCmd->add_option("--tile", tileAt,
+                        "Compute only tile COL,ROW (from 0) of the --tile-size grid, with its halo, as a "
+                        "raster of its own (for batch schedulers; qota assemble joins the tiles)")
+      ->delimiter(',')
+      ->expected(2);
   addTreeOptions(shadowCmd, shadow.terrain);
   shadowCmd
       ->add_option("--search", shadow.search,
@@ -163,6 +177,18 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
           std::map<std::string, qota::ShadowSearch>{{"strips", qota::ShadowSearch::Strips},
                                                     {"quadtree", qota::ShadowSearch::Quadtree}},
           CLI::ignore_case));
+
+  AssembleOptions assembleOptions;
+  CLI::App* assembleCmd = app.add_subcommand(
+      "assemble",
+      "Join tiles (qota shadow --tile runs, or any one-band rasters on one grid) into one raster: "
+      "a GeoTIFF or COG written a tile at a time, or a VRT pointing at them. Refuses tiles on "
+      "other grids, overlapping, or missing from their run (named), rather than leave a hole.");
+  assembleCmd->add_option("tiles", assembleOptions.tiles, "The tiles")->required();
+  assembleCmd->add_option("-o,--output", assembleOptions.output, "Output raster (.tif, .vrt)")->required();
+  assembleCmd->add_option("--of", assembleOptions.format, "GTiff, COG or VRT; default: from the extension");
+  assembleCmd->add_option("--co", assembleOptions.creationOptions, "Creation option NAME=VALUE (-co), repeatable");
+  assembleCmd->add_flag("-q,--quiet", assembleOptions.quiet, "No progress or summary");
 
   BuildOptions build;
   CLI::App* buildCmd = app.add_subcommand(
@@ -222,8 +248,18 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
   if (*shadowCmd) {
     if (!sunVector.empty()) shadow.sunVector = Eigen::Vector3d(sunVector[0], sunVector[1], sunVector[2]);
     if (!hours.empty()) shadow.hours = std::array<double, 3>{hours[0], hours[1], hours[2]};
+    if (!tileAt.empty()) shadow.tile = std::array<int, 2>{tileAt[0], tileAt[1]};
+    if (!maxMemory.empty()) {
+      try {
+        shadow.maxMemory = parseByteSize(maxMemory);
+      } catch (const std::exception& e) {
+        err << "qota shadow: --max-memory " << e.what() << '\n';
+        return 2;
+      }
+    }
     return qota::tools::shadow(shadow, out, err);
   }
+  if (*assembleCmd) return tools::assemble(assembleOptions, out, err);
   if (*renderTreeCmd) return tools::renderTree(renderTree, out, err);
   return 2;
 }

@@ -107,8 +107,35 @@ struct ShadowOptions {
   int litValue = 255, shadowValue = 0, nodataValue = 128;
   IndexOptions terrain;
   ShadowSearch search = ShadowSearch::Strips;  // how the occluders are found (same mask)
+  // By tiles (qota/shadow_tiles.hpp; the same values as the whole raster's): memory bounded by
+  // maxMemory bytes (0: three quarters of what is available), output streamed into a tiled
+  // GeoTIFF or COG. Taken when the whole raster does not fit, or when tileSize is given: tiles
+  // of tileSize cells a side (0: the largest that fit), a multiple of 16. tile: only this tile
+  // (column, row of the tile grid, from 0), written as a raster of its own, for batch
+  // schedulers; qota assemble joins such tiles.
+  std::uint64_t maxMemory = 0;
+  int tileSize = 0;
+  std::optional<std::array<int, 2>> tile;
 };
 int shadow(const ShadowOptions& options, std::ostream& out, std::ostream& err);
+
+// qota assemble: tiles written by `qota shadow --tile` (or any rasters on one grid) joined into
+// one raster: a GeoTIFF or COG streamed a tile at a time, or a VRT that points at the tiles. The
+// tiles must share CRS, pixel size, data type and nodata, lie on one grid without overlapping,
+// and (for qota's tiles, which say so in their metadata) be every tile of their run: a missing
+// tile is an error naming it, never a hole. Exit code 0 on success, 2 on error.
+struct AssembleOptions {
+  std::vector<std::string> tiles;
+  std::string output;
+  std::string format;                        // GTiff, COG or VRT; empty: from the extension
+  std::vector<std::string> creationOptions;  // NAME=VALUE
+  bool quiet = false;
+};
+int assemble(const AssembleOptions& options, std::ostream& out, std::ostream& err);
+
+// "64M", "2G", "1.5GiB", "300000000": bytes (K, M, G, T are powers of 1024). Throws qota::Error
+// naming the text.
+std::uint64_t parseByteSize(const std::string& text);
 
 // qota render-tree: a picture of the QOTA quadtree over a DEM (the paper's Figure 4), as a grey
 // PNG on the raster's own pixel grid scaled to `size` pixels on the long side (north up for a

@@ -87,4 +87,95 @@ void writeRaster(const RasterWrite& w, const DemTerrain& grid, const std::vector
   }
 }
 
+struct StreamedRaster::Open {
+  std::filesystem::path staged, tiff;  // tiff: the GeoTIFF written (staged itself unless COG)
+  std::unique_ptr<GDALDataset> ds;
+  GDALRasterBand* band = nullptr;
+  GDALDataType type = GDT_Byte;
+  bool cog = false;
+  detail::GdalErrorLog errors;
+};
+
+StreamedRaster::StreamedRaster(const RasterWrite& w, const Grid& grid, OutputStage& stage)
+    : w_(w), open_(std::make_unique<Open>()) {
+  ensureGdalRegistered();
+  const std::string format = w.format.empty() ? driverForPath(w.path) : w.format;
+  if (format != "GTiff" && format != "COG") {
+    throw Error(w.path + ": a raster written by tiles is a GeoTIFF (GTiff) or a cloud-optimized GeoTIFF (COG), not " +
+                format);
+  }
+  if (grid.blockSize < 16 || grid.blockSize % 16 != 0) {
+    throw Error(w.path + ": blocks of " + std::to_string(grid.blockSize) + " cells; a GeoTIFF's are a multiple of 16");
+  }
+  Open& o = *open_;
+  o.cog = format == "COG";
+  o.type = w.byteData ? GDT_Byte : GDT_Float32;
+  o.staged = stage.stage(w.path);
+  o.tiff = o.cog ? std::filesystem::path(o.staged.string() + ".tiles.tif") : o.staged;
+  const std::uint64_t bytes = static_cast<std::uint64_t>(grid.width) * grid.height * (w.byteData ? 1 : 4);
+  CPLStringList co;
+  co.SetNameValue("TILED", "YES");
+  co.SetNameValue("BLOCKXSIZE", std::to_string(grid.blockSize).c_str());
+  co.SetNameValue("BLOCKYSIZE", std::to_string(grid.blockSize).c_str());
+  co.SetNameValue("COMPRESS", "DEFLATE");
+  co.SetNameValue("BIGTIFF", bytes > (3ull << 30) ? "YES" : "IF_SAFER");
+  if (!o.cog) {
+    for (const auto& option : w.creationOptions) {
+      const auto eq = option.find('=');
+      if (eq == std::string::npos) throw Error("-co " + option + ": expected NAME=VALUE");
+      co.SetNameValue(option.substr(0, eq).c_str(), option.substr(eq + 1).c_str());
+    }
+  }
+  GDALDriver* gtiff = GetGDALDriverManager()->GetDriverByName("GTiff");
+  o.ds.reset(gtiff->Create(o.tiff.c_str(), grid.width, grid.height, 1, o.type, co.List()));
+  if (!o.ds) throw Error(w.path + ": cannot create (" + o.errors.message() + ")");
+  double gt[6];
+  std::copy(grid.geotransform.begin(), grid.geotransform.end(), gt);
+  o.ds->SetGeoTransform(gt);
+  if (!grid.crsWkt.empty()) o.ds->SetProjection(grid.crsWkt.c_str());
+  for (const auto& [name, value] : grid.metadata) o.ds->SetMetadataItem(name.c_str(), value.c_str());
+  o.band = o.ds->GetRasterBand(1);
+  o.band->SetNoDataValue(w.nodata);
+}
+
+StreamedRaster::~StreamedRaster() = default;
+
+void StreamedRaster::write(int col, int row, int width, int height, const std::vector<double>& values) {
+  Open& o = *open_;
+  if (!o.band) throw Error(w_.path + ": written after it was finished");
+  if (values.size() != static_cast<std::size_t>(width) * height) throw Error(w_.path + ": a window of the wrong size");
+  if (o.band->RasterIO(GF_Write, col, row, width, height, const_cast<double*>(values.data()), width, height, GDT_Float64,
+                       0, 0) != CE_None ||
+      o.errors.failed()) {
+    throw Error(w_.path + ": cannot write (" + o.errors.message() + ")");
+  }
+}
+
+void StreamedRaster::finish() {
+  Open& o = *open_;
+  o.band = nullptr;
+  o.ds->FlushCache(true);
+  o.ds.reset();  // closes it: a failure shows in the error log
+  if (o.errors.failed()) throw Error(w_.path + ": cannot write (" + o.errors.message() + ")");
+  if (!o.cog) return;
+  std::unique_ptr<GDALDataset> tiles(GDALDataset::Open(o.tiff.c_str(), GDAL_OF_RASTER));
+  CPLStringList co;
+  co.SetNameValue("COMPRESS", "DEFLATE");
+  co.SetNameValue("BIGTIFF", "IF_SAFER");
+  for (const auto& option : w_.creationOptions) {
+    const auto eq = option.find('=');
+    if (eq == std::string::npos) throw Error("-co " + option + ": expected NAME=VALUE");
+    co.SetNameValue(option.substr(0, eq).c_str(), option.substr(eq + 1).c_str());
+  }
+  GDALDriver* cog = GetGDALDriverManager()->GetDriverByName("COG");
+  std::unique_ptr<GDALDataset> copy(
+      tiles ? cog->CreateCopy(o.staged.c_str(), tiles.get(), FALSE, co.List(), GDALDummyProgress, nullptr) : nullptr);
+  const bool made = copy != nullptr;
+  copy.reset();
+  tiles.reset();
+  std::error_code ec;
+  std::filesystem::remove(o.tiff, ec);
+  if (!made || o.errors.failed()) throw Error(w_.path + ": cannot write the COG (" + o.errors.message() + ")");
+}
+
 }  // namespace qota::tools

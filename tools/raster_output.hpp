@@ -4,8 +4,11 @@
 // raster, nor its sidecar files.
 #pragma once
 
+#include <array>
 #include <cstdint>
+#include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "qota/atomic_file.hpp"
@@ -28,5 +31,35 @@ struct RasterWrite {
   bool quiet = true;   // no progress on stdout
 };
 void writeRaster(const RasterWrite& w, const DemTerrain& grid, const std::vector<double>& values, OutputStage& stage);
+
+// One band written a window at a time, for rasters larger than memory: a tiled, DEFLATE-compressed
+// GeoTIFF (BIGTIFF when it may pass 4 GB) in blocks of `blockSize` (a multiple of 16; windows
+// aligned to it write each block once), staged like writeRaster. Format "COG": the GeoTIFF is
+// copied into a cloud-optimized GeoTIFF (with overviews) when finished, then removed. Only these
+// two formats. The caller's creation options come after (and so override) the defaults.
+class StreamedRaster {
+ public:
+  struct Grid {
+    int width = 0, height = 0;
+    std::array<double, 6> geotransform{0, 1, 0, 0, 0, 1};
+    std::string crsWkt;
+    int blockSize = 256;
+    std::vector<std::pair<std::string, std::string>> metadata;  // NAME, VALUE items of the dataset
+  };
+  StreamedRaster(const RasterWrite& w, const Grid& grid, OutputStage& stage);
+  ~StreamedRaster();
+  StreamedRaster(const StreamedRaster&) = delete;
+  StreamedRaster& operator=(const StreamedRaster&) = delete;
+  // Values of the cells [col, col + width) x [row, row + height), row-major.
+  void write(int col, int row, int width, int height, const std::vector<double>& values);
+  // Flushes and closes it (and makes the COG). Throws qota::Error naming the file on any error
+  // (a full disk shows here); the stage then holds nothing to commit.
+  void finish();
+
+ private:
+  struct Open;
+  RasterWrite w_;
+  std::unique_ptr<Open> open_;
+};
 
 }  // namespace qota::tools

@@ -12,12 +12,11 @@
 #include "qota/sunlight.hpp"
 #include "qota_tools.hpp"
 #include "raster_output.hpp"
+#include "shadow_parts.hpp"
 #include "text_output.hpp"
 
 namespace qota::tools {
-namespace {
 
-// GDAL's terminal progress ("0...10...20..."), scaled into [lo, hi] of the whole run.
 Progress termProgress(bool quiet, double lo, double hi) {
   if (quiet) return {};
   return [lo, hi](double done, const char* message) {
@@ -25,14 +24,13 @@ Progress termProgress(bool quiet, double lo, double hi) {
   };
 }
 
-struct LightChoice {
-  Eigen::Vector3d toward;    // unit, frame coordinates
-  std::string description;
-};
+namespace {
 
 int lightKinds(const ShadowOptions& o) {
   return (o.azimuth || o.altitude ? 1 : 0) + (o.sunVector ? 1 : 0) + (o.time.empty() ? 0 : 1);
 }
+
+}  // namespace
 
 LightChoice chooseLight(const ShadowOptions& o, const LocalFrame& frame, std::ostream& out) {
   if (o.sunVector) {
@@ -62,6 +60,23 @@ LightChoice chooseLight(const ShadowOptions& o, const LocalFrame& frame, std::os
   return {frame.towardSun(sun), "azimuth " + formatNumber(sun.azimuth, 3) + " deg, altitude " +
                                     formatNumber(sun.altitude, 3) + " deg (" + from + ")"};
 }
+
+LocalSpan hoursSpan(const ShadowOptions& o) {
+  // Hours of direct sunlight: the elapsed time between the local clock times START and END of
+  // the date, in steps of STEP hours; a cell lit at a step's middle counts the whole step.
+  const auto [start, end, step] = *o.hours;
+  if (!(start >= 0) || !(end > start) || !(end <= 48)) {
+    throw Error("--hours START END STEP: need 0 <= START < END <= 48 (hours after local midnight), got " +
+                formatNumber(start) + " " + formatNumber(end));
+  }
+  if (!(step >= 1.0 / 60) || !(step <= end - start)) {
+    throw Error("--hours STEP " + formatNumber(step) + ": need at least one minute (1/60 h) and at most "
+                "END - START (" + formatNumber(end - start) + " h)");
+  }
+  return localSpan(o.time, o.tz, start, end);
+}
+
+namespace {
 
 // A grey hillshade (Lambert under the same light) darkened where shadowed; nodata black.
 std::vector<double> preview(const LocalFrame& f, const Eigen::Vector3d& light,
@@ -101,6 +116,8 @@ bool sameFile(const std::string& a, const std::string& b) {
   return std::filesystem::weakly_canonical(a, ec) == std::filesystem::weakly_canonical(b, ec) && !ec;
 }
 
+}  // namespace
+
 // Everything that can be refused before any work: the light, the values, the outputs.
 void checkOptions(const ShadowOptions& o, const std::string& format) {
   if (o.output.empty()) throw Error("an output file is needed: -o OUT");
@@ -127,8 +144,6 @@ void checkOptions(const ShadowOptions& o, const std::string& format) {
   if (!o.png.empty() && sameFile(o.png, o.output)) throw Error("--png and -o name the same file");
 }
 
-}  // namespace
-
 int shadow(const ShadowOptions& o, std::ostream& out, std::ostream& err) {
   try {
     for (const std::string* path : {&o.output, &o.png}) {
@@ -136,6 +151,7 @@ int shadow(const ShadowOptions& o, std::ostream& out, std::ostream& err) {
     }
     const std::string format = o.output.empty() ? "" : o.format.empty() ? driverForPath(o.output) : o.format;
     checkOptions(o, format);
+    if (runsByTiles(o)) return shadowByTiles(o, format, out, err);
     DemOptions demOptions;
     demOptions.band = o.band;
     demOptions.lonLatAsCartesian = true;  // read as lon/lat: the frame puts it on its ellipsoid
@@ -164,18 +180,8 @@ int shadow(const ShadowOptions& o, std::ostream& out, std::ostream& err) {
     Eigen::Vector3d shownLight;
     std::vector<double> hoursLit;
     if (o.hours) {
-      // Hours of direct sunlight: the elapsed time between the local clock times START and END of
-      // the date, in steps of STEP hours; a cell lit at a step's middle counts the whole step.
-      const auto [start, end, step] = *o.hours;
-      if (!(start >= 0) || !(end > start) || !(end <= 48)) {
-        throw Error("--hours START END STEP: need 0 <= START < END <= 48 (hours after local midnight), got " +
-                    formatNumber(start) + " " + formatNumber(end));
-      }
-      if (!(step >= 1.0 / 60) || !(step <= end - start)) {
-        throw Error("--hours STEP " + formatNumber(step) + ": need at least one minute (1/60 h) and at most "
-                    "END - START (" + formatNumber(end - start) + " h)");
-      }
-      const LocalSpan span = localSpan(o.time, o.tz, start, end);
+      const double step = (*o.hours)[2];
+      const LocalSpan span = hoursSpan(o);
       const SunlightHours sunlight = sunlightHours(frame, o.source, span.start.julianDayUT, span.end.julianDayUT, step,
                                                    o.terrain, termProgress(o.quiet, 0, 1), o.search);
       hoursLit = sunlight.hours;

@@ -408,6 +408,7 @@ SunlightHours ShadowTiles::tileHours(const LocalFrame& frame, const CellWindow& 
     none.elapsedHours = (endJulianDay - startJulianDay) * 24.0;
     none.steps = static_cast<int>(std::ceil(none.elapsedHours / stepHours - 1e-9));
     none.hours.assign(tile.cellCount(), 0.0);
+    none.valid.assign(tile.cellCount(), 0);
     return none;
   }
   // Every step the window's own sunlightHours computes is among the halo's lights when its slack
@@ -420,6 +421,7 @@ SunlightHours ShadowTiles::tileHours(const LocalFrame& frame, const CellWindow& 
   SunlightHours all = sunlightHours(frame, basis_.raster.path, startJulianDay, endJulianDay, stepHours, options, {},
                                     search, inside);
   all.hours = crop(all.hours, CellWindow{0, 0, window.width, window.height}, inside);
+  all.valid = crop(frame.valid, CellWindow{0, 0, window.width, window.height}, inside);
   return all;
 }
 

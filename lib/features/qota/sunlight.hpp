@@ -1,6 +1,7 @@
 // Where the Sun is over a shadow frame, and hours of direct sunlight over part of a day.
 #pragma once
 
+#include <cstdint>
 #include <vector>
 
 #include "qota/shadow.hpp"
@@ -17,6 +18,7 @@ struct SunlightHours {
   std::vector<double> hours;  // per cell: hours of direct sunlight (0 where there is no data)
   int steps = 0;              // masks computed, night steps skipped included
   double elapsedHours = 0;    // the span's length
+  std::vector<std::uint8_t> valid;  // per cell of hours: it has data (filled by ShadowTiles only)
 };
 
 // Hours of direct sunlight between two instants (Julian days, UT), in steps of `stepHours`

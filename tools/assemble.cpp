@@ -1,0 +1,258 @@
+// qota assemble: tiles on one grid joined into one raster (see qota_tools.hpp).
+#include <gdal_priv.h>
+#include <gdal_utils.h>
+#include <ogr_spatialref.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <iostream>
+#include <map>
+#include <set>
+
+#include "gdal_errors.hpp"
+#include "qota_tools.hpp"
+#include "qota/error.hpp"
+#include "raster_output.hpp"
+#include "text_output.hpp"
+
+namespace qota::tools {
+namespace {
+
+struct Tile {
+  std::string path;
+  int width = 0, height = 0;
+  std::array<double, 6> gt{};
+  std::string crs;
+  GDALDataType type = GDT_Unknown;
+  std::optional<double> nodata;
+  std::map<std::string, std::string> qota;  // its QOTA_* metadata
+  long long col = 0, row = 0;                // its place on the first tile's grid
+};
+
+Tile describe(const std::string& path) {
+  std::unique_ptr<GDALDataset> ds(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER));
+  if (!ds) throw Error(path + ": cannot open as a raster");
+  if (ds->GetRasterCount() != 1) {
+    throw Error(path + ": " + std::to_string(ds->GetRasterCount()) + " bands; tiles have one");
+  }
+  Tile t;
+  t.path = path;
+  t.width = ds->GetRasterXSize(), t.height = ds->GetRasterYSize();
+  if (ds->GetGeoTransform(t.gt.data()) != CE_None) throw Error(path + ": no geotransform: its place is unknown");
+  if (const OGRSpatialReference* srs = ds->GetSpatialRef()) {
+    char* wkt = nullptr;
+    srs->exportToWkt(&wkt);
+    t.crs = wkt ? wkt : "";
+    CPLFree(wkt);
+  }
+  GDALRasterBand* band = ds->GetRasterBand(1);
+  t.type = band->GetRasterDataType();
+  int has = 0;
+  const double nodata = band->GetNoDataValue(&has);
+  if (has) t.nodata = nodata;
+  for (const char* key : {"QOTA_RASTER_SIZE", "QOTA_TILE_SIZE", "QOTA_TILES", "QOTA_SOURCE", "QOTA_TILE"}) {
+    if (const char* v = ds->GetMetadataItem(key)) t.qota[key] = v;
+  }
+  return t;
+}
+
+bool sameCrs(const std::string& a, const std::string& b) {
+  if (a.empty() || b.empty()) return a.empty() && b.empty();
+  OGRSpatialReference x, y;
+  return x.importFromWkt(a.c_str()) == OGRERR_NONE && y.importFromWkt(b.c_str()) == OGRERR_NONE && x.IsSame(&y);
+}
+
+// Places every tile on the first one's grid, or says why it is not on it.
+void place(std::vector<Tile>& tiles) {
+  const Tile& first = tiles.front();
+  const auto& g = first.gt;
+  const double det = g[1] * g[5] - g[2] * g[4];
+  if (det == 0) throw Error(first.path + ": a geotransform without area");
+  for (Tile& t : tiles) {
+    if (!sameCrs(t.crs, first.crs)) throw Error(t.path + ": its CRS is not " + first.path + "'s");
+    for (int k : {1, 2, 4, 5}) {
+      if (std::fabs(t.gt[k] - g[k]) > 1e-9 * std::max(std::fabs(g[1]), std::fabs(g[5]))) {
+        throw Error(t.path + ": its pixel size or rotation differs from " + first.path + "'s");
+      }
+    }
+    if (t.type != first.type) throw Error(t.path + ": its data type differs from " + first.path + "'s");
+    if (t.nodata != first.nodata) throw Error(t.path + ": its nodata value differs from " + first.path + "'s");
+    // The origin's offset in the first tile's pixels: whole numbers on one grid.
+    const double dx = t.gt[0] - g[0], dy = t.gt[3] - g[3];
+    const double c = (g[5] * dx - g[2] * dy) / det, r = (-g[4] * dx + g[1] * dy) / det;
+    t.col = std::llround(c), t.row = std::llround(r);
+    if (std::fabs(c - t.col) > 1e-6 || std::fabs(r - t.row) > 1e-6) {
+      throw Error(t.path + ": not on " + first.path + "'s grid (it is " + formatNumber(c) + ", " + formatNumber(r) +
+                  " pixels from it, not whole pixels)");
+    }
+  }
+}
+
+// Every tile there, none twice, none overlapping: by qota's tile metadata when every tile has
+// it, else by area.
+void checkComplete(const std::vector<Tile>& tiles, long long width, long long height) {
+  const bool fromQota = std::all_of(tiles.begin(), tiles.end(), [](const Tile& t) { return t.qota.count("QOTA_TILE"); });
+  if (fromQota) {
+    const Tile& first = tiles.front();
+    std::set<std::string> seen;
+    for (const Tile& t : tiles) {
+      for (const char* key : {"QOTA_RASTER_SIZE", "QOTA_TILE_SIZE", "QOTA_TILES", "QOTA_SOURCE"}) {
+        if (t.qota.count(key) != first.qota.count(key) || (t.qota.count(key) && t.qota.at(key) != first.qota.at(key))) {
+          throw Error(t.path + ": from another run than " + first.path + " (its " + key + " differs)");
+        }
+      }
+      if (!seen.insert(t.qota.at("QOTA_TILE")).second) {
+        throw Error(t.path + ": tile " + t.qota.at("QOTA_TILE") + " is given twice");
+      }
+    }
+    int across = 0, down = 0;
+    if (std::sscanf(first.qota.at("QOTA_TILES").c_str(), "%d,%d", &across, &down) != 2 || across < 1 || down < 1) {
+      throw Error(first.path + ": its QOTA_TILES metadata is not 'COLUMNS,ROWS'");
+    }
+    std::string missing;
+    int count = 0;
+    for (int r = 0; r < down; ++r) {
+      for (int c = 0; c < across; ++c) {
+        const std::string name = std::to_string(c) + "," + std::to_string(r);
+        if (!seen.count(name) && ++count <= 10) missing += (missing.empty() ? "" : " ") + name;
+      }
+    }
+    if (count) {
+      throw Error(std::to_string(count) + " of the run's " + std::to_string(across * down) + " tiles are missing (--tile " +
+                  missing + (count > 10 ? " ..." : "") + "); compute them, or nothing is assembled");
+    }
+  }
+  long long area = 0;
+  for (std::size_t i = 0; i < tiles.size(); ++i) {
+    area += static_cast<long long>(tiles[i].width) * tiles[i].height;
+    for (std::size_t j = 0; j < i; ++j) {
+      const Tile &a = tiles[i], &b = tiles[j];
+      if (a.col < b.col + b.width && b.col < a.col + a.width && a.row < b.row + b.height && b.row < a.row + a.height) {
+        throw Error(a.path + " overlaps " + b.path);
+      }
+    }
+  }
+  if (area != width * height) {
+    throw Error("the tiles leave " + std::to_string(width * height - area) + " of the " +
+                std::to_string(width * height) + " cells of their extent uncovered; nothing is assembled");
+  }
+}
+
+}  // namespace
+
+int assemble(const AssembleOptions& o, std::ostream& out, std::ostream& err) {
+  try {
+    ensureGdalRegistered();
+    if (o.tiles.empty()) throw Error("no tiles given");
+    if (o.output.empty()) throw Error("an output file is needed: -o OUT");
+    OutputStage::checkTarget(o.output);
+    const std::string format = o.format.empty() ? driverForPath(o.output) : o.format;
+    if (format != "GTiff" && format != "COG" && format != "VRT") {
+      throw Error(o.output + ": tiles are assembled into a GeoTIFF, a COG or a VRT, not " + format);
+    }
+    std::vector<Tile> tiles;
+    for (const std::string& path : o.tiles) {
+      std::error_code ec;
+      if (std::filesystem::equivalent(path, o.output, ec)) throw Error(path + " is also the output; give another name");
+      tiles.push_back(describe(path));
+    }
+    place(tiles);
+    long long c0 = tiles[0].col, r0 = tiles[0].row, c1 = c0, r1 = r0;
+    for (const Tile& t : tiles) {
+      c0 = std::min(c0, t.col), r0 = std::min(r0, t.row);
+      c1 = std::max(c1, t.col + t.width), r1 = std::max(r1, t.row + t.height);
+    }
+    if (c1 - c0 > (1 << 30) || r1 - r0 > (1 << 30)) throw Error("the tiles span more than 2^30 cells a side");
+    checkComplete(tiles, c1 - c0, r1 - r0);
+    for (Tile& t : tiles) t.col -= c0, t.row -= r0;
+    const auto& g = tiles[0].gt;
+    std::array<double, 6> gt = g;
+    const long long fc = -tiles[0].col, fr = -tiles[0].row;  // the first tile's place from the new origin, negated
+    gt[0] = g[0] + fc * g[1] + fr * g[2];
+    gt[3] = g[3] + fc * g[4] + fr * g[5];
+
+    OutputStage stage;
+    if (format == "VRT") {
+      std::vector<std::string> absolute;
+      std::vector<const char*> names;
+      for (const Tile& t : tiles) absolute.push_back(std::filesystem::absolute(t.path).string());
+      for (const auto& a : absolute) names.push_back(a.c_str());
+      const std::filesystem::path staged = stage.stage(o.output);
+      detail::GdalErrorLog errors;
+      int usageError = 0;
+      GDALDatasetH vrt = GDALBuildVRT(staged.c_str(), static_cast<int>(names.size()), nullptr, names.data(), nullptr, &usageError);
+      if (!vrt || usageError) throw Error(o.output + ": cannot build the VRT (" + errors.message() + ")");
+      GDALClose(vrt);
+      if (errors.failed()) throw Error(o.output + ": cannot write the VRT (" + errors.message() + ")");
+    } else {
+      if (tiles[0].type != GDT_Byte && tiles[0].type != GDT_Float32) {
+        throw Error(tiles[0].path + ": tiles of " + GDALGetDataTypeName(tiles[0].type) +
+                    "; a GeoTIFF is assembled from Byte or Float32 tiles (qota shadow's); make a VRT instead");
+      }
+      StreamedRaster::Grid grid;
+      grid.width = static_cast<int>(c1 - c0), grid.height = static_cast<int>(r1 - r0);
+      grid.geotransform = gt;
+      grid.crsWkt = tiles[0].crs;
+      int block = 256;
+      if (tiles[0].qota.count("QOTA_TILE_SIZE")) {
+        const int side = std::atoi(tiles[0].qota.at("QOTA_TILE_SIZE").c_str());
+        while (block > 16 && side % block) block /= 2;
+        for (const auto& [key, value] : tiles[0].qota) {
+          if (key != "QOTA_TILE") grid.metadata.push_back({key, value});
+        }
+      }
+      grid.blockSize = block;
+      RasterWrite w{o.output, format, o.creationOptions, tiles[0].type == GDT_Byte, tiles[0].nodata.value_or(0), true};
+      StreamedRaster output(w, grid, stage);
+      std::vector<double> rows;
+      for (std::size_t k = 0; k < tiles.size(); ++k) {
+        const Tile& t = tiles[k];
+        std::unique_ptr<GDALDataset> ds(GDALDataset::Open(t.path.c_str(), GDAL_OF_RASTER));
+        if (!ds) throw Error(t.path + ": cannot open as a raster");
+        for (int r = 0; r < t.height; r += block) {
+          const int n = std::min(block, t.height - r);
+          rows.resize(static_cast<std::size_t>(t.width) * n);
+          if (ds->GetRasterBand(1)->RasterIO(GF_Read, 0, r, t.width, n, rows.data(), t.width, n, GDT_Float64, 0, 0) != CE_None) {
+            throw Error(t.path + ": cannot read rows " + std::to_string(r) + ".." + std::to_string(r + n - 1));
+          }
+          output.write(static_cast<int>(t.col), static_cast<int>(t.row) + r, t.width, n, rows);
+        }
+        if (!o.quiet) out << "\rtile " << k + 1 << "/" << tiles.size() << std::flush;
+      }
+      if (!o.quiet) out << '\n';
+      output.finish();
+    }
+    stage.commit();
+    if (!o.quiet) {
+      out << "assembled: " << tiles.size() << " tiles, " << (c1 - c0) << " x " << (r1 - r0) << " cells -> " << o.output
+          << '\n';
+    }
+    return 0;
+  } catch (...) {
+    return reportFailure("assemble", err);
+  }
+}
+
+std::uint64_t parseByteSize(const std::string& text) {
+  std::size_t used = 0;
+  double number = 0;
+  try {
+    number = std::stod(text, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  std::string unit = text.substr(used);
+  std::transform(unit.begin(), unit.end(), unit.begin(), [](unsigned char c) { return std::toupper(c); });
+  if (unit.size() > 1 && unit.back() == 'B') unit.pop_back();
+  if (unit.size() > 1 && unit.back() == 'I') unit.pop_back();
+  const std::map<std::string, double> scale{{"", 1}, {"B", 1}, {"K", 1024.0}, {"M", 1048576.0}, {"G", 1073741824.0},
+                                            {"T", 1099511627776.0}};
+  const auto s = scale.find(unit);
+  if (used == 0 || s == scale.end() || !(number > 0) || !(number * s->second < 1.8e19)) {
+    throw Error("'" + text + "' is not a size; give bytes, or a number with K, M, G or T (64M, 2G, 1.5GiB)");
+  }
+  return static_cast<std::uint64_t>(number * s->second);
+}
+
+}  // namespace qota::tools

@@ -1,0 +1,33 @@
+// What qota shadow's two ways of running share: the whole raster in memory (shadow.cpp) and by
+// tiles (shadow_tiles.cpp). Internal to the tool.
+#pragma once
+
+#include <Eigen/Core>
+#include <ostream>
+#include <string>
+
+#include "qota/instant.hpp"
+#include "qota/shadow_frame.hpp"
+#include "qota_tools.hpp"
+
+namespace qota::tools {
+
+struct LightChoice {
+  Eigen::Vector3d toward;  // unit, frame coordinates
+  std::string description;
+};
+// The light the options give (-az/-alt, --sun-vector, --time), seen from the frame's centre.
+LightChoice chooseLight(const ShadowOptions& o, const LocalFrame& frame, std::ostream& out);
+// --hours START END STEP of --time's date in --tz, checked.
+LocalSpan hoursSpan(const ShadowOptions& o);
+// GDAL's terminal progress ("0...10...20..."), scaled into [lo, hi] of the whole run; none when quiet.
+Progress termProgress(bool quiet, double lo, double hi);
+// Everything that can be refused before any work: the light, the values, the outputs.
+void checkOptions(const ShadowOptions& o, const std::string& format);
+// Whether the run goes by tiles: asked for (--tile-size, --tile), or the whole raster would not
+// fit in o.maxMemory (or, without it, in the memory available).
+bool runsByTiles(const ShadowOptions& o);
+// The run by tiles (shadow_tiles.cpp): memory bounded by o.maxMemory, output streamed.
+int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostream& out, std::ostream& err);
+
+}  // namespace qota::tools
