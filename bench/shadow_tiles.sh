@@ -1,0 +1,81 @@
+#!/usr/bin/env bash
+# qota shadow by tiles against the whole raster in memory, in the same run:
+#   1. a raster that fits both ways: the Rainier tile 4 x 4 times (4804^2, 23 M cells, Float32
+#      VRT with its nodata), sun at azimuth 315, altitude 30: seconds, cells per second and peak
+#      RSS of the whole-raster run and of the run by tiles within --max-memory 2G, the ratio of
+#      their cells per second, and whether the two rasters are equal cell for cell;
+#   2. with BIG=1: the tile 34 x 34 times (40834^2, 1.67 G cells; its whole shadow would need
+#      about 350 GiB) by tiles within --max-memory 2G, once: seconds, cells per second (and their
+#      ratio to run 1's whole raster), peak RSS against the 2 GiB allowed.
+# Timings are medians of RUNS runs (default 3) with their spread ((max - min) / median).
+#   bench/shadow_tiles.sh [BUILD] [RUNS]        BIG=1 bench/shadow_tiles.sh ...  (adds 2; ~15 min)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+build=${1:-build} runs=${2:-3}
+qota=$build/tools/qota
+dem=$PWD/data/mt_rainier_90m.tif
+work=$(mktemp -d "${TMPDIR:-/tmp}/qota_shadow_tiles.XXXXXX")
+trap 'rm -rf "$work"' EXIT
+
+# The Rainier tile n x n times, one ComplexSource per copy (its nodata kept).
+mosaic() {
+  local n=$1 size=1201
+  echo "<VRTDataset rasterXSize=\"$((n * size))\" rasterYSize=\"$((n * size))\">"
+  echo "  <SRS>EPSG:4326</SRS>"
+  echo "  <GeoTransform>-122.000416666666666, 0.000833333333333333, 0, 47.000416666666666, 0, -0.000833333333333333</GeoTransform>"
+  echo "  <VRTRasterBand dataType=\"Float32\" band=\"1\"><NoDataValue>-32768</NoDataValue>"
+  for ((r = 0; r < n; ++r)); do
+    for ((c = 0; c < n; ++c)); do
+      echo "    <ComplexSource><SourceFilename relativeToVRT=\"0\">$dem</SourceFilename><SourceBand>1</SourceBand><NODATA>-32768</NODATA>"
+      echo "      <SrcRect xOff=\"0\" yOff=\"0\" xSize=\"$size\" ySize=\"$size\"/><DstRect xOff=\"$((c * size))\" yOff=\"$((r * size))\" xSize=\"$size\" ySize=\"$size\"/></ComplexSource>"
+    done
+  done
+  echo "  </VRTRasterBand>"
+  echo "</VRTDataset>"
+}
+mosaic 4 > "$work/fits.vrt"
+
+# Median and spread of a command's wall seconds, and its median peak RSS (MB), RUNS times.
+measure() {
+  local times=() rss=()
+  for ((k = 0; k < runs; ++k)); do
+    /usr/bin/time -f "%e %M" -o "$work/time" "$@" > "$work/out" 2> "$work/err" || { cat "$work/err"; exit 1; }
+    read -r t m < "$work/time"
+    times+=("$t") rss+=("$m")
+  done
+  printf '%s\n' "${times[@]}" | sort -g > "$work/t"
+  printf '%s\n' "${rss[@]}" | sort -g > "$work/m"
+  local mid=$(((runs + 1) / 2))
+  med=$(sed -n "${mid}p" "$work/t") lo=$(head -1 "$work/t") hi=$(tail -1 "$work/t")
+  mem=$(($(sed -n "${mid}p" "$work/m") / 1024))
+  spread=$(awk -v a="$lo" -v b="$hi" -v m="$med" 'BEGIN { printf "%.0f", (m > 0 ? 100 * (b - a) / m : 0) }')
+}
+row() { awk -v j="$1" -v s="$2" -v p="$3" -v c="$4" -v m="$5" 'BEGIN { printf "%-46s %8.2f %6s%% %9.2f %8d\n", j, s, p, c / s / 1e6, m }'; }
+
+light=(-az 315 -alt 30)
+cells=$((4804 * 4804))
+echo "shadow_tiles: $runs runs each, medians (spread = (max - min) / median)"
+printf '%-46s %8s %7s %9s %8s\n' "job" "seconds" "spread" "Mcells/s" "peak MB"
+measure "$qota" shadow "$work/fits.vrt" -o "$work/whole.tif" -q "${light[@]}"
+whole=$med; row "whole raster in memory, 4804^2" "$med" "$spread" "$cells" "$mem"
+measure "$qota" shadow "$work/fits.vrt" -o "$work/tiled.tif" -q "${light[@]}" --max-memory 2G
+tiled=$med; row "by tiles, --max-memory 2G, 4804^2" "$med" "$spread" "$cells" "$mem"
+same=$(/usr/bin/python3 - "$work/whole.tif" "$work/tiled.tif" << 'EOF' 2>/dev/null || echo "unknown (no Python GDAL)"
+import sys
+from osgeo import gdal
+a, b = (gdal.Open(p).ReadAsArray() for p in sys.argv[1:3])
+print("equal cell for cell" if a.shape == b.shape and (a == b).all() else "DIFFERENT in %d cells" % (a != b).sum())
+EOF
+)
+awk -v w="$whole" -v t="$tiled" -v s="$same" 'BEGIN {
+  printf "by tiles: %.2fx the whole raster'\''s cells per second; the rasters are %s\n", w / t, s }'
+
+if [ "${BIG:-0}" = 1 ]; then
+  mosaic 34 > "$work/big.vrt"
+  big=$((40834 * 40834))
+  /usr/bin/time -f "%e %M" -o "$work/time" "$qota" shadow "$work/big.vrt" -o "$work/big.tif" -q "${light[@]}" --max-memory 2G
+  read -r t m < "$work/time"
+  row "by tiles, --max-memory 2G, 40834^2 (once)" "$t" "-" "$big" $((m / 1024))
+  awk -v w="$whole" -v t="$t" -v b="$big" -v c="$cells" -v m="$m" 'BEGIN {
+    printf "40834^2 by tiles: %.2fx the 4804^2 whole raster'\''s cells per second; peak %.0f MB of the 2048 allowed\n", (b / t) / (c / w), m / 1024 }'
+fi
