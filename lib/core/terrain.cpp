@@ -270,10 +270,13 @@ PlanarCore::PlanarCore(const Mesh& mesh, const PlanarFrame& frame, const IndexOp
       const std::uint64_t code = slots.empty() ? spreadBits16(iu) | (spreadBits16(iv) << 1) : slots[t];
       keyed[t] = code << 32 | t;
     }
-    std::sort(keyed.begin(), keyed.end());
-    std::vector<Pending> sorted(pending.size());
-    for (std::size_t t = 0; t < keyed.size(); ++t) sorted[t] = pending[keyed[t] & 0xffffffffu];
-    pending.swap(sorted);
+    // A raster's triangles usually come in row order already: then there is nothing to move.
+    if (!std::is_sorted(keyed.begin(), keyed.end())) {
+      std::sort(keyed.begin(), keyed.end());
+      std::vector<Pending> sorted(pending.size());
+      for (std::size_t t = 0; t < keyed.size(); ++t) sorted[t] = pending[keyed[t] & 0xffffffffu];
+      pending.swap(sorted);
+    }
     if (!slots.empty()) {
       grid_.fillSlots(keyed);
     }
