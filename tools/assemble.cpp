@@ -203,6 +203,7 @@ int assemble(const AssembleOptions& o, std::ostream& out, std::ostream& err) {
         }
       }
       grid.blockSize = block;
+      grid.nodata = tiles[0].nodata;
       RasterWrite w{o.output, format, o.creationOptions, tiles[0].type == GDT_Byte, tiles[0].nodata.value_or(0), true};
       StreamedRaster output(w, grid, stage);
       std::vector<double> rows;

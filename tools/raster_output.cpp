@@ -135,7 +135,7 @@ StreamedRaster::StreamedRaster(const RasterWrite& w, const Grid& grid, OutputSta
   if (!grid.crsWkt.empty()) o.ds->SetProjection(grid.crsWkt.c_str());
   for (const auto& [name, value] : grid.metadata) o.ds->SetMetadataItem(name.c_str(), value.c_str());
   o.band = o.ds->GetRasterBand(1);
-  o.band->SetNoDataValue(w.nodata);
+  if (grid.nodata) o.band->SetNoDataValue(*grid.nodata);
 }
 
 StreamedRaster::~StreamedRaster() = default;

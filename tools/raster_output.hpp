@@ -7,6 +7,7 @@
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -44,6 +45,7 @@ class StreamedRaster {
     std::array<double, 6> geotransform{0, 1, 0, 0, 0, 1};
     std::string crsWkt;
     int blockSize = 256;
+    std::optional<double> nodata;  // the band's (RasterWrite's nodata is not used here)
     std::vector<std::pair<std::string, std::string>> metadata;  // NAME, VALUE items of the dataset
   };
   StreamedRaster(const RasterWrite& w, const Grid& grid, OutputStage& stage);

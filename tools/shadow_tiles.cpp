@@ -163,6 +163,7 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
     grid.geotransform[3] += extent.col * dem.geotransform[4] + extent.row * dem.geotransform[5];
     grid.crsWkt = dem.crsWkt;
     grid.blockSize = blockFor(side);
+    grid.nodata = o.hours ? -1.0 : double(o.nodataValue);
     grid.metadata = {{"QOTA_RASTER_SIZE", std::to_string(dem.width) + "," + std::to_string(dem.height)},
                      {"QOTA_TILE_SIZE", std::to_string(side)},
                      {"QOTA_TILES", std::to_string(across) + "," + std::to_string(down)},
