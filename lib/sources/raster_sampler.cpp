@@ -137,9 +137,11 @@ void RasterSampler::heights(std::span<const double> xs, std::span<const double> 
   // points take small tiles (4 cells a side: windows of 7 x 7 pixels), so a few points spread
   // over a huge raster build little more than their own cells.
   std::vector<std::uint64_t> keys(n);
+  batch::inSlices(n, 0, 4096, [&](std::size_t lo, std::size_t hi) {
+    for (std::size_t i = lo; i < hi; ++i) keys[i] = tileKey(xs[i], ys[i], 0);
+  });
   std::unordered_map<std::uint64_t, std::uint32_t> perLarge;
   for (std::size_t i = 0; i < n; ++i) {
-    keys[i] = tileKey(xs[i], ys[i], 0);
     if (keys[i] != kOff) ++perLarge[keys[i]];
   }
   std::unordered_map<std::uint64_t, std::vector<std::uint32_t>> byTile;
@@ -155,13 +157,17 @@ void RasterSampler::heights(std::span<const double> xs, std::span<const double> 
   // Cached tiles answer at once; the others are built a few at a time on every core (each
   // thread reads its window in turn, then builds its index), answer, and join the cache.
   std::vector<std::uint64_t> missing;
+  std::vector<std::pair<const Tile*, const std::vector<std::uint32_t>*>> ready;
   for (const auto& [key, which] : byTile) {
     if (const Tile* t = cached(key)) {
-      answer(*t, which, xs, ys, zs, out);
+      ready.push_back({t, &which});
     } else {
       missing.push_back(key);
     }
   }
+  batch::inSlices(ready.size(), 0, 1, [&](std::size_t lo, std::size_t hi) {
+    for (std::size_t k = lo; k < hi; ++k) answer(*ready[k].first, *ready[k].second, xs, ys, zs, out);
+  });
   std::sort(missing.begin(), missing.end());  // neighbouring windows, read in order
   const std::size_t threads = std::max(1u, std::min(4u, std::thread::hardware_concurrency()));
   for (std::size_t first = 0; first < missing.size(); first += threads) {
