@@ -289,16 +289,31 @@ class Terrain:
         return f"qota.Terrain({self._t.source!r}, {self.mapping}: {s['triangles']} triangles)"
 
 
-def _shadow_file(dem_path, output, azimuth, altitude, time, tz, band, z_factor):
-    """qota shadow on a raster file, into `output` (or a temporary file), as a uint8 array."""
+def _hours_span(hours):
+    """hours=(start, end, step) as three floats for the C++ side (which checks their values)."""
+    if hours is None:
+        return None
+    try:
+        start, end, step = (float(v) for v in hours)
+    except (TypeError, ValueError):
+        raise Error(f"hours must be (start, end, step) in hours, got {hours!r}") from None
+    return start, end, step
+
+
+def _shadow_file(dem_path, output, azimuth, altitude, time, tz, band, z_factor, hours):
+    """qota shadow on a raster file, into `output` (or a temporary file), as a uint8 array (float32
+    hours with `hours`)."""
+    def run(path):
+        return _qota._shadow(dem_path, path, azimuth, altitude, time or "", tz or "", int(band), float(z_factor),
+                             _hours_span(hours))
+
     if output is not None:
-        return _qota._shadow(dem_path, str(output), azimuth, altitude, time or "", tz or "", int(band), float(z_factor))
+        return run(str(output))
     with _tempfile.TemporaryDirectory(prefix="qota_shadow_") as folder:
-        return _qota._shadow(dem_path, _os.path.join(folder, "shadow.tif"), azimuth, altitude, time or "", tz or "",
-                             int(band), float(z_factor))
+        return run(_os.path.join(folder, "shadow.tif"))
 
 
-def _shadow_in_memory(dem, azimuth, altitude, time, tz, band, z_factor, output):
+def _shadow_in_memory(dem, azimuth, altitude, time, tz, band, z_factor, output, hours):
     """qota shadow of a DataArray or a rasterio dataset, as a DataArray on its grid.
 
     The C++ shadow reads a file: a dataset on a local file is shaded from that file, anything
@@ -312,16 +327,19 @@ def _shadow_in_memory(dem, azimuth, altitude, time, tz, band, z_factor, output):
         template = _interop.select_band(dem, int(band))
         local, grid = None, _interop.dataarray_grid(dem, int(band))
     if local is not None:
-        mask = _shadow_file(local, output, azimuth, altitude, time, tz, band, z_factor)
+        mask = _shadow_file(local, output, azimuth, altitude, time, tz, band, z_factor, hours)
     else:
         with _tempfile.TemporaryDirectory(prefix="qota_shadow_") as folder:
             path = _os.path.join(folder, "dem.tif")
             _qota._write_raster(path, grid.heights, grid.transform, grid.nodata, grid.crs, grid.unit)
-            mask = _shadow_file(path, output, azimuth, altitude, time, tz, 1, z_factor)
+            mask = _shadow_file(path, output, azimuth, altitude, time, tz, 1, z_factor, hours)
+    if hours is not None:
+        return _interop.mask_like(template, mask, -1.0, "sunlight_hours")
     return _interop.mask_like(template, mask)
 
 
-def shadow(dem_path, azimuth=None, altitude=None, *, time=None, tz=None, band=1, z_factor=1.0, output=None):
+def shadow(dem_path, azimuth=None, altitude=None, *, time=None, tz=None, hours=None, band=1, z_factor=1.0,
+           output=None):
     """Where the terrain of a DEM shades itself from the Sun, as `qota shadow` computes it.
 
     dem_path: a raster file, or an xarray.DataArray (rioxarray) or an open rasterio dataset.
@@ -333,12 +351,18 @@ def shadow(dem_path, azimuth=None, altitude=None, *, time=None, tz=None, band=1,
     rasterio dataset (its dimensions, coordinates and CRS, nodata 128; a 3-D DEM's band dimension
     kept with the one band used). With `output` the GeoTIFF (or any GDAL format by extension) is
     kept there too.
+
+    hours: (start, end, step): instead, float32 hours of direct sunlight (nodata -1) between the
+    local clock times start and end (0 to 48) of `time`'s date, in steps of `step` hours, a cell
+    lit at a step's middle counting the whole step (`qota shadow --hours`).
+
+    For a raster in chunks, over Dask: qota.dask.shadow.
     """
     if time is None and (azimuth is None or altitude is None):
         raise Error("give azimuth and altitude, or time")
     if _interop.is_dataarray(dem_path) or _interop.is_rasterio_dataset(dem_path):
-        return _shadow_in_memory(dem_path, azimuth, altitude, time, tz, band, z_factor, output)
-    return _shadow_file(_local_file(dem_path), output, azimuth, altitude, time, tz, band, z_factor)
+        return _shadow_in_memory(dem_path, azimuth, altitude, time, tz, band, z_factor, output, hours)
+    return _shadow_file(_local_file(dem_path), output, azimuth, altitude, time, tz, band, z_factor, hours)
 
 
 def sun_position(time, lon, lat, *, tz=None):

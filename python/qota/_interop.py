@@ -182,10 +182,10 @@ def dataarray_of_rasterio(ds, band: int):
     return select_band(rioxarray.open_rasterio(ds), band)
 
 
-def mask_like(template, mask: np.ndarray):
+def mask_like(template, mask, nodata=128, name="shadow"):
     """The shadow mask (rows, columns) as a DataArray on the template's grid: its dimensions,
-    coordinates and CRS, uint8 with 128 declared as nodata; the heights' own attributes (units,
-    scale) left behind."""
+    coordinates and CRS, with `nodata` declared (128 for a mask, -1 for hours); the heights' own
+    attributes (units, scale) left behind. A dask array stays lazy."""
     import xarray as xr
 
     y, x = template.rio.y_dim, template.rio.x_dim
@@ -193,8 +193,13 @@ def mask_like(template, mask: np.ndarray):
     others = [d for d in template.dims if d not in (y, x)]
     if others:
         plane = plane.expand_dims(others)
-    out = template.copy(data=plane.transpose(*template.dims).values)
-    out.attrs, out.encoding, out.name = {}, {}, "shadow"
+    out = template.copy(data=plane.transpose(*template.dims).data)
+    out.attrs, out.encoding, out.name = {}, {}, name
     if template.rio.crs is not None:
         out = out.rio.write_crs(template.rio.crs)
-    return out.rio.write_nodata(128, encoded=False)
+    # The template's geotransform kept with the CRS, so a writer that reads it (rio.to_raster with
+    # recalc_transform=False) writes the file's, not one recomputed from the rounded coordinates.
+    from affine import Affine
+
+    out = out.rio.write_transform(Affine.from_gdal(*dataarray_transform(template)))
+    return out.rio.write_nodata(nodata, encoded=False)

@@ -13,6 +13,7 @@
 #include <cmath>
 #include <limits>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <sstream>
 #include <string>
@@ -25,7 +26,10 @@
 #include "qota/dem.hpp"
 #include "qota/error.hpp"
 #include "qota/instant.hpp"
+#include "qota/raster_sampler.hpp"
+#include "qota/shadow_tiles.hpp"
 #include "qota/sun.hpp"
+#include "qota/sunlight.hpp"
 #include "qota/terrain.hpp"
 #include "qota/treefile.hpp"
 #include "qota/version.hpp"
@@ -294,12 +298,15 @@ Terrain fromRaster(const std::string& path, int band, const std::string& mapping
   return Terrain(rasterTree(o));
 }
 
-// Writes a 2-D float64 array as a one-band Float64 GeoTIFF at `path` (a file, or GDAL's memory
-// file system): the geotransform, nodata, CRS (any text GDAL's SetFromUserInput reads: WKT,
+// Creates a one-band Float64 GeoTIFF of rows x cols at `path` (a file, or GDAL's memory file
+// system) with the geotransform, nodata, CRS (any text GDAL's SetFromUserInput reads: WKT,
 // EPSG:4326, PROJ) and vertical unit (the band's unit type, which loadDem and qota shadow read)
-// given. The GIL must be released by the caller when it wants; nothing here touches Python.
-void writeRasterFile(const std::string& path, const double* data, int rows, int cols, const std::vector<double>& transform,
-                     std::optional<double> nodata, const std::string& crs, const std::string& unit) {
+// given, its pixels not yet written. sparse: blocks never written take no room (a description of
+// a raster, its pixels elsewhere). Nothing here touches Python, so the caller may release the GIL
+// around it.
+std::unique_ptr<GDALDataset> createRaster(const std::string& path, int rows, int cols, const std::vector<double>& transform,
+                                          std::optional<double> nodata, const std::string& crs, const std::string& unit,
+                                          bool sparse = false) {
   qota::ensureGdalRegistered();
   OGRSpatialReference srs;
   if (!crs.empty()) {
@@ -311,7 +318,8 @@ void writeRasterFile(const std::string& path, const double* data, int rows, int 
     }
   }
   GDALDriver* gtiff = GetGDALDriverManager()->GetDriverByName("GTiff");
-  std::unique_ptr<GDALDataset> ds(gtiff->Create(path.c_str(), cols, rows, 1, GDT_Float64, nullptr));
+  const char* options[] = {sparse ? "SPARSE_OK=TRUE" : nullptr, nullptr};
+  std::unique_ptr<GDALDataset> ds(gtiff->Create(path.c_str(), cols, rows, 1, GDT_Float64, const_cast<char**>(options)));
   if (!ds) throw qota::Error(path + ": cannot create the raster for the array");
   double gt[6];
   std::copy(transform.begin(), transform.end(), gt);
@@ -320,10 +328,28 @@ void writeRasterFile(const std::string& path, const double* data, int rows, int 
   GDALRasterBand* b = ds->GetRasterBand(1);
   if (nodata) b->SetNoDataValue(*nodata);
   if (!unit.empty()) b->SetUnitType(unit.c_str());
-  if (b->RasterIO(GF_Write, 0, 0, cols, rows, const_cast<double*>(data), cols, rows, GDT_Float64, 0, 0) != CE_None) {
+  return ds;
+}
+
+// The same raster with the 2-D float64 array's values as its pixels.
+void writeRasterFile(const std::string& path, const double* data, int rows, int cols, const std::vector<double>& transform,
+                     std::optional<double> nodata, const std::string& crs, const std::string& unit) {
+  std::unique_ptr<GDALDataset> ds = createRaster(path, rows, cols, transform, nodata, crs, unit);
+  if (ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, cols, rows, const_cast<double*>(data), cols, rows, GDT_Float64, 0,
+                                     0) != CE_None) {
     throw qota::Error(path + ": cannot write the array into the raster");
   }
   ds.reset();  // closed: flushed for whoever reads it next
+}
+
+void checkTransform(const std::vector<double>& transform) {
+  if (transform.size() != 6) throw qota::Error("transform must have 6 numbers (GDAL's geotransform)");
+  for (double t : transform) {
+    if (!std::isfinite(t)) throw qota::Error("transform has a value that is not finite");
+  }
+  if (transform[1] * transform[5] - transform[2] * transform[4] == 0) {
+    throw qota::Error("transform is singular (a pixel of zero area)");
+  }
 }
 
 // The checks on an array and its geotransform that GDAL would not make (or would make with a
@@ -336,13 +362,7 @@ void checkGrid(const py::array_t<double, py::array::c_style | py::array::forceca
   if (heights.shape(0) > std::numeric_limits<int>::max() || heights.shape(1) > std::numeric_limits<int>::max()) {
     throw qota::Error("heights has more rows or columns than GDAL takes");
   }
-  if (transform.size() != 6) throw qota::Error("transform must have 6 numbers (GDAL's geotransform)");
-  for (double t : transform) {
-    if (!std::isfinite(t)) throw qota::Error("transform has a value that is not finite");
-  }
-  if (transform[1] * transform[5] - transform[2] * transform[4] == 0) {
-    throw qota::Error("transform is singular (a pixel of zero area)");
-  }
+  checkTransform(transform);
 }
 
 void writeRaster(const std::string& path, py::array_t<double, py::array::c_style | py::array::forcecast> heights,
@@ -435,10 +455,11 @@ Terrain load(const std::string& path) {
   return Terrain(std::move(tree));
 }
 
-// qota shadow itself (the same cells, the same checks and messages), into `output`, read back.
-py::array_t<std::uint8_t> shadow(const std::string& dem, const std::string& output, std::optional<double> azimuth,
-                                 std::optional<double> altitude, const std::string& time, const std::string& tz,
-                                 int band, double zFactor) {
+// qota shadow itself (the same cells, the same checks and messages), into `output`, read back:
+// uint8 lit, shadow, nodata; with hours (start, end, step), float32 hours of sunlight.
+py::array shadow(const std::string& dem, const std::string& output, std::optional<double> azimuth,
+                 std::optional<double> altitude, const std::string& time, const std::string& tz, int band, double zFactor,
+                 std::optional<std::array<double, 3>> hours) {
   qota::tools::ShadowOptions o;
   o.source = dem;
   o.output = output;
@@ -449,6 +470,7 @@ py::array_t<std::uint8_t> shadow(const std::string& dem, const std::string& outp
   o.time = time;
   o.tz = tz;
   o.zFactor = zFactor;
+  o.hours = hours;
   std::ostringstream out, err;
   int code = 0;
   {
@@ -464,11 +486,12 @@ py::array_t<std::uint8_t> shadow(const std::string& dem, const std::string& outp
   std::unique_ptr<GDALDataset> ds(GDALDataset::Open(output.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
   if (!ds) throw qota::Error(output + ": cannot read the shadow raster back");
   const int w = ds->GetRasterXSize(), h = ds->GetRasterYSize();
-  py::array_t<std::uint8_t> mask({h, w});
-  if (ds->GetRasterBand(1)->RasterIO(GF_Read, 0, 0, w, h, mask.mutable_data(), w, h, GDT_Byte, 0, 0) != CE_None) {
+  py::array cells = hours ? py::array(py::array_t<float>({h, w})) : py::array(py::array_t<std::uint8_t>({h, w}));
+  if (ds->GetRasterBand(1)->RasterIO(GF_Read, 0, 0, w, h, cells.mutable_data(), w, h, hours ? GDT_Float32 : GDT_Byte, 0,
+                                     0) != CE_None) {
     throw qota::Error(output + ": cannot read the shadow raster back");
   }
-  return mask;
+  return cells;
 }
 
 // The Sun's apparent azimuth and altitude (degrees) seen from (lon, lat) on the Earth.
@@ -480,6 +503,196 @@ py::tuple sunPosition(const std::string& time, double lon, double lat, const std
   const qota::SunPosition sun = qota::sunPosition(at.julianDayUT, lon, lat);
   return py::make_tuple(sun.azimuth, sun.altitude);
 }
+
+// Shadows by blocks and heights by tiles, for Dask (python/qota/dask.py): the tiles are made
+// once on the client and shipped to the workers as their state (pickled); each block is computed
+// from its heights with its overlap, the GIL released.
+
+// The values of qota shadow's rasters (its defaults): lit, shadow and nodata cells; hours' nodata.
+constexpr std::uint8_t kLitValue = 255, kShadowValue = 0, kNoDataValue = 128;
+constexpr float kNoHours = -1;
+
+// A window of cells as Python gives it: (col, row, width, height).
+using Cells = std::array<int, 4>;
+qota::CellWindow cellsOf(const Cells& c) { return {c[0], c[1], c[2], c[3]}; }
+
+// The heights of a window from a 2-D array of its shape (rows, columns).
+std::vector<double> heightsOf(const Array& a, const qota::CellWindow& w) {
+  if (a.ndim() != 2 || a.shape(0) != w.height || a.shape(1) != w.width) {
+    throw qota::Error("heights must be a 2-D array of the window's " + std::to_string(w.height) + " rows and " +
+                      std::to_string(w.width) + " columns");
+  }
+  return {a.data(), a.data() + a.size()};
+}
+
+std::vector<Eigen::Vector3d> lightsOf(const std::vector<std::array<double, 3>>& lights) {
+  std::vector<Eigen::Vector3d> out;
+  for (const auto& l : lights) out.emplace_back(l[0], l[1], l[2]);
+  return out;
+}
+
+// A raster's tiles, read once (the height range) from its file.
+qota::ShadowTiles tilesFromRaster(const std::string& path, int band, double zFactor) {
+  qota::DemOptions dem;
+  dem.band = band;
+  dem.lonLatAsCartesian = true;  // read as lon/lat: the frame puts it on its ellipsoid
+  qota::FrameOptions frame;
+  frame.zFactor = zFactor;
+  py::gil_scoped_release release;
+  return qota::ShadowTiles(path, dem, frame);
+}
+
+// Tiles of heights that only Python has (a Dask array): the description is describeDem's of a
+// raster with the same grid, CRS and unit that holds no pixels (so it is what a file of these
+// heights would say), and the heights come from read(col, row, width, height), a 2-D array with
+// NaN for no data. Returned restored from the state, so that nothing keeps `read`.
+qota::ShadowTiles tilesFromReader(int rows, int cols, const std::vector<double>& transform, const std::string& crs,
+                                  const std::string& unit, const std::string& label, const py::function& read,
+                                  double zFactor) {
+  if (rows < 1 || cols < 1) throw qota::Error("the heights need at least one row and one column");
+  checkTransform(transform);
+  static std::atomic<unsigned> counter{0};
+  const std::string path = "/vsimem/qota_python_grid_" + std::to_string(counter++) + ".tif";
+  PyObject* function = read.ptr();  // borrowed: `read` outlives this call, and no copy is made without the GIL
+  const qota::ShadowTiles::HeightReader reader = [function](const qota::CellWindow& w, std::vector<double>& out) {
+    py::gil_scoped_acquire acquire;
+    const auto heights = py::cast<Array>(py::reinterpret_borrow<py::function>(function)(w.col, w.row, w.width, w.height));
+    out = heightsOf(heights, w);
+  };
+  qota::FrameOptions frame;
+  frame.zFactor = zFactor;
+  std::string state;
+  {
+    py::gil_scoped_release release;
+    qota::DemTerrain description;
+    try {
+      createRaster(path, rows, cols, transform, std::nullopt, crs, unit, true).reset();
+      qota::DemOptions options;
+      options.lonLatAsCartesian = true;
+      description = qota::describeDem(path, options);
+      VSIUnlink(path.c_str());
+    } catch (...) {
+      VSIUnlink(path.c_str());
+      throw;
+    }
+    description.path = label;
+    state = qota::ShadowTiles(description, reader, frame).state();
+  }
+  return qota::ShadowTiles::restore(state);
+}
+
+// The light of every cell of `tile` from the heights of `window` (the tile and its overlap), as
+// qota shadow's raster values.
+py::array_t<std::uint8_t> maskFromHeights(const qota::ShadowTiles& tiles, const Cells& window, const Array& heights,
+                                          const Cells& tile, const std::array<double, 3>& light, unsigned threads) {
+  const qota::CellWindow w = cellsOf(window), t = cellsOf(tile);
+  std::vector<double> z = heightsOf(heights, w);
+  std::vector<qota::Light> mask;
+  {
+    py::gil_scoped_release release;
+    mask = tiles.maskFromHeights(w, std::move(z), t, Eigen::Vector3d(light[0], light[1], light[2]), {}, threads);
+  }
+  py::array_t<std::uint8_t> out({t.height, t.width});
+  std::uint8_t* o = out.mutable_data();
+  for (std::size_t i = 0; i < mask.size(); ++i) {
+    o[i] = mask[i] == qota::Light::Lit ? kLitValue : mask[i] == qota::Light::Shadow ? kShadowValue : kNoDataValue;
+  }
+  return out;
+}
+
+// Hours of sunlight of every cell of `tile` (float32 with nodata, as qota shadow --hours writes
+// them).
+py::array_t<float> hoursFromHeights(const qota::ShadowTiles& tiles, const Cells& window, const Array& heights,
+                                    const Cells& tile, double startJulianDay, double endJulianDay, double stepHours,
+                                    const std::vector<std::array<double, 3>>& lights) {
+  const qota::CellWindow w = cellsOf(window), t = cellsOf(tile);
+  std::vector<double> z = heightsOf(heights, w);
+  qota::SunlightHours hours;
+  {
+    py::gil_scoped_release release;
+    hours = tiles.hoursFromHeights(w, std::move(z), t, startJulianDay, endJulianDay, stepHours, lightsOf(lights));
+  }
+  py::array_t<float> out({t.height, t.width});
+  float* o = out.mutable_data();
+  for (std::size_t i = 0; i < hours.hours.size(); ++i) {
+    o[i] = hours.valid[i] ? static_cast<float>(hours.hours[i]) : kNoHours;
+  }
+  return out;
+}
+
+// The Sun seen from the tiles' centre at an instant: (azimuth, altitude) in degrees.
+std::array<double, 2> sunAt(const qota::ShadowTiles& tiles, const std::string& time, const std::string& tz) {
+  const qota::SunPosition sun = qota::sunOverFrame(tiles.frame(), qota::parseInstant(time, tz).julianDayUT, tiles.dem().path);
+  return {sun.azimuth, sun.altitude};
+}
+
+// A raster's size, geotransform (and its inverse, GDAL's: pixel col, row = inverse applied to
+// x, y), nodata and vertical unit (describeDem: nothing read but its header).
+py::dict describeRaster(const std::string& path, int band) {
+  qota::DemOptions options;
+  options.band = band;
+  options.lonLatAsCartesian = true;
+  qota::DemTerrain dem;
+  {
+    py::gil_scoped_release release;
+    dem = qota::describeDem(path, options);
+  }
+  py::dict d;
+  d["width"] = dem.width;
+  d["height"] = dem.height;
+  d["geotransform"] = std::vector<double>(dem.geotransform.begin(), dem.geotransform.end());
+  d["inverse_geotransform"] = dem.inverseGeotransform();
+  d["nodata"] = dem.nodata ? py::object(py::float_(*dem.nodata)) : py::object(py::none());
+  d["unit"] = dem.verticalUnit.name;
+  return d;
+}
+
+// The instants (Julian days, UT) of the local clock hours start and end of a date (qota shadow
+// --hours's span).
+std::array<double, 2> localSpan(const std::string& time, const std::string& tz, double start, double end) {
+  const qota::LocalSpan span = qota::localSpan(time, tz, start, end);
+  return {span.start.julianDayUT, span.end.julianDayUT};
+}
+
+// A raster's heights under points, read tile by tile (RasterSampler), with the outer half-pixel
+// rule as the Python Terrain and qota sample keep it: the whole terrain's answers, bit for bit.
+// One sampler answers one batch at a time (its cache); others wait.
+class Sampler {
+ public:
+  Sampler(const std::string& path, int band) {
+    qota::RasterSampler::Options o;
+    o.band = band;
+    py::gil_scoped_release release;
+    sampler_ = std::make_unique<qota::RasterSampler>(path, o);
+    inverse_ = sampler_->dem().inverseGeotransform();
+  }
+
+  py::array_t<double> heights(const Array& x, const Array& y) {
+    if (x.ndim() != 1 || y.ndim() != 1 || x.shape(0) != y.shape(0)) throw qota::Error("x and y must be flat arrays of one length");
+    const auto n = static_cast<std::size_t>(x.shape(0));
+    std::vector<double> xs(x.data(), x.data() + n), ys(y.data(), y.data() + n);
+    std::vector<std::optional<double>> answers(n);
+    py::array_t<double> out(static_cast<py::ssize_t>(n));
+    double* o = out.mutable_data();
+    {
+      py::gil_scoped_release release;
+      const qota::DemTerrain& dem = sampler_->dem();
+      for (std::size_t i = 0; i < n; ++i) {
+        const auto p = dem.surfacePoint(xs[i], ys[i], inverse_);
+        xs[i] = p ? (*p)[0] : kNaN, ys[i] = p ? (*p)[1] : kNaN;  // off the raster: no terrain
+      }
+      const std::lock_guard<std::mutex> guard(lock_);
+      sampler_->heights(xs, ys, {}, answers);
+      for (std::size_t i = 0; i < n; ++i) o[i] = answers[i] ? *answers[i] : kNaN;
+    }
+    return out;
+  }
+
+ private:
+  std::unique_ptr<qota::RasterSampler> sampler_;
+  std::array<double, 6> inverse_{};
+  std::mutex lock_;
+};
 
 }  // namespace
 
@@ -495,10 +708,42 @@ PYBIND11_MODULE(_qota, m) {
     }
   });
   m.def("_shadow", &shadow, py::arg("dem"), py::arg("output"), py::arg("azimuth"), py::arg("altitude"),
-        py::arg("time"), py::arg("tz"), py::arg("band"), py::arg("z_factor"));
+        py::arg("time"), py::arg("tz"), py::arg("band"), py::arg("z_factor"), py::arg("hours") = py::none());
   m.def("_sun_position", &sunPosition, py::arg("time"), py::arg("lon"), py::arg("lat"), py::arg("tz"));
   m.def("_write_raster", &writeRaster, py::arg("path"), py::arg("heights"), py::arg("transform"),
         py::arg("nodata") = py::none(), py::arg("crs") = "", py::arg("unit") = "");
+  py::class_<qota::ShadowTiles>(m, "_ShadowTiles")
+      .def_static("from_raster", &tilesFromRaster, py::arg("path"), py::arg("band"), py::arg("z_factor"))
+      .def_static("from_reader", &tilesFromReader, py::arg("rows"), py::arg("cols"), py::arg("transform"),
+                  py::arg("crs"), py::arg("unit"), py::arg("label"), py::arg("read"), py::arg("z_factor"))
+      .def_property_readonly("width", [](const qota::ShadowTiles& t) { return t.dem().width; })
+      .def_property_readonly("height", [](const qota::ShadowTiles& t) { return t.dem().height; })
+      .def_property_readonly("geotransform", [](const qota::ShadowTiles& t) { return t.dem().geotransform; })
+      .def("state", [](const qota::ShadowTiles& t) { return py::bytes(t.state()); })
+      .def("halo_for", [](const qota::ShadowTiles& t, int width, int height,
+                          const std::vector<std::array<double, 3>>& lights) { return t.haloFor(width, height, lightsOf(lights)); },
+           py::arg("width"), py::arg("height"), py::arg("lights"))
+      .def("toward_sun", [](const qota::ShadowTiles& t, double azimuth, double altitude) {
+             const Eigen::Vector3d v = t.frame().towardSun({azimuth, altitude});
+             return std::array<double, 3>{v.x(), v.y(), v.z()};
+           }, py::arg("azimuth"), py::arg("altitude"))
+      .def("sun_at", &sunAt, py::arg("time"), py::arg("tz"))
+      .def("sunlight_steps", [](const qota::ShadowTiles& t, double start, double end, double step) {
+             std::vector<std::array<double, 3>> out;
+             for (const Eigen::Vector3d& v : t.sunlightSteps(start, end, step, t.horizonSlack())) out.push_back({v.x(), v.y(), v.z()});
+             return out;
+           }, py::arg("start"), py::arg("end"), py::arg("step"))
+      .def("mask_from_heights", &maskFromHeights, py::arg("window"), py::arg("heights"), py::arg("tile"), py::arg("light"),
+           py::arg("threads") = 0)
+      .def("hours_from_heights", &hoursFromHeights, py::arg("window"), py::arg("heights"), py::arg("tile"),
+           py::arg("start"), py::arg("end"), py::arg("step"), py::arg("lights"))
+      .def(py::pickle([](const qota::ShadowTiles& t) { return py::make_tuple(py::bytes(t.state())); },
+                      [](const py::tuple& s) { return qota::ShadowTiles::restore(s[0].cast<std::string>()); }));
+  m.def("_describe_raster", &describeRaster, py::arg("path"), py::arg("band"));
+  m.def("_local_span", &localSpan, py::arg("time"), py::arg("tz"), py::arg("start"), py::arg("end"));
+  py::class_<Sampler>(m, "_RasterSampler")
+      .def(py::init<const std::string&, int>(), py::arg("path"), py::arg("band"))
+      .def("heights", &Sampler::heights, py::arg("x"), py::arg("y"));
   py::class_<Terrain>(m, "_Terrain")
       .def_static("from_raster", &fromRaster, py::arg("path"), py::arg("band"), py::arg("mapping"),
                   py::arg("radius") = py::none(), py::arg("length") = py::none())

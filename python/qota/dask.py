@@ -1,0 +1,372 @@
+"""qota.dask: shadows, hours of sunlight and heights under points over Dask, on any
+`dask.distributed` cluster (or Dask's local schedulers).
+
+    >>> import rioxarray, qota.dask
+    >>> dem = rioxarray.open_rasterio("data/mt_rainier_90m.tif", chunks=512)
+    >>> mask = qota.dask.shadow(dem, azimuth=135, altitude=20)   # lazy, on dem's blocks
+    >>> qota.dask.to_geotiff(mask, "shadow.tif")                 # computed block by block
+
+Shadows: every block of the DataArray is one task, which computes the block's cells from the
+block's heights and an overlap around it (the halo: every cell whose triangles can shade the
+block, as ShadowTiles.haloFor bounds it for blocks of that size, plus `void_margin` cells for
+filling voids as over the whole raster). The tiles (the raster's height range and frame, which the
+halo and every block's frame need) are made once on the client, in one pass over the heights, and
+reach the workers as a small pickled text. Each task calls the C++ core with the GIL released. The
+result is the whole raster's, cell for cell: what qota.shadow gives for the same raster.
+
+Points: heights under (x, y) points given as a dask DataFrame or array, each partition answered
+by a sampler that reads the raster tile by tile (one per worker process and raster), bit for bit
+the whole terrain's (Terrain.from_raster).
+"""
+from __future__ import annotations
+
+import functools
+import os
+import threading
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import _hours_span, _interop, _local_file, _qota
+from ._qota import Error
+
+__all__ = ["shadow", "tiles", "Tiles", "sample", "to_geotiff"]
+
+#: Cells of overlap added to the halo for filling voids (cells without data) the same way as over
+#: the whole raster: a void up to about this wide fills alike; a wider one near a block edge is
+#: refused, naming the cells, and then a larger void_margin (or voids filled first) is needed.
+VOID_MARGIN = 32
+
+
+def _is_dask(data) -> bool:
+    return hasattr(data, "dask") and hasattr(data, "chunks") and hasattr(data, "compute")
+
+
+def _heights(raw, nodata, scale, offset):
+    """A window's stored values as heights: scaled and offset as GDAL would, nodata cells NaN."""
+    heights, nodata = _interop._decoded(raw, nodata, scale, offset)
+    heights = np.array(heights, dtype=np.float64)  # writable, its own
+    if nodata is not None:
+        heights[heights == nodata] = np.nan
+    return heights
+
+
+# --- the light ---------------------------------------------------------------------------------
+
+def _check_light(azimuth, altitude, time, tz, hours):
+    """Refuses a light the way `qota shadow` does, before any work (here the blocks' tasks would
+    meet a bad option only when computed). The hours' (start, end, step), or None."""
+    if time is None and (azimuth is None or altitude is None):
+        raise Error("give azimuth and altitude, or time")
+    if time is not None and (azimuth is not None or altitude is not None):
+        raise Error("give one light: azimuth and altitude, or time")
+    if tz is not None and time is None:
+        raise Error("tz needs time (the date and time it is the zone of)")
+    if hours is not None and time is None:
+        raise Error("hours needs time for the date")
+    if time is None and not (-90 <= float(altitude) <= 90 and np.isfinite(float(azimuth))):
+        raise Error(f"altitude must be between -90 and 90 degrees and azimuth finite, got {azimuth} {altitude}")
+    if hours is not None:
+        start, end, step = _hours_span(hours)
+        if not (0 <= start < end <= 48):
+            raise Error(f"hours=(start, end, step): need 0 <= start < end <= 48 (hours after local midnight), "
+                        f"got {start} {end}")
+        if not (1 / 60 <= step <= end - start):
+            raise Error(f"hours step {step}: need at least one minute (1/60 h) and at most end - start "
+                        f"({end - start} h)")
+        return start, end, step
+    return None
+
+
+# --- the tiles ---------------------------------------------------------------------------------
+
+def _plane(da, band):
+    """The DataArray of one band (a 3-D one keeps its band dimension, of length 1) and its heights
+    as a 2-D (y, x) array."""
+    template = _interop.select_band(da, band)
+    y, x = template.rio.y_dim, template.rio.x_dim
+    return template, template.squeeze([d for d in template.dims if d not in (y, x)]).transpose(y, x)
+
+
+def _source_file(plane):
+    """The file the DataArray was read from (rioxarray's encoding) and its band, when the array
+    still has that file's grid, nodata and unit (so the file's heights are the array's unless its
+    values were changed in place); else None. Without a band coordinate, only a one-band file."""
+    source = plane.encoding.get("source")
+    if not source:
+        return None
+    file_band = int(plane.coords["band"]) if "band" in plane.coords and plane.coords["band"].size == 1 else 0
+    try:
+        described = _qota._describe_raster(str(source), file_band)
+    except Error:
+        return None
+    nodata = plane.rio.encoded_nodata if plane.rio.encoded_nodata is not None else plane.rio.nodata
+    same_nodata = (nodata is None) == (described["nodata"] is None) and (
+        nodata is None or np.array_equal(float(nodata), described["nodata"], equal_nan=True))
+    mine, theirs = _interop.dataarray_transform(plane), described["geotransform"]
+    pixel = max(abs(theirs[1]) + abs(theirs[2]), abs(theirs[4]) + abs(theirs[5]))
+    if ((described["height"], described["width"]) != plane.shape or not same_nodata
+            or plane.attrs.get("units", "") != described["unit"]
+            or any(abs(a - b) > 1e-6 * pixel for a, b in zip(mine, theirs))):
+        return None
+    return str(source), file_band
+
+
+@dataclass(frozen=True)
+class Tiles:
+    """What every block of one raster's shadows shares (the height range, the frame), made once
+    on the client by qota.dask.tiles in one pass over the heights: reused, it saves that pass
+    when one raster is shadowed under several suns."""
+
+    core: object        # qota._qota._ShadowTiles: pickled as a small text for the workers
+    heights_from: str   # "file": the pass read the source file; "array": the array's blocks
+    source: str         # the file, or "<DataArray name>"
+
+
+def tiles(da, *, band=1, z_factor=1.0, heights_from="auto") -> Tiles:
+    """The tiles of a DataArray's raster (band `band`, heights times z_factor), for shadow(...,
+    tiles=). heights_from: where the one pass over the heights reads them: "file" (the source file
+    rioxarray names in the array's encoding, read by GDAL on the client), "array" (the array's own
+    blocks, computed through Dask a band of rows at a time), or "auto" (the file when the array
+    still has its grid, nodata and unit, else the array). Give "array" for an array whose values
+    were changed in a way that keeps rioxarray's encoding (assigned in place,
+    da.copy(data=...))."""
+    if heights_from not in ("auto", "file", "array"):
+        raise Error(f"heights_from must be 'auto', 'file' or 'array', got {heights_from!r}")
+    plane = _plane(da, int(band))[1]
+    if heights_from != "array":
+        source = _source_file(plane)
+        if source is not None:
+            return Tiles(_qota._ShadowTiles.from_raster(source[0], source[1], float(z_factor)), "file", source[0])
+        if heights_from == "file":
+            raise Error("heights_from='file': the DataArray names no source file with its own grid, nodata and unit "
+                        "(its encoding's 'source'); give heights_from='array'")
+    decode = _decoding(plane)
+
+    def read(col, row, width, height):
+        return _heights(np.asarray(plane.data[row:row + height, col:col + width].compute()), *decode)
+
+    label = f"<DataArray {plane.name}>" if plane.name is not None else "<DataArray>"
+    units = plane.attrs.get("units", "")
+    core = _qota._ShadowTiles.from_reader(plane.shape[0], plane.shape[1], _interop.dataarray_transform(plane),
+                                          _interop.crs_text(plane.rio.crs), units if isinstance(units, str) else "",
+                                          label, read, float(z_factor))
+    return Tiles(core, "array", label)
+
+
+_make_tiles = tiles  # for shadow(), whose keyword `tiles` hides the function
+
+
+def _decoding(plane):
+    """(nodata, scale, offset) of the stored values, as _interop.dataarray_grid reads them."""
+    nodata = plane.rio.nodata
+    return (None if nodata is None else float(nodata), float(plane.attrs.get("scale_factor", 1.0)),
+            float(plane.attrs.get("add_offset", 0.0)))
+
+
+# --- blocks with their overlap ---------------------------------------------------------------
+
+def _mask_block(tiles, raw, window, tile, decode, light, threads):
+    return tiles.mask_from_heights(window, _heights(raw, *decode), tile, light, threads)
+
+
+def _hours_block(tiles, raw, window, tile, decode, span, step, lights):
+    return tiles.hours_from_heights(window, _heights(raw, *decode), tile, span[0], span[1], step, lights)
+
+
+def _by_blocks(data, overlap, tiles, task, dtype, *args):
+    """A dask array on data's blocks: task(tiles, heights of the block and its overlap, window,
+    tile, *args) for every block, the window being the block grown by overlap (west, east, north,
+    south) and clipped to the raster, in raster cells (col, row, width, height)."""
+    import dask
+    import dask.array as dsa
+    from dask.base import tokenize
+
+    west, east, north, south = overlap
+    rows, cols = data.shape
+    shared = dask.delayed(tiles, name="qota-tiles-" + tokenize(tiles.state()))  # one copy, restored once a worker
+    call = dask.delayed(task, pure=True)
+    parts, row = [], 0
+    for height in data.chunks[0]:
+        line, col = [], 0
+        for width in data.chunks[1]:
+            c0, r0 = max(0, col - west), max(0, row - north)
+            c1, r1 = min(cols, col + width + east), min(rows, row + height + south)
+            window, tile = (c0, r0, c1 - c0, r1 - r0), (col, row, width, height)
+            cells = call(shared, data[r0:r1, c0:c1], window, tile, *args)
+            line.append(dsa.from_delayed(cells, shape=(height, width), dtype=dtype))
+            col += width
+        parts.append(line)
+        row += height
+    return dsa.block(parts)
+
+
+def shadow(da, azimuth=None, altitude=None, *, time=None, tz=None, hours=None, band=1, z_factor=1.0,
+           void_margin=VOID_MARGIN, heights_from="auto", tiles=None, threads=1):
+    """Shadows (or hours of sunlight) of a chunked DataArray, lazily, on its own blocks.
+
+    da: an xarray.DataArray backed by a dask array, with rioxarray's accessor (e.g.
+        rioxarray.open_rasterio(path, chunks=512)); a 3-D one gives band `band` (1-based) of its
+        third dimension. The light and the values as qota.shadow: `azimuth` and `altitude`
+        (degrees), or the Sun at `time` (ISO 8601 with its offset, or `tz`), seen from the DEM's
+        centre; heights in metres by the vertical unit (the `units` attribute, or the file's),
+        times z_factor.
+    hours: (start, end, step): hours of direct sunlight between the local clock times start and
+        end (0 to 48) of `time`'s date, in steps of `step` hours (qota shadow --hours).
+    void_margin: cells of overlap beyond the halo for filling voids; a void too wide for it near a
+        block edge is refused when that block is computed (qota.Error, "give a larger overlap").
+    heights_from: where the client's one pass over the heights reads them (see qota.dask.tiles).
+    tiles: qota.dask.tiles of this DataArray (its band and z_factor), made before: no pass.
+    threads: threads a block's cells are tested on (0: every core); 1 suits workers that each run
+        one task per core.
+
+    Returns a lazy DataArray on da's grid, dimensions, coordinates, CRS and chunks: uint8 255 lit,
+    0 shadow, 128 nodata; or float32 hours, nodata -1. Refuses at once what qota.shadow refuses
+    (the light, the options) and a light at or below the horizon at the centre of a DEM on its
+    ellipsoid (its shadows reach without bound: shadow that raster whole with qota.shadow).
+    """
+    span_hours = _check_light(azimuth, altitude, time, tz, hours)
+    if not _interop.is_dataarray(da):
+        raise Error(f"qota.dask.shadow takes an xarray.DataArray, got {type(da).__name__}")
+    if int(void_margin) < 0:
+        raise Error(f"void_margin must be a number of cells (0 or more), got {void_margin}")
+    template, plane = _plane(da, int(band))
+    if not _is_dask(plane.data):
+        raise Error("the DataArray is not chunked (not backed by a dask array): open it with chunks= "
+                    "(rioxarray.open_rasterio(path, chunks=512)) or chunk it (da.chunk(512))")
+    if tiles is None:
+        tiles = _make_tiles(da, band=band, z_factor=z_factor, heights_from=heights_from)
+    core = tiles.core
+    if (core.height, core.width) != plane.shape or not np.allclose(core.geotransform, _interop.dataarray_transform(plane),
+                                                                    rtol=0, atol=1e-6 * abs(core.geotransform[1])):
+        raise Error(f"the tiles are those of another raster ({tiles.source}, {core.width} x {core.height} cells)")
+    if span_hours is None:
+        sun = (azimuth, altitude) if time is None else core.sun_at(str(time), tz or "")
+        lights = [core.toward_sun(float(sun[0]), float(sun[1]))]
+    else:
+        start, end, step = span_hours
+        span = _qota._local_span(str(time), tz or "", start, end)
+        lights = core.sunlight_steps(span[0], span[1], step)
+    halo = core.halo_for(max(plane.data.chunks[1]), max(plane.data.chunks[0]), lights)
+    overlap = [side + int(void_margin) for side in halo]
+    decode = _decoding(plane)
+    if span_hours is None:
+        cells = _by_blocks(plane.data, overlap, core, _mask_block, np.uint8, decode, lights[0], int(threads))
+        return _interop.mask_like(template, cells, 128, "shadow")
+    cells = _by_blocks(plane.data, overlap, core, _hours_block, np.float32, decode, span, span_hours[2], lights)
+    return _interop.mask_like(template, cells, -1.0, "sunlight_hours")
+
+
+# --- writing -----------------------------------------------------------------------------------
+
+def to_geotiff(result, path, *, lock=None, **profile):
+    """Writes a (lazy) result as a tiled GeoTIFF, block by block as the blocks are computed
+    (rioxarray's to_raster with tiled=True), with the source's geotransform as the result keeps
+    it. lock: one writer at a time across the workers; by default a distributed.Lock when a
+    distributed Client is active (the file must then be on a file system every worker sees), else
+    a threading lock. profile: creation options (compress="deflate", blockxsize=..., ...)."""
+    if lock is None:
+        lock = _writer_lock(os.fspath(path))
+    profile.setdefault("recalc_transform", False)
+    result.rio.to_raster(os.fspath(path), tiled=True, lock=lock, compute=True, **profile)
+
+
+def _writer_lock(path):
+    try:
+        from distributed import Lock, default_client
+        client = default_client()
+    except (ImportError, ValueError):  # no distributed, or no client: Dask's local schedulers
+        return threading.Lock()
+    return Lock("qota-geotiff-" + os.path.abspath(path), client=client)
+
+
+# --- points ------------------------------------------------------------------------------------
+
+@functools.lru_cache(maxsize=8)
+def _sampler(path, band):
+    """One sampler per raster in each process: its tile cache serves every task there."""
+    return _qota._RasterSampler(path, band)
+
+
+def _sample_xy(path, band, x, y):
+    return _sampler(path, band).heights(np.ascontiguousarray(x, dtype=np.float64),
+                                        np.ascontiguousarray(y, dtype=np.float64))
+
+
+def _sample_frame(frame, path, band, x, y, name):
+    import pandas as pd
+
+    return pd.Series(_sample_xy(path, band, frame[x].to_numpy(), frame[y].to_numpy()), index=frame.index, name=name)
+
+
+def _sample_rows(points, path, band):
+    return _sample_xy(path, band, points[:, 0], points[:, 1])
+
+
+def _block_keys(frame, x, y, inverse, size, across):
+    """The raster block of each point (blocks of size x size cells, numbered by rows; inverse:
+    GDAL's inverse geotransform), for grouping points by where they read; points that are not
+    finite share key -1."""
+    px, py = frame[x].to_numpy(dtype=np.float64), frame[y].to_numpy(dtype=np.float64)
+    col = inverse[0] + inverse[1] * px + inverse[2] * py
+    row = inverse[3] + inverse[4] * px + inverse[5] * py
+    keys = np.full(len(px), -1, dtype=np.int64)
+    ok = np.isfinite(col) & np.isfinite(row)
+    keys[ok] = np.floor(row[ok] / size) * across + np.floor(col[ok] / size)
+    return keys
+
+
+def sample(source, points, *, band=1, x="x", y="y", by_block=False, block=1024):
+    """Heights of a raster under points, lazily: Terrain.from_raster(source).heights(x, y), bit
+    for bit, NaN where there is no terrain (a hole, off the raster).
+
+    source: a raster path (or GDAL name) that every worker can open.
+    points: a dask DataFrame with columns `x` and `y` (the raster's CRS), giving a dask Series
+        "height" with the same index and partitions; or a dask array of shape (n, 2), giving a
+        dask array (n,) on the same row chunks. Each partition is answered in one batch by its
+        process's sampler, which groups the batch's points by raster tile.
+    by_block: for a DataFrame with known divisions: shuffle the points first so that each
+        partition holds the points of whole raster blocks of `block` x `block` cells (where
+        many random points fall on a raster larger than a worker's tile cache, each tile is then
+        built once, not once a partition), then put the heights back in the input's partitions
+        and order. Costs two shuffles of the points.
+    """
+    path = _local_file(source)
+    band = int(band)
+    description = _qota._describe_raster(path, band)  # refused here, on the client, if unreadable
+    if hasattr(points, "map_partitions") and hasattr(points, "columns"):
+        for column in (x, y):
+            if column not in points.columns:
+                raise Error(f"the points have no column {column!r} (columns: {', '.join(map(str, points.columns))})")
+        if by_block:
+            return _sample_by_block(path, band, points, x, y, description, int(block))
+        return points.map_partitions(_sample_frame, path, band, x, y, "height", meta=("height", "f8"))
+    if _is_dask(points) and points.ndim == 2 and points.shape[1] == 2:
+        if by_block:
+            raise Error("by_block takes a dask DataFrame of points (a dask array is answered in its own chunks)")
+        if len(points.chunks[1]) > 1:
+            points = points.rechunk({1: 2})
+        return points.map_blocks(_sample_rows, path, band, drop_axis=1, dtype=np.float64)
+    raise Error(f"points must be a dask DataFrame with columns {x!r} and {y!r}, or a dask array of shape (n, 2); "
+                f"got {type(points).__name__}")
+
+
+def _sample_by_block(path, band, points, x, y, description, block):
+    if not points.known_divisions:
+        raise Error("by_block needs points with known divisions (a sorted index), to put the heights back in their "
+                    "order; set_index or from_pandas gives them")
+    if block < 1:
+        raise Error(f"block must be a number of cells (1 or more), got {block}")
+    across = -(-description["width"] // block)
+    keys = points.map_partitions(_block_keys, x, y, description["inverse_geotransform"], block, across,
+                                 meta=("_qota_block", "i8"))
+    heights = points[[x, y]].assign(_qota_block=keys).shuffle("_qota_block") \
+        .map_partitions(_sample_frame, path, band, x, y, "height", meta=("height", "f8"))
+    # Back in the input's partitions, each sorted by its index (known divisions: the input's order).
+    flat = heights.to_frame().reset_index()
+    restored = flat.set_index(flat.columns[0], divisions=points.divisions)["height"]
+    return restored.map_partitions(_index_named, points.index.name, meta=heights._meta)
+
+
+def _index_named(series, name):
+    return series.rename_axis(name)

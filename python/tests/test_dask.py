@@ -1,0 +1,176 @@
+"""qota.dask on a LocalCluster of two worker processes: shadows and hours of sunlight computed
+block by block equal qota.shadow of the same raster cell for cell (suns low and high, blocks of
+two sizes, voids across block edges; the tiles made from the file and from the array), heights
+under points equal Terrain.from_raster's bit for bit, results written to GeoTIFF and Zarr read
+back the same, and what cannot be done exactly is refused with a clear qota.Error."""
+import logging
+
+import numpy as np
+import pytest
+
+import qota
+from test_interop import DATA, NODATA, RAINIER, assert_same_grid
+
+xr = pytest.importorskip("xarray")
+rioxarray = pytest.importorskip("rioxarray")
+rasterio = pytest.importorskip("rasterio")
+dd = pytest.importorskip("dask.dataframe")
+distributed = pytest.importorskip("distributed")
+import dask.array as dsa  # noqa: E402
+import pandas as pd  # noqa: E402
+import qota.dask  # noqa: E402
+from rasterio.windows import Window  # noqa: E402
+
+SUNS = ((315, 6), (100, 35))
+pytestmark = pytest.mark.filterwarnings("ignore:make_current is deprecated:DeprecationWarning")  # tornado, under distributed
+HOURS = dict(time="2024-06-21", tz="America/Los_Angeles", hours=(6, 20, 1.5))
+
+
+@pytest.fixture(scope="module")
+def client():
+    """Two worker processes of one thread each; failed tasks' warnings silenced (errors are
+    expected in the refusals)."""
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
+                                  silence_logs=logging.ERROR) as cluster, distributed.Client(cluster) as c:
+        yield c
+
+
+@pytest.fixture(scope="module")
+def part(tmp_path_factory):
+    """A part of the Rainier DEM (ridges and valleys south-east of the summit) with voids across
+    where blocks of 64 and 100 cells meet: a round one, a long thin one along a row, and scattered
+    cells."""
+    with rasterio.open(RAINIER) as ds:
+        window = Window(400, 450, 300, 260)
+        z = ds.read(1, window=window).astype(np.float32)
+        profile = dict(driver="GTiff", width=300, height=260, count=1, dtype="float32", crs=ds.crs,
+                       transform=ds.window_transform(window), nodata=NODATA)
+    r, c = np.mgrid[0:260, 0:300]
+    z[z == -32768] = NODATA
+    z[np.hypot(c - 64, r - 100) < 7] = NODATA
+    z[128, 20:280] = NODATA
+    z[(c * 7919 + r * 104729) % 97 == 0] = NODATA
+    path = tmp_path_factory.mktemp("dask") / "part.tif"
+    with rasterio.open(path, "w", **profile) as out:
+        out.write(z, 1)
+    return path
+
+
+def test_shadows_by_blocks_equal_the_whole_rasters(client, part):
+    for chunks in (64, 100):
+        dem = rioxarray.open_rasterio(part, chunks=chunks)
+        for azimuth, altitude in SUNS:
+            want = qota.shadow(part, azimuth, altitude)
+            assert (want == 0).sum() > 1000 and (want == 255).sum() > 1000 and (want == 128).sum() > 100
+            got = qota.dask.shadow(dem, azimuth=azimuth, altitude=altitude)
+            assert got.chunks == dem.chunks
+            assert_same_grid(got, dem)
+            np.testing.assert_array_equal(got.values[0], want, err_msg=f"blocks of {chunks}, sun {azimuth}/{altitude}")
+
+
+def test_sunlight_hours_and_the_sun_at_a_time(client, part):
+    want = qota.shadow(part, **HOURS)
+    assert want.dtype == np.float32 and (want == -1).any() and len(np.unique(want)) > 5
+    whole = qota.shadow(rioxarray.open_rasterio(part), **HOURS)  # a DataArray's: nodata -1
+    assert whole.rio.nodata == -1 and whole.name == "sunlight_hours"
+    np.testing.assert_array_equal(whole.values[0], want)
+    for chunks in (64, 100):
+        got = qota.dask.shadow(rioxarray.open_rasterio(part, chunks=chunks), **HOURS)
+        assert got.dtype == np.float32 and got.rio.nodata == -1
+        np.testing.assert_array_equal(got.values[0], want, err_msg=f"blocks of {chunks}")
+    dem = rioxarray.open_rasterio(part, chunks=100).squeeze("band")
+    at = dict(time="2024-06-21T18:30", tz="America/Los_Angeles")
+    got = qota.dask.shadow(dem, **at)
+    assert got.dims == ("y", "x")
+    np.testing.assert_array_equal(got.values, qota.shadow(part, **at))
+
+
+def test_tiles_from_the_file_or_the_arrays_own_heights(client, part):
+    # A masked DataArray still has the file's values, grid, nodata and unit: its tiles read the
+    # file. One converted (astype) no longer names its file, and one given another unit is not
+    # the file's heights: the pass over the heights reads the array through Dask. The cells are
+    # qota.shadow's of the same DataArray either way.
+    for dem, made_from in ((rioxarray.open_rasterio(part, chunks=100, masked=True), "file"),
+                           (rioxarray.open_rasterio(part, chunks=64).astype("f8"), "array"),
+                           (rioxarray.open_rasterio(part, chunks=100).assign_attrs(units="ft"), "array")):
+        tiles = qota.dask.tiles(dem)
+        assert tiles.heights_from == made_from
+        got = qota.dask.shadow(dem, azimuth=315, altitude=6, tiles=tiles)
+        np.testing.assert_array_equal(got.values, qota.shadow(dem.compute(), azimuth=315, altitude=6).values)
+    dem = rioxarray.open_rasterio(part, chunks=64)
+    got = qota.dask.shadow(dem, **HOURS, heights_from="array")
+    np.testing.assert_array_equal(got.values[0], qota.shadow(part, **HOURS))
+
+
+def test_results_written_to_geotiff_and_zarr(client, part, tmp_path):
+    dem = rioxarray.open_rasterio(part, chunks=64)
+    want = qota.shadow(part, azimuth=100, altitude=35)
+    mask = qota.dask.shadow(dem, azimuth=100, altitude=35)
+    qota.dask.to_geotiff(mask, tmp_path / "shadow.tif", compress="deflate")
+    with rasterio.open(tmp_path / "shadow.tif") as back:
+        np.testing.assert_array_equal(back.read(1), want)
+        assert back.nodata == 128 and back.crs == dem.rio.crs and back.transform == dem.rio.transform()
+        assert back.profile["tiled"]
+    pytest.importorskip("zarr")
+    mask.to_dataset(name="shadow").to_zarr(tmp_path / "shadow.zarr")
+    back = xr.open_zarr(tmp_path / "shadow.zarr", mask_and_scale=False)["shadow"]  # 128 kept, not NaN
+    np.testing.assert_array_equal(back.values[0], want)
+
+
+def test_points_equal_the_whole_terrain(client):
+    # Random points, pixel centres, the outer half pixel, off the raster and not finite.
+    rng = np.random.default_rng(19)
+    terrain = qota.Terrain.from_raster(RAINIER)
+    with rasterio.open(RAINIER) as ds:
+        t, w, h = ds.transform, ds.width, ds.height
+    cols, rows = rng.integers(0, w, 500), rng.integers(0, h, 500)
+    cx, cy = t * (cols + 0.5, rows + 0.5)
+    x = np.concatenate([rng.uniform(t.c - 0.01, t.c + w * t.a + 0.01, 6000), cx, [t.c + 0.1 * t.a, np.nan]])
+    y = np.concatenate([rng.uniform(t.f + h * t.e - 0.01, t.f + 0.01, 6000), cy, [t.f + 0.2 * t.e, 46.5]])
+    want = terrain.heights(x, y)
+    assert np.isnan(want).sum() > 50 and (~np.isnan(want)).sum() > 5000
+    points = pd.DataFrame({"x": x, "y": y, "id": np.arange(len(x))})
+    frame = dd.from_pandas(points, npartitions=5)
+    got = qota.dask.sample(RAINIER, frame).compute()
+    assert got.name == "height" and got.index.equals(points.index)
+    np.testing.assert_array_equal(got.to_numpy(), want)
+    shuffled = qota.dask.sample(RAINIER, frame, by_block=True, block=256)
+    assert shuffled.npartitions == frame.npartitions
+    got = shuffled.compute()
+    assert got.index.equals(points.index)
+    np.testing.assert_array_equal(got.to_numpy(), want)
+    array = dsa.from_array(np.column_stack([x, y]), chunks=(1700, 2))
+    np.testing.assert_array_equal(qota.dask.sample(RAINIER, array).compute(), want)
+
+
+def test_refusals(client, part):
+    dem = rioxarray.open_rasterio(part, chunks=64)
+    # Voids wider than the margin near a block edge: refused when the block is computed, naming
+    # what it needs.
+    with pytest.raises(qota.Error, match="larger overlap"):
+        qota.dask.shadow(dem, azimuth=315, altitude=6, void_margin=0).compute()
+    with pytest.raises(qota.Error, match="give azimuth and altitude, or time"):
+        qota.dask.shadow(dem, azimuth=315)
+    with pytest.raises(qota.Error, match="one light"):
+        qota.dask.shadow(dem, azimuth=315, altitude=6, time="2024-06-21T12:00Z")
+    with pytest.raises(qota.Error, match="hours needs time"):
+        qota.dask.shadow(dem, azimuth=315, altitude=6, hours=(6, 20, 1))
+    with pytest.raises(qota.Error, match="at least one minute"):
+        qota.dask.shadow(dem, hours=(6, 20, 0.001), time="2024-06-21", tz="UTC")
+    with pytest.raises(qota.Error, match="altitude must be between"):
+        qota.dask.shadow(dem, azimuth=315, altitude=91)
+    with pytest.raises(qota.Error, match="without bound"):  # below the horizon on the ellipsoid
+        qota.dask.shadow(dem, azimuth=270, altitude=-1)
+    with pytest.raises(qota.Error, match="not chunked"):
+        qota.dask.shadow(rioxarray.open_rasterio(part), azimuth=315, altitude=6)
+    with pytest.raises(qota.Error, match="another raster"):
+        qota.dask.shadow(dem.isel(x=slice(0, 200)), azimuth=315, altitude=6, tiles=qota.dask.tiles(dem))
+    with pytest.raises(qota.Error, match="heights_from"):
+        qota.dask.shadow(dem.astype("f8"), azimuth=315, altitude=6, heights_from="file")
+    with pytest.raises(qota.Error, match="no column 'lon'"):
+        qota.dask.sample(RAINIER, dd.from_pandas(pd.DataFrame({"x": [0.0], "y": [0.0]}), npartitions=1), x="lon")
+    with pytest.raises(qota.Error, match="known divisions"):
+        frame = dd.from_pandas(pd.DataFrame({"x": [0.0], "y": [0.0]}), npartitions=1).clear_divisions()
+        qota.dask.sample(RAINIER, frame, by_block=True)
+    with pytest.raises(FileNotFoundError):
+        qota.dask.sample(DATA / "no_such.tif", dsa.zeros((3, 2)))
