@@ -93,6 +93,16 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
     frameOptions.pixelSize = o.pixelSize;
     frameOptions.zFactor = o.zFactor;
     frameOptions.scale = o.scale;
+    if (o.tile) {  // checked before the pass over the heights, which a large raster makes long
+      const DemTerrain d = describeDem(o.source, demOptions);
+      const int across = (d.width + o.tileSize - 1) / o.tileSize, down = (d.height + o.tileSize - 1) / o.tileSize;
+      const auto [c, r] = *o.tile;
+      if (c < 0 || r < 0 || c >= across || r >= down) {
+        throw Error("--tile " + std::to_string(c) + "," + std::to_string(r) + ": the raster has " + std::to_string(across) +
+                    " x " + std::to_string(down) + " tiles of " + std::to_string(o.tileSize) + " cells (columns 0.." +
+                    std::to_string(across - 1) + ", rows 0.." + std::to_string(down - 1) + ")");
+      }
+    }
     if (!o.quiet) out << "qota shadow: " << o.source << " -> " << o.output << " (" << format << ", by tiles)\n";
     const ShadowTiles tiles(o.source, demOptions, frameOptions, termProgress(o.quiet, 0, 1));
     const LocalFrame& frame = tiles.frame();
@@ -133,13 +143,7 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
     const int across = (dem.width + side - 1) / side, down = (dem.height + side - 1) / side;
     std::vector<std::array<int, 2>> todo;
     if (o.tile) {
-      const auto [c, r] = *o.tile;
-      if (c < 0 || r < 0 || c >= across || r >= down) {
-        throw Error("--tile " + std::to_string(c) + "," + std::to_string(r) + ": the raster has " + std::to_string(across) +
-                    " x " + std::to_string(down) + " tiles of " + std::to_string(side) + " cells (columns 0.." +
-                    std::to_string(across - 1) + ", rows 0.." + std::to_string(down - 1) + ")");
-      }
-      todo.push_back(*o.tile);
+      todo.push_back(*o.tile);  // (on the grid: checked above)
     } else {
       for (int r = 0; r < down; ++r) {
         for (int c = 0; c < across; ++c) todo.push_back({c, r});
