@@ -478,12 +478,16 @@ TEST(ShadowTool, TilesForBatchSchedulersAssemble) {
   ASSERT_EQ(shadow(whole).code, 0);
   const RasterValues expected = qota::test::readRaster(whole.output);
   std::vector<std::string> tiles;
+  // The jobs share the pass over the heights: the first makes it, the others read it.
+  const std::string state = scratchPath("tool_batch_state.txt").string();
+  std::filesystem::remove(state);
   for (int row = 0; row < 3; ++row) {
     for (int col = 0; col < 4; ++col) {
       ShadowOptions one = whole;
       one.output = scratchPath("tool_batch_" + std::to_string(col) + "_" + std::to_string(row) + ".tif").string();
       one.tileSize = 64;
       one.tile = std::array<int, 2>{col, row};
+      one.tilesState = state;
       const ShadowRun run = shadow(one);
       ASSERT_EQ(run.code, 0) << run.err;
       tiles.push_back(one.output);
@@ -529,6 +533,18 @@ TEST(ShadowTool, TilesForBatchSchedulersAssemble) {
   run = shadow(other);
   EXPECT_EQ(run.code, 2);
   EXPECT_NE(run.err.find("columns 0..6"), std::string::npos) << run.err;
+  // The state of another raster, or of other frame options, is refused.
+  ASSERT_TRUE(std::filesystem::exists(state));
+  other = options(QOTA_DATA_DIR "/mt_rainier_90m.tif", "tool_batch_wrong_state.tif");
+  other.altitude = 12, other.tileSize = 64, other.tile = std::array<int, 2>{0, 0}, other.tilesState = state;
+  run = shadow(other);
+  EXPECT_EQ(run.code, 2);
+  EXPECT_NE(run.err.find("not the raster of the shadow tiles' state"), std::string::npos) << run.err;
+  other = whole;
+  other.output = scratchPath("tool_batch_wrong_options.tif").string();
+  other.tileSize = 64, other.tile = std::array<int, 2>{0, 0}, other.tilesState = state, other.zFactor = 2;
+  run = shadow(other);
+  EXPECT_NE(run.err.find("other frame options"), std::string::npos) << run.err;
 }
 
 TEST(ShadowTool, MemoryLimitsAndTileOptionsAreChecked) {

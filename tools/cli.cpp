@@ -167,6 +167,9 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
                         "raster of its own (for batch schedulers; qota assemble joins the tiles)")
       ->delimiter(',')
       ->expected(2);
+  shadowCmd->add_option("--tiles-state", shadow.tilesState,
+                        "By tiles: read the pass over the heights (height range, frame) from FILE when it "
+                        "exists, else make it and write it there: the jobs of a batch (--tile) make it once");
   addTreeOptions(shadowCmd, shadow.terrain);
   shadowCmd
       ->add_option("--search", shadow.search,

@@ -116,6 +116,10 @@ struct ShadowOptions {
   std::uint64_t maxMemory = 0;
   int tileSize = 0;
   std::optional<std::array<int, 2>> tile;
+  // By tiles: the pass over the heights (the height range and the frame, ShadowTiles::state)
+  // read from this file when it exists (made for the same raster and frame options, else an
+  // error), else made and written there, so that the jobs of a batch make it once.
+  std::string tilesState;
 };
 int shadow(const ShadowOptions& options, std::ostream& out, std::ostream& err);
 

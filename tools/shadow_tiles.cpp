@@ -5,8 +5,11 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
+#include <sstream>
 
+#include "qota/atomic_file.hpp"
 #include "qota/error.hpp"
 #include "qota/memory_budget.hpp"
 #include "qota/shadow_tiles.hpp"
@@ -50,10 +53,33 @@ int blockFor(int side) {
   return 16;
 }
 
+// The tiles, from the state file when there is one, else from a pass over the heights (then
+// written to the state file, when asked, at once: other jobs may use it while this one works).
+ShadowTiles passOverHeights(const ShadowOptions& o, const DemOptions& demOptions, const FrameOptions& frameOptions) {
+  if (!o.tilesState.empty() && std::filesystem::exists(o.tilesState)) {
+    std::ifstream in(o.tilesState, std::ios::binary);
+    std::stringstream text;
+    text << in.rdbuf();
+    if (!in && !in.eof()) throw Error(o.tilesState + ": cannot read");
+    try {
+      return ShadowTiles::restore(text.str(), o.source, demOptions, frameOptions);
+    } catch (const Error& e) {
+      throw Error(o.tilesState + ": " + e.what());
+    }
+  }
+  ShadowTiles tiles(o.source, demOptions, frameOptions, termProgress(o.quiet, 0, 1));
+  if (!o.tilesState.empty()) {
+    AtomicFile file(o.tilesState);
+    file.stream() << tiles.state();
+    file.commit();
+  }
+  return tiles;
+}
+
 }  // namespace
 
 bool runsByTiles(const ShadowOptions& o) {
-  if (o.tileSize > 0 || o.tile) return true;
+  if (o.tileSize > 0 || o.tile || !o.tilesState.empty()) return true;
   DemOptions demOptions;
   demOptions.band = o.band;
   demOptions.lonLatAsCartesian = true;
@@ -104,7 +130,7 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
       }
     }
     if (!o.quiet) out << "qota shadow: " << o.source << " -> " << o.output << " (" << format << ", by tiles)\n";
-    const ShadowTiles tiles(o.source, demOptions, frameOptions, termProgress(o.quiet, 0, 1));
+    const ShadowTiles tiles = passOverHeights(o, demOptions, frameOptions);
     const LocalFrame& frame = tiles.frame();
     const DemTerrain& dem = tiles.dem();
     if (!o.quiet) out << "frame: " << frame.description << '\n';

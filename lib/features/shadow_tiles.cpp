@@ -561,4 +561,28 @@ ShadowTiles ShadowTiles::restore(const std::string& state) {
   return t;
 }
 
+ShadowTiles ShadowTiles::restore(const std::string& state, const std::string& path, const DemOptions& dem,
+                                 const FrameOptions& frame) {
+  ShadowTiles t = restore(state);
+  auto source = std::make_unique<Source>();
+  source->windows = std::make_unique<DemWindows>(path, dem);
+  const DemWindows* windows = source->windows.get();
+  const DemTerrain& d = windows->dem();
+  const DemTerrain& was = t.basis_.raster;
+  const FrameOptions& o = t.basis_.options;
+  if (d.width != was.width || d.height != was.height || d.geotransform != was.geotransform || d.crsWkt != was.crsWkt ||
+      d.verticalUnit.name != was.verticalUnit.name || d.verticalUnit.metresPerUnit != was.verticalUnit.metresPerUnit) {
+    throw Error(path + ": not the raster of the shadow tiles' state (" + was.path + ": its size, geotransform, CRS or unit differ)");
+  }
+  if (frame.flat != o.flat || frame.pixelSize != o.pixelSize || frame.zFactor != o.zFactor || frame.scale != o.scale) {
+    throw Error(path + ": the shadow tiles' state was made with other frame options (--flat, --pixel-size, -z, -s)");
+  }
+  source->reader = [windows](const CellWindow& w, std::vector<double>& out) {
+    windows->read(w.col, w.row, w.width, w.height, out);
+  };
+  t.source_ = std::move(source);
+  t.basis_.raster.path = d.path;
+  return t;
+}
+
 }  // namespace qota

@@ -63,6 +63,11 @@ class ShadowTiles {
   // numbers bit for bit. Tiles restored have no source: only the ...FromHeights calls.
   std::string state() const;
   static ShadowTiles restore(const std::string& state);
+  // The same, reading the raster at `path` again (a batch job's tile, without the pass over the
+  // heights another job made). Throws qota::Error when the raster or the frame's options are not
+  // the state's (its size, geotransform, CRS, vertical unit).
+  static ShadowTiles restore(const std::string& state, const std::string& path, const DemOptions& dem,
+                             const FrameOptions& frame);
   ~ShadowTiles();
   ShadowTiles(ShadowTiles&&) noexcept;
   ShadowTiles& operator=(ShadowTiles&&) noexcept;
