@@ -404,7 +404,7 @@ std::vector<Eigen::Vector3d> ShadowTiles::sunlightSteps(double startJulianDay, d
 
 SunlightHours ShadowTiles::tileHours(const LocalFrame& frame, const CellWindow& tile, double startJulianDay,
                                      double endJulianDay, double stepHours, const IndexOptions& options,
-                                     ShadowSearch search) const {
+                                     ShadowSearch search, unsigned threads) const {
   if (frame.cellCount() == 0) {  // no data: no hours (sunlightHours's zeros), its steps counted alike
     SunlightHours none;
     none.elapsedHours = (endJulianDay - startJulianDay) * 24.0;
@@ -421,7 +421,7 @@ SunlightHours ShadowTiles::tileHours(const LocalFrame& frame, const CellWindow& 
   const CellWindow& window = frame.window;
   const CellWindow inside{tile.col - window.col, tile.row - window.row, tile.width, tile.height};
   SunlightHours all = sunlightHours(frame, basis_.raster.path, startJulianDay, endJulianDay, stepHours, options, {},
-                                    search, inside);
+                                    search, inside, threads);
   all.hours = crop(all.hours, CellWindow{0, 0, window.width, window.height}, inside);
   all.valid = crop(frame.valid, CellWindow{0, 0, window.width, window.height}, inside);
   return all;
@@ -429,17 +429,18 @@ SunlightHours ShadowTiles::tileHours(const LocalFrame& frame, const CellWindow& 
 
 SunlightHours ShadowTiles::hours(const CellWindow& tile, double startJulianDay, double endJulianDay, double stepHours,
                                  const std::vector<Eigen::Vector3d>& lights, const IndexOptions& options,
-                                 ShadowSearch search, std::uint64_t bytes) const {
+                                 ShadowSearch search, std::uint64_t bytes, unsigned threads) const {
   CellWindow window;
-  return tileHours(windowOfTile(tile, lights, bytes, window), tile, startJulianDay, endJulianDay, stepHours, options, search);
+  return tileHours(windowOfTile(tile, lights, bytes, window), tile, startJulianDay, endJulianDay, stepHours, options, search,
+                   threads);
 }
 
 SunlightHours ShadowTiles::hoursFromHeights(const CellWindow& window, std::vector<double> heights, const CellWindow& tile,
                                             double startJulianDay, double endJulianDay, double stepHours,
                                             const std::vector<Eigen::Vector3d>& lights, const IndexOptions& options,
-                                            ShadowSearch search) const {
+                                            ShadowSearch search, unsigned threads) const {
   return tileHours(givenWindow(window, std::move(heights), tile, lights), tile, startJulianDay, endJulianDay, stepHours,
-                   options, search);
+                   options, search, threads);
 }
 
 std::array<int, 4> ShadowTiles::haloFor(int tileWidth, int tileHeight, const std::vector<Eigen::Vector3d>& lights) const {

@@ -20,7 +20,8 @@ SunPosition sunOverFrame(const LocalFrame& frame, double julianDayUT, const std:
 
 SunlightHours sunlightHours(const LocalFrame& frame, const std::string& source, double startJulianDay,
                             double endJulianDay, double stepHours, const IndexOptions& options,
-                            const Progress& progress, ShadowSearch search, std::optional<CellWindow> testOnly) {
+                            const Progress& progress, ShadowSearch search, std::optional<CellWindow> testOnly,
+                            unsigned threads) {
   SunlightHours out;
   out.elapsedHours = (endJulianDay - startJulianDay) * 24.0;
   if (!(stepHours >= 1.0 / 60) || !(stepHours <= out.elapsedHours)) {
@@ -38,7 +39,7 @@ SunlightHours sunlightHours(const LocalFrame& frame, const std::string& source, 
       return progress((k + done) / out.steps, message);
     })
                                    : Progress();
-    const std::vector<Light> mask = shadowMask(frame, frame.towardSun(sun), options, part, 0, search, testOnly);
+    const std::vector<Light> mask = shadowMask(frame, frame.towardSun(sun), options, part, threads, search, testOnly);
     for (std::size_t i = 0; i < mask.size(); ++i) {
       if (mask[i] == Light::Lit) out.hours[i] += dt;
     }

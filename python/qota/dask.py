@@ -170,8 +170,8 @@ def _mask_block(tiles, raw, window, tile, decode, light, threads):
     return tiles.mask_from_heights(window, _heights(raw, *decode), tile, light, threads)
 
 
-def _hours_block(tiles, raw, window, tile, decode, span, step, lights):
-    return tiles.hours_from_heights(window, _heights(raw, *decode), tile, span[0], span[1], step, lights)
+def _hours_block(tiles, raw, window, tile, decode, span, step, lights, threads):
+    return tiles.hours_from_heights(window, _heights(raw, *decode), tile, span[0], span[1], step, lights, threads)
 
 
 def _by_blocks(data, overlap, tiles, task, dtype, *args):
@@ -253,7 +253,8 @@ def shadow(da, azimuth=None, altitude=None, *, time=None, tz=None, hours=None, b
     if span_hours is None:
         cells = _by_blocks(plane.data, overlap, core, _mask_block, np.uint8, decode, lights[0], int(threads))
         return _interop.mask_like(template, cells, 128, "shadow")
-    cells = _by_blocks(plane.data, overlap, core, _hours_block, np.float32, decode, span, span_hours[2], lights)
+    cells = _by_blocks(plane.data, overlap, core, _hours_block, np.float32, decode, span, span_hours[2], lights,
+                       int(threads))
     return _interop.mask_like(template, cells, -1.0, "sunlight_hours")
 
 

@@ -604,13 +604,14 @@ py::array_t<std::uint8_t> maskFromHeights(const qota::ShadowTiles& tiles, const 
 // them).
 py::array_t<float> hoursFromHeights(const qota::ShadowTiles& tiles, const Cells& window, const Array& heights,
                                     const Cells& tile, double startJulianDay, double endJulianDay, double stepHours,
-                                    const std::vector<std::array<double, 3>>& lights) {
+                                    const std::vector<std::array<double, 3>>& lights, unsigned threads) {
   const qota::CellWindow w = cellsOf(window), t = cellsOf(tile);
   std::vector<double> z = heightsOf(heights, w);
   qota::SunlightHours hours;
   {
     py::gil_scoped_release release;
-    hours = tiles.hoursFromHeights(w, std::move(z), t, startJulianDay, endJulianDay, stepHours, lightsOf(lights));
+    hours = tiles.hoursFromHeights(w, std::move(z), t, startJulianDay, endJulianDay, stepHours, lightsOf(lights), {},
+                                   qota::ShadowSearch::Strips, threads);
   }
   py::array_t<float> out({t.height, t.width});
   float* o = out.mutable_data();
@@ -736,7 +737,7 @@ PYBIND11_MODULE(_qota, m) {
       .def("mask_from_heights", &maskFromHeights, py::arg("window"), py::arg("heights"), py::arg("tile"), py::arg("light"),
            py::arg("threads") = 0)
       .def("hours_from_heights", &hoursFromHeights, py::arg("window"), py::arg("heights"), py::arg("tile"),
-           py::arg("start"), py::arg("end"), py::arg("step"), py::arg("lights"))
+           py::arg("start"), py::arg("end"), py::arg("step"), py::arg("lights"), py::arg("threads") = 0)
       .def(py::pickle([](const qota::ShadowTiles& t) { return py::make_tuple(py::bytes(t.state())); },
                       [](const py::tuple& s) { return qota::ShadowTiles::restore(s[0].cast<std::string>()); }));
   m.def("_describe_raster", &describeRaster, py::arg("path"), py::arg("band"));

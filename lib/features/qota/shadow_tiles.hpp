@@ -105,7 +105,7 @@ class ShadowTiles {
   // halo; sunlightSteps gives them).
   SunlightHours hours(const CellWindow& tile, double startJulianDay, double endJulianDay, double stepHours,
                       const std::vector<Eigen::Vector3d>& lights, const IndexOptions& options = {},
-                      ShadowSearch search = ShadowSearch::Strips, std::uint64_t bytes = 0) const;
+                      ShadowSearch search = ShadowSearch::Strips, std::uint64_t bytes = 0, unsigned threads = 0) const;
   // The lights of the steps of a span (sunlightHours's steps) with the Sun above the horizon at
   // the centre less the frame's slack bound: the lights a tile's halo must serve. slack: how far
   // below the centre's horizon the Sun may be while some cell sees it (degrees; the whole
@@ -122,7 +122,7 @@ class ShadowTiles {
   SunlightHours hoursFromHeights(const CellWindow& window, std::vector<double> heights, const CellWindow& tile,
                                  double startJulianDay, double endJulianDay, double stepHours,
                                  const std::vector<Eigen::Vector3d>& lights, const IndexOptions& options = {},
-                                 ShadowSearch search = ShadowSearch::Strips) const;
+                                 ShadowSearch search = ShadowSearch::Strips, unsigned threads = 0) const;
   // The most halo any tile of this size (at most; tiles at the raster's edges are smaller) needs
   // under these lights, per side (west, east, north, south): an overlap for blocks of that size.
   std::array<int, 4> haloFor(int tileWidth, int tileHeight, const std::vector<Eigen::Vector3d>& lights) const;
@@ -148,7 +148,7 @@ class ShadowTiles {
   // halo before clipping to the raster.
   std::array<int, 4> reach(const CellWindow& tile, const std::vector<Eigen::Vector3d>& lights, double tileLowest) const;
   SunlightHours tileHours(const LocalFrame& frame, const CellWindow& tile, double startJulianDay, double endJulianDay,
-                          double stepHours, const IndexOptions& options, ShadowSearch search) const;
+                          double stepHours, const IndexOptions& options, ShadowSearch search, unsigned threads) const;
   LocalFrame givenWindow(const CellWindow& window, std::vector<double> heights, const CellWindow& tile,
                          const std::vector<Eigen::Vector3d>& lights) const;
 

@@ -25,10 +25,10 @@ struct SunlightHours {
 // (the last step may be shorter): a cell lit at a step's middle counts the whole step. Steps when
 // the Sun is below the horizon of every cell are counted without computing a mask. Throws
 // qota::Error for a step under a minute or longer than the span. testOnly: as shadowMask's (the
-// other cells get 0).
+// other cells get 0); threads: as shadowMask's.
 SunlightHours sunlightHours(const LocalFrame& frame, const std::string& source, double startJulianDay,
                             double endJulianDay, double stepHours, const IndexOptions& options = {},
                             const Progress& progress = {}, ShadowSearch search = ShadowSearch::Strips,
-                            std::optional<CellWindow> testOnly = std::nullopt);
+                            std::optional<CellWindow> testOnly = std::nullopt, unsigned threads = 0);
 
 }  // namespace qota
