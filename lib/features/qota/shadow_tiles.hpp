@@ -27,7 +27,7 @@
 // raster's. A void too wide for the memory allowed is refused, with its size.
 //
 // Not tiled: a raster closed round the globe (its frame has a seam and poles); on an ellipsoid a
-// light at or below the horizon at the centre (its shadows reach without bound). Both are
+// light at or below the horizon at a tile (its shadows reach without bound). Both are
 // shadowed whole when they fit, else refused.
 #pragma once
 
