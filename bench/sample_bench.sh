@@ -17,40 +17,10 @@ trap 'rm -rf "$work"' EXIT
 # 1M points on the tile (lon -122..-121, lat 46..47), fixed seed.
 awk 'BEGIN { srand(1); for (i = 0; i < 1000000; ++i) printf "%.6f %.6f\n", -122 + rand(), 46 + rand() }' > "$work/points.txt"
 
-# The VRT: the tile repeated 34 x 34 times (SimpleSource per copy, same georeferencing step).
-n=34 size=1201
-{
-  echo "<VRTDataset rasterXSize=\"$((n * size))\" rasterYSize=\"$((n * size))\">"
-  echo "  <SRS>EPSG:4326</SRS>"
-  echo "  <GeoTransform>-122.000416666666666, 0.000833333333333333, 0, 47.000416666666666, 0, -0.000833333333333333</GeoTransform>"
-  echo "  <VRTRasterBand dataType=\"Int16\" band=\"1\">"
-  for ((r = 0; r < n; ++r)); do
-    for ((c = 0; c < n; ++c)); do
-      echo "    <SimpleSource><SourceFilename relativeToVRT=\"0\">$PWD/$dem</SourceFilename><SourceBand>1</SourceBand>"
-      echo "      <SrcRect xOff=\"0\" yOff=\"0\" xSize=\"$size\" ySize=\"$size\"/><DstRect xOff=\"$((c * size))\" yOff=\"$((r * size))\" xSize=\"$size\" ySize=\"$size\"/></SimpleSource>"
-    done
-  done
-  echo "  </VRTRasterBand>"
-  echo "</VRTDataset>"
-} > "$work/big.vrt"
+# The VRT: the tile repeated 34 x 34 times (the tile's Int16, one SimpleSource per copy).
+source bench/bench_common.sh
+mosaic 34 > "$work/big.vrt"
 point="-110.3 34.7"  # in the middle of the mosaic
-
-# Median and spread of a command's wall seconds (and of its peak RSS in MB), RUNS times.
-measure() {
-  local times=() rss=()
-  for ((k = 0; k < runs; ++k)); do
-    /usr/bin/time -f "%e %M" -o "$work/time" "$@" > "$work/out" 2> "$work/err" < "${input:-/dev/null}" || {
-      cat "$work/err"; exit 1; }
-    read -r t m < "$work/time"
-    times+=("$t") rss+=("$m")
-  done
-  printf '%s\n' "${times[@]}" | sort -g > "$work/t"
-  printf '%s\n' "${rss[@]}" | sort -g > "$work/m"
-  local mid=$(((runs + 1) / 2))
-  med=$(sed -n "${mid}p" "$work/t") lo=$(head -1 "$work/t") hi=$(tail -1 "$work/t")
-  mem=$(sed -n "${mid}p" "$work/m")
-  spread=$(awk -v a="$lo" -v b="$hi" -v m="$med" 'BEGIN { printf "%.0f", (m > 0 ? 100 * (b - a) / m : 0) }')
-}
 
 echo "sample_bench: $runs runs each, medians (spread = (max - min) / median)"
 printf '%-44s %10s %8s %10s\n' "job" "seconds" "spread" "peak MB"

@@ -13,43 +13,12 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 build=${1:-build} runs=${2:-3}
 qota=$build/tools/qota
-dem=$PWD/data/mt_rainier_90m.tif
 work=$(mktemp -d "${TMPDIR:-/tmp}/qota_shadow_tiles.XXXXXX")
 trap 'rm -rf "$work"' EXIT
 
-# The Rainier tile n x n times, one ComplexSource per copy (its nodata kept).
-mosaic() {
-  local n=$1 size=1201
-  echo "<VRTDataset rasterXSize=\"$((n * size))\" rasterYSize=\"$((n * size))\">"
-  echo "  <SRS>EPSG:4326</SRS>"
-  echo "  <GeoTransform>-122.000416666666666, 0.000833333333333333, 0, 47.000416666666666, 0, -0.000833333333333333</GeoTransform>"
-  echo "  <VRTRasterBand dataType=\"Float32\" band=\"1\"><NoDataValue>-32768</NoDataValue>"
-  for ((r = 0; r < n; ++r)); do
-    for ((c = 0; c < n; ++c)); do
-      echo "    <ComplexSource><SourceFilename relativeToVRT=\"0\">$dem</SourceFilename><SourceBand>1</SourceBand><NODATA>-32768</NODATA>"
-      echo "      <SrcRect xOff=\"0\" yOff=\"0\" xSize=\"$size\" ySize=\"$size\"/><DstRect xOff=\"$((c * size))\" yOff=\"$((r * size))\" xSize=\"$size\" ySize=\"$size\"/></ComplexSource>"
-    done
-  done
-  echo "  </VRTRasterBand>"
-  echo "</VRTDataset>"
-}
-mosaic 4 > "$work/fits.vrt"
+source bench/bench_common.sh
+mosaic 4 Float32 -32768 > "$work/fits.vrt"
 
-# Median and spread of a command's wall seconds, and its median peak RSS (MB), RUNS times.
-measure() {
-  local times=() rss=()
-  for ((k = 0; k < runs; ++k)); do
-    /usr/bin/time -f "%e %M" -o "$work/time" "$@" > "$work/out" 2> "$work/err" || { cat "$work/err"; exit 1; }
-    read -r t m < "$work/time"
-    times+=("$t") rss+=("$m")
-  done
-  printf '%s\n' "${times[@]}" | sort -g > "$work/t"
-  printf '%s\n' "${rss[@]}" | sort -g > "$work/m"
-  local mid=$(((runs + 1) / 2))
-  med=$(sed -n "${mid}p" "$work/t") lo=$(head -1 "$work/t") hi=$(tail -1 "$work/t")
-  mem=$(($(sed -n "${mid}p" "$work/m") / 1024))
-  spread=$(awk -v a="$lo" -v b="$hi" -v m="$med" 'BEGIN { printf "%.0f", (m > 0 ? 100 * (b - a) / m : 0) }')
-}
 row() { awk -v j="$1" -v s="$2" -v p="$3" -v c="$4" -v m="$5" 'BEGIN { printf "%-46s %8.2f %6s%% %9.2f %8d\n", j, s, p, c / s / 1e6, m }'; }
 
 light=(-az 315 -alt 30)
@@ -57,9 +26,9 @@ cells=$((4804 * 4804))
 echo "shadow_tiles: $runs runs each, medians (spread = (max - min) / median)"
 printf '%-46s %8s %7s %9s %8s\n' "job" "seconds" "spread" "Mcells/s" "peak MB"
 measure "$qota" shadow "$work/fits.vrt" -o "$work/whole.tif" -q "${light[@]}"
-whole=$med; row "whole raster in memory, 4804^2" "$med" "$spread" "$cells" "$mem"
+whole=$med; row "whole raster in memory, 4804^2" "$med" "$spread" "$cells" $((mem / 1024))
 measure "$qota" shadow "$work/fits.vrt" -o "$work/tiled.tif" -q "${light[@]}" --max-memory 2G
-tiled=$med; row "by tiles, --max-memory 2G, 4804^2" "$med" "$spread" "$cells" "$mem"
+tiled=$med; row "by tiles, --max-memory 2G, 4804^2" "$med" "$spread" "$cells" $((mem / 1024))
 same=$(/usr/bin/python3 - "$work/whole.tif" "$work/tiled.tif" << 'EOF' 2>/dev/null || echo "unknown (no Python GDAL)"
 import sys
 from osgeo import gdal
@@ -71,7 +40,7 @@ awk -v w="$whole" -v t="$tiled" -v s="$same" 'BEGIN {
   printf "by tiles: %.2fx the whole raster'\''s cells per second; the rasters are %s\n", w / t, s }'
 
 if [ "${BIG:-0}" = 1 ]; then
-  mosaic 34 > "$work/big.vrt"
+  mosaic 34 Float32 -32768 > "$work/big.vrt"
   big=$((40834 * 40834))
   /usr/bin/time -f "%e %M" -o "$work/time" "$qota" shadow "$work/big.vrt" -o "$work/big.tif" -q "${light[@]}" --max-memory 2G
   read -r t m < "$work/time"

@@ -196,8 +196,7 @@ int assemble(const AssembleOptions& o, std::ostream& out, std::ostream& err) {
       grid.crsWkt = tiles[0].crs;
       int block = 256;
       if (tiles[0].qota.count("QOTA_TILE_SIZE")) {
-        const int side = std::atoi(tiles[0].qota.at("QOTA_TILE_SIZE").c_str());
-        while (block > 16 && side % block) block /= 2;
+        block = StreamedRaster::blockFor(std::atoi(tiles[0].qota.at("QOTA_TILE_SIZE").c_str()));
         for (const auto& [key, value] : tiles[0].qota) {
           if (key != "QOTA_TILE") grid.metadata.push_back({key, value});
         }

@@ -87,6 +87,26 @@ void writeRaster(const RasterWrite& w, const DemTerrain& grid, const std::vector
   }
 }
 
+namespace {
+
+// The caller's creation options (NAME=VALUE) over the defaults in `co`.
+void overrideWith(const std::vector<std::string>& options, CPLStringList& co) {
+  for (const auto& option : options) {
+    const auto eq = option.find('=');
+    if (eq == std::string::npos) throw Error("-co " + option + ": expected NAME=VALUE");
+    co.SetNameValue(option.substr(0, eq).c_str(), option.substr(eq + 1).c_str());
+  }
+}
+
+}  // namespace
+
+int StreamedRaster::blockFor(int side) {
+  for (int b = 256; b >= 16; b /= 2) {
+    if (side % b == 0) return b;
+  }
+  return 16;
+}
+
 struct StreamedRaster::Open {
   std::filesystem::path staged, tiff;  // tiff: the GeoTIFF written (staged itself unless COG)
   std::unique_ptr<GDALDataset> ds;
@@ -119,13 +139,7 @@ StreamedRaster::StreamedRaster(const RasterWrite& w, const Grid& grid, OutputSta
   co.SetNameValue("BLOCKYSIZE", std::to_string(grid.blockSize).c_str());
   co.SetNameValue("COMPRESS", "DEFLATE");
   co.SetNameValue("BIGTIFF", bytes > (3ull << 30) ? "YES" : "IF_SAFER");
-  if (!o.cog) {
-    for (const auto& option : w.creationOptions) {
-      const auto eq = option.find('=');
-      if (eq == std::string::npos) throw Error("-co " + option + ": expected NAME=VALUE");
-      co.SetNameValue(option.substr(0, eq).c_str(), option.substr(eq + 1).c_str());
-    }
-  }
+  if (!o.cog) overrideWith(w.creationOptions, co);
   GDALDriver* gtiff = GetGDALDriverManager()->GetDriverByName("GTiff");
   o.ds.reset(gtiff->Create(o.tiff.c_str(), grid.width, grid.height, 1, o.type, co.List()));
   if (!o.ds) throw Error(w.path + ": cannot create (" + o.errors.message() + ")");
@@ -162,11 +176,7 @@ void StreamedRaster::finish() {
   CPLStringList co;
   co.SetNameValue("COMPRESS", "DEFLATE");
   co.SetNameValue("BIGTIFF", "IF_SAFER");
-  for (const auto& option : w_.creationOptions) {
-    const auto eq = option.find('=');
-    if (eq == std::string::npos) throw Error("-co " + option + ": expected NAME=VALUE");
-    co.SetNameValue(option.substr(0, eq).c_str(), option.substr(eq + 1).c_str());
-  }
+  overrideWith(w_.creationOptions, co);
   GDALDriver* cog = GetGDALDriverManager()->GetDriverByName("COG");
   std::unique_ptr<GDALDataset> copy(
       tiles ? cog->CreateCopy(o.staged.c_str(), tiles.get(), FALSE, co.List(), GDALDummyProgress, nullptr) : nullptr);

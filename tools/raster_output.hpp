@@ -49,6 +49,9 @@ class StreamedRaster {
     std::vector<std::pair<std::string, std::string>> metadata;  // NAME, VALUE items of the dataset
   };
   StreamedRaster(const RasterWrite& w, const Grid& grid, OutputStage& stage);
+  // The largest block size (at most 256) that tiles of `side` cells are made of, so that every
+  // block is written once; 16 when none divides it.
+  static int blockFor(int side);
   ~StreamedRaster();
   StreamedRaster(const StreamedRaster&) = delete;
   StreamedRaster& operator=(const StreamedRaster&) = delete;

@@ -44,15 +44,6 @@ std::string clock(double seconds) {
   return text;
 }
 
-// The largest block size (a GeoTIFF's: a multiple of 16, at most 256) that tiles of `side`
-// cells are made of, so that every block is written once.
-int blockFor(int side) {
-  for (int b = 256; b >= 16; b /= 2) {
-    if (side % b == 0) return b;
-  }
-  return 16;
-}
-
 // The tiles, from the state file when there is one, else from a pass over the heights (then
 // written to the state file, when asked, at once: other jobs may use it while this one works).
 ShadowTiles passOverHeights(const ShadowOptions& o, const DemOptions& demOptions, const FrameOptions& frameOptions) {
@@ -192,7 +183,7 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
     grid.geotransform[0] += extent.col * dem.geotransform[1] + extent.row * dem.geotransform[2];
     grid.geotransform[3] += extent.col * dem.geotransform[4] + extent.row * dem.geotransform[5];
     grid.crsWkt = dem.crsWkt;
-    grid.blockSize = blockFor(side);
+    grid.blockSize = StreamedRaster::blockFor(side);
     grid.nodata = o.hours ? -1.0 : double(o.nodataValue);
     grid.metadata = {{"QOTA_RASTER_SIZE", std::to_string(dem.width) + "," + std::to_string(dem.height)},
                      {"QOTA_TILE_SIZE", std::to_string(side)},
