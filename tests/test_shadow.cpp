@@ -12,6 +12,7 @@
 #include "qota/synthetic.hpp"
 #include "qota/terrain.hpp"
 #include "qota_tools.hpp"
+#include "shadow_oracle.hpp"
 
 namespace {
 
@@ -88,51 +89,7 @@ TEST(Shadow, ZenithAndNight) {
   EXPECT_THROW(qota::shadowMask(f, {0, 0, 0}), qota::Error);
 }
 
-// The terrain's height under (x, y) seen from above, by testing every triangle (none: NaN).
-double surfaceAt(const LocalFrame& f, double x, double y) {
-  const auto& v = f.mesh.vertices;
-  for (std::size_t p = 0; p < f.mesh.polygonCount(); ++p) {
-    const auto t = f.mesh.polygon(p);
-    const Eigen::Vector2d a = v[t[0]].head<2>(), b = v[t[1]].head<2>(), c = v[t[2]].head<2>();
-    const double area = (b - a).x() * (c - a).y() - (b - a).y() * (c - a).x();
-    const Eigen::Vector2d q(x, y);
-    const double wa = ((b - q).x() * (c - q).y() - (b - q).y() * (c - q).x()) / area;
-    const double wb = ((c - q).x() * (a - q).y() - (c - q).y() * (a - q).x()) / area;
-    const double wc = 1 - wa - wb;
-    if (wa >= 0 && wb >= 0 && wc >= 0) return wa * v[t[0]].z() + wb * v[t[1]].z() + wc * v[t[2]].z();
-  }
-  return NAN;
-}
-
-// The oracle: attached shadow when a point a millionth of a pixel toward the light lies below the
-// surface there; cast shadow when the ray from the vertex toward the light meets a triangle that
-// does not have that vertex as a corner (Moller-Trumbore, t > 0).
-std::vector<Light> bruteForceMask(const LocalFrame& f, const Eigen::Vector3d& light) {
-  const auto& v = f.mesh.vertices;
-  std::vector<Light> out(f.cellCount(), Light::NoData);
-  const double eps = 1e-6 * f.pixelSizeX / std::max(1e-9, light.head<2>().norm());
-  for (std::size_t i = 0; i < f.cellCount(); ++i) {
-    if (!f.valid[i]) continue;
-    out[i] = Light::Lit;
-    const Eigen::Vector3d q = v[i] + eps * light;
-    if (light.head<2>().norm() > 0 && q.z() < surfaceAt(f, q.x(), q.y())) out[i] = Light::Shadow;
-    for (std::size_t p = 0; p < f.mesh.polygonCount() && out[i] == Light::Lit; ++p) {
-      const auto t = f.mesh.polygon(p);
-      if (t[0] == i || t[1] == i || t[2] == i) continue;
-      const Eigen::Vector3d e1 = v[t[1]] - v[t[0]], e2 = v[t[2]] - v[t[0]];
-      const Eigen::Vector3d pv = light.cross(e2);
-      const double det = e1.dot(pv);
-      if (det == 0) continue;
-      const Eigen::Vector3d tv = v[i] - v[t[0]];
-      const double a = tv.dot(pv) / det;
-      const Eigen::Vector3d qv = tv.cross(e1);
-      const double b = light.dot(qv) / det;
-      const double dist = e2.dot(qv) / det;
-      if (a >= 0 && b >= 0 && a + b <= 1 && dist > 0) out[i] = Light::Shadow;
-    }
-  }
-  return out;
-}
+using qota::test::bruteForceMask;
 
 TEST(Shadow, IdenticalToBruteForceOnSmallDems) {
   std::mt19937_64 rng(2024);
