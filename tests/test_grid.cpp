@@ -5,12 +5,15 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <array>
 #include <atomic>
+#include <functional>
 #include <random>
 #include <span>
 #include <thread>
 
 #include "qota/dem.hpp"
+#include "qota/error.hpp"
 #include "qota/synthetic.hpp"
 #include "qota/terrain.hpp"
 
@@ -207,6 +210,163 @@ TEST(GridFastPath, ConcurrentStatsQueriesAndDeferredBuild) {
   for (auto& t : threads) t.join();
   EXPECT_EQ(wrong.load(), 0);
   EXPECT_GT(index.stats().tree.nodes, 0u);
+}
+
+
+// An index built from a GridMesh is the index of the Mesh it stands for (GridMesh::toMesh), bit
+// for bit: the same polygons, statistics and answers at random points, vertices and edges, with
+// holes, either turn, a sheared lattice, a lattice off the affine grid, the quadtree only, and
+// the same refusal of a non-finite vertex. And the lean grid made straight from the lattice
+// (GridPath::setUpLattice, the raster sampler's large tiles) answers as the index wherever it
+// decides.
+void expectGridMeshIsItsMesh(const GridMesh& grid, const CartesianMapping& mapping, const IndexOptions& options,
+                             std::uint64_t seed) {
+  SCOPED_TRACE(seed);
+  const Mesh mesh = grid.toMesh();
+  const TerrainIndex direct(grid, mapping, options), viaMesh(mesh, mapping, options);
+  ASSERT_EQ(direct.gridFastPath(), viaMesh.gridFastPath());
+  ASSERT_EQ(direct.memoryBytesNow(), viaMesh.memoryBytesNow());
+  const IndexStats a = direct.stats(), b = viaMesh.stats();
+  ASSERT_EQ(a.polygons, b.polygons);
+  ASSERT_EQ(a.triangles, b.triangles);
+  ASSERT_EQ(a.leftOut, b.leftOut);
+  ASSERT_EQ(a.vertices, b.vertices);
+  ASSERT_EQ(a.tree.nodes, b.tree.nodes);
+  ASSERT_EQ(a.tree.leaves, b.tree.leaves);
+  ASSERT_EQ(a.tree.references, b.tree.references);
+  ASSERT_EQ(a.memoryBytes, b.memoryBytes);
+  if (mesh.indices.empty()) return;
+  const Box2 box = a.domain;
+  ASSERT_EQ(box.ulo, b.domain.ulo);
+  ASSERT_EQ(box.vhi, b.domain.vhi);
+  std::mt19937_64 rng(seed);
+  std::vector<Point2> points;
+  for (int i = 0; i < 20000; ++i) {
+    points.push_back({uniform(rng, box.ulo - 1e-3 * (box.uhi - box.ulo), box.uhi),
+                      uniform(rng, box.vlo, box.vhi + 1e-3 * (box.vhi - box.vlo))});
+  }
+  for (int i = 0; i < 5000; ++i) {
+    const auto p = mesh.polygon(rng() % mesh.polygonCount());
+    const Eigen::Vector3d c = mapping.toMapped(mesh.vertices[p[0]]), d = mapping.toMapped(mesh.vertices[p[1]]);
+    const double s = uniform(rng, 0, 1);
+    points.push_back({c.x(), c.y()});
+    points.push_back({c.x() + s * (d.x() - c.x()), c.y() + s * (d.y() - c.y())});
+  }
+  for (const Point2& p : points) {
+    const double z = uniform(rng, -2000, 4000);
+    const auto x = direct.below(p.u, p.v, z), y = viaMesh.below(p.u, p.v, z);
+    ASSERT_EQ(x.has_value(), y.has_value()) << p.u << " " << p.v;
+    if (x) {
+      ASSERT_EQ(x->height, y->height);
+      ASSERT_EQ(x->polygon, y->polygon);
+    }
+    const auto all = direct.all(p.u, p.v), allToo = viaMesh.all(p.u, p.v);
+    ASSERT_EQ(all.size(), allToo.size());
+  }
+  std::vector<std::optional<double>> h(points.size()), hToo(points.size());
+  direct.heightsBelow(points, 1e300, h);
+  viaMesh.heightsBelow(points, 1e300, hToo);
+  ASSERT_EQ(h, hToo);
+
+  // The lean grid alone, from the same mapped vertices.
+  if (!direct.gridFastPath() || !options.gridFastPath.value_or(true)) return;
+  std::vector<Point2> corners(grid.vertices.size());
+  std::vector<double> heights(grid.vertices.size());
+  for (std::size_t k = 0; k < corners.size(); ++k) {
+    const Eigen::Vector3d m = mapping.toMapped(grid.vertices[k]);
+    corners[k] = {m.x(), m.y()}, heights[k] = m.z();
+  }
+  detail::GridPath lean;
+  ASSERT_TRUE(lean.setUpLattice(grid.width, grid.height, corners, heights));
+  std::vector<double> leanHeights(points.size());
+  std::vector<std::uint8_t> decided(points.size());
+  lean.leanHeights(corners, heights, points, leanHeights.data(), decided.data());
+  std::size_t counted[3] = {0, 0, 0};
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    ++counted[decided[i]];
+    if (decided[i] == detail::GridPath::kHeight) {
+      ASSERT_EQ(std::optional<double>(leanHeights[i]), h[i]) << i;
+    } else if (decided[i] == detail::GridPath::kNoTerrain) {
+      ASSERT_FALSE(h[i].has_value()) << i;
+    }
+  }
+  EXPECT_GT(counted[detail::GridPath::kHeight], points.size() / 2);
+  EXPECT_GT(counted[detail::GridPath::kUndecided], 0u);  // the vertices and edges
+}
+
+// A w x h raster's vertices over a geotransform, heights from `height` (NaN: no data).
+std::vector<Eigen::Vector3d> latticeVertices(int w, int h, const std::array<double, 6>& g,
+                                             const std::function<double(int, int)>& height) {
+  std::vector<Eigen::Vector3d> v;
+  for (int r = 0; r < h; ++r) {
+    for (int c = 0; c < w; ++c) {
+      v.emplace_back(g[0] + (c + 0.5) * g[1] + (r + 0.5) * g[2], g[3] + (c + 0.5) * g[4] + (r + 0.5) * g[5],
+                     height(c, r));
+    }
+  }
+  return v;
+}
+
+TEST(GridMesh, IndexIsItsMeshsIndex) {
+  std::mt19937_64 rng(41);
+  const auto noise = [&](int c, int r) {
+    const bool hole = (c - 20) * (c - 20) + (r - 14) * (r - 14) < 30 || (c == 33 && r > 5) || uniform(rng, 0, 1) < 0.01;
+    return hole ? NAN : std::floor(uniform(rng, -50, 3000));
+  };
+  // North up (Int16-like heights in float), with holes.
+  const std::array<double, 6> northUp{5e5, 30, 0, 5.2e6, 0, -30};
+  const auto v1 = latticeVertices(47, 31, northUp, noise);
+  const CartesianMapping centred({0, 0, -1}, {5e5 + 23 * 30, 5.2e6 - 15 * 30, 0});
+  expectGridMeshIsItsMesh({.width = 47, .height = 31, .vertices = v1}, centred, {}, 1);
+  // Either turn, and the quadtree only.
+  expectGridMeshIsItsMesh({.width = 47, .height = 31, .vertices = v1, .reverse = true}, centred, {}, 2);
+  IndexOptions tree;
+  tree.gridFastPath = false;
+  expectGridMeshIsItsMesh({.width = 47, .height = 31, .vertices = v1}, centred, tree, 3);
+  // Sheared and rotated, fractional heights (not exact in float): no u per column.
+  const std::array<double, 6> sheared{5e5, 30, 4, 5.2e6, -3, -30};
+  const auto v2 = latticeVertices(40, 36, sheared, [&](int c, int r) {
+    return c == 7 && r < 20 ? NAN : 100 + 40 * std::sin(0.3 * c) * std::cos(0.2 * r) + uniform(rng, 0, 1e-3);
+  });
+  expectGridMeshIsItsMesh({.width = 40, .height = 36, .vertices = v2}, CartesianMapping({0, 0, -1}, {5e5, 5.2e6, 0}),
+                          {}, 4);
+  // Off the affine grid (a vertex moved by a thousandth of a cell): the general path, alike.
+  auto v3 = v1;
+  v3[200].x() += 0.03;
+  const TerrainIndex moved(GridMesh{.width = 47, .height = 31, .vertices = v3}, centred);
+  EXPECT_FALSE(moved.gridFastPath());
+  expectGridMeshIsItsMesh({.width = 47, .height = 31, .vertices = v3}, centred, {}, 5);
+  // Under a tilted gravity the heights move the projected vertices off the grid.
+  expectGridMeshIsItsMesh({.width = 40, .height = 36, .vertices = v2},
+                          CartesianMapping({0.05, 0.02, -1}, {5e5, 5.2e6, 0}), {}, 6);
+  // No data at all, one row, the smallest grid.
+  const auto none = latticeVertices(5, 4, northUp, [](int, int) { return NAN; });
+  expectGridMeshIsItsMesh({.width = 5, .height = 4, .vertices = none}, centred, {}, 7);
+  const auto row = latticeVertices(6, 1, northUp, [](int c, int) { return c; });
+  expectGridMeshIsItsMesh({.width = 6, .height = 1, .vertices = row}, centred, {}, 8);
+  const auto two = latticeVertices(2, 2, northUp, [](int c, int r) { return c + 2 * r; });
+  expectGridMeshIsItsMesh({.width = 2, .height = 2, .vertices = two}, centred, {}, 9);
+}
+
+TEST(GridMesh, RefusesAsItsMesh) {
+  const std::array<double, 6> northUp{0, 1, 0, 0, 0, -1};
+  auto v = latticeVertices(4, 3, northUp, [](int c, int r) { return c + r; });
+  v[5].z() = INFINITY;
+  const GridMesh grid{.width = 4, .height = 3, .vertices = v};
+  std::string direct, viaMesh;
+  try {
+    TerrainIndex index(grid, CartesianMapping());
+  } catch (const Error& e) {
+    direct = e.what();
+  }
+  try {
+    TerrainIndex index(grid.toMesh(), CartesianMapping());
+  } catch (const Error& e) {
+    viaMesh = e.what();
+  }
+  EXPECT_FALSE(direct.empty());
+  EXPECT_EQ(direct, viaMesh);
+  EXPECT_THROW(TerrainIndex(GridMesh{.width = 5, .height = 3, .vertices = v}, CartesianMapping()), Error);
 }
 
 }  // namespace

@@ -64,11 +64,12 @@ std::optional<double> documentedHeight(const qota::test::RasterValues& r, double
 // Points that find every special place of a raster: random ones over the footprint and beyond
 // it, every pixel centre of a few rows and columns, the midpoints of cell sides and diagonals,
 // the outer half pixel, all put on the surface by the outer half-pixel rule (off: NaN).
-void makePoints(const DemTerrain& dem, std::uint64_t seed, std::vector<double>& xs, std::vector<double>& ys) {
+void makePoints(const DemTerrain& dem, std::uint64_t seed, std::vector<double>& xs, std::vector<double>& ys,
+                int random = 20000) {
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> uc(-0.3, dem.width + 0.3), ur(-0.3, dem.height + 0.3);
   std::vector<std::array<double, 2>> pix;  // (col, row) in pixel coordinates
-  for (int i = 0; i < 20000; ++i) pix.push_back({uc(rng), ur(rng)});
+  for (int i = 0; i < random; ++i) pix.push_back({uc(rng), ur(rng)});
   for (int r = 0; r < dem.height; r += std::max(1, dem.height / 7)) {
     for (int c = 0; c < dem.width; ++c) {
       pix.push_back({c + 0.5, r + 0.5});                // a centre
@@ -91,13 +92,15 @@ void makePoints(const DemTerrain& dem, std::uint64_t seed, std::vector<double>& 
 
 // Every point, top and below a random z, from a sampler with the given tile size and cache.
 // And every top answer against the documented surface (documentedHeight), to 1e-6.
+// random: how many random points (many make the large tiles' lean grids answer most points);
+// leanTiles: set to the lean tiles the sampler built.
 void expectSameAsWhole(const std::string& path, int band, int tileSize, std::uint64_t cacheBytes, std::uint64_t seed,
-                       double scale = 1, double offset = 0) {
+                       double scale = 1, double offset = 0, int random = 20000, std::uint64_t* leanTiles = nullptr) {
   const DemTerrain dem = qota::loadDem(path, {.band = band, .lonLatAsCartesian = true});
   const qota::TerrainIndex whole(dem.mesh, dem.mapping);
   RasterSampler sampler(path, {.band = band, .cacheBytes = cacheBytes, .tileSize = tileSize});
   std::vector<double> xs, ys;
-  makePoints(dem, seed, xs, ys);
+  makePoints(dem, seed, xs, ys, random);
   std::mt19937_64 rng(seed + 1);
   double lo = INFINITY, hi = -INFINITY;
   for (const auto& v : dem.mesh.vertices) {
@@ -134,6 +137,7 @@ void expectSameAsWhole(const std::string& path, int band, int tileSize, std::uin
   if (cacheBytes < (1u << 20)) {
     EXPECT_LE(sampler.cachedBytes(), std::max<std::uint64_t>(cacheBytes, 1u << 20));
   }
+  if (leanTiles) *leanTiles = sampler.leanTilesBuilt();
 }
 
 TEST(RasterSampler, RainierTileByTileIsTheWholeTerrain) {
@@ -173,6 +177,38 @@ TEST(RasterSampler, HolesScaleAndTinyTiles) {
     SCOPED_TRACE(tile);
     expectSameAsWhole(path.string(), 1, tile, 1, 10 + tile, 0.25, -7.5);
   }
+}
+
+TEST(RasterSampler, LeanTilesAnswerAsTheWholeTerrain) {
+  // Enough points that every large tile is built as a lean grid and answers most of them, the
+  // rest (on sides, at the outer half pixel, beside holes) going to small tiles: on Rainier
+  // (Int16 with nodata holes, north up: heights in float, u by column) ...
+  std::uint64_t lean = 0;
+  expectSameAsWhole(QOTA_DATA_DIR "/mt_rainier_90m.tif", 0, 200, 64u << 20, 21, 1, 0, 150000, &lean);
+  EXPECT_EQ(lean, 36u);  // (1200 cells a side in tiles of 200: 6 x 6)
+  // ... and on a sheared Float64 raster with fractional heights and holes (neither float
+  // heights nor u by column), in tiles of 16 cells.
+  std::mt19937_64 rng(8);
+  const int w = 90, h = 70;
+  std::vector<double> v(static_cast<std::size_t>(w) * h);
+  for (int r = 0; r < h; ++r) {
+    for (int c = 0; c < w; ++c) {
+      const bool hole = (c - 30) * (c - 30) + (r - 40) * (r - 40) < 40 || (c == 61 && r > 12) ||
+                        std::uniform_real_distribution<double>(0, 1)(rng) < 0.005;
+      v[static_cast<std::size_t>(r) * w + c] =
+          hole ? -9999 : 500 + 80 * std::sin(0.2 * c) * std::cos(0.15 * r) + std::uniform_real_distribution<double>(0, 1e-3)(rng);
+    }
+  }
+  const auto path = qota::test::scratchPath("sampler_lean.tif");
+  qota::test::RasterSpec spec;
+  spec.width = w, spec.height = h;
+  spec.geotransform = {500000.0, 30.0, 4.0, 5200000.0, -3.0, -30.0};
+  spec.bands = {v};
+  spec.nodata = -9999;
+  spec.type = GDT_Float64;
+  qota::test::writeRaster(path, spec);
+  expectSameAsWhole(path.string(), 1, 16, 64u << 20, 22, 1, 0, 60000, &lean);
+  EXPECT_EQ(lean, 30u);  // (89 x 69 cells in tiles of 16: 6 x 5)
 }
 
 TEST(RasterSampler, OneRowOrColumnHasNoCellsAndOffIsNone) {

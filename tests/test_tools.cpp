@@ -1,6 +1,7 @@
 // qota sample and qota info, called as library functions.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -8,6 +9,7 @@
 #include <sstream>
 
 #include "qota_tools.hpp"
+#include "raster_files.hpp"
 #include "text_output.hpp"
 
 namespace {
@@ -113,6 +115,72 @@ TEST(SampleTool, MatchesGdallocationinfoAtPixelCentres) {
     } else {
       EXPECT_NEAR(std::stod(out[i]), gdal, 1e-6) << points[i];
     }
+  }
+}
+
+TEST(SampleTool, LinesAcrossReadBlocksAndBatchesStayAligned) {
+  // About 9 MB of input: read in blocks of 4 MB (a line split across each block boundary) and
+  // answered in batches of 65,536 lines. Every line's answer is checked against the surface
+  // dem.hpp documents (the triangle interpolation of GDAL's own pixel values, computed here), and
+  // the bad lines' messages name their line numbers.
+  const qota::test::RasterValues r = qota::test::readRaster(kRainier);
+  std::mt19937_64 rng(23);
+  std::uniform_real_distribution<double> where(2.0, 1197.0);
+  std::ostringstream input;
+  std::vector<double> want;  // NaN: none; -1: an error line; -2: a blank line
+  std::vector<std::size_t> badLines;
+  const char* separators[3] = {" ", ",", "\t"};
+  for (std::size_t line = 1; input.tellp() < 9'000'000; ++line) {
+    if (line % 5003 == 0) {
+      input << "foo " << line << '\n';
+      want.push_back(-1), badLines.push_back(line);
+      continue;
+    }
+    if (line % 7919 == 0) {
+      input << '\n';
+      want.push_back(-2);
+      continue;
+    }
+    // A point clearly inside a cell's half (not within 1e-3 cell of a side).
+    double fc, fr;
+    do {
+      fc = where(rng), fr = where(rng);
+    } while (std::min({fc - std::floor(fc), std::ceil(fc) - fc, fr - std::floor(fr), std::ceil(fr) - fr,
+                       std::fabs((fc - std::floor(fc)) - (fr - std::floor(fr)))}) < 1e-3);
+    const double x = r.geotransform[0] + (fc + 0.5) * r.geotransform[1];
+    const double y = r.geotransform[3] + (fr + 0.5) * r.geotransform[5];
+    char buf[96];
+    std::snprintf(buf, sizeof buf, "%.12f%s%.12f%s", x, separators[line % 3], y, line % 11 == 0 ? "\r" : "");
+    input << buf << '\n';
+    const int c = static_cast<int>(std::floor(fc)), row = static_cast<int>(std::floor(fr));
+    const double a = fc - c, b = fr - row;
+    const double tl = r.at(c, row), tr = r.at(c + 1, row), bl = r.at(c, row + 1), br = r.at(c + 1, row + 1);
+    const bool lower = b > a;
+    const double v1 = lower ? bl : tr, w1 = lower ? b - a : a - b, w2 = lower ? a : b;
+    const bool hole = tl == -32768 || v1 == -32768 || br == -32768;
+    want.push_back(hole ? NAN : (1 - w1 - w2) * tl + w1 * v1 + w2 * br);
+  }
+  std::string text = input.str();
+  text.pop_back();  // the last line without its newline
+  SampleOptions o;
+  o.source = kRainier;
+  const ToolRun run = sample(o, text);
+  EXPECT_EQ(run.code, 1);  // (the bad lines)
+  const auto out = lines(run.out);
+  ASSERT_EQ(out.size(), want.size());
+  for (std::size_t i = 0; i < want.size(); ++i) {
+    if (want[i] == -1) {
+      ASSERT_EQ(out[i], "error") << "line " << i + 1;
+    } else if (want[i] == -2) {
+      ASSERT_EQ(out[i], "") << "line " << i + 1;
+    } else if (std::isnan(want[i])) {
+      ASSERT_EQ(out[i], "none") << "line " << i + 1;
+    } else {
+      ASSERT_NEAR(std::stod(out[i]), want[i], 1e-6) << "line " << i + 1;
+    }
+  }
+  for (const std::size_t line : badLines) {
+    EXPECT_NE(run.err.find("stdin:" + std::to_string(line) + ": 'foo' is not a number"), std::string::npos) << line;
   }
 }
 

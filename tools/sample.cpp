@@ -2,11 +2,14 @@
 #include <gdal.h>
 #include <ogr_spatialref.h>
 
+#include <algorithm>
 #include <array>
 #include <charconv>
 #include <cmath>
 #include <exception>
+#include <cstring>
 #include <fstream>
+#include <future>
 #include <functional>
 #include <iostream>
 #include <limits>
@@ -15,6 +18,7 @@
 #include <optional>
 #include <span>
 #include <string_view>
+#include <thread>
 #include <type_traits>
 #include <vector>
 
@@ -51,37 +55,44 @@ struct PointLine {
 };
 
 // Reads the first `want` fields of a line as finite numbers (fields are separated by spaces,
-// tabs or commas) and keeps the rest of the line as it is. Returns an error message, or "" when
-// the line is good (or blank).
-std::string parsePointLine(std::string_view line, int want, PointLine& out) {
+// tabs or commas) and keeps the rest of the line as it is. Returns false, with the message in
+// `problem`, for a bad line; true for a good (or blank) one, leaving `problem` as it is.
+bool parsePointLine(std::string_view line, int want, PointLine& out, std::string& problem) {
   out = PointLine{};
   if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
   std::size_t i = 0;
   while (i < line.size() && isSeparator(line[i])) ++i;
-  if (i == line.size()) return "";  // blank
-  const char* expected = want == 3 ? "expected 'x y z' (--query-z)" : "expected 'x y'";
+  if (i == line.size()) return true;  // blank
   for (int k = 0; k < want; ++k) {
     while (i < line.size() && isSeparator(line[i])) ++i;
     if (i == line.size()) {
-      return std::string(expected) + ", got " + std::to_string(k) + (k == 1 ? " value" : " values");
+      const char* expected = want == 3 ? "expected 'x y z' (--query-z)" : "expected 'x y'";
+      problem = std::string(expected) + ", got " + std::to_string(k) + (k == 1 ? " value" : " values");
+      return false;
     }
-    std::size_t j = i;
-    while (j < line.size() && !isSeparator(line[j])) ++j;
-    const std::string_view token = line.substr(i, j - i);
+    // A number ends where its field does (no separator can be part of one).
     double v = 0;
-    const auto r = std::from_chars(token.data(), token.data() + token.size(), v);
-    if (r.ec != std::errc() || r.ptr != token.data() + token.size()) {
-      return quoted(token, "is not a number");
+    const auto r = std::from_chars(line.data() + i, line.data() + line.size(), v);
+    const std::size_t end = static_cast<std::size_t>(r.ptr - line.data());
+    if (r.ec != std::errc() || (end < line.size() && !isSeparator(line[end]))) {
+      std::size_t j = i;
+      while (j < line.size() && !isSeparator(line[j])) ++j;
+      const std::string_view token = line.substr(i, j - i);
+      problem = quoted(token, "is not a number");
+      return false;
     }
-    if (!std::isfinite(v)) return quoted(token, "is not a finite number");
+    if (!std::isfinite(v)) {
+      problem = quoted(line.substr(i, end - i), "is not a finite number");
+      return false;
+    }
     out.v[k] = v;
-    i = j;
+    i = end;
   }
   out.count = want;
   if (i < line.size()) out.separator = line[i] == ',' || line[i] == '\t' ? line[i] : ' ';
   while (i < line.size() && isSeparator(line[i])) ++i;
   out.rest = line.substr(i);
-  return "";
+  return true;
 }
 
 std::unique_ptr<OGRCoordinateTransformation> makeTransform(const std::string& srs,
@@ -180,21 +191,25 @@ Surface rasterSurface(std::shared_ptr<RasterSampler> sampler) {
     const std::array<double, 6> inverse = dem.inverseGeotransform();
     std::vector<double> xs(q.size()), ys(q.size()), zs(hasZ ? q.size() : 0);
     std::vector<std::optional<double>> heights(q.size());
-    for (std::size_t i = 0; i < q.size(); ++i) {
-      xs[i] = q[i].x, ys[i] = q[i].y;
-      if (hasZ) zs[i] = q[i].z;
-      out[i] = Answer{};
-      if (!onSurface(&dem, xs[i], ys[i], out[i].problem, &inverse)) {
-        out[i].token = "none";
-        xs[i] = ys[i] = std::numeric_limits<double>::quiet_NaN();  // off: no terrain
+    inParallel(q.size(), 8192, [&](std::size_t lo, std::size_t hi) {
+      for (std::size_t i = lo; i < hi; ++i) {
+        xs[i] = q[i].x, ys[i] = q[i].y;
+        if (hasZ) zs[i] = q[i].z;
+        out[i] = Answer{};
+        if (!onSurface(&dem, xs[i], ys[i], out[i].problem, &inverse)) {
+          out[i].token = "none";
+          xs[i] = ys[i] = std::numeric_limits<double>::quiet_NaN();  // off: no terrain
+        }
       }
-    }
+    });
     sampler->heights(xs, ys, zs, heights);
-    for (std::size_t i = 0; i < q.size(); ++i) {
-      if (!out[i].problem.empty() || !heights[i]) continue;
-      out[i].height = heights[i];
-      out[i].world = Eigen::Vector3d(q[i].x, q[i].y, *heights[i]);
-    }
+    inParallel(q.size(), 8192, [&](std::size_t lo, std::size_t hi) {
+      for (std::size_t i = lo; i < hi; ++i) {
+        if (!out[i].problem.empty() || !heights[i]) continue;
+        out[i].height = heights[i];
+        out[i].world = Eigen::Vector3d(q[i].x, q[i].y, *heights[i]);
+      }
+    });
   };
 }
 
@@ -292,6 +307,9 @@ struct LineResult {
   std::uint32_t query = 0;  // its query's index when p.count > 0
 };
 
+// The cores a batch's lines are parsed and formatted on.
+const std::size_t kThreads = std::max(1u, std::thread::hardware_concurrency());
+
 // The line loop: input read in large blocks and cut into lines; each batch of lines parsed on
 // both cores, transformed (--srs) and answered as one batch, formatted on both cores, written
 // in order. The text of every line is as the line-by-line loop wrote it.
@@ -303,67 +321,120 @@ class LineLoop {
 
   // Reads `in` to its end. Returns whether any line failed.
   bool run(std::istream& in) {
+    // The next block is read while this one's lines are answered: on another thread, so the
+    // input must not flush the output it is tied to (std::cin to std::cout) meanwhile.
+    std::ostream* const tied = in.tie(nullptr);
+    struct Retie {
+      std::istream& in;
+      std::ostream* tied;
+      ~Retie() { in.tie(tied); }
+    } retie{in, tied};
     constexpr std::size_t kBlock = 1 << 22;
-    std::string data;
-    std::size_t start = 0;  // first byte of the next line in data
-    std::vector<std::string_view> lines;
-    for (bool end = false; !end;) {
-      data.erase(0, start);
-      start = 0;
-      const std::size_t kept = data.size();
-      data.resize(kept + kBlock);
-      in.read(data.data() + kept, static_cast<std::streamsize>(kBlock));
-      data.resize(kept + static_cast<std::size_t>(in.gcount()));
-      end = !in;
+    const auto readBlock = [&in, this](std::string& raw) {  // true at the end of the input
+      raw.resize(kBlock);
+      in.read(raw.data(), static_cast<std::streamsize>(kBlock));
+      raw.resize(static_cast<std::size_t>(in.gcount()));
       if (in.bad()) throw Error(where_ + ": read error");
-      lines.clear();
-      for (std::size_t nl; (nl = data.find('\n', start)) != std::string::npos; start = nl + 1) {
-        lines.emplace_back(data.data() + start, nl - start);
-      }
-      if (end && start < data.size()) {  // a last line without its newline
-        lines.emplace_back(data.data() + start, data.size() - start);
-        start = data.size();
-      }
+      return !in;
+    };
+    std::string data, raw, ahead;  // data: the last block's unfinished line, then this block
+    std::vector<std::string_view> lines;
+    for (bool end = readBlock(raw);;) {
+      data.append(raw);
+      std::future<bool> next;
+      if (!end) next = std::async(std::launch::async, [&] { return readBlock(ahead); });
+      const std::size_t start = splitLines(data, end, lines);
       constexpr std::size_t kBatch = 1 << 16;
       for (std::size_t b = 0; b < lines.size(); b += kBatch) {
         batchOf(std::span<const std::string_view>(lines).subspan(b, std::min(kBatch, lines.size() - b)));
       }
+      data.erase(0, start);
+      if (end) break;
+      end = next.get();
+      raw.swap(ahead);
     }
     return failed_;
   }
 
  private:
+  // The complete lines of data (and its unfinished last one at the end of the input), found on
+  // every core; returns where the unfinished line starts.
+  static std::size_t splitLines(const std::string& data, bool end, std::vector<std::string_view>& lines) {
+    const std::size_t slices = data.size() >= (1u << 20) ? kThreads : 1;
+    std::vector<std::vector<std::size_t>> ends(slices);  // each slice's newlines
+    const std::size_t each = (data.size() + slices - 1) / slices;
+    inParallel(slices, 1, [&](std::size_t lo, std::size_t hi) {
+      for (std::size_t s = lo; s < hi; ++s) {
+        std::vector<std::size_t> found;  // (moved in at the end, as the format's text)
+        const char* p = data.data() + std::min(data.size(), s * each);
+        const char* stop = data.data() + std::min(data.size(), (s + 1) * each);
+        while (const void* nl = std::memchr(p, '\n', static_cast<std::size_t>(stop - p))) {
+          p = static_cast<const char*>(nl);
+          found.push_back(static_cast<std::size_t>(p - data.data()));
+          ++p;
+        }
+        ends[s] = std::move(found);
+      }
+    });
+    lines.clear();
+    std::size_t start = 0;
+    for (const auto& e : ends) {
+      for (const std::size_t nl : e) lines.emplace_back(data.data() + start, nl - start), start = nl + 1;
+    }
+    if (end && start < data.size()) {  // a last line without its newline
+      lines.emplace_back(data.data() + start, data.size() - start);
+      start = data.size();
+    }
+    return start;
+  }
+
   void batchOf(std::span<const std::string_view> lines) {
     const std::size_t n = lines.size();
     const int want = o_.queryZ ? 3 : 2;
     results_.resize(n);
     const std::uint64_t first = lineNo_ + 1;
     lineNo_ += n;
-    // Parse.
-    inParallel(n, 2048, [&](std::size_t lo, std::size_t hi) {
-      for (std::size_t i = lo; i < hi; ++i) {
-        LineResult& r = results_[i];
-        r = LineResult{};
-        r.line = lines[i];
-        if (o_.header && first + i == 1) continue;  // (written as the header)
-        r.problem = parsePointLine(lines[i], want, r.p);
-        if (!r.problem.empty()) {
-          r.token = "error";
-          if (first + i == 1 && !o_.header) r.problem += " (a header line? --header skips it)";
+    // Parse, and number the queries: both on every core, in the same slices (a slice's queries
+    // follow the earlier slices').
+    const std::size_t slices = std::max<std::size_t>(1, std::min<std::size_t>(kThreads, n / 2048));
+    const std::size_t each = (n + slices - 1) / slices;
+    std::vector<std::size_t> count(slices + 1, 0);
+    inParallel(slices, 1, [&](std::size_t lo, std::size_t hi) {
+      for (std::size_t s = lo; s < hi; ++s) {
+        std::size_t queries = 0;  // (counted here: slices counting in `count` share its cache line)
+        for (std::size_t i = s * each; i < std::min(n, (s + 1) * each); ++i) {
+          LineResult& r = results_[i];  // reset field by field: the strings keep their buffers
+          r.line = lines[i];
+          r.p = PointLine{};
+          r.problem.clear(), r.token.clear();
+          r.query = 0;
+          if (o_.header && first + i == 1) continue;  // (written as the header)
+          if (!parsePointLine(lines[i], want, r.p, r.problem)) {
+            r.token = "error";
+            if (first + i == 1 && !o_.header) r.problem += " (a header line? --header skips it)";
+          }
+          queries += r.problem.empty() && r.p.count > 0;
+        }
+        count[s + 1] = queries;
+      }
+    });
+    for (std::size_t s = 0; s < slices; ++s) count[s + 1] += count[s];
+    // Queries, placed (--srs), answered.
+    queries_.resize(count[slices]);
+    answers_.resize(count[slices]);
+    inParallel(slices, 1, [&](std::size_t lo, std::size_t hi) {
+      for (std::size_t s = lo; s < hi; ++s) {
+        std::size_t k = count[s];
+        for (std::size_t i = s * each; i < std::min(n, (s + 1) * each); ++i) {
+          LineResult& r = results_[i];
+          if (!r.problem.empty() || r.p.count == 0) continue;
+          r.query = static_cast<std::uint32_t>(k);
+          Query& q = queries_[k];
+          q.x = o_.swapXY ? r.p.v[1] : r.p.v[0], q.y = o_.swapXY ? r.p.v[0] : r.p.v[1], q.z = r.p.v[2];
+          answers_[k++] = Answer{};
         }
       }
     });
-    // Queries, placed (--srs), answered.
-    queries_.clear();
-    for (std::size_t i = 0; i < n; ++i) {
-      LineResult& r = results_[i];
-      if (!r.problem.empty() || r.p.count == 0) continue;
-      r.query = static_cast<std::uint32_t>(queries_.size());
-      Query q;
-      q.x = o_.swapXY ? r.p.v[1] : r.p.v[0], q.y = o_.swapXY ? r.p.v[0] : r.p.v[1], q.z = r.p.v[2];
-      queries_.push_back(q);
-    }
-    answers_.assign(queries_.size(), Answer{});
     std::vector<std::uint8_t> placed(queries_.size(), 1);
     if (transform_ && !queries_.empty()) {
       std::vector<double> xs(queries_.size()), ys(queries_.size());
@@ -382,15 +453,14 @@ class LineLoop {
       }
     }
     answer(placed);
-    // Format.
-    const std::size_t slices = std::max<std::size_t>(1, std::min<std::size_t>(2, n / 2048));
-    const std::size_t each = (n + slices - 1) / slices;
+    // Format, on every core.
     std::vector<std::string> text(slices);
     inParallel(slices, 1, [&](std::size_t lo, std::size_t hi) {
       for (std::size_t s = lo; s < hi; ++s) {
-        std::string& t = text[s];
+        std::string t;  // (moved in at the end: the slices' strings share a cache line)
         t.reserve(each * 24);
         for (std::size_t i = s * each; i < std::min(n, (s + 1) * each); ++i) format(i, first + i, t);
+        text[s] = std::move(t);
       }
     });
     for (std::size_t s = 0; s < slices; ++s) out_.write(text[s].data(), static_cast<std::streamsize>(text[s].size()));
@@ -403,6 +473,10 @@ class LineLoop {
 
   // The surface's answers for the placed queries, in one batch.
   void answer(const std::vector<std::uint8_t>& placed) {
+    if (std::find(placed.begin(), placed.end(), 0) == placed.end()) {  // every one (no --srs failure)
+      surface_(queries_, o_.queryZ, answers_);
+      return;
+    }
     std::vector<Query> q;
     std::vector<std::uint32_t> at;
     for (std::size_t k = 0; k < queries_.size(); ++k) {

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 
+#include "qota/predicates.hpp"
 #include "qota/raster_grid.hpp"
 
 namespace qota::detail {
@@ -39,35 +40,56 @@ std::vector<std::uint32_t> GridPath::recognise(std::span<const Point2> corners,
     taken[slot] = 1;
     slots[t] = static_cast<std::uint32_t>(slot);
   }
+  if (!fitLattice(corners, nw, nh)) return {};
+  return slots;
+}
+
+bool GridPath::fitLattice(std::span<const Point2> corners, std::uint64_t nw, std::uint64_t nh) {
+  const std::size_t nv = corners.size();
+  if (nw < 2 || nh < 2 || nv != nw * nh) return false;
+  if (nw > 0xffffffffu || 2 * (nw - 1) * (nh - 1) >= 0xffffffffu) return false;
   // The vertices must lie on the affine grid (u, v) = o + col * a + row * b, to well within a
   // cell, so that the cell found by arithmetic is the cell (or a neighbour, near its edges).
   const Point2 o = corners[0], pa = corners[1], pb = corners[nw];
   const double au = pa.u - o.u, av = pa.v - o.v, bu = pb.u - o.u, bv = pb.v - o.v;
   const double det = au * bv - av * bu;
-  if (!std::isfinite(det) || det == 0) return {};
+  if (!std::isfinite(det) || det == 0) return false;
   const double cellSize = std::min(std::hypot(au, av), std::hypot(bu, bv));
-  for (std::uint64_t i = 0; i < nv; ++i) {
-    const double c = static_cast<double>(i % nw), r = static_cast<double>(i / nw);
-    const Point2 p = corners[i];
-    const double eu = o.u + c * au + r * bu - p.u, ev = o.v + c * av + r * bv - p.v;
-    if (!(std::hypot(eu, ev) <= 1e-6 * cellSize)) return {};
-  }
+  const double tolerance = 1e-6 * cellSize, tolerance2 = tolerance * tolerance;
+  // hypot(eu, ev) <= tolerance, decided by the squared distance where that is 2% or more from
+  // the bound (hypot is within an ulp of the root, the square within a few), else by hypot: the
+  // same decisions, without a library call per vertex.
+  const bool squares = tolerance2 > 1e-290 && std::isfinite(tolerance2);
   // And within 1e-6 of their column and row as the query computes them (the fast path's
-  // "clearly inside" margin of 1e-5 cell rests on this).
+  // "clearly inside" margin of 1e-5 cell rests on this). Both tests a row at a time.
   const double inverse[4] = {bv / det, -bu / det, -av / det, au / det};
-  for (std::uint64_t i = 0; i < nv; ++i) {
-    const double du = corners[i].u - o.u, dv = corners[i].v - o.v;
-    const double fc = inverse[0] * du + inverse[1] * dv, fr = inverse[2] * du + inverse[3] * dv;
-    if (!(std::fabs(fc - static_cast<double>(i % nw)) <= 1e-6 &&
-          std::fabs(fr - static_cast<double>(i / nw)) <= 1e-6)) {
-      return {};
+  for (std::uint64_t row = 0; row < nh; ++row) {
+    const Point2* line = &corners[row * nw];
+    const double r = static_cast<double>(row);
+    for (std::uint64_t col = 0; col < nw; ++col) {
+      const double c = static_cast<double>(col);
+      const Point2 p = line[col];
+      const double eu = o.u + c * au + r * bu - p.u, ev = o.v + c * av + r * bv - p.v;
+      const double e2 = eu * eu + ev * ev;
+      if (squares && e2 <= 0.98 * tolerance2) continue;
+      if (squares && e2 >= 1.02 * tolerance2 && std::isfinite(e2)) return false;
+      if (!(std::hypot(eu, ev) <= tolerance)) return false;
+    }
+  }
+  for (std::uint64_t row = 0; row < nh; ++row) {
+    const Point2* line = &corners[row * nw];
+    const double r = static_cast<double>(row);
+    for (std::uint64_t col = 0; col < nw; ++col) {
+      const double du = line[col].u - o.u, dv = line[col].v - o.v;
+      const double fc = inverse[0] * du + inverse[1] * dv, fr = inverse[2] * du + inverse[3] * dv;
+      if (!(std::fabs(fc - static_cast<double>(col)) <= 1e-6 && std::fabs(fr - r) <= 1e-6)) return false;
     }
   }
   w = static_cast<std::uint32_t>(nw);
   h = static_cast<std::uint32_t>(nh);
   u0 = o.u, v0 = o.v;
   for (int k = 0; k < 4; ++k) inv[k] = inverse[k];
-  return slots;
+  return true;
 }
 
 void GridPath::fillSlots(std::span<const std::uint64_t> slotThenTriangle) {
@@ -106,32 +128,10 @@ void GridPath::setUpLean(std::span<const TriangleCorners> triangles, std::span<c
     for (int k = 0; k < 3; ++k) {
       const std::uint64_t off = cornerOffset[half][k];
       if (off != 0 && off != 1 && off != w && off != w + 1ull) return;
-      dc[half][k] = static_cast<std::uint8_t>(off % w);
-      dr[half][k] = static_cast<std::uint8_t>(off / w);
     }
   }
   lean = true;
-  // u by column and v by row, when the vertices' coordinates are exactly those (an axis-aligned
-  // grid under a vertical gravity): then a query reads no vertex coordinates.
-  std::vector<double> cols(w), rows(h);
-  for (std::uint64_t c = 0; c < w; ++c) cols[c] = corners[c].u;
-  for (std::uint64_t r = 0; r < h; ++r) rows[r] = corners[r * w].v;
-  bool axes = true;
-  for (std::uint64_t i = 0; i < corners.size() && axes; ++i) {
-    axes = corners[i].u == cols[i % w] && corners[i].v == rows[i / w];
-  }
-  if (axes) colU.swap(cols), rowV.swap(rows);
-  // Heights in float when every one is exact in float (Int16 and Float32 rasters): half the bytes
-  // a random query pulls through the cache.
-  bool exact = true;
-  for (std::size_t i = 0; i < heights.size() && exact; ++i) {
-    exact = static_cast<double>(static_cast<float>(heights[i])) == heights[i];
-  }
-  if (exact) {
-    h32.resize(heights.size());
-    for (std::size_t i = 0; i < heights.size(); ++i) h32[i] = static_cast<float>(heights[i]);
-  }
-  axesF32 = !colU.empty() && !h32.empty();
+  setUpTables(corners, heights);
   // Which slots hold a triangle, one bit each, unless every one does.
   if (std::find(cellTri.begin(), cellTri.end(), kNone) != cellTri.end()) {
     presentBits.assign((cellTri.size() + 63) / 64, 0);
@@ -139,6 +139,86 @@ void GridPath::setUpLean(std::span<const TriangleCorners> triangles, std::span<c
       if (cellTri[slot] != kNone) presentBits[slot >> 6] |= std::uint64_t{1} << (slot & 63);
     }
   }
+}
+
+void GridPath::setUpTables(std::span<const Point2> corners, std::span<const double> heights) {
+  for (int half = 0; half < 2; ++half) {
+    for (int k = 0; k < 3; ++k) {
+      dc[half][k] = static_cast<std::uint8_t>(cornerOffset[half][k] % w);
+      dr[half][k] = static_cast<std::uint8_t>(cornerOffset[half][k] / w);
+    }
+  }
+  // u by column and v by row, when the vertices' coordinates are exactly those (an axis-aligned
+  // grid under a vertical gravity): then a query reads no vertex coordinates.
+  std::vector<double> cols(w), rows(h);
+  for (std::uint64_t c = 0; c < w; ++c) cols[c] = corners[c].u;
+  for (std::uint64_t r = 0; r < h; ++r) rows[r] = corners[r * w].v;
+  bool axes = corners.size() == static_cast<std::size_t>(w) * h;
+  for (std::uint64_t r = 0; r < h && axes; ++r) {
+    const Point2* line = &corners[r * w];
+    for (std::uint64_t c = 0; c < w; ++c) axes = axes && line[c].u == cols[c] && line[c].v == rows[r];
+  }
+  if (axes) colU.swap(cols), rowV.swap(rows);
+  // Heights in float when every one is exact in float (Int16 and Float32 rasters): half the bytes
+  // a random query pulls through the cache. A NaN (a vertex without data) stays NaN in float, and
+  // no present slot has it as a corner.
+  bool exact = true;
+  for (std::size_t i = 0; i < heights.size() && exact; ++i) {
+    exact = static_cast<double>(static_cast<float>(heights[i])) == heights[i] || std::isnan(heights[i]);
+  }
+  if (exact) {
+    h32.resize(heights.size());
+    for (std::size_t i = 0; i < heights.size(); ++i) h32[i] = static_cast<float>(heights[i]);
+  }
+  axesF32 = !colU.empty() && !h32.empty();
+}
+
+bool GridPath::setUpLattice(std::uint64_t nw, std::uint64_t nh, std::span<const Point2> corners,
+                            std::span<const double> heights) {
+  turnOff();
+  colU.clear(), rowV.clear(), presentBits.clear();
+  BigVector<float>().swap(h32);
+  if (heights.size() != corners.size() || !fitLattice(corners, nw, nh)) {
+    turnOff();
+    return false;
+  }
+  cellsU = w - 1.0, cellsV = h - 1.0;
+  // Every triangle turns as the first cell's of its half (the vertices lie within 1e-6 cell of
+  // an affine lattice, so no triangle's exact orientation differs from its ideal one); the index
+  // stores each counter-clockwise (PlanarCore::fanPolygon), which fixes the corners' offsets.
+  const std::uint32_t W = w;
+  const int turn[2] = {orient2dSign(corners[0], corners[W], corners[W + 1]),
+                       orient2dSign(corners[0], corners[W + 1], corners[1])};
+  if (turn[0] == 0 || turn[1] == 0) {
+    turnOff();
+    return false;
+  }
+  const std::uint32_t offsets[2][3] = {{0, W, W + 1}, {0, W + 1, 1}};
+  for (int half = 0; half < 2; ++half) {
+    cornerOffset[half][0] = 0;
+    cornerOffset[half][1] = offsets[half][turn[half] > 0 ? 1 : 2];
+    cornerOffset[half][2] = offsets[half][turn[half] > 0 ? 2 : 1];
+  }
+  lean = true;
+  setUpTables(corners, heights);
+  // A slot is present where its triangle's three corners have heights.
+  const std::uint64_t slots = 2ull * (w - 1) * (h - 1);
+  bool all = true;
+  std::vector<std::uint64_t> bits((slots + 63) / 64, 0);
+  for (std::uint64_t r = 0; r + 1 < h; ++r) {
+    for (std::uint64_t c = 0; c + 1 < w; ++c) {
+      const std::uint64_t x = r * w + c, slot = 2 * (r * (w - 1) + c);
+      const bool tl = !std::isnan(heights[x]), tr = !std::isnan(heights[x + 1]);
+      const bool bl = !std::isnan(heights[x + w]), br = !std::isnan(heights[x + w + 1]);
+      const bool present[2] = {tl && bl && br, tl && br && tr};
+      for (int half = 0; half < 2; ++half) {
+        all = all && present[half];
+        if (present[half]) bits[(slot + half) >> 6] |= std::uint64_t{1} << ((slot + half) & 63);
+      }
+    }
+  }
+  if (!all) presentBits.swap(bits);
+  return true;
 }
 
 void GridPath::clearSlot(const TriangleCorners& triangle, std::uint32_t t) {

@@ -138,4 +138,28 @@ int RasterGrid::ring(int row, int col, std::uint32_t out[kMaxRing], bool& closed
   return n;
 }
 
+std::uint64_t GridMesh::polygonCount() const {
+  const auto w = static_cast<std::uint64_t>(std::max(width, 0)), h = static_cast<std::uint64_t>(std::max(height, 0));
+  if (vertices.size() != w * h) return 0;
+  const auto data = [&](std::uint64_t v) { return hasData(vertices[v]); };
+  std::uint64_t n = 0;
+  for (std::uint64_t r = 0; r + 1 < h; ++r) {
+    for (std::uint64_t c = 0; c + 1 < w; ++c) {
+      const std::uint64_t tl = r * w + c, tr = tl + 1, bl = tl + w, br = bl + 1;
+      n += (data(tl) && data(bl) && data(br)) + (data(tl) && data(br) && data(tr));
+    }
+  }
+  return n;
+}
+
+Mesh GridMesh::toMesh() const {
+  Mesh mesh;
+  mesh.vertices.assign(vertices.begin(), vertices.end());
+  if (width >= 1 && height >= 1) {
+    RasterGrid(width, height, {}).appendTriangles(
+        mesh, [&](std::uint32_t v) { return hasData(vertices[v]); }, 0, reverse);
+  }
+  return mesh;
+}
+
 }  // namespace qota

@@ -187,29 +187,10 @@ int convexOrientation(std::span<const std::uint32_t> idx, std::span<const Point2
 
 PlanarCore::PlanarCore(const Mesh& mesh, const PlanarFrame& frame, const IndexOptions& options)
     : frame_(frame) {
-  const std::size_t nv = mesh.vertices.size();
   const std::size_t np = mesh.polygonCount();
-  if (nv >= std::numeric_limits<std::uint32_t>::max() || np >= std::numeric_limits<std::uint32_t>::max()) {
-    throw Error("terrain: " + std::to_string(nv) + " vertices and " + std::to_string(np) +
-                " polygons exceed the 32-bit indices of the index");
-  }
-  stats_.polygons = np;
-  stats_.vertices = nv;
-  // Refuse what cannot fit before allocating: at least a grid's worth (the lean grid is the
-  // smallest index), a general mesh's with its tree.
   std::uint64_t fanned = 0;
   for (std::size_t p = 0; p < np; ++p) fanned += mesh.polygon(p).size() > 2 ? mesh.polygon(p).size() - 2 : 0;
-  memory::require("terrain", options.gridFastPath.value_or(true) ? memory::kGridIndex : memory::kCartesianIndex, nv, fanned);
-
-  // Map every vertex once, so that polygons sharing a vertex share its mapped coordinates exactly.
-  std::vector<Eigen::Vector3d> mapped(nv);
-  corners2_.resize(nv);
-  cornerH_.resize(nv);
-  for (std::size_t i = 0; i < nv; ++i) {
-    mapped[i] = frame_.toMapped(mesh.vertices[i]);
-    corners2_[i] = {mapped[i].x(), mapped[i].y()};
-    cornerH_[i] = mapped[i].z();
-  }
+  startBuild(mesh.vertices, np, fanned, options);
 
   // Validate each polygon and fan it into counter-clockwise triangles.
   std::vector<Pending> pending;
@@ -220,20 +201,102 @@ PlanarCore::PlanarCore(const Mesh& mesh, const PlanarFrame& frame, const IndexOp
       throw Error("polygon " + std::to_string(p) + " has " + std::to_string(idx.size()) +
                   " vertices; a polygon needs at least 3");
     }
-    for (std::uint32_t i : idx) {
-      if (i >= nv) {
-        throw Error("polygon " + std::to_string(p) + " refers to vertex " + std::to_string(i) +
-                    " but the mesh has " + std::to_string(nv) + " vertices");
-      }
-      if (!mesh.vertices[i].allFinite() || !mapped[i].allFinite()) {
-        throw Error("polygon " + std::to_string(p) + ": vertex " + std::to_string(i) +
-                    " has a non-finite coordinate " + describePoint(mesh.vertices[i]));
-      }
-    }
+    checkCorners(idx, p, mesh.vertices);
     const std::size_t before = pending.size();
     fanPolygon(idx, static_cast<std::uint32_t>(p), pending);
     if (pending.size() == before) ++stats_.leftOut;
   }
+  finishBuild(pending, nullptr, options);
+}
+
+PlanarCore::PlanarCore(const GridMesh& grid, const PlanarFrame& frame, const IndexOptions& options)
+    : frame_(frame) {
+  const std::uint64_t w = static_cast<std::uint64_t>(std::max(grid.width, 0));
+  const std::uint64_t h = static_cast<std::uint64_t>(std::max(grid.height, 0));
+  if (grid.vertices.size() != w * h) {
+    throw Error("terrain: a grid of " + std::to_string(grid.width) + " x " + std::to_string(grid.height) +
+                " vertices given " + std::to_string(grid.vertices.size()));
+  }
+  // The polygons are the Mesh's (GridMesh::toMesh): the raster rule's triangles with data at
+  // their three corners, square by square in row order. Counted first, to refuse as that mesh
+  // would be refused before allocating.
+  const auto data = [&](std::uint64_t v) { return GridMesh::hasData(grid.vertices[v]); };
+  const std::uint64_t np = grid.polygonCount();
+  startBuild(grid.vertices, np, np, options);
+
+  // The same validation and fan (one triangle each) as the Mesh's polygons, and each triangle's
+  // slot on the lattice as recognise would find it.
+  std::vector<Pending> pending;
+  std::vector<std::uint32_t> slots;
+  pending.reserve(np);
+  slots.reserve(np);
+  std::uint32_t p = 0;
+  const auto add = [&](std::uint32_t a, std::uint32_t b, std::uint32_t c, std::uint64_t slot) {
+    if (!(data(a) && data(b) && data(c))) return;
+    const std::uint32_t idx[3] = {a, grid.reverse ? c : b, grid.reverse ? b : c};
+    checkCorners(idx, p, grid.vertices);
+    const std::size_t before = pending.size();
+    fanPolygon(idx, p, pending);
+    if (pending.size() == before) {
+      ++stats_.leftOut;
+    } else {
+      slots.push_back(static_cast<std::uint32_t>(slot));
+    }
+    ++p;
+  };
+  for (std::uint64_t r = 0; r + 1 < h; ++r) {
+    for (std::uint64_t c = 0; c + 1 < w; ++c) {
+      const auto tl = static_cast<std::uint32_t>(r * w + c), tr = tl + 1;
+      const auto bl = static_cast<std::uint32_t>(tl + w), br = bl + 1;
+      const std::uint64_t square = r * (w - 1) + c;
+      add(tl, bl, br, 2 * square);
+      add(tl, br, tr, 2 * square + 1);
+    }
+  }
+  const Lattice lattice{w, h, std::move(slots)};
+  finishBuild(pending, &lattice, options);
+}
+
+void PlanarCore::startBuild(std::span<const Eigen::Vector3d> vertices, std::uint64_t polygons,
+                            std::uint64_t fanned, const IndexOptions& options) {
+  const std::size_t nv = vertices.size();
+  if (nv >= std::numeric_limits<std::uint32_t>::max() || polygons >= std::numeric_limits<std::uint32_t>::max()) {
+    throw Error("terrain: " + std::to_string(nv) + " vertices and " + std::to_string(polygons) +
+                " polygons exceed the 32-bit indices of the index");
+  }
+  stats_.polygons = polygons;
+  stats_.vertices = nv;
+  // Refuse what cannot fit before allocating: at least a grid's worth (the lean grid is the
+  // smallest index), a general mesh's with its tree.
+  memory::require("terrain", options.gridFastPath.value_or(true) ? memory::kGridIndex : memory::kCartesianIndex, nv, fanned);
+
+  // Map every vertex once, so that polygons sharing a vertex share its mapped coordinates exactly.
+  corners2_.resize(nv);
+  cornerH_.resize(nv);
+  for (std::size_t i = 0; i < nv; ++i) {
+    const Eigen::Vector3d m = frame_.toMapped(vertices[i]);
+    corners2_[i] = {m.x(), m.y()};
+    cornerH_[i] = m.z();
+  }
+}
+
+void PlanarCore::checkCorners(std::span<const std::uint32_t> idx, std::size_t p,
+                              std::span<const Eigen::Vector3d> vertices) const {
+  const std::size_t nv = vertices.size();
+  for (std::uint32_t i : idx) {
+    if (i >= nv) {
+      throw Error("polygon " + std::to_string(p) + " refers to vertex " + std::to_string(i) +
+                  " but the mesh has " + std::to_string(nv) + " vertices");
+    }
+    if (!vertices[i].allFinite() || !std::isfinite(corners2_[i].u) || !std::isfinite(corners2_[i].v) ||
+        !std::isfinite(cornerH_[i])) {
+      throw Error("polygon " + std::to_string(p) + ": vertex " + std::to_string(i) +
+                  " has a non-finite coordinate " + describePoint(vertices[i]));
+    }
+  }
+}
+
+void PlanarCore::finishBuild(std::vector<Pending>& pending, const Lattice* lattice, const IndexOptions& options) {
   stats_.triangles = pending.size();
 
   // The domain: the bounding box of every triangle, in the mapped frame.
@@ -253,21 +316,31 @@ PlanarCore::PlanarCore(const Mesh& mesh, const PlanarFrame& frame, const IndexOp
   // Store triangles in Morton order of their centroids, so that the triangles of one leaf (and of
   // neighbouring leaves) sit next to each other in memory; a regular grid's in row order instead,
   // so that a walk along a row reads memory in order.
-  const std::vector<std::uint32_t> slots =
-      options.gridFastPath.value_or(true) ? grid_.recognise(corners2_, pending) : std::vector<std::uint32_t>();
+  // (A grid mesh's slots are known: only its vertices are left to check.)
+  std::vector<std::uint32_t> recognised;
+  if (options.gridFastPath.value_or(true) && !lattice) recognised = grid_.recognise(corners2_, pending);
+  const bool onLattice = options.gridFastPath.value_or(true) && lattice && !pending.empty() &&
+                         grid_.fitLattice(corners2_, lattice->width, lattice->height);
+  const std::span<const std::uint32_t> slots = onLattice ? std::span<const std::uint32_t>(lattice->slots)
+                                                         : std::span<const std::uint32_t>(recognised);
   if (!pending.empty()) {
     const double su = domain.uhi > domain.ulo ? 65535.0 / (domain.uhi - domain.ulo) : 0.0;
     const double sv = domain.vhi > domain.vlo ? 65535.0 / (domain.vhi - domain.vlo) : 0.0;
     std::vector<std::uint64_t> keyed(pending.size());
     for (std::size_t t = 0; t < pending.size(); ++t) {
-      double cu = 0, cv = 0;
-      for (std::uint32_t c : pending[t].corner) {
-        cu += corners2_[c].u / 3;
-        cv += corners2_[c].v / 3;
+      std::uint64_t code = 0;
+      if (slots.empty()) {
+        double cu = 0, cv = 0;
+        for (std::uint32_t c : pending[t].corner) {
+          cu += corners2_[c].u / 3;
+          cv += corners2_[c].v / 3;
+        }
+        const auto iu = static_cast<std::uint32_t>(std::clamp((cu - domain.ulo) * su, 0.0, 65535.0));
+        const auto iv = static_cast<std::uint32_t>(std::clamp((cv - domain.vlo) * sv, 0.0, 65535.0));
+        code = spreadBits16(iu) | (spreadBits16(iv) << 1);
+      } else {
+        code = slots[t];
       }
-      const auto iu = static_cast<std::uint32_t>(std::clamp((cu - domain.ulo) * su, 0.0, 65535.0));
-      const auto iv = static_cast<std::uint32_t>(std::clamp((cv - domain.vlo) * sv, 0.0, 65535.0));
-      const std::uint64_t code = slots.empty() ? spreadBits16(iu) | (spreadBits16(iv) << 1) : slots[t];
       keyed[t] = code << 32 | t;
     }
     // A raster's triangles usually come in row order already: then there is nothing to move.
@@ -322,9 +395,12 @@ PlanarCore::PlanarCore(const Mesh& mesh, const PlanarFrame& frame, const IndexOp
     stats_.tree = tree_.stats();
     stats_.memoryBytes = baseMemoryBytes_ + tris_.size() * sizeof(Tri) + stats_.tree.memoryBytes;
   }
+  // The triangles' height range, rounded outward to floats (once: the rounding is monotonic).
+  double lo = INFINITY, hi = -INFINITY;
   for (std::uint32_t t = 0; t < cold_.size(); ++t) {
-    double lo = INFINITY, hi = -INFINITY;
     for (std::uint32_t c : cold_[t].corner) lo = std::min(lo, cornerH_[c]), hi = std::max(hi, cornerH_[c]);
+  }
+  if (!cold_.empty()) {
     hmin_ = std::min(hmin_, static_cast<double>(floatBelow(lo)));
     hmax_ = std::max(hmax_, static_cast<double>(floatAbove(hi)));
   }
@@ -346,13 +422,6 @@ PlanarCore::Tri PlanarCore::recordOf(std::uint32_t t) const {
                                                             std::uint32_t half, int k, double& u,
                                                             double& v, double& h) const {
   grid_.leanCorner(col, row, half, k, corners2_, cornerH_, u, v, h);
-}
-
-[[gnu::always_inline]] inline void PlanarCore::leanCorners(std::uint64_t col, std::uint64_t row,
-                                                             std::uint32_t half, double* cu,
-                                                             double* cv, double* ch,
-                                                             std::size_t stride) const {
-  for (int k = 0; k < 3; ++k) leanCorner(col, row, half, k, cu[k * stride], cv[k * stride], ch[k * stride]);
 }
 
 // The height at (u, v) on the triangle in half `half` of cell (col, row), and its plane: the
@@ -790,6 +859,81 @@ std::optional<Hit> PlanarCore::above(double u, double v, double z) const {
   return hitAt<false>(u, v, z, nullptr);
 }
 
+namespace {
+
+// One group of up to kLanes points on a lean grid: first every point's cell and the cache lines
+// of its corners, then the planes and heights in SIMD. ok[i]: points[i] lies clearly inside a
+// present triangle and h[i] is its height there; else the exact path must answer it (near a
+// side, off the grid, in a hole, or a plane that needs fitPlane's checks or the clamp). hole[i]:
+// it lies clearly inside a slot without a triangle, where the exact path finds none (its cell
+// alone is tested, and the cell's other half cannot hold it). Unused lanes, and lanes without a
+// triangle, compute on the corners of cell 0 and are thrown away.
+[[gnu::always_inline]] inline void leanGroup(const detail::GridPath& grid, std::span<const Point2> corners,
+                                             std::span<const double> heights, const Point2* points, std::size_t n,
+                                             double* h, bool* ok, bool* hole = nullptr) {
+  alignas(32) double cu[3 * kLanes], cv[3 * kLanes], ch[3 * kLanes], pu[kLanes], pv[kLanes];
+  bool lane[kLanes];
+  // The points' cells, field by field (an array of Cell makes the compiler keep every field in
+  // memory).
+  std::uint64_t cellCol[kLanes], cellRow[kLanes], cellSlot[kLanes];
+  std::uint32_t cellHalf[kLanes];
+  for (std::size_t i = 0; i < n; ++i) {
+    const detail::GridPath::Cell c = grid.cell(points[i].u, points[i].v);
+    lane[i] = false;
+    cellCol[i] = c.col, cellRow[i] = c.row, cellHalf[i] = c.half, cellSlot[i] = c.slot;
+    if (!c.inGrid) continue;
+    lane[i] = c.clear;  // its slot's presence is checked below
+    const std::uint64_t x = c.row * grid.w + c.col;
+    if (!grid.presentBits.empty()) __builtin_prefetch(&grid.presentBits[c.slot >> 6]);
+    if (!grid.h32.empty()) {
+      __builtin_prefetch(&grid.h32[x]), __builtin_prefetch(&grid.h32[x + 1]);
+      __builtin_prefetch(&grid.h32[x + grid.w]), __builtin_prefetch(&grid.h32[x + grid.w + 1]);
+    } else {
+      __builtin_prefetch(&heights[x]), __builtin_prefetch(&heights[x + 1]);
+      __builtin_prefetch(&heights[x + grid.w]), __builtin_prefetch(&heights[x + grid.w + 1]);
+    }
+    if (grid.colU.empty()) __builtin_prefetch(&corners[x]), __builtin_prefetch(&corners[x + grid.w + 1]);
+  }
+  for (std::size_t i = 0; i < kLanes; ++i) {
+    if (i < n && lane[i]) {
+      const bool present = grid.slotPresent(cellSlot[i]);
+      if (hole) hole[i] = !present;
+      lane[i] = present;
+    } else if (hole) {
+      hole[i] = false;
+    }
+    const bool use = i < n && lane[i];
+    for (int k = 0; k < 3; ++k) {
+      grid.leanCorner(use ? cellCol[i] : 0, use ? cellRow[i] : 0, use ? cellHalf[i] : 0, k, corners, heights,
+                      cu[k * kLanes + i], cv[k * kLanes + i], ch[k * kLanes + i]);
+    }
+    pu[i] = use ? points[i].u : cu[i];
+    pv[i] = use ? points[i].v : cv[i];
+  }
+  planeHeights(cu, cv, ch, pu, pv, h, ok);
+  for (std::size_t i = 0; i < kLanes; ++i) ok[i] = ok[i] && i < n && lane[i];
+}
+
+}  // namespace
+
+void detail::GridPath::leanHeights(std::span<const Point2> corners, std::span<const double> heights,
+                                   std::span<const Point2> points, double* out, std::uint8_t* decided) const {
+  double h[kLanes];
+  bool ok[kLanes], hole[kLanes];
+  for (std::size_t g = 0; g < points.size(); g += kLanes) {
+    const std::size_t n = std::min<std::size_t>(kLanes, points.size() - g);
+    if (!lean) {
+      for (std::size_t i = 0; i < n; ++i) decided[g + i] = kUndecided;
+      continue;
+    }
+    leanGroup(*this, corners, heights, &points[g], n, h, ok, hole);
+    for (std::size_t i = 0; i < n; ++i) {
+      out[g + i] = h[i];
+      decided[g + i] = ok[i] ? kHeight : hole[i] ? kNoTerrain : kUndecided;
+    }
+  }
+}
+
 template <class ZOf>
 void PlanarCore::heightsBelowBatch(std::span<const Point2> points, const ZOf& zOf,
                                      std::span<std::optional<double>> heights) const {
@@ -800,17 +944,29 @@ void PlanarCore::heightsBelowBatch(std::span<const Point2> points, const ZOf& zO
   constexpr std::size_t kGroup = 16;
   Quadtree::Node leaf[kGroup];
   bool on[kGroup];
-  if (grid_.on()) {
-    // The grid fast path: first every point's cell and the cache lines of its corners (or, on a
-    // grid with records, its triangle ids and then their records), then the answers: on a lean
-    // grid the points clearly inside a triangle get their planes and heights in SIMD, sixteen at
-    // a time, the rest one by one.
+  if (grid_.lean) {
+    // The lean grid: the points clearly inside a triangle get their planes and heights in SIMD,
+    // sixteen at a time (leanGroup), the rest one by one.
     static_assert(kGroup == kLanes);
-    alignas(32) double cu[3 * kLanes], cv[3 * kLanes], ch[3 * kLanes], pu[kLanes], pv[kLanes], ph[kLanes];
-    bool lane[kGroup], ok[kLanes];
-    // The points' cells, field by field (an array of GridCell makes the compiler keep every field
-    // in memory).
-    std::uint64_t cellCol[kGroup], cellRow[kGroup], cellSlot[kGroup];
+    double ph[kLanes];
+    bool ok[kLanes];
+    for (std::size_t g = 0; g < points.size(); g += kGroup) {
+      const std::size_t n = std::min(kGroup, points.size() - g);
+      leanGroup(grid_, corners2_, cornerH_, &points[g], n, ph, ok);
+      for (std::size_t i = 0; i < n; ++i) {
+        double h = ph[i];
+        if (!ok[i] && gridAnswer<false>(points[g + i].u, points[g + i].v, h) == kOffGrid) {
+          heights[g + i] = std::nullopt;
+          continue;
+        }
+        heights[g + i] = h <= zOf(g + i) ? std::optional<double>(h) : std::nullopt;
+      }
+    }
+    return;
+  }
+  if (grid_.on()) {
+    // A grid with records: first every point's cell and its triangle ids, then their records.
+    std::uint64_t cellSlot[kGroup];
     std::uint32_t cellHalf[kGroup];
     bool inGrid[kGroup];
     for (std::size_t g = 0; g < points.size(); g += kGroup) {
@@ -818,49 +974,9 @@ void PlanarCore::heightsBelowBatch(std::span<const Point2> points, const ZOf& zO
       for (std::size_t i = 0; i < n; ++i) {
         const Point2 p = points[g + i];
         const detail::GridPath::Cell c = grid_.cell(p.u, p.v);
-        inGrid[i] = c.inGrid, lane[i] = false;
-        cellCol[i] = c.col, cellRow[i] = c.row, cellHalf[i] = c.half, cellSlot[i] = c.slot;
+        inGrid[i] = c.inGrid, cellHalf[i] = c.half, cellSlot[i] = c.slot;
         if (!c.inGrid) continue;
-        const std::uint64_t col = c.col, row = c.row;
-        if (grid_.lean) {
-          lane[i] = c.clear;  // its slot's presence is checked below
-          const std::uint64_t x = row * grid_.w + col;
-          if (!grid_.presentBits.empty()) __builtin_prefetch(&grid_.presentBits[c.slot >> 6]);
-          if (!grid_.h32.empty()) {
-            __builtin_prefetch(&grid_.h32[x]), __builtin_prefetch(&grid_.h32[x + 1]);
-            __builtin_prefetch(&grid_.h32[x + grid_.w]), __builtin_prefetch(&grid_.h32[x + grid_.w + 1]);
-          } else {
-            __builtin_prefetch(&cornerH_[x]), __builtin_prefetch(&cornerH_[x + 1]);
-            __builtin_prefetch(&cornerH_[x + grid_.w]), __builtin_prefetch(&cornerH_[x + grid_.w + 1]);
-          }
-          if (grid_.colU.empty()) {
-            __builtin_prefetch(&corners2_[x]), __builtin_prefetch(&corners2_[x + grid_.w + 1]);
-          }
-        } else {
-          __builtin_prefetch(&grid_.cellTri[2 * (row * (grid_.w - 1) + col)]);
-        }
-      }
-      if (grid_.lean) {
-        // Gather the lanes' corners (a lane whose slot holds no triangle, and the group's unused
-        // lanes, compute on the corners of cell 0 and are thrown away).
-        for (std::size_t i = 0; i < kLanes; ++i) {
-          if (i < n && lane[i]) lane[i] = grid_.slotPresent(cellSlot[i]);
-          const bool use = i < n && lane[i];
-          leanCorners(use ? cellCol[i] : 0, use ? cellRow[i] : 0, use ? cellHalf[i] : 0, cu + i, cv + i,
-                      ch + i, kLanes);
-          pu[i] = use ? points[g + i].u : cu[i];
-          pv[i] = use ? points[g + i].v : cv[i];
-        }
-        planeHeights(cu, cv, ch, pu, pv, ph, ok);
-        for (std::size_t i = 0; i < n; ++i) {
-          double h = ph[i];
-          if (!(lane[i] && ok[i]) && gridAnswer<false>(points[g + i].u, points[g + i].v, h) == kOffGrid) {
-            heights[g + i] = std::nullopt;
-            continue;
-          }
-          heights[g + i] = h <= zOf(g + i) ? std::optional<double>(h) : std::nullopt;
-        }
-        continue;
+        __builtin_prefetch(&grid_.cellTri[2 * (c.row * (grid_.w - 1) + c.col)]);
       }
       for (std::size_t i = 0; i < n; ++i) {
         if (!inGrid[i]) continue;

@@ -33,12 +33,6 @@ void ensureGdalRegistered() {
   std::call_once(once, [] { GDALAllRegister(); });
 }
 
-std::array<double, 2> DemTerrain::pixelCentre(double col, double row) const {
-  const auto& g = geotransform;
-  return {g[0] + (col + 0.5) * g[1] + (row + 0.5) * g[2],
-          g[3] + (col + 0.5) * g[4] + (row + 0.5) * g[5]};
-}
-
 std::array<double, 6> DemTerrain::inverseGeotransform() const {
   double gt[6], inv[6];
   std::copy(geotransform.begin(), geotransform.end(), gt);
@@ -47,10 +41,6 @@ std::array<double, 6> DemTerrain::inverseGeotransform() const {
 }
 
 std::array<double, 2> DemTerrain::pixelOf(double x, double y) const { return pixelOf(x, y, inverseGeotransform()); }
-
-std::array<double, 2> DemTerrain::pixelOf(double x, double y, const std::array<double, 6>& inv) const {
-  return {inv[0] + x * inv[1] + y * inv[2], inv[3] + x * inv[4] + y * inv[5]};
-}
 
 bool DemTerrain::onRaster(double x, double y) const {
   const auto [col, row] = pixelOf(x, y);

@@ -39,12 +39,32 @@ class GridPath {
   // affine lattice to within 1e-6 of a cell. If so, sets the grid's shape and returns each
   // triangle's slot; else returns nothing and leaves the path off.
   std::vector<std::uint32_t> recognise(std::span<const Point2> corners, std::span<const TriangleCorners> triangles);
+  // recognise's test of the vertices alone, for triangles known to be the raster rule's (an
+  // index built from a GridMesh): whether the nw x nh vertices lie on an affine lattice (as
+  // above); if so, sets the grid's shape.
+  bool fitLattice(std::span<const Point2> corners, std::uint64_t nw, std::uint64_t nh);
   // The slots' triangles once the index has ordered them: triangle t sits in slot slots[t].
   void fillSlots(std::span<const std::uint64_t> slotThenTriangle);
   // (Re)derives the lean tables from the triangles, vertices and heights (after recognise, or
   // after a tree file gave the shape and slots).
   void setUpLean(std::span<const TriangleCorners> triangles, std::span<const Point2> corners,
                  std::span<const double> heights);
+  // A lean grid straight from a lattice of mapped vertices with no index around it (a raster
+  // sampler's tile): the tables setUpLean derives for the raster rule's triangles over nw x nh
+  // vertices, a slot present where its three corners have heights (not NaN). The same tables,
+  // path and answers as an index built from that grid (GridMesh) has, with no slot's triangle
+  // (cellTri stays empty). False, and the path off, where the vertices are no affine lattice.
+  bool setUpLattice(std::uint64_t nw, std::uint64_t nh, std::span<const Point2> corners,
+                    std::span<const double> heights);
+  // The lean grid's fast answers, the index's own (PlanarCore::heightsBelowBatch): out[i] the
+  // height at points[i] where it lies clearly inside a present triangle whose plane needs no
+  // check (decided[i] = kHeight); no terrain where it lies clearly inside a slot without one
+  // (kNoTerrain: the index's exact path finds none there); else kUndecided, for the caller's
+  // exact path. corners and heights are the vertices' mapped (u, v) and h (read where the lean
+  // tables do not hold them).
+  static constexpr std::uint8_t kUndecided = 0, kHeight = 1, kNoTerrain = 2;
+  void leanHeights(std::span<const Point2> corners, std::span<const double> heights,
+                   std::span<const Point2> points, double* out, std::uint8_t* decided) const;
   // A removed triangle leaves its slot.
   void clearSlot(const TriangleCorners& triangle, std::uint32_t t);
   // Off for good (an inserted polygon may overlap the grid).
@@ -93,6 +113,10 @@ class GridPath {
   std::vector<double> colU, rowV;
   BigVector<float> h32;
   std::vector<std::uint64_t> presentBits;
+
+ private:
+  // setUpLean's and setUpLattice's common part, once the corners' offsets are known.
+  void setUpTables(std::span<const Point2> corners, std::span<const double> heights);
 };
 
 [[gnu::always_inline]] inline GridPath::Cell GridPath::cell(double u, double v) const {

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cmath>
 #include <cstdint>
 #include <initializer_list>
 #include <span>
@@ -49,6 +50,21 @@ struct Mesh {
   void addPolygon(std::initializer_list<std::uint32_t> corners) {
     addPolygon(std::span<const std::uint32_t>(corners.begin(), corners.size()));
   }
+};
+
+// A raster's mesh without its index list: width x height vertices in row order (world x, y and
+// the height, NaN where the raster has no data) and the raster rule's inner triangles over them
+// (raster_grid.hpp), the ones whose three corners have data, each in the opposite turn when
+// `reverse`. An index built from it is the index of the Mesh that RasterGrid's appendTriangles
+// would make (toMesh), bit for bit, built without making that mesh (a sampler's tiles).
+struct GridMesh {
+  int width = 0, height = 0;
+  std::span<const Eigen::Vector3d> vertices;  // width * height
+  bool reverse = false;
+
+  static bool hasData(const Eigen::Vector3d& p) { return !std::isnan(p.z()); }
+  std::uint64_t polygonCount() const;  // the triangles with data (raster_grid.cpp)
+  Mesh toMesh() const;
 };
 
 }  // namespace qota

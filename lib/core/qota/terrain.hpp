@@ -62,6 +62,9 @@ class PlanarCore {
  public:
   // Throws qota::Error for invalid polygons (see the rules above).
   PlanarCore(const Mesh& mesh, const PlanarFrame& frame, const IndexOptions& options = {});
+  // The index of grid.toMesh(), bit for bit, built straight from the grid (no index list, and
+  // no search for the grid in it).
+  PlanarCore(const GridMesh& grid, const PlanarFrame& frame, const IndexOptions& options = {});
 
 
   // Queries at a point (u, v) of the mapped frame.
@@ -197,6 +200,18 @@ class PlanarCore {
   using Pending = detail::TriangleCorners;
   void fanPolygon(std::span<const std::uint32_t> idx, std::uint32_t polygon,
                   std::vector<Pending>& pending) const;
+  // The build's steps: the size checks and the mapped vertices; a polygon's corners checked (in
+  // range, finite); then everything after the fan. A grid mesh hands its lattice's shape and
+  // each triangle's slot to the last.
+  struct Lattice {
+    std::uint64_t width, height;
+    std::vector<std::uint32_t> slots;
+  };
+  void startBuild(std::span<const Eigen::Vector3d> vertices, std::uint64_t polygons, std::uint64_t fanned,
+                  const IndexOptions& options);
+  void checkCorners(std::span<const std::uint32_t> idx, std::size_t polygon,
+                    std::span<const Eigen::Vector3d> vertices) const;
+  void finishBuild(std::vector<Pending>& pending, const Lattice* lattice, const IndexOptions& options);
   Box2 makeRecord(std::uint32_t t, const Pending& q);
   bool overlaps(std::uint32_t t, const Box2& triangleBox, const Box2& box) const;
   Box2 boxOf(std::uint32_t t) const;
@@ -275,11 +290,9 @@ class PlanarCore {
   };
   double leanAnswer(std::uint64_t col, std::uint64_t row, std::uint32_t half, double u, double v,
                     LeanPlane& p) const;
-  // The three corners of that triangle, corner k at [k * stride].
+  // Corner k of that triangle.
   void leanCorner(std::uint64_t col, std::uint64_t row, std::uint32_t half, int k, double& u, double& v,
                   double& h) const;
-  void leanCorners(std::uint64_t col, std::uint64_t row, std::uint32_t half, double* u, double* v,
-                   double* h, std::size_t stride) const;
   static double leanHeight(const LeanPlane& p, double u, double v);
   static constexpr std::uint32_t kOffGrid = 0xfffffffeu;
   std::uint64_t generation_ = 0;  // edits so far (invalidates cursors' memos)
@@ -313,6 +326,8 @@ class PlanarIndex : public PlanarCore {
   using Mapping = M;
   PlanarIndex(const Mesh& mesh, const M& mapping, const IndexOptions& options = {})
       : PlanarCore(mesh, mapping.frame(), options), mapping_(mapping) {}
+  PlanarIndex(const GridMesh& grid, const M& mapping, const IndexOptions& options = {})
+      : PlanarCore(grid, mapping.frame(), options), mapping_(mapping) {}
   const M& mapping() const { return mapping_; }
 
  private:

@@ -87,14 +87,19 @@ struct DemTerrain {
   CartesianMapping mapping;    // gravity -Z, origin at the raster centre
 
   // World (x, y) of the centre of pixel (col, row).
-  std::array<double, 2> pixelCentre(double col, double row) const;
+  std::array<double, 2> pixelCentre(double col, double row) const {  // (inline: once a pixel)
+    const auto& g = geotransform;
+    return {g[0] + (col + 0.5) * g[1] + (row + 0.5) * g[2], g[3] + (col + 0.5) * g[4] + (row + 0.5) * g[5]};
+  }
   // Fractional pixel coordinates (col, row) of a world point (col, row in [0, width] x [0, height]
   // on the raster).
   std::array<double, 2> pixelOf(double x, double y) const;
   // The same with the inverse geotransform computed once (inverseGeotransform()), for callers
   // that convert many points; the same bits.
   std::array<double, 6> inverseGeotransform() const;
-  std::array<double, 2> pixelOf(double x, double y, const std::array<double, 6>& inverse) const;
+  std::array<double, 2> pixelOf(double x, double y, const std::array<double, 6>& inverse) const {
+    return {inverse[0] + x * inverse[1] + y * inverse[2], inverse[3] + x * inverse[4] + y * inverse[5]};
+  }
   // True when the world point lies on the raster's footprint.
   bool onRaster(double x, double y) const;
   // The point whose height answers for (x, y) under the outer half-pixel rule: (x, y) itself
