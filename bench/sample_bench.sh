@@ -2,7 +2,8 @@
 # qota sample against gdallocationinfo (GDAL's own point query, nearest pixel) in the same run:
 #   1. 1M random points on the bundled Rainier DEM, stdin to stdout (lines per second);
 #   2. one point on a 40834 x 40834 VRT (the Rainier tile 34 x 34 times, 1.7 G pixels), wall time
-#      and peak RSS: qota reads the tile under the point, never the raster.
+#      and peak RSS: qota reads the tile under the point, never the raster;
+#   3. 50,000 random points spread over that VRT (a small tile each).
 # Each timing is the median of RUNS runs (default 5); the spread (max - min over the median) is
 # the run-to-run noise. Also checks that qota answered every line.
 #   bench/sample_bench.sh [BUILD] [RUNS]
@@ -34,6 +35,13 @@ input=$work/one.txt measure "$qota" sample "$work/big.vrt"
 q2=$med; qm=$mem; printf '%-44s %10s %7s%% %10d\n' "qota sample, 1 point, 40834^2 VRT" "$med" "$spread" $((mem / 1024))
 input=$work/one.txt measure gdallocationinfo -valonly -geoloc "$work/big.vrt"
 g2=$med; printf '%-44s %10s %7s%% %10d\n' "gdallocationinfo, the same" "$med" "$spread" $((mem / 1024))
-awk -v q1="$q1" -v g1="$g1" -v q2="$q2" -v g2="$g2" -v qm="$qm" 'BEGIN {
+# 50,000 random points spread over the whole VRT: nearly every point in a tile of its own.
+awk 'BEGIN { srand(3); for (i = 0; i < 50000; ++i) printf "%.6f %.6f\n", -122 + 34 * rand(), 13 + 34 * rand() }' > "$work/sparse.txt"
+input=$work/sparse.txt measure "$qota" sample "$work/big.vrt"
+q3=$med; printf '%-44s %10s %7s%% %10d\n' "qota sample, 50k points over the VRT" "$med" "$spread" $((mem / 1024))
+input=$work/sparse.txt measure gdallocationinfo -valonly -geoloc "$work/big.vrt"
+g3=$med; printf '%-44s %10s %7s%% %10d\n' "gdallocationinfo, the same" "$med" "$spread" $((mem / 1024))
+awk -v q1="$q1" -v g1="$g1" -v q2="$q2" -v g2="$g2" -v qm="$qm" -v q3="$q3" -v g3="$g3" 'BEGIN {
   printf "1M points: qota %.1fx the lines per second of gdallocationinfo\n", g1 / q1
-  printf "1 point on the VRT: qota takes %.2fx gdallocationinfo'\''s time, %d MB peak\n", q2 / g2, qm / 1024 }'
+  printf "1 point on the VRT: qota takes %.2fx gdallocationinfo'\''s time, %d MB peak\n", q2 / g2, qm / 1024
+  printf "50k points over the VRT: qota %.2fx the lines per second of gdallocationinfo\n", g3 / q3 }'
