@@ -2,12 +2,15 @@
 // whole terrain under its TerrainIndex (dem.hpp: pixel centres, the raster rule's triangles,
 // nodata holes), bit for bit, in memory bounded by a tile cache instead of by the raster.
 //
-// A tile is a square of tileSize x tileSize cells (the squares between four pixel centres) and
-// its index is built from a window of pixels one cell wider on every side: every triangle that
-// can hold a point of the tile's cells, neighbours across its sides included, is in it, with the
-// vertices, mapping (origin at the raster's centre) and triangle order of the whole terrain. So
-// a point on a tile's side, a pixel centre or beside a hole gets the same triangle, plane and
-// bits as from the whole raster; tests hold it to that on real and synthetic rasters.
+// A tile is a square of tileSize x tileSize cells (the squares between four pixel centres),
+// made from a window of pixels one cell wider on every side: every triangle that can hold a point
+// of the tile's cells, neighbours across its sides included, is in it, with the vertices, mapping
+// (origin at the raster's centre) and triangle order of the whole terrain. A small tile is that
+// window's index (built from a GridMesh), so a point on a tile's side, a pixel centre or beside a
+// hole gets the same triangle, plane and bits as from the whole raster. A large tile is the
+// index's lean grid alone (GridPath::setUpLattice), which answers the points clearly inside a
+// triangle or a hole with the index's own arithmetic and leaves the rest to small tiles; tests
+// hold both to the whole terrain on real and synthetic rasters.
 //
 // Points are world (x, y) on the raster's footprint: callers apply the outer half-pixel rule
 // (DemTerrain::surfacePoint) first, as for the whole terrain; a point off the cells has no
