@@ -5,6 +5,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <vector>
 
 #include "qota/shadow.hpp"
@@ -52,6 +53,18 @@ inline qota::Light bruteForceCell(const qota::LocalFrame& f, std::size_t i, cons
     if (a >= 0 && b >= 0 && a + b <= 1 && dist > 0) return Light::Shadow;
   }
   return Light::Lit;
+}
+
+// The oracle with the sun turned by 1e-7 degrees either way: its answer where the two agree,
+// else nothing (a cell on the knife edge). bruteForceCell's floating-point ray test is not
+// watertight: a sun along a grid axis or a cell diagonal sends its rays exactly along shared
+// edges, where they can slip between the triangles; the answer at the sun itself lies between
+// the turned ones.
+inline std::optional<qota::Light> bruteForceCellTurned(const qota::LocalFrame& f, std::size_t i,
+                                                       const qota::SunPosition& sun) {
+  const qota::Light before = bruteForceCell(f, i, f.towardSun({sun.azimuth - 1e-7, sun.altitude}));
+  if (before != bruteForceCell(f, i, f.towardSun({sun.azimuth + 1e-7, sun.altitude}))) return std::nullopt;
+  return before;
 }
 
 // The oracle on every cell (NoData where the frame has no data).

@@ -109,6 +109,36 @@ TEST(Shadow, IdenticalToBruteForceOnSmallDems) {
   }
 }
 
+// Suns along the grid's axes and its cells' diagonals send rays exactly along shared edges and
+// through vertices: every cell against the oracle turned a hair either way (where the two agree).
+TEST(Shadow, AxisAndDiagonalSunsAgreeWithTheOracle) {
+  std::size_t checked = 0, knifeEdges = 0;
+  int k = 0;
+  for (const double azimuth : {0.0, 90.0, 180.0, 270.0, 45.0, 135.0, 225.0, 315.0}) {
+    for (const double altitude : {3.0, 20.0}) {
+      qota::Heightfield hf = qota::fractalHeightfield(26, 22, 1.0, 90.0 + 15 * k, 700 + k);
+      if (k % 3 == 0) hf.z[7 * 26 + 9] = NAN;
+      ++k;
+      // Square cells, so that the diagonal suns run along the cells' diagonals.
+      const LocalFrame f = qota::localFrame(gridDem(26, 22, hf.z), false, 10);
+      const auto fast = qota::shadowMask(f, f.towardSun({azimuth, altitude}));
+      for (std::size_t i = 0; i < fast.size(); ++i) {
+        if (!f.valid[i]) continue;
+        const std::optional<Light> oracle = qota::test::bruteForceCellTurned(f, i, {azimuth, altitude});
+        if (!oracle) {
+          ++knifeEdges;
+          continue;
+        }
+        ++checked;
+        ASSERT_EQ(fast[i], *oracle) << "sun " << azimuth << "/" << altitude << " cell " << i << " (col " << i % 26
+                                    << ", row " << i / 26 << ")";
+      }
+    }
+  }
+  EXPECT_GT(checked, 8000u);
+  EXPECT_LT(knifeEdges, checked / 100);
+}
+
 // The strip walk (the default) against the light-frame quadtree, on every cell: random suns,
 // suns along the grid's axes and diagonals (strips parallel to rows, columns or cell diagonals),
 // grazing and steep suns, voids, and a frame whose triangles are found through the vertex table
