@@ -65,14 +65,7 @@ LocalSpan hoursSpan(const ShadowOptions& o) {
   // Hours of direct sunlight: the elapsed time between the local clock times START and END of
   // the date, in steps of STEP hours; a cell lit at a step's middle counts the whole step.
   const auto [start, end, step] = *o.hours;
-  if (!(start >= 0) || !(end > start) || !(end <= 48)) {
-    throw Error("--hours START END STEP: need 0 <= START < END <= 48 (hours after local midnight), got " +
-                formatNumber(start) + " " + formatNumber(end));
-  }
-  if (!(step >= 1.0 / 60) || !(step <= end - start)) {
-    throw Error("--hours STEP " + formatNumber(step) + ": need at least one minute (1/60 h) and at most "
-                "END - START (" + formatNumber(end - start) + " h)");
-  }
+  checkHoursWindow(start, end, step, "--hours");
   return localSpan(o.time, o.tz, start, end);
 }
 

@@ -389,15 +389,10 @@ std::vector<Light> ShadowTiles::maskFromHeights(const CellWindow& window, std::v
 std::vector<Eigen::Vector3d> ShadowTiles::sunlightSteps(double startJulianDay, double endJulianDay, double stepHours,
                                                         double slack) const {
   std::vector<Eigen::Vector3d> out;
-  const double elapsed = (endJulianDay - startJulianDay) * 24.0;
-  if (!(stepHours >= 1.0 / 60) || !(stepHours <= elapsed)) return out;  // sunlightHours refuses it
-  const int steps = static_cast<int>(std::ceil(elapsed / stepHours - 1e-9));
   const LocalFrame& f = basis_.shared;
-  for (int k = 0; k < steps; ++k) {
-    const double t0 = k * stepHours, dt = std::min(stepHours, elapsed - t0);
-    const SunPosition sun = sunOverFrame(f, startJulianDay + (t0 + dt / 2) / 24.0, basis_.raster.path);
-    if (sun.altitude <= -slack || (!f.body.ellipsoid && sun.altitude <= 0)) continue;
-    out.push_back(f.towardSun(sun));
+  for (const SunlightStep& step : qota::sunlightSteps(startJulianDay, endJulianDay, stepHours)) {
+    const SunPosition sun = sunOverFrame(f, step.middleJulianDay, basis_.raster.path);
+    if (sunCanLight(f, sun, slack)) out.push_back(f.towardSun(sun));
   }
   return out;
 }
@@ -408,7 +403,7 @@ SunlightHours ShadowTiles::tileHours(const LocalFrame& frame, const CellWindow& 
   if (frame.cellCount() == 0) {  // no data: no hours (sunlightHours's zeros), its steps counted alike
     SunlightHours none;
     none.elapsedHours = (endJulianDay - startJulianDay) * 24.0;
-    none.steps = static_cast<int>(std::ceil(none.elapsedHours / stepHours - 1e-9));
+    none.steps = static_cast<int>(qota::sunlightSteps(startJulianDay, endJulianDay, stepHours).size());
     none.hours.assign(tile.cellCount(), 0.0);
     none.valid.assign(tile.cellCount(), 0);
     return none;

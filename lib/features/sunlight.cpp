@@ -1,6 +1,8 @@
 #include "qota/sunlight.hpp"
 
+#include <charconv>
 #include <cmath>
+#include <string>
 
 #include "qota/error.hpp"
 
@@ -18,30 +20,68 @@ SunPosition sunOverFrame(const LocalFrame& frame, double julianDayUT, const std:
               "-az/-alt or --sun-vector");
 }
 
+std::vector<SunlightStep> sunlightSteps(double startJulianDay, double endJulianDay, double stepHours) {
+  const double elapsed = (endJulianDay - startJulianDay) * 24.0;
+  if (!(stepHours >= 1.0 / 60) || !(stepHours <= elapsed)) {
+    throw Error("sunlight hours: a step of " + std::to_string(stepHours) + " h; need at least a minute and at most the span (" +
+                std::to_string(elapsed) + " h)");
+  }
+  const int steps = static_cast<int>(std::ceil(elapsed / stepHours - 1e-9));
+  std::vector<SunlightStep> out(static_cast<std::size_t>(steps));
+  for (int k = 0; k < steps; ++k) {
+    const double t0 = k * stepHours, dt = std::min(stepHours, elapsed - t0);
+    out[static_cast<std::size_t>(k)] = {startJulianDay + (t0 + dt / 2) / 24.0, dt};
+  }
+  return out;
+}
+
+namespace {
+
+std::string shortest(double v) {
+  char buf[32];
+  const auto r = std::to_chars(buf, buf + sizeof buf, v);
+  return std::string(buf, r.ptr);
+}
+
+}  // namespace
+
+void checkHoursWindow(double start, double end, double step, std::string_view option) {
+  const std::string name(option);
+  if (!(start >= 0) || !(end > start) || !(end <= 48)) {
+    throw Error(name + " START END STEP: need 0 <= START < END <= 48 (hours after local midnight), got " +
+                shortest(start) + " " + shortest(end));
+  }
+  if (!(step >= 1.0 / 60) || !(step <= end - start)) {
+    throw Error(name + " STEP " + shortest(step) + ": need at least one minute (1/60 h) and at most END - START (" +
+                shortest(end - start) + " h)");
+  }
+}
+
+bool sunCanLight(const LocalFrame& frame, const SunPosition& sun, double slack) {
+  return sun.altitude > -slack && (frame.body.ellipsoid || sun.altitude > 0);
+}
+
 SunlightHours sunlightHours(const LocalFrame& frame, const std::string& source, double startJulianDay,
                             double endJulianDay, double stepHours, const IndexOptions& options,
                             const Progress& progress, ShadowSearch search, std::optional<CellWindow> testOnly,
                             unsigned threads) {
   SunlightHours out;
   out.elapsedHours = (endJulianDay - startJulianDay) * 24.0;
-  if (!(stepHours >= 1.0 / 60) || !(stepHours <= out.elapsedHours)) {
-    throw Error("sunlight hours: a step of " + std::to_string(stepHours) + " h; need at least a minute and at most the span (" +
-                std::to_string(out.elapsedHours) + " h)");
-  }
-  out.steps = static_cast<int>(std::ceil(out.elapsedHours / stepHours - 1e-9));
+  const std::vector<SunlightStep> steps = sunlightSteps(startJulianDay, endJulianDay, stepHours);
+  out.steps = static_cast<int>(steps.size());
   out.hours.assign(frame.cellCount(), 0.0);
   const double slack = frame.horizonSlack();
   for (int k = 0; k < out.steps; ++k) {
-    const double t0 = k * stepHours, dt = std::min(stepHours, out.elapsedHours - t0);
-    const SunPosition sun = sunOverFrame(frame, startJulianDay + (t0 + dt / 2) / 24.0, source);
-    if (sun.altitude <= -slack || (!frame.body.ellipsoid && sun.altitude <= 0)) continue;  // night everywhere
+    const SunlightStep& step = steps[static_cast<std::size_t>(k)];
+    const SunPosition sun = sunOverFrame(frame, step.middleJulianDay, source);
+    if (!sunCanLight(frame, sun, slack)) continue;  // night everywhere
     const Progress part = progress ? Progress([&, k](double done, const char* message) {
       return progress((k + done) / out.steps, message);
     })
                                    : Progress();
     const std::vector<Light> mask = shadowMask(frame, frame.towardSun(sun), options, part, threads, search, testOnly);
     for (std::size_t i = 0; i < mask.size(); ++i) {
-      if (mask[i] == Light::Lit) out.hours[i] += dt;
+      if (mask[i] == Light::Lit) out.hours[i] += step.hours;
     }
   }
   return out;

@@ -68,12 +68,7 @@ def _check_light(azimuth, altitude, time, tz, hours):
         raise Error(f"altitude must be between -90 and 90 degrees and azimuth finite, got {azimuth} {altitude}")
     if hours is not None:
         start, end, step = _hours_span(hours)
-        if not (0 <= start < end <= 48):
-            raise Error(f"hours=(start, end, step): need 0 <= start < end <= 48 (hours after local midnight), "
-                        f"got {start} {end}")
-        if not (1 / 60 <= step <= end - start):
-            raise Error(f"hours step {step}: need at least one minute (1/60 h) and at most end - start "
-                        f"({end - start} h)")
+        _qota._check_hours(start, end, step)  # (qota shadow --hours's checks)
         return start, end, step
     return None
 

@@ -742,6 +742,9 @@ PYBIND11_MODULE(_qota, m) {
                       [](const py::tuple& s) { return qota::ShadowTiles::restore(s[0].cast<std::string>()); }));
   m.def("_describe_raster", &describeRaster, py::arg("path"), py::arg("band"));
   m.def("_local_span", &localSpan, py::arg("time"), py::arg("tz"), py::arg("start"), py::arg("end"));
+  m.def(
+      "_check_hours", [](double start, double end, double step) { qota::checkHoursWindow(start, end, step, "hours"); },
+      py::arg("start"), py::arg("end"), py::arg("step"));
   py::class_<Sampler>(m, "_RasterSampler")
       .def(py::init<const std::string&, int>(), py::arg("path"), py::arg("band"))
       .def("heights", &Sampler::heights, py::arg("x"), py::arg("y"));

@@ -106,10 +106,10 @@ class ShadowTiles {
   SunlightHours hours(const CellWindow& tile, double startJulianDay, double endJulianDay, double stepHours,
                       const std::vector<Eigen::Vector3d>& lights, const IndexOptions& options = {},
                       ShadowSearch search = ShadowSearch::Strips, std::uint64_t bytes = 0, unsigned threads = 0) const;
-  // The lights of the steps of a span (sunlightHours's steps) with the Sun above the horizon at
-  // the centre less the frame's slack bound: the lights a tile's halo must serve. slack: how far
-  // below the centre's horizon the Sun may be while some cell sees it (degrees; the whole
-  // raster's, or larger).
+  // The lights of the steps of a span (qota::sunlightSteps, sunlightHours's) with the Sun above
+  // the horizon at the centre less the frame's slack bound (sunCanLight): the lights a tile's halo
+  // must serve. slack: how far below the centre's horizon the Sun may be while some cell sees it
+  // (degrees; the whole raster's, or larger). Throws qota::Error for a step sunlightHours refuses.
   std::vector<Eigen::Vector3d> sunlightSteps(double startJulianDay, double endJulianDay, double stepHours,
                                              double slack) const;
   // mask and hours from heights given instead of read: `window` (and its heights, as HeightReader

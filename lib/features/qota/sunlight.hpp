@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cstdint>
+#include <string_view>
 #include <vector>
 
 #include "qota/shadow.hpp"
@@ -20,6 +21,23 @@ struct SunlightHours {
   double elapsedHours = 0;    // the span's length
   std::vector<std::uint8_t> valid;  // per cell of hours: it has data (filled by ShadowTiles only)
 };
+
+// The steps of a span between two instants (Julian days, UT), `stepHours` long (the last may be
+// shorter): each step's middle and length. Throws qota::Error for a step under a minute or
+// longer than the span. The one rule sunlightHours and the tiled hours (ShadowTiles) both step by.
+struct SunlightStep {
+  double middleJulianDay = 0;  // UT: where the Sun is taken for the whole step
+  double hours = 0;
+};
+std::vector<SunlightStep> sunlightSteps(double startJulianDay, double endJulianDay, double stepHours);
+// The checks of a window of local clock time for hours of sunlight (start and end: hours after
+// local midnight, 0 <= start < end <= 48; step: at least a minute, at most end - start), before
+// any work: throws qota::Error naming the values, `option` being what the caller calls them
+// ("--hours", "hours").
+void checkHoursWindow(double start, double end, double step, std::string_view option);
+// Whether the Sun at `sun` can light any cell of the frame: above every horizon's dip (the
+// frame's horizonSlack, or a larger bound) on the ellipsoid, above the horizon on a flat frame.
+bool sunCanLight(const LocalFrame& frame, const SunPosition& sun, double slack);
 
 // Hours of direct sunlight between two instants (Julian days, UT), in steps of `stepHours`
 // (the last step may be shorter): a cell lit at a step's middle counts the whole step. Steps when
