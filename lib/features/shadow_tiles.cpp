@@ -187,15 +187,39 @@ std::array<int, 4> ShadowTiles::reach(const CellWindow& tile, const std::vector<
   const Local here = localAt(basis_, tile.col + tile.width / 2, tile.row + tile.height / 2);
   // Above the tile centre's tangent plane (see the header).
   const double top = f.body.ellipsoid ? std::max(f.maxHeight, 0.0) : f.maxHeight;
+  // On an ellipsoid (see the header): the ball of radius rM + top that holds all terrain, the
+  // tile's cells within d of its centre cell across, and the slack below which every cell's ray
+  // enters the body.
+  double d = 0, rM = 0, slack = 0;
+  if (f.body.ellipsoid) {
+    const int halfW = std::max(tile.width / 2, tile.width - tile.width / 2);
+    const int halfH = std::max(tile.height / 2, tile.height - tile.height / 2);
+    d = 1.1 * (here.east.norm() * halfW + here.south.norm() * halfH);
+    rM = f.body.a * f.body.a / f.body.b;
+    const double rMin = f.body.b * f.body.b / f.body.a;
+    const double dip = std::acos(std::clamp((f.body.b + f.body.lowest) / (f.body.b + f.maxHeight), -1.0, 1.0));
+    slack = 1.1 * d / rMin + dip + 0.02 * kDeg;
+  }
   for (const Eigen::Vector3d& light0 : lights) {
     const Eigen::Vector3d light = light0.normalized();
     const double rise = light.dot(here.up);
-    if (!(rise > 0)) {
-      if (!f.body.ellipsoid) continue;  // a flat frame's cells are all in shadow: nothing to reach
-      throw Error(basis_.raster.path + ": the light is at or below the horizon at cells " + cells(tile) +
-                  ", so its shadows there reach without bound; this light is shadowed on the whole raster only");
+    double reach = 0;  // along the ray
+    if (!f.body.ellipsoid) {
+      if (!(rise > 0)) continue;  // a flat frame's cells are all in shadow: nothing to reach
+      reach = std::max(0.0, top - tileLowest) / rise;
+    } else {
+      // Below every cell's horizon by more than the dip: every ray enters the body, which shades
+      // the cell whatever the terrain (sunCanLight's argument, for the tile).
+      if (rise <= -std::sin(slack)) continue;
+      // The ray leaves the ball B(O - rM up, rM + top) after at most t = -q + sqrt(q^2 + k), for
+      // q >= -d + (rM + z) rise (its cell at height z in [lowest, top] above the tangent plane,
+      // within d across) and k <= (rM + top)^2 - (rM + lowest)^2: t falls with q and grows with k.
+      const double lo = std::min(tileLowest, top);
+      const double q = -d + (rM + (rise >= 0 ? lo : top)) * rise;
+      const double k = std::max(0.0, (top - lo) * (2 * rM + top + lo));
+      reach = -q + std::sqrt(q * q + k);
+      if (rise > 0) reach = std::min(reach, std::max(0.0, top - tileLowest) / rise);
     }
-    const double reach = std::max(0.0, top - tileLowest) / rise;  // along the ray
     Eigen::Vector2d p = pixelsOf(here, reach * light);
     if (f.body.ellipsoid) {
       const Local there = localAt(basis_, tile.col + tile.width / 2 + static_cast<int>(std::lround(p.x())),

@@ -21,14 +21,25 @@
 // inside the raster (terrain the raster does not have, kept beyond any ray's reach by this).
 // Sides away from the light get the 3 cells only.
 //
+// On an ellipsoid a low light reaches farther than that plane allows (at or below the tile's
+// horizon, without bound), but not past the body's curve. Every normal curvature of the
+// ellipsoid is at least b / a^2, so it lies inside the ball of radius rM = a^2 / b touching it
+// at any of its points (Blaschke's rolling theorem), and all terrain (at most zTop above it)
+// inside that ball grown by zTop, centred rM below the tile's centre. A ray leaves a ball once,
+// so a cell's ray meets terrain only before it leaves this one: a distance bounded from the
+// cell's height, its offset from the centre and the light's rise (reach in shadow_tiles.cpp).
+// The reach is the smaller of the two bounds. A light more than the dip of the horizon (and the
+// tilt across the tile) below a tile's horizon needs none: every cell's ray enters the body,
+// which shades it whatever the terrain, in the tile's window as over the whole raster.
+//
 // Voids are filled for occlusion (fillVoids) by onion peeling, whose value at a void cell depends
 // on the cells within twice its fill level: each window's heights are filled over a larger
 // window, grown until every void cell of the window passes that test, so its fill is the whole
 // raster's. A void too wide for the memory allowed is refused, with its size.
 //
-// Not tiled: a raster closed round the globe (its frame has a seam and poles); on an ellipsoid a
-// light at or below the horizon at a tile (its shadows reach without bound). Both are
-// shadowed whole when they fit, else refused.
+// Not tiled: a raster closed round the globe (its frame has a seam and poles); it is shadowed
+// whole when it fits, else refused. A window over the memory allowed is refused with its size
+// (a low sun's reaches far: smaller tiles take narrower windows).
 #pragma once
 
 #include <Eigen/Core>
