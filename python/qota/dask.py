@@ -217,8 +217,8 @@ def shadow(da, azimuth=None, altitude=None, *, time=None, tz=None, hours=None, b
 
     Returns a lazy DataArray on da's grid, dimensions, coordinates, CRS and chunks: uint8 255 lit,
     0 shadow, 128 nodata; or float32 hours, nodata -1. Refuses at once what qota.shadow refuses
-    (the light, the options) and a light at or below the horizon at the centre of a DEM on its
-    ellipsoid (its shadows reach without bound: shadow that raster whole with qota.shadow).
+    (the light, the options). A low sun takes a large overlap (on the ellipsoid, up to the
+    distance at which its rays clear the body's curve: a few hundred kilometres at the horizon).
     """
     span_hours = _check_light(azimuth, altitude, time, tz, hours)
     if not _interop.is_dataarray(da):

@@ -92,9 +92,8 @@ class ShadowTiles {
   std::uint64_t validCells() const { return validCells_; }
 
   // Cells of halo beyond each side of `tile` (west, east, north, south: columns before and after,
-  // rows above and below) for these lights, clipped to the raster. Throws qota::Error for a light
-  // whose shadows reach without bound (see above). tileLowest: the tile's lowest valid height in
-  // metres, or the raster's (frame().minHeight) for the worst case.
+  // rows above and below) for these lights, clipped to the raster. tileLowest: the tile's lowest
+  // valid height in metres, or the raster's (frame().minHeight) for the worst case.
   std::array<int, 4> halo(const CellWindow& tile, const std::vector<Eigen::Vector3d>& lights, double tileLowest) const;
   // The window a tile is computed in: the tile and its halo.
   CellWindow windowOf(const CellWindow& tile, const std::array<int, 4>& halo) const;
