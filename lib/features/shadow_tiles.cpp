@@ -332,26 +332,36 @@ double ShadowTiles::lowestOf(const CellWindow& tile, std::vector<double> z, cons
   return lowest;
 }
 
-LocalFrame ShadowTiles::windowOfTile(const CellWindow& tile, const std::vector<Eigen::Vector3d>& lights,
-                                     std::uint64_t bytes, CellWindow& window) const {
+double ShadowTiles::lowestIn(const CellWindow& tile) const {
   if (!source_) throw Error(basis_.raster.path + ": tiles restored from a state read no heights; give them");
   std::vector<double> z;
   std::vector<std::uint8_t> valid;
   source_->read(tile, z);
   heightsInMetres(basis_, tile, z, valid);
-  const double lowest = lowestOf(tile, std::move(z), valid);
-  if (!std::isfinite(lowest)) {  // no data: nothing to test
-    window = tile;
-    return {};
-  }
-  window = windowOf(tile, halo(tile, lights, lowest));
+  return lowestOf(tile, std::move(z), valid);
+}
+
+LocalFrame ShadowTiles::frameOver(const CellWindow& tile, const CellWindow& window, std::uint64_t bytes) const {
   if (bytes && window.cellCount() * bytesPerWindowCell() > bytes) {
     throw Error(basis_.raster.path + ": cells " + cells(tile) + " need a window of " + cells(window) + " (" +
                 memory::gib(window.cellCount() * bytesPerWindowCell()) + ") to hold every triangle that can shade them, over the " +
                 memory::gib(bytes) + " allowed; use smaller tiles or allow more memory");
   }
+  std::vector<double> z;
+  std::vector<std::uint8_t> valid;
   readFilled(window, z, valid, bytes);
   return windowFrame(basis_, window, std::move(z), std::move(valid));
+}
+
+LocalFrame ShadowTiles::windowOfTile(const CellWindow& tile, const std::vector<Eigen::Vector3d>& lights,
+                                     std::uint64_t bytes, CellWindow& window) const {
+  const double lowest = lowestIn(tile);
+  if (!std::isfinite(lowest)) {  // no data: nothing to test
+    window = tile;
+    return {};
+  }
+  window = windowOf(tile, halo(tile, lights, lowest));
+  return frameOver(tile, window, bytes);
 }
 
 LocalFrame ShadowTiles::givenWindow(const CellWindow& given, std::vector<double> z, const CellWindow& tile,
@@ -449,9 +459,69 @@ SunlightHours ShadowTiles::tileHours(const LocalFrame& frame, const CellWindow& 
 SunlightHours ShadowTiles::hours(const CellWindow& tile, double startJulianDay, double endJulianDay, double stepHours,
                                  const std::vector<Eigen::Vector3d>& lights, const IndexOptions& options,
                                  ShadowSearch search, std::uint64_t bytes, unsigned threads) const {
-  CellWindow window;
-  return tileHours(windowOfTile(tile, lights, bytes, window), tile, startJulianDay, endJulianDay, stepHours, options, search,
-                   threads);
+  const double lowest = lowestIn(tile);
+  if (!std::isfinite(lowest)) return tileHours(LocalFrame{}, tile, startJulianDay, endJulianDay, stepHours, options, search, threads);
+  // A low sun's halo is long, a high sun's short: a window for every light of the day would be a
+  // sunrise's for the noon steps too. So the steps whose own window is at most twice the smallest
+  // share one window, the others (the low suns) another, loaded as the steps come, in order; the
+  // lit cells are summed in step order, as sunlightHours sums them.
+  const std::vector<SunlightStep> steps = qota::sunlightSteps(startJulianDay, endJulianDay, stepHours);
+  const LocalFrame& f = basis_.shared;
+  std::vector<int> group(steps.size(), -1);  // -1: night over the whole raster (skipped there too)
+  std::vector<Eigen::Vector3d> stepLight(steps.size());
+  std::vector<std::uint64_t> windowCells(steps.size(), 0);
+  std::uint64_t smallest = ~std::uint64_t{0};
+  for (std::size_t k = 0; k < steps.size(); ++k) {
+    const SunPosition sun = sunOverFrame(f, steps[k].middleJulianDay, basis_.raster.path);
+    if (!sunCanLight(f, sun, slack_)) continue;
+    stepLight[k] = f.towardSun(sun);
+    windowCells[k] = windowOf(tile, halo(tile, {stepLight[k]}, lowest)).cellCount();
+    smallest = std::min(smallest, windowCells[k]);
+    group[k] = 0;
+  }
+  std::vector<Eigen::Vector3d> groupLights[2];
+  for (std::size_t k = 0; k < steps.size(); ++k) {
+    if (group[k] < 0) continue;
+    group[k] = windowCells[k] <= 2 * smallest ? 0 : 1;
+    groupLights[group[k]].push_back(stepLight[k]);
+  }
+  (void)lights;  // (each step's light is found here; hoursFromHeights's window is given for them)
+  SunlightHours out;
+  out.elapsedHours = (endJulianDay - startJulianDay) * 24.0;
+  out.steps = static_cast<int>(steps.size());
+  out.hours.assign(tile.cellCount(), 0.0);
+  LocalFrame frame;
+  int loaded = -1;
+  double frameSlack = 0;
+  CellWindow inside;
+  const auto load = [&](int g) {
+    frame = frameOver(tile, windowOf(tile, halo(tile, groupLights[g], lowest)), bytes);
+    // Every step the window computes is among its lights when its slack is within the bound
+    // they were chosen with (sunlightHours's skip, for the window).
+    if (frame.body.ellipsoid && frame.horizonSlack() > slack_ + 1e-9) {
+      throw Error(basis_.raster.path + ": the horizon slack of cells " + cells(frame.window) + " exceeds the raster's bound");
+    }
+    frameSlack = frame.horizonSlack();
+    inside = CellWindow{tile.col - frame.window.col, tile.row - frame.window.row, tile.width, tile.height};
+    if (out.valid.empty()) out.valid = crop(frame.valid, CellWindow{0, 0, frame.window.width, frame.window.height}, inside);
+    loaded = g;
+  };
+  for (std::size_t k = 0; k < steps.size(); ++k) {
+    if (group[k] < 0) continue;
+    if (group[k] != loaded) load(group[k]);
+    const SunPosition sun = sunOverFrame(frame, steps[k].middleJulianDay, basis_.raster.path);
+    if (!sunCanLight(frame, sun, frameSlack)) continue;  // night over the window
+    const std::vector<Light> mask = shadowMask(frame, frame.towardSun(sun), options, {}, threads, search, inside);
+    const int ww = frame.window.width;
+    for (int r = 0; r < tile.height; ++r) {
+      for (int c = 0; c < tile.width; ++c) {
+        const std::size_t i = static_cast<std::size_t>(inside.row + r) * ww + static_cast<std::size_t>(inside.col + c);
+        if (mask[i] == Light::Lit) out.hours[static_cast<std::size_t>(r) * tile.width + c] += steps[k].hours;
+      }
+    }
+  }
+  if (out.valid.empty()) load(0);  // no step lit: the validity from a window for none
+  return out;
 }
 
 SunlightHours ShadowTiles::hoursFromHeights(const CellWindow& window, std::vector<double> heights, const CellWindow& tile,

@@ -111,8 +111,10 @@ class ShadowTiles {
                           unsigned threads = 0, ShadowSearch search = ShadowSearch::Strips,
                           std::uint64_t bytes = 0) const;
   // Hours of direct sunlight at every cell of `tile`, as sunlightHours gives them over the whole
-  // raster (the same steps and rule). lights: the light of every step that may be lit (for the
-  // halo; sunlightSteps gives them).
+  // raster (the same steps and rule). The steps whose own window is at most twice the smallest
+  // share one window, the low suns' another (a day's sunrise need not lengthen its noon's).
+  // lights: the light of every step that may be lit (sunlightSteps gives them), for the callers'
+  // tile sizes and hoursFromHeights's given window; hours finds each step's own.
   SunlightHours hours(const CellWindow& tile, double startJulianDay, double endJulianDay, double stepHours,
                       const std::vector<Eigen::Vector3d>& lights, const IndexOptions& options = {},
                       ShadowSearch search = ShadowSearch::Strips, std::uint64_t bytes = 0, unsigned threads = 0) const;
@@ -153,6 +155,10 @@ class ShadowTiles {
   double lowestOf(const CellWindow& tile, std::vector<double> heights, const std::vector<std::uint8_t>& valid) const;
   LocalFrame windowOfTile(const CellWindow& tile, const std::vector<Eigen::Vector3d>& lights, std::uint64_t bytes,
                           CellWindow& window) const;
+  // windowOfTile's steps: the tile's lowest (read from the source), and the frame over a window
+  // (refused over `bytes`).
+  double lowestIn(const CellWindow& tile) const;
+  LocalFrame frameOver(const CellWindow& tile, const CellWindow& window, std::uint64_t bytes) const;
   // The frame of a window given whole (...FromHeights), checked to hold the tile's halo and fill;
   // an empty frame for a tile without data.
   // halo before clipping to the raster.
