@@ -293,7 +293,7 @@ std::vector<std::uint32_t> RasterSampler::answerByTile(const Groups& groups, std
 void RasterSampler::heights(std::span<const double> xs, std::span<const double> ys, std::span<const double> zs,
                             std::span<std::optional<double>> out) {
   const std::size_t n = xs.size();
-  if (ys.size() != n || (!zs.empty() && zs.size() != n) || out.size() < n) {
+  if (ys.size() != n || (!zs.empty() && zs.size() != n) || out.size() < n || n >= 0xffffffffu) {
     throw Error("RasterSampler::heights: " + std::to_string(n) + " x, " + std::to_string(ys.size()) + " y, " +
                 std::to_string(zs.size()) + " z and room for " + std::to_string(out.size()) + " answers");
   }

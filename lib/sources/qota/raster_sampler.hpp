@@ -53,6 +53,7 @@ class RasterSampler {
   // out[i]: the highest terrain height at or below zs[i] (the top when zs is empty) at world
   // (xs[i], ys[i]), in the raster's own unit; std::nullopt for none. Tiles missing from the
   // cache are built on every core. Not to be called from two threads at once (it keeps the cache).
+  // Throws qota::Error for spans of different sizes, or 2^32 - 1 points or more in one call.
   void heights(std::span<const double> xs, std::span<const double> ys, std::span<const double> zs,
                std::span<std::optional<double>> out);
 
