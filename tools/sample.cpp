@@ -128,7 +128,8 @@ struct Query {
 };
 
 // The terrain of options.source with its queries, answered a batch at a time (answers[i] for
-// queries[i]; hasZ: every query has its height). Called on one thread; it may use several.
+// queries[i], each set whole; hasZ: every query has its height). Called on one thread; it may
+// use several.
 using Surface = std::function<void(std::span<const Query> queries, bool hasZ, std::span<Answer> answers)>;
 
 // Runs work(lo, hi) over [0, n) on every core (slices of at least minPerThread); an exception in
@@ -431,7 +432,7 @@ class LineLoop {
           r.query = static_cast<std::uint32_t>(k);
           Query& q = queries_[k];
           q.x = o_.swapXY ? r.p.v[1] : r.p.v[0], q.y = o_.swapXY ? r.p.v[0] : r.p.v[1], q.z = r.p.v[2];
-          answers_[k++] = Answer{};
+          ++k;  // (its answer is set whole by the surface, or by the --srs failure below)
         }
       }
     });
