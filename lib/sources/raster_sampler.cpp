@@ -68,9 +68,8 @@ RasterSampler::Tile RasterSampler::build(std::uint64_t key, std::vector<double>&
   Tile tile;
   tile.key = key;
   const std::size_t n = window.size();
-  const Level& small = levels_[1];
-  if (L.size > small.size || (key & 1) == 0) {
-    // A large tile: the lean grid of the same mapped vertices, when they make one.
+  if ((key & 1) == 0) {
+    // A large tile (level 0): the lean grid of the same mapped vertices, when they make one.
     std::vector<Point2> corners(n);
     std::vector<double> heights(n);
     bool any = false;
