@@ -192,7 +192,7 @@ TEST(ShadowTiles, SunlightHoursEqualTheWholeRasters) {
     for (int row = 0; row < dem.height; row += side) {
       for (int col = 0; col < dem.width; col += side) {
         const CellWindow tile{col, row, std::min(side, dem.width - col), std::min(side, dem.height - row)};
-        const qota::SunlightHours got = tiles.hours(tile, start, end, 1.5, lights);
+        const qota::SunlightHours got = tiles.hours(tile, start, end, 1.5);
         EXPECT_EQ(got.steps, expected.steps);
         for (int r = 0; r < tile.height; ++r) {
           for (int c = 0; c < tile.width; ++c) {
@@ -236,7 +236,6 @@ TEST(ShadowTiles, HoursAtSunsetSkipNoStepTheWholeRasterLights) {
   const qota::LocalSpan span = qota::localSpan("2024-03-20", "America/Chicago", 19.75, 23);
   const double start = span.start.julianDayUT, end = span.end.julianDayUT, step = 0.25;
   const qota::SunlightHours expected = qota::sunlightHours(whole, path, start, end, step);
-  const auto lights = tiles.sunlightSteps(start, end, step, tiles.horizonSlack());
   // The whole raster lights more steps than its east tiles' windows do, and some cells get
   // hours, others none.
   std::size_t someHours = 0, none = 0;
@@ -252,7 +251,7 @@ TEST(ShadowTiles, HoursAtSunsetSkipNoStepTheWholeRasterLights) {
     for (int row = 0; row < h; row += side) {
       for (int col = 0; col < w; col += side) {
         const CellWindow tile{col, row, std::min(side, w - col), std::min(side, h - row)};
-        const qota::SunlightHours got = tiles.hours(tile, start, end, step, lights);
+        const qota::SunlightHours got = tiles.hours(tile, start, end, step);
         EXPECT_EQ(got.steps, expected.steps);
         for (int r = 0; r < tile.height; ++r) {
           for (int c = 0; c < tile.width; ++c) {

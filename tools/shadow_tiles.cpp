@@ -200,7 +200,7 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
       const CellWindow tile = tileOf(todo[k]);
       values.resize(tile.cellCount());
       if (o.hours) {
-        const SunlightHours h = tiles.hours(tile, span->start.julianDayUT, span->end.julianDayUT, (*o.hours)[2], lights,
+        const SunlightHours h = tiles.hours(tile, span->start.julianDayUT, span->end.julianDayUT, (*o.hours)[2],
                                             o.terrain, o.search, windowBytes);
         // Cells without data: nodata (-1); the others their hours, 0 included.
         for (std::size_t i = 0; i < tile.cellCount(); ++i) values[i] = h.valid[i] ? h.hours[i] : -1.0;

@@ -178,10 +178,7 @@ bool GridPath::setUpLattice(std::uint64_t nw, std::uint64_t nh, std::span<const 
   turnOff();
   colU.clear(), rowV.clear(), presentBits.clear();
   BigVector<float>().swap(h32);
-  if (heights.size() != corners.size() || !fitLattice(corners, nw, nh)) {
-    turnOff();
-    return false;
-  }
+  if (heights.size() != corners.size() || !fitLattice(corners, nw, nh)) return false;  // (still off)
   cellsU = w - 1.0, cellsV = h - 1.0;
   // Every triangle turns as the first cell's of its half (the vertices lie within 1e-6 cell of
   // an affine lattice, so no triangle's exact orientation differs from its ideal one); the index

@@ -457,7 +457,7 @@ SunlightHours ShadowTiles::tileHours(const LocalFrame& frame, const CellWindow& 
 }
 
 SunlightHours ShadowTiles::hours(const CellWindow& tile, double startJulianDay, double endJulianDay, double stepHours,
-                                 const std::vector<Eigen::Vector3d>& lights, const IndexOptions& options,
+                                 const IndexOptions& options,
                                  ShadowSearch search, std::uint64_t bytes, unsigned threads) const {
   const double lowest = lowestIn(tile);
   if (!std::isfinite(lowest)) return tileHours(LocalFrame{}, tile, startJulianDay, endJulianDay, stepHours, options, search, threads);
@@ -485,7 +485,6 @@ SunlightHours ShadowTiles::hours(const CellWindow& tile, double startJulianDay, 
     group[k] = windowCells[k] <= 2 * smallest ? 0 : 1;
     groupLights[group[k]].push_back(stepLight[k]);
   }
-  (void)lights;  // (each step's light is found here; hoursFromHeights's window is given for them)
   SunlightHours out;
   out.elapsedHours = (endJulianDay - startJulianDay) * 24.0;
   out.steps = static_cast<int>(steps.size());

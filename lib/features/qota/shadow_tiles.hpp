@@ -112,11 +112,10 @@ class ShadowTiles {
                           std::uint64_t bytes = 0) const;
   // Hours of direct sunlight at every cell of `tile`, as sunlightHours gives them over the whole
   // raster (the same steps and rule). The steps whose own window is at most twice the smallest
-  // share one window, the low suns' another (a day's sunrise need not lengthen its noon's).
-  // lights: the light of every step that may be lit (sunlightSteps gives them), for the callers'
-  // tile sizes and hoursFromHeights's given window; hours finds each step's own.
+  // share one window, the low suns' another (a day's sunrise need not lengthen its noon's): each
+  // step's light is found here (sunlightSteps's lights serve tileSideFor and hoursFromHeights).
   SunlightHours hours(const CellWindow& tile, double startJulianDay, double endJulianDay, double stepHours,
-                      const std::vector<Eigen::Vector3d>& lights, const IndexOptions& options = {},
+                      const IndexOptions& options = {},
                       ShadowSearch search = ShadowSearch::Strips, std::uint64_t bytes = 0, unsigned threads = 0) const;
   // The lights of the steps of a span (qota::sunlightSteps, sunlightHours's) with the Sun above
   // the horizon at the centre less the frame's slack bound (sunCanLight): the lights a tile's halo
