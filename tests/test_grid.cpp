@@ -267,6 +267,36 @@ void expectGridMeshIsItsMesh(const GridMesh& grid, const CartesianMapping& mappi
   direct.heightsBelow(points, 1e300, h);
   viaMesh.heightsBelow(points, 1e300, hToo);
   ASSERT_EQ(h, hToo);
+  // And against brute force, without the index: at the random points clearly inside one
+  // triangle of the mesh (its mapped corners, barycentric weights over 1e-6), that triangle's
+  // linear interpolation; clearly outside every triangle, no terrain.
+  std::size_t inside = 0;
+  for (std::size_t i = 0; i < 20000; ++i) {
+    const Point2 q = points[i];
+    double want = NAN;
+    bool near = false;
+    for (std::size_t t = 0; t < mesh.polygonCount() && std::isnan(want); ++t) {
+      const auto p = mesh.polygon(t);
+      Eigen::Vector3d c[3];
+      for (int k = 0; k < 3; ++k) c[k] = mapping.toMapped(mesh.vertices[p[k]]);
+      const double area = (c[1].x() - c[0].x()) * (c[2].y() - c[0].y()) - (c[1].y() - c[0].y()) * (c[2].x() - c[0].x());
+      if (area == 0) continue;
+      const double w1 = ((q.u - c[0].x()) * (c[2].y() - c[0].y()) - (q.v - c[0].y()) * (c[2].x() - c[0].x())) / area;
+      const double w2 = ((c[1].x() - c[0].x()) * (q.v - c[0].y()) - (c[1].y() - c[0].y()) * (q.u - c[0].x())) / area;
+      const double w0 = 1 - w1 - w2;
+      const double least = std::min({w0, w1, w2});
+      if (least > 1e-6) want = w0 * c[0].z() + w1 * c[1].z() + w2 * c[2].z();
+      near = near || least > -1e-6;
+    }
+    if (!std::isnan(want)) {
+      ++inside;
+      ASSERT_TRUE(h[i].has_value()) << i;
+      ASSERT_NEAR(*h[i], want, 1e-6 * (1 + std::fabs(want))) << i;
+    } else if (!near) {
+      ASSERT_FALSE(h[i].has_value()) << i;
+    }
+  }
+  EXPECT_GT(inside, 1000u);
 
   // The lean grid alone, from the same mapped vertices.
   if (!direct.gridFastPath() || !options.gridFastPath.value_or(true)) return;

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <limits>
 #include <random>
 #include <vector>
@@ -140,6 +141,20 @@ void expectSameAsWhole(const std::string& path, int band, int tileSize, std::uin
   if (leanTiles) *leanTiles = sampler.leanTilesBuilt();
 }
 
+// A w x h raster of `values` (nodata -9999) on a rotated and sheared geotransform of 30 m pixels.
+std::filesystem::path writeSheared(const std::string& name, int w, int h, const std::vector<double>& values,
+                                   GDALDataType type) {
+  const auto path = qota::test::scratchPath(name);
+  qota::test::RasterSpec spec;
+  spec.width = w, spec.height = h;
+  spec.geotransform = {500000.0, 30.0, 4.0, 5200000.0, -3.0, -30.0};
+  spec.bands = {values};
+  spec.nodata = -9999;
+  spec.type = type;
+  qota::test::writeRaster(path, spec);
+  return path;
+}
+
 TEST(RasterSampler, RainierTileByTileIsTheWholeTerrain) {
   // 1201 x 1201 pixels: tiles of 64 cells (19 x 19 of them), a cache of a few tiles.
   expectSameAsWhole(QOTA_DATA_DIR "/mt_rainier_90m.tif", 0, 64, 4u << 20, 1);
@@ -159,14 +174,7 @@ TEST(RasterSampler, HolesScaleAndTinyTiles) {
       }
     }
   }
-  const auto path = qota::test::scratchPath("sampler_holes.tif");
-  qota::test::RasterSpec spec;
-  spec.width = w, spec.height = h;
-  spec.geotransform = {500000.0, 30.0, 4.0, 5200000.0, -3.0, -30.0};
-  spec.bands = {v};
-  spec.nodata = -9999;
-  spec.type = GDT_Int16;
-  qota::test::writeRaster(path, spec);
+  const auto path = writeSheared("sampler_holes.tif", w, h, v, GDT_Int16);
   {  // scale and offset on the band
     qota::ensureGdalRegistered();
     std::unique_ptr<GDALDataset> ds(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_UPDATE));
@@ -199,14 +207,7 @@ TEST(RasterSampler, LeanTilesAnswerAsTheWholeTerrain) {
           hole ? -9999 : 500 + 80 * std::sin(0.2 * c) * std::cos(0.15 * r) + std::uniform_real_distribution<double>(0, 1e-3)(rng);
     }
   }
-  const auto path = qota::test::scratchPath("sampler_lean.tif");
-  qota::test::RasterSpec spec;
-  spec.width = w, spec.height = h;
-  spec.geotransform = {500000.0, 30.0, 4.0, 5200000.0, -3.0, -30.0};
-  spec.bands = {v};
-  spec.nodata = -9999;
-  spec.type = GDT_Float64;
-  qota::test::writeRaster(path, spec);
+  const auto path = writeSheared("sampler_lean.tif", w, h, v, GDT_Float64);
   expectSameAsWhole(path.string(), 1, 16, 64u << 20, 22, 1, 0, 60000, &lean);
   EXPECT_EQ(lean, 30u);  // (89 x 69 cells in tiles of 16: 6 x 5)
 }
