@@ -39,7 +39,8 @@ VOID_MARGIN = 32
 
 
 def _is_dask(data) -> bool:
-    return hasattr(data, "dask") and hasattr(data, "chunks") and hasattr(data, "compute")
+    from dask import is_dask_collection
+    return is_dask_collection(data)
 
 
 def _heights(raw, nodata, scale, offset):
@@ -229,12 +230,14 @@ def shadow(da, azimuth=None, altitude=None, *, time=None, tz=None, hours=None, b
     if not _is_dask(plane.data):
         raise Error("the DataArray is not chunked (not backed by a dask array): open it with chunks= "
                     "(rioxarray.open_rasterio(path, chunks=512)) or chunk it (da.chunk(512))")
-    if tiles is None:
+    if tiles is None:  # (made from this very plane: nothing to check)
         tiles = _make_tiles(da, band=band, z_factor=z_factor, heights_from=heights_from)
+    elif ((tiles.core.height, tiles.core.width) != plane.shape
+          or not np.allclose(tiles.core.geotransform, _interop.dataarray_transform(plane), rtol=0,
+                             atol=1e-6 * abs(tiles.core.geotransform[1]))):
+        raise Error(f"the tiles are those of another raster ({tiles.source}, {tiles.core.width} x "
+                    f"{tiles.core.height} cells)")
     core = tiles.core
-    if (core.height, core.width) != plane.shape or not np.allclose(core.geotransform, _interop.dataarray_transform(plane),
-                                                                    rtol=0, atol=1e-6 * abs(core.geotransform[1])):
-        raise Error(f"the tiles are those of another raster ({tiles.source}, {core.width} x {core.height} cells)")
     if span_hours is None:
         sun = (azimuth, altitude) if time is None else core.sun_at(str(time), tz or "")
         lights = [core.toward_sun(float(sun[0]), float(sun[1]))]

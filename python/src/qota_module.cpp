@@ -509,7 +509,10 @@ py::tuple sunPosition(const std::string& time, double lon, double lat, const std
 // from its heights with its overlap, the GIL released.
 
 // The values of qota shadow's rasters (its defaults): lit, shadow and nodata cells; hours' nodata.
-constexpr std::uint8_t kLitValue = 255, kShadowValue = 0, kNoDataValue = 128;
+const qota::tools::ShadowOptions kShadowDefaults{};
+const auto kLitValue = static_cast<std::uint8_t>(kShadowDefaults.litValue);
+const auto kShadowValue = static_cast<std::uint8_t>(kShadowDefaults.shadowValue);
+const auto kNoDataValue = static_cast<std::uint8_t>(kShadowDefaults.nodataValue);
 constexpr float kNoHours = -1;
 
 // A window of cells as Python gives it: (col, row, width, height).
