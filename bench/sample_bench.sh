@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # qota sample against gdallocationinfo (GDAL's own point query, nearest pixel) in the same run:
-#   1. 1M random points on the bundled Rainier DEM, stdin to stdout (lines per second);
+#   1. 1M random points on the bundled Rainier DEM, stdin to stdout (lines per second), and the
+#      same through -i/-o files (a pipe should cost nothing more);
 #   2. one point on a 40834 x 40834 VRT (the Rainier tile 34 x 34 times, 1.7 G pixels), wall time
 #      and peak RSS: qota reads the tile under the point, never the raster;
 #   3. 50,000 random points spread over that VRT (a small tile each).
@@ -28,6 +29,9 @@ printf '%-44s %10s %8s %10s\n' "job" "seconds" "spread" "peak MB"
 input=$work/points.txt measure "$qota" sample "$dem"
 [ "$(grep -c . "$work/out")" = 1000000 ] || { echo "qota did not answer every line"; exit 1; }
 q1=$med; printf '%-44s %10s %7s%% %10d\n' "qota sample, 1M points, stdin -> stdout" "$med" "$spread" $((mem / 1024))
+input=/dev/null measure "$qota" sample "$dem" -i "$work/points.txt" -o "$work/out_files.txt"
+cmp -s "$work/out_files.txt" <(input=$work/points.txt; "$qota" sample "$dem" < "$work/points.txt") || { echo "-i/-o answered otherwise"; exit 1; }
+q0=$med; printf '%-44s %10s %7s%% %10d\n' "qota sample, the same with -i/-o files" "$med" "$spread" $((mem / 1024))
 input=$work/points.txt measure gdallocationinfo -valonly -geoloc "$dem"
 g1=$med; printf '%-44s %10s %7s%% %10d\n' "gdallocationinfo, the same" "$med" "$spread" $((mem / 1024))
 echo "$point" > "$work/one.txt"
@@ -41,7 +45,7 @@ input=$work/sparse.txt measure "$qota" sample "$work/big.vrt"
 q3=$med; printf '%-44s %10s %7s%% %10d\n' "qota sample, 50k points over the VRT" "$med" "$spread" $((mem / 1024))
 input=$work/sparse.txt measure gdallocationinfo -valonly -geoloc "$work/big.vrt"
 g3=$med; printf '%-44s %10s %7s%% %10d\n' "gdallocationinfo, the same" "$med" "$spread" $((mem / 1024))
-awk -v q1="$q1" -v g1="$g1" -v q2="$q2" -v g2="$g2" -v qm="$qm" -v q3="$q3" -v g3="$g3" 'BEGIN {
-  printf "1M points: qota %.1fx the lines per second of gdallocationinfo\n", g1 / q1
+awk -v q0="$q0" -v q1="$q1" -v g1="$g1" -v q2="$q2" -v g2="$g2" -v qm="$qm" -v q3="$q3" -v g3="$g3" 'BEGIN {
+  printf "1M points: qota %.1fx the lines per second of gdallocationinfo (stdin to stdout %.2fx the time of -i/-o)\n", g1 / q1, q1 / q0
   printf "1 point on the VRT: qota takes %.2fx gdallocationinfo'\''s time, %d MB peak\n", q2 / g2, qm / 1024
   printf "50k points over the VRT: qota %.2fx the lines per second of gdallocationinfo\n", g3 / q3 }'
