@@ -188,6 +188,37 @@ TEST(Dem, ErrorsNameTheFile) {
   EXPECT_THROW(qota::loadDem(QOTA_DATA_DIR "/mt_rainier_90m.tif", {2, 0}), qota::Error);
 }
 
+// Pixels 10^149 times taller than wide, or sheared nearly flat, are a broken geotransform: refused
+// with its numbers, by every reader. A thousand to one (a cross-section raster) still loads.
+TEST(Dem, PixelsFarLongerOneWayThanTheOtherAreRefused) {
+  const std::vector<float> values(12 * 10, 5.0f);
+  const auto path = scratch("pixel_shape.tif");
+  const double slivers[6] = {0, 4.5e-72, 0, 0, 0, -2.3e77};
+  writeRaster(path, "GTiff", 12, 10, slivers, values);
+  for (const bool describeOnly : {false, true}) {
+    try {
+      describeOnly ? (void)qota::describeDem(path.string()) : (void)qota::loadDem(path.string());
+      FAIL() << "loaded";
+    } catch (const qota::Error& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find("pixel_shape.tif"), std::string::npos) << what;
+      EXPECT_NE(what.find("times as long one way as the other"), std::string::npos) << what;
+    }
+  }
+  const double sheared[6] = {0, 10, 10, 0, 10, 10 + 1e-6};
+  writeRaster(path, "GTiff", 12, 10, sheared, values);
+  try {
+    (void)qota::loadDem(path.string());
+    FAIL() << "loaded";
+  } catch (const qota::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("sheared to"), std::string::npos) << e.what();
+  }
+  const double crossSection[6] = {0, 1, 0, 0, 0, -1000};
+  writeRaster(path, "GTiff", 12, 10, crossSection, values);
+  const DemTerrain dem = qota::loadDem(path.string());
+  EXPECT_EQ(dem.width, 12);
+}
+
 TEST(Dem, TooLargeForMemoryIsRefusedBeforeAllocating) {
   // A sparse 200000 x 200000 GeoTIFF: tiny on disk, about 15 TB as a terrain.
   qota::ensureGdalRegistered();

@@ -1,5 +1,6 @@
 // Shadow masks: exact cases, the brute-force oracle, a ray march on the real DEM, the tool.
 #include <gdal_priv.h>
+#include <ogr_spatialref.h>
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
@@ -13,6 +14,7 @@
 #include "qota/terrain.hpp"
 #include "qota_tools.hpp"
 #include "shadow_oracle.hpp"
+#include "shadow_strips.hpp"
 
 namespace {
 
@@ -167,6 +169,27 @@ TEST(Shadow, StripWalkIdenticalToQuadtree) {
   }
   EXPECT_GT(shadowed, cells / 10);
   EXPECT_LT(shadowed, cells);
+}
+
+// Cells a thousand times taller than wide, the sun across their tall side: every occluder spans
+// a thousand pixel-wide strips, and went into each (19 million entries here, and gigabytes on
+// larger rasters with absurd geotransforms). The strips widen instead, within a bounded number
+// of copies, and the mask is still the quadtree's.
+TEST(Shadow, StripsOfCellsFarTallerThanWideStayBoundedAndExact) {
+  const qota::Heightfield hf = qota::fractalHeightfield(300, 60, 1.0, 3000.0, 404);
+  LocalFrame f = qota::localFrame(gridDem(300, 60, hf.z), false, 10);
+  for (Eigen::Vector3d& v : f.mesh.vertices) v.y() *= 1000;
+  f.pixelSizeY *= 1000;
+  const Eigen::Vector3d light = f.towardSun({90, 20});
+  std::vector<std::uint8_t> facing;
+  const qota::shadow::HorizonStrips strips(f, light, std::min(f.pixelSizeX, f.pixelSizeY), facing, 2, 0);
+  EXPECT_LT(strips.entryCount(), 4 * f.mesh.polygonCount() + 200000) << strips.stripCount() << " strips";
+  const auto walk = qota::shadowMask(f, light, {}, {}, 2, qota::ShadowSearch::Strips);
+  const auto tree = qota::shadowMask(f, light, {}, {}, 2, qota::ShadowSearch::Quadtree);
+  ASSERT_EQ(walk.size(), tree.size());
+  for (std::size_t i = 0; i < walk.size(); ++i) ASSERT_EQ(walk[i], tree[i]) << "cell " << i;
+  EXPECT_GT(count(walk, Light::Shadow), walk.size() / 10);
+  EXPECT_GT(count(walk, Light::Lit), walk.size() / 20);
 }
 
 TEST(Shadow, StripWalkIdenticalToQuadtreeOnTheEllipsoid) {
@@ -370,6 +393,42 @@ TEST(ShadowTool, HoursOfSunlight) {
   EXPECT_GE(minmax[0], 0.0);
   EXPECT_LE(minmax[1], 16.0);  // about 15.5 h of daylight at 46 N at midsummer
   EXPECT_GT(minmax[1], 12.0);
+}
+
+// Web Mercator pixels 100,000 km wide: PROJ still gives every pixel a longitude and latitude
+// (wrapped round the globe, or the pole itself), so on the ellipsoid the raster would fold onto
+// itself or stack at the pole (minutes of search, a meaningless mask). The frame refuses it and
+// names the pixel; --flat takes it as it is.
+TEST(ShadowTool, ARasterOutsideItsProjectionIsRefused) {
+  const auto path = scratch("beyond_mercator.tif");
+  GDALAllRegister();
+  {
+    GDALDriver* drv = GetGDALDriverManager()->GetDriverByName("GTiff");
+    std::unique_ptr<GDALDataset> ds(drv->Create(path.c_str(), 30, 12, 1, GDT_Float32, nullptr));
+    const double gt[6] = {0, 1e8, 0, 0, 0, -1e8};
+    ds->SetGeoTransform(const_cast<double*>(gt));
+    OGRSpatialReference srs;
+    srs.importFromEPSG(3857);
+    ds->SetSpatialRef(&srs);
+    std::vector<float> z(360);
+    for (std::size_t i = 0; i < z.size(); ++i) z[i] = static_cast<float>((i * 37) % 101);
+    ASSERT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, 30, 12, z.data(), 30, 12, GDT_Float32, 0, 0), CE_None);
+  }
+  std::ostringstream out, err;
+  qota::tools::ShadowOptions o;
+  o.source = path.string();
+  o.output = scratch("beyond_mercator_shadow.tif").string();
+  o.azimuth = 238, o.altitude = 29;
+  o.quiet = true;
+  std::filesystem::remove(o.output);
+  EXPECT_EQ(qota::tools::shadow(o, out, err), 2);
+  EXPECT_NE(err.str().find("outside the domain of the raster's projection"), std::string::npos) << err.str();
+  EXPECT_NE(err.str().find("pixel (0, 0)"), std::string::npos) << err.str();
+  EXPECT_FALSE(std::filesystem::exists(o.output));
+  o.flat = true;
+  err.str("");
+  EXPECT_EQ(qota::tools::shadow(o, out, err), 0) << err.str();
+  EXPECT_TRUE(std::filesystem::exists(o.output));
 }
 
 TEST(ShadowTool, BadInputIsAClearErrorAndLeavesNoFile) {

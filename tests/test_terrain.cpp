@@ -240,23 +240,45 @@ TEST(TerrainQueries, FanAroundAVertexDeeperThanMaxPoly) {
   EXPECT_EQ(centred.top(0, 0)->height, 1.0);
 }
 
+// An nx x ny lattice of cells dx by dy, two triangles a cell, heights z(i, j) at its vertices.
+template <class Height>
+Mesh lattice(int nx, int ny, double dx, double dy, Height&& z) {
+  Mesh m;
+  for (int j = 0; j <= ny; ++j) {
+    for (int i = 0; i <= nx; ++i) m.addVertex({dx * i, dy * j, z(i, j)});
+  }
+  for (int j = 0; j < ny; ++j) {
+    for (int i = 0; i < nx; ++i) {
+      const auto a = static_cast<std::uint32_t>(j * (nx + 1) + i), n = static_cast<std::uint32_t>(nx);
+      m.addTriangle(a, a + 1, a + n + 2);
+      m.addTriangle(a, a + n + 2, a + n + 1);
+    }
+  }
+  return m;
+}
+
+TEST(TerrainQueries, SliversFarThinnerThanTheirNodeStayALeaf) {
+  // A 16 x 16 lattice a millionth wide and 16 tall (a raster with an absurd geotransform): the
+  // root is widened to a square, so no cut below the first parts the columns, and every cut
+  // across the rows copies a row's 32 slivers into both halves. Counting the empty children as
+  // free queries, the split rule used to take that for a gain and split down to Maxdepth (half a
+  // million nodes, two million references, seconds to build). Now the rows stay leaves, and the
+  // answers are still the oracle's.
+  const Mesh m = lattice(16, 16, 1e-6, 1, [](int i, int j) { return double((i * 5 + j * 3) % 7); });
+  const qota::IndexOptions options{.tree = {8, 16}, .gridFastPath = false};
+  const TerrainIndex index(m, CartesianMapping(), options);
+  EXPECT_LT(index.stats().tree.references, 32u * index.stats().triangles);
+  EXPECT_LT(index.stats().tree.nodes, 8u * index.stats().triangles);
+  const auto st = compareWithOracle(m, CartesianMapping(), options, 3000, 9);
+  EXPECT_GT(st.hits, st.queries / 2);
+}
+
 TEST(TerrainQueries, ATreeOutgrowingTheMemoryLeftStopsWithAnError) {
   // Slivers 100 times taller than wide (a 2600 x 13 raster of the whole globe): the square cells
   // that part their columns cut each of them many times, some 20 nodes a triangle, more than the
   // up-front estimate. With memory for the estimate but not for such a tree, the build stops
   // with an error instead of meeting the OOM killer.
-  Mesh m;
-  const int nx = 2600, ny = 13;
-  for (int j = 0; j <= ny; ++j) {
-    for (int i = 0; i <= nx; ++i) m.addVertex({360.0 * i / nx, 180.0 * j / ny, double((i * 7 + j * 3) % 11)});
-  }
-  for (int j = 0; j < ny; ++j) {
-    for (int i = 0; i < nx; ++i) {
-      const std::uint32_t a = j * (nx + 1) + i;
-      m.addTriangle(a, a + 1, a + nx + 2);
-      m.addTriangle(a, a + nx + 2, a + nx + 1);
-    }
-  }
+  const Mesh m = lattice(2600, 13, 360.0 / 2600, 180.0 / 13, [](int i, int j) { return double((i * 7 + j * 3) % 11); });
   const qota::IndexOptions options{.tree = {8, 16}, .gridFastPath = false};
   const TerrainIndex unlimited(m, CartesianMapping(), options);
   ASSERT_GT(unlimited.stats().tree.nodes, 1u << 20);  // the tree the check must see

@@ -8,7 +8,9 @@
 #include <algorithm>
 #include <cmath>
 #include <memory>
+#include <sstream>
 
+#include "gdal_errors.hpp"
 #include "qota/error.hpp"
 #include "qota/globe.hpp"
 #include "qota/shadow.hpp"
@@ -211,6 +213,34 @@ namespace {
 
 OGRSpatialReference basisCrs(const FrameBasis& b) { return rasterCrs(b.raster); }
 
+// A projected raster placed on its ellipsoid must lie inside its projection's domain. Outside it
+// PROJ may still answer, but not invertibly: a geotransform with rows 10^77 m apart in Web
+// Mercator puts every row but the first at the pole, a stack of degenerate triangles that costs
+// the shadow search minutes and means nothing. The corners, the edge midpoints and the centre
+// must come back from longitude/latitude where they were (to a ten-millionth of their size, or a
+// hundredth of a pixel).
+void checkInsideProjection(const DemTerrain& dem, OGRCoordinateTransformation& toGeo, OGRCoordinateTransformation& toGrid) {
+  const auto& gt = dem.geotransform;
+  const double pixel = std::min(std::hypot(gt[1], gt[4]), std::hypot(gt[2], gt[5]));
+  detail::QuietGdalErrors quiet;  // PROJ's own complaints: the error below says it
+  for (const double r : {0.0, (dem.height - 1) / 2.0, dem.height - 1.0}) {
+    for (const double c : {0.0, (dem.width - 1) / 2.0, dem.width - 1.0}) {
+      const auto xy = dem.pixelCentre(c, r);
+      double x = xy[0], y = xy[1];
+      const bool back = toGeo.Transform(1, &x, &y) && toGrid.Transform(1, &x, &y);
+      const double tolerance = 1e-7 * std::max({std::fabs(xy[0]), std::fabs(xy[1]), 1.0}) + 0.01 * pixel;
+      if (!back || !(std::fabs(x - xy[0]) <= tolerance && std::fabs(y - xy[1]) <= tolerance)) {
+        std::ostringstream what;
+        what << dem.path << ": pixel (" << c << ", " << r << ") at (" << xy[0] << ", " << xy[1]
+             << ") is outside the domain of the raster's projection ("
+             << (back ? "it comes back from longitude/latitude elsewhere" : "it has no longitude/latitude")
+             << "); check its geotransform, or shadow it with --flat";
+        throw Error(what.str());
+      }
+    }
+  }
+}
+
 }  // namespace
 
 FrameBasis frameBasis(const DemTerrain& dem, const FrameOptions& o) {
@@ -259,6 +289,7 @@ FrameBasis frameBasis(const DemTerrain& dem, const FrameOptions& o) {
     std::unique_ptr<OGRCoordinateTransformation> toGrid(OGRCreateCoordinateTransformation(&geo, &*srs));
     if (!toGeo || !toGrid) throw Error(dem.path + ": its CRS cannot be converted to longitude/latitude");
     if (!toGeo->Transform(1, &lon0, &lat0)) throw Error(dem.path + ": its centre cannot be converted to longitude/latitude");
+    if (ellipsoid) checkInsideProjection(dem, *toGeo, *toGrid);
     // Where true north points on the grid at the centre (for a flat projected frame).
     double nx = lon0, ny = lat0 + 0.01;
     if (toGrid->Transform(1, &nx, &ny)) f.trueNorthFromY = std::atan2(nx - centre[0], ny - centre[1]) / kDeg;

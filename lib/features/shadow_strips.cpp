@@ -55,10 +55,21 @@ HorizonStrips::HorizonStrips(const LocalFrame& frame, const Eigen::Vector3d& lig
     for (const Entry& e : part) cLo_ = std::min(cLo_, e.cLo - marginA_), cHi = std::max(cHi, e.cHi + marginA_);
   }
   if (!(cLo_ <= cHi)) return;  // no occluder
-  // One pixel a strip, but no more strips than a few per cell (a DEM of wild heights can spread
-  // its occluders far wider than the cells): the width only tunes the search, never its answer.
-  const double maxStrips = 4.0 * static_cast<double>(frame.cellCount()) + 1024;
-  perWidth_ = std::min(1 / stripWidth, maxStrips / (cHi - cLo_));
+  // One pixel a strip, within two bounds on memory (the width only tunes the search, never its
+  // answer). An occluder goes into every strip it spans, so its copies number about its width
+  // over the strips'; a DEM of wild heights or an absurd geotransform (rows a planet apart,
+  // triangles wide across the whole raster) would otherwise make gigabytes of copies: at most
+  // twice as many as occluders, beyond one each. And each strip is padded to 64 entries: no
+  // more strips than one per 64 occluders (a raster's width in pixels is far fewer).
+  double widths = 0;
+  std::size_t occluders = 0;
+  for (const auto& part : spans) {
+    for (const Entry& e : part) widths += (static_cast<double>(e.cHi) - e.cLo) + 2 * marginA_;
+    occluders += part.size();
+  }
+  const double maxStrips = std::min(4.0 * static_cast<double>(frame.cellCount()), occluders / 64.0) + 1024;
+  const double maxCopies = 2.0 * static_cast<double>(occluders) + 65536;
+  perWidth_ = std::min({1 / stripWidth, maxStrips / (cHi - cLo_), maxCopies / widths});
   const std::size_t strips = strip(cHi) + 1;
   const auto stripsOf = [&](const Entry& e, std::size_t& lo, std::size_t& hi) {
     lo = strip(e.cLo - marginA_), hi = std::min(strips - 1, strip(e.cHi + marginA_));

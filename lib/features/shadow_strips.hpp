@@ -34,6 +34,8 @@ class HorizonStrips {
                 std::vector<std::uint8_t>& facing, unsigned threads, int winding);
 
   std::size_t stripCount() const { return start_.empty() ? 0 : start_.size() - 1; }
+  // Entries over all strips, copies and padding included (the memory it holds, in Entry units).
+  std::uint64_t entryCount() const { return entryCount_; }
   // The strip of the ray from p; stripCount() when no strip holds it.
   std::size_t stripOf(const Eigen::Vector3d& p) const {
     const double c = across(p);

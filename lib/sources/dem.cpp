@@ -9,6 +9,7 @@
 #include <cctype>
 #include <cmath>
 #include <fstream>
+#include <iomanip>
 #include <memory>
 #include <mutex>
 #include <sstream>
@@ -49,7 +50,7 @@ bool DemTerrain::onRaster(double x, double y) const {
 
 namespace {
 
-constexpr double kMaxCoordinate = 1e100, kMinPixelArea = 1e-200;
+constexpr double kMaxCoordinate = 1e100, kMinPixelArea = 1e-200, kMaxPixelAspect = 1e6;
 
 std::string lowerTrimmed(const std::string& text) {
   std::size_t a = 0, b = text.size();
@@ -106,6 +107,23 @@ void checkGeotransform(const std::string& path, const std::array<double, 6>& g, 
   if (!(std::fabs(det) >= kMinPixelArea)) {
     throw Error(path + ": geotransform (" + text() + ") gives pixels of no area (or below 1e-200): "
                 "they cannot be placed");
+  }
+  // Pixels a million times longer one way than the other, or sheared flat, are a broken
+  // geotransform (real rasters stay within a few hundred): their triangles would be slivers whose
+  // every overlap test falls to exact arithmetic (seconds a thousand cells).
+  const double stepCol = std::hypot(g[1], g[4]), stepRow = std::hypot(g[2], g[5]);
+  const double aspect = std::max(stepCol, stepRow) / std::min(stepCol, stepRow);
+  const double area = std::fabs(det) / (stepCol * stepRow);  // 1 for rectangular pixels
+  if (!(aspect <= kMaxPixelAspect) || !(area >= 1 / kMaxPixelAspect)) {
+    std::ostringstream what;
+    what << path << ": geotransform (" << text() << ") gives pixels " << std::setprecision(3);
+    if (!(aspect <= kMaxPixelAspect)) {
+      what << aspect << " times as long one way as the other";
+    } else {
+      what << "sheared to " << area << " of a rectangle's area";
+    }
+    what << " (beyond 1e6): check its pixel sizes and rotation terms";
+    throw Error(what.str());
   }
   const double w = width, h = height;
   if (std::fabs(g[0]) + w * std::fabs(g[1]) + h * std::fabs(g[2]) > kMaxCoordinate ||

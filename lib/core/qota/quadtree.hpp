@@ -8,9 +8,10 @@
 // a query descends with two compares per level.
 //
 // Split rule: the paper's (more than Maxpoly items and above Maxdepth), plus two checks: a node
-// whose split would not cut the expected number of polygon tests by at least 15% stays a leaf,
-// and so does a node smaller than the owner's size floor (typically half a polygon), where the
-// items overlap because they are larger than the node and no cut can part them.
+// whose split would not cut the number of polygon tests of a query on terrain by at least 15%
+// stays a leaf, and so does a node smaller than the owner's size floor (typically half a
+// polygon), where the items overlap because they are larger than the node and no cut can part
+// them.
 //
 // Boundary rule: a point exactly on a cut line belongs to the child on the high side (u >= mid goes
 // to the high-u child). Boxes are closed in the build, so an item touching a cut line is referenced
@@ -37,8 +38,8 @@ namespace qota {
 class Quadtree {
  public:
   static constexpr std::uint32_t kInner = 0xffffffffu;
-  // A node is split only when its children's mean polygon count is at most this fraction of its
-  // own (see buildNode).
+  // A node is split only when the mean polygon count of its children that hold any is at most
+  // this fraction of its own (see buildNode).
   static constexpr double kMinSplitGain = 0.85;
   // A leaf flag set by markLeaves: the leaf's items do not overlap (a single layer of terrain).
   static constexpr std::uint32_t kSingleLayer = 0x80000000u;
@@ -428,12 +429,18 @@ void Quadtree::buildNode(std::uint32_t node, const Box2& box, std::uint32_t dept
       if (overlaps(it, child[c])) sub[c].push_back(it);
     }
   }
-  // A split pays only when a query in one of the four equal-area children tests clearly fewer
-  // polygons than in the parent. It does not where polygons cannot be separated: a fan around a
-  // vertex, a stack of overlapping polygons, or the rim of such a stack, where a leaf would
-  // otherwise split down to Maxdepth along the rim. Such a node stays a leaf.
+  // A split pays only when a query that lands on terrain tests clearly fewer polygons in a child
+  // than in the parent: the mean over the children that hold any polygon, as queries go where the
+  // terrain is (a child left empty is free to answer, but it does not make the others cheaper).
+  // It does not where polygons cannot be separated: a fan around a vertex, a stack of
+  // overlapping polygons, the rim of such a stack, or slivers far thinner than the node along
+  // one axis (a cut across them copies them all into both halves, down to Maxdepth). Such a node
+  // stays a leaf. A split that copies nothing (every polygon in one child) always goes on: it
+  // costs four nodes and leads to the cuts that separate.
   const std::size_t childRefs = sub[0].size() + sub[1].size() + sub[2].size() + sub[3].size();
-  if (static_cast<double>(childRefs) > kMinSplitGain * 4.0 * static_cast<double>(items.size())) {
+  const int filled = !sub[0].empty() + !sub[1].empty() + !sub[2].empty() + !sub[3].empty();
+  if (childRefs > items.size() &&
+      static_cast<double>(childRefs) > kMinSplitGain * filled * static_cast<double>(items.size())) {
     nodes_.resize(first);
     if (!cut_.empty()) cut_.resize(first);
     nodes_[node] = {static_cast<std::uint32_t>(refs_.size()),
