@@ -222,7 +222,6 @@ OGRSpatialReference basisCrs(const FrameBasis& b) { return rasterCrs(b.raster); 
 void checkInsideProjection(const DemTerrain& dem, OGRCoordinateTransformation& toGeo, OGRCoordinateTransformation& toGrid) {
   const auto& gt = dem.geotransform;
   const double pixel = std::min(std::hypot(gt[1], gt[4]), std::hypot(gt[2], gt[5]));
-  detail::QuietGdalErrors quiet;  // PROJ's own complaints: the error below says it
   for (const double r : {0.0, (dem.height - 1) / 2.0, dem.height - 1.0}) {
     for (const double c : {0.0, (dem.width - 1) / 2.0, dem.width - 1.0}) {
       const auto xy = dem.pixelCentre(c, r);
@@ -282,6 +281,7 @@ FrameBasis frameBasis(const DemTerrain& dem, const FrameOptions& o) {
   demEllipsoid(dem, b.a, b.flattening);
   double lon0 = centre[0], lat0 = centre[1];
   if (!b.geographic) {
+    detail::QuietGdalErrors quiet;  // PROJ's own complaints: the errors below say what failed
     OGRSpatialReference geo;
     geo.CopyGeogCSFrom(&*srs);
     geo.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
