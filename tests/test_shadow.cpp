@@ -1,6 +1,5 @@
 // Shadow masks: exact cases, the brute-force oracle, a ray march on the real DEM, the tool.
 #include <gdal_priv.h>
-#include <ogr_spatialref.h>
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
@@ -13,6 +12,7 @@
 #include "qota/synthetic.hpp"
 #include "qota/terrain.hpp"
 #include "qota_tools.hpp"
+#include "raster_files.hpp"
 #include "shadow_oracle.hpp"
 #include "shadow_strips.hpp"
 
@@ -401,19 +401,13 @@ TEST(ShadowTool, HoursOfSunlight) {
 // names the pixel; --flat takes it as it is.
 TEST(ShadowTool, ARasterOutsideItsProjectionIsRefused) {
   const auto path = scratch("beyond_mercator.tif");
-  GDALAllRegister();
-  {
-    GDALDriver* drv = GetGDALDriverManager()->GetDriverByName("GTiff");
-    std::unique_ptr<GDALDataset> ds(drv->Create(path.c_str(), 30, 12, 1, GDT_Float32, nullptr));
-    const double gt[6] = {0, 1e8, 0, 0, 0, -1e8};
-    ds->SetGeoTransform(const_cast<double*>(gt));
-    OGRSpatialReference srs;
-    srs.importFromEPSG(3857);
-    ds->SetSpatialRef(&srs);
-    std::vector<float> z(360);
-    for (std::size_t i = 0; i < z.size(); ++i) z[i] = static_cast<float>((i * 37) % 101);
-    ASSERT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, 30, 12, z.data(), 30, 12, GDT_Float32, 0, 0), CE_None);
-  }
+  qota::test::RasterSpec spec;
+  spec.width = 30, spec.height = 12;
+  spec.geotransform = {0, 1e8, 0, 0, 0, -1e8};
+  spec.crs = "EPSG:3857";
+  spec.bands = {std::vector<double>(360)};
+  for (std::size_t i = 0; i < 360; ++i) spec.bands[0][i] = static_cast<double>((i * 37) % 101);
+  qota::test::writeRaster(path, spec);
   std::ostringstream out, err;
   qota::tools::ShadowOptions o;
   o.source = path.string();

@@ -49,10 +49,16 @@ HorizonStrips::HorizonStrips(const LocalFrame& frame, const Eigen::Vector3d& lig
   const double xy = *std::max_element(xyMax.begin(), xyMax.end()), z = *std::max_element(zMax.begin(), zMax.end());
   marginA_ = 1e-6 * (2 * xy + 1);
   marginW_ = 1e-6 * (z + 2 * xy * tan_ + 1);
+  // The occluders' range across the light, and the sum of their widths (for the bound below).
   cLo_ = INFINITY;
-  double cHi = -INFINITY;
+  double cHi = -INFINITY, widths = 0;
+  std::size_t occluders = 0;
   for (const auto& part : spans) {
-    for (const Entry& e : part) cLo_ = std::min(cLo_, e.cLo - marginA_), cHi = std::max(cHi, e.cHi + marginA_);
+    for (const Entry& e : part) {
+      cLo_ = std::min(cLo_, e.cLo - marginA_), cHi = std::max(cHi, e.cHi + marginA_);
+      widths += (static_cast<double>(e.cHi) - e.cLo) + 2 * marginA_;
+    }
+    occluders += part.size();
   }
   if (!(cLo_ <= cHi)) return;  // no occluder
   // One pixel a strip, within two bounds on memory (the width only tunes the search, never its
@@ -61,12 +67,6 @@ HorizonStrips::HorizonStrips(const LocalFrame& frame, const Eigen::Vector3d& lig
   // triangles wide across the whole raster) would otherwise make gigabytes of copies: at most
   // twice as many as occluders, beyond one each. And each strip is padded to 64 entries: no
   // more strips than one per 64 occluders (a raster's width in pixels is far fewer).
-  double widths = 0;
-  std::size_t occluders = 0;
-  for (const auto& part : spans) {
-    for (const Entry& e : part) widths += (static_cast<double>(e.cHi) - e.cLo) + 2 * marginA_;
-    occluders += part.size();
-  }
   const double maxStrips = std::min(4.0 * static_cast<double>(frame.cellCount()), occluders / 64.0) + 1024;
   const double maxCopies = 2.0 * static_cast<double>(occluders) + 65536;
   perWidth_ = std::min({1 / stripWidth, maxStrips / (cHi - cLo_), maxCopies / widths});
