@@ -14,6 +14,7 @@ packages=(
   libbenchmark-dev              # bench/
   libcli11-dev                  # argument parsing for the qota tool
   libpng-dev                    # PNG previews
+  libxxhash-dev                 # block hashes of heights, checksums of states and tiles
   libnova-dev                   # solar position (VSOP87) for qota shadow
   libhowardhinnant-date-dev tzdata  # dates and IANA time zones for qota shadow --time/--tz
   libassimp-dev                 # mesh files (OBJ, PLY, glTF, STL, ...)

@@ -283,6 +283,13 @@ TEST(ShadowTiles, BlocksWithTheirOverlapFromARestoredState) {
   EXPECT_EQ(restored.frame().body.lowest, whole.body.lowest);
   test::RasterValues raw = test::readRaster(path);
   for (double& v : raw.values) v = v == kNodata ? NAN : v;
+  const auto heightsOf = [&](const CellWindow& w) {
+    std::vector<double> heights;
+    for (int r = w.row; r < w.row + w.height; ++r) {
+      for (int c = w.col; c < w.col + w.width; ++c) heights.push_back(raw.at(c, r));
+    }
+    return heights;
+  };
   for (const auto& [azimuth, altitude] : std::vector<std::pair<double, double>>{{315, 6}, {100, 35}}) {
     const Eigen::Vector3d light = whole.towardSun({azimuth, altitude});
     const std::vector<Light> expected = qota::shadowMask(whole, light);
@@ -293,14 +300,11 @@ TEST(ShadowTiles, BlocksWithTheirOverlapFromARestoredState) {
     for (int row = 0; row < dem.height; row += side) {
       for (int col = 0; col < dem.width; col += side) {
         const CellWindow tile{col, row, std::min(side, dem.width - col), std::min(side, dem.height - row)};
-        const CellWindow block{std::max(0, col - overlap), std::max(0, row - overlap),
-                               std::min(dem.width, col + tile.width + overlap) - std::max(0, col - overlap),
-                               std::min(dem.height, row + tile.height + overlap) - std::max(0, row - overlap)};
-        std::vector<double> heights;
-        for (int r = block.row; r < block.row + block.height; ++r) {
-          for (int c = block.col; c < block.col + block.width; ++c) heights.push_back(raw.at(c, r));
-        }
-        const std::vector<Light> got = restored.maskFromHeights(block, heights, tile, light);
+        const CellWindow block = restored.checkableWindow(
+            {std::max(0, col - overlap), std::max(0, row - overlap),
+             std::min(dem.width, col + tile.width + overlap) - std::max(0, col - overlap),
+             std::min(dem.height, row + tile.height + overlap) - std::max(0, row - overlap)});
+        const std::vector<Light> got = restored.maskFromHeights(block, heightsOf(block), tile, light);
         for (int r = 0; r < tile.height; ++r) {
           for (int c = 0; c < tile.width; ++c) {
             differ += got[static_cast<std::size_t>(r) * tile.width + c] !=
@@ -312,13 +316,24 @@ TEST(ShadowTiles, BlocksWithTheirOverlapFromARestoredState) {
     EXPECT_EQ(differ, 0u) << azimuth << "/" << altitude;
   }
   // Too little overlap is an error naming what the tile needs.
-  const CellWindow tile{50, 50, 20, 20};
-  try {
-    (void)restored.maskFromHeights(tile, std::vector<double>(tile.cellCount(), 1500.0), tile, whole.towardSun({315, 6}));
-    ADD_FAILURE() << "no error";
-  } catch (const qota::Error& e) {
-    EXPECT_NE(std::string(e.what()).find("larger overlap"), std::string::npos) << e.what();
-  }
+  const CellWindow tile{70, 70, 20, 20};
+  const CellWindow around = restored.checkableWindow(tile);
+  const auto refused = [&](const CellWindow& window, const std::vector<double>& heights, const std::string& why) {
+    try {
+      (void)restored.maskFromHeights(window, heights, tile, whole.towardSun({315, 6}));
+      ADD_FAILURE() << "no error: " << why;
+    } catch (const qota::Error& e) {
+      EXPECT_NE(std::string(e.what()).find(why), std::string::npos) << e.what();
+    }
+  };
+  refused(around, heightsOf(around), "larger overlap");
+  // Heights that are not the raster's (another raster on the same grid, one cell changed), or a
+  // window that is not whole hash blocks, are refused: they cannot be checked.
+  std::vector<double> changed = heightsOf(around);
+  changed[changed.size() / 2] += 0.5;
+  refused(around, changed, "are not those the shadow tiles were made from");
+  refused(around, std::vector<double>(around.cellCount(), 1500.0), "are not those the shadow tiles were made from");
+  refused(tile, heightsOf(tile), "not whole hash blocks");
   EXPECT_THROW(qota::ShadowTiles::restore("qota-shadow-tiles 1\npath 3 abc\nwidth zz\n"), qota::Error);
 }
 

@@ -4,6 +4,7 @@
 #include <ogr_spatialref.h>
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <filesystem>
 #include <iostream>
@@ -15,6 +16,7 @@
 #include "qota/error.hpp"
 #include "raster_output.hpp"
 #include "text_output.hpp"
+#include "tile_metadata.hpp"
 
 namespace qota::tools {
 namespace {
@@ -26,13 +28,27 @@ struct Tile {
   std::string crs;
   GDALDataType type = GDT_Unknown;
   std::optional<double> nodata;
-  std::map<std::string, std::string> qota;  // its QOTA_* metadata
+  std::map<std::string, std::string> qota;  // its QOTA_* metadata, sealed (tile_metadata.hpp)
   long long col = 0, row = 0;                // its place on the first tile's grid
 };
 
+// The longest QOTA_* value a tile of qota's holds (a light's description); longer is damage.
+constexpr std::size_t kLongestItem = 4096;
+
 Tile describe(const std::string& path) {
+  // A FIFO or a device would be waited on, or read without end: only files (and GDAL's own
+  // virtual paths).
+  if (path.rfind("/vsi", 0) != 0) {
+    std::error_code ec;
+    const auto status = std::filesystem::status(path, ec);
+    if (!std::filesystem::exists(status)) throw Error(path + ": no such file");
+    if (!std::filesystem::is_regular_file(status)) {
+      throw Error(path + ": not a regular file (a FIFO, a device or a folder); give the tiles' files");
+    }
+  }
+  detail::GdalErrorLog errors;
   std::unique_ptr<GDALDataset> ds(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER));
-  if (!ds) throw Error(path + ": cannot open as a raster");
+  if (!ds) throw Error(path + ": cannot open as a raster (" + errors.reason() + "): damaged, or not a tile");
   if (ds->GetRasterCount() != 1) {
     throw Error(path + ": " + std::to_string(ds->GetRasterCount()) + " bands; tiles have one");
   }
@@ -51,9 +67,19 @@ Tile describe(const std::string& path) {
   int has = 0;
   const double nodata = band->GetNoDataValue(&has);
   if (has) t.nodata = nodata;
-  for (const char* key : {"QOTA_RASTER_SIZE", "QOTA_TILE_SIZE", "QOTA_TILES", "QOTA_SOURCE", "QOTA_TILE"}) {
-    if (const char* v = ds->GetMetadataItem(key)) t.qota[key] = v;
+  MetadataItems items;
+  for (char** item = ds->GetMetadata(); item && *item; ++item) {
+    const std::string text = *item;
+    const auto eq = text.find('=');
+    if (text.rfind("QOTA_", 0) != 0 || eq == std::string::npos) continue;
+    if (text.size() > kLongestItem) throw Error(path + ": damaged: a QOTA_ metadata item of " + std::to_string(text.size()) + " bytes");
+    items.push_back({text.substr(0, eq), text.substr(eq + 1)});
   }
+  if (!items.empty() && !sealHolds(items, {t.width, t.height, t.gt, GDALGetDataTypeName(t.type), t.nodata})) {
+    throw Error(path + ": damaged or edited: its qota metadata, size, geotransform, data type or nodata value are "
+                "not those it was written with (QOTA_CHECKSUM); compute the tile again");
+  }
+  for (auto& [name, value] : items) t.qota[name] = value;
   return t;
 }
 
@@ -81,6 +107,7 @@ void place(std::vector<Tile>& tiles) {
     // The origin's offset in the first tile's pixels: whole numbers on one grid.
     const double dx = t.gt[0] - g[0], dy = t.gt[3] - g[3];
     const double c = (g[5] * dx - g[2] * dy) / det, r = (-g[4] * dx + g[1] * dy) / det;
+    if (!(std::fabs(c) < 4e18 && std::fabs(r) < 4e18)) throw Error(t.path + ": too far from " + first.path + " to share its grid");
     t.col = std::llround(c), t.row = std::llround(r);
     if (std::fabs(c - t.col) > 1e-6 || std::fabs(r - t.row) > 1e-6) {
       throw Error(t.path + ": not on " + first.path + "'s grid (it is " + formatNumber(c) + ", " + formatNumber(r) +
@@ -89,39 +116,108 @@ void place(std::vector<Tile>& tiles) {
   }
 }
 
-// Every tile there, none twice, none overlapping: by qota's tile metadata when every tile has
-// it, else by area.
-void checkComplete(const std::vector<Tile>& tiles, long long width, long long height) {
-  const bool fromQota = std::all_of(tiles.begin(), tiles.end(), [](const Tile& t) { return t.qota.count("QOTA_TILE"); });
-  if (fromQota) {
-    const Tile& first = tiles.front();
-    std::set<std::string> seen;
-    for (const Tile& t : tiles) {
-      for (const char* key : {"QOTA_RASTER_SIZE", "QOTA_TILE_SIZE", "QOTA_TILES", "QOTA_SOURCE"}) {
-        if (t.qota.count(key) != first.qota.count(key) || (t.qota.count(key) && t.qota.at(key) != first.qota.at(key))) {
-          throw Error(t.path + ": from another run than " + first.path + " (its " + key + " differs)");
-        }
+// What a field of the fingerprint is, for messages.
+std::string fieldName(const std::string& field) {
+  static const std::map<std::string, std::string> names{
+      {"QOTA_VERSION", "qota version"},  {"QOTA_SOURCE", "source file name"},
+      {"QOTA_HEIGHTS", "source heights"}, {"QOTA_RASTER_SIZE", "raster size"},
+      {"QOTA_TILE_SIZE", "tile size"},   {"QOTA_TILES", "tile grid"},
+      {"QOTA_FRAME", "frame options"},   {"QOTA_LIGHT", "light"},
+      {"QOTA_VALUES", "output values"}};
+  const auto n = names.find(field);
+  return (n == names.end() ? field : n->second) + " (" + field + ")";
+}
+
+// "A,B" as two whole numbers in [lo, hi], or nullopt.
+std::optional<std::array<long long, 2>> pairOf(const std::string& text, long long lo, long long hi) {
+  std::array<long long, 2> v{};
+  const char* p = text.data();
+  const char* end = p + text.size();
+  for (int k = 0; k < 2; ++k) {
+    const auto [next, ec] = std::from_chars(p, end, v[k]);
+    if (ec != std::errc() || v[k] < lo || v[k] > hi) return std::nullopt;
+    p = next;
+    if (k == 0) {
+      if (p == end || *p != ',') return std::nullopt;
+      ++p;
+    }
+  }
+  if (p != end) return std::nullopt;
+  return v;
+}
+
+// qota's tiles: every one of the first tile's run (each field of the fingerprint the same), on
+// the grid the metadata declares, where its QOTA_TILE puts it, once, and none missing. Time in
+// proportion to the tiles given, whatever grid their metadata declares.
+void checkRun(const std::vector<Tile>& tiles) {
+  const Tile& first = tiles.front();
+  for (const Tile& t : tiles) {
+    for (const std::string& key : runFields()) {
+      const auto a = t.qota.find(key), b = first.qota.find(key);
+      if (a == t.qota.end() || b == first.qota.end()) {
+        if (a == t.qota.end() && b == first.qota.end()) continue;
+        throw Error(t.path + ": from another run than " + first.path + " (one of them has no " + fieldName(key) + ")");
       }
-      if (!seen.insert(t.qota.at("QOTA_TILE")).second) {
-        throw Error(t.path + ": tile " + t.qota.at("QOTA_TILE") + " is given twice");
+      if (a->second != b->second) {
+        throw Error(t.path + ": from another run than " + first.path + ": its " + fieldName(key) + " is '" + a->second +
+                    "', " + first.path + "'s '" + b->second + "'");
       }
     }
-    int across = 0, down = 0;
-    if (std::sscanf(first.qota.at("QOTA_TILES").c_str(), "%d,%d", &across, &down) != 2 || across < 1 || down < 1) {
-      throw Error(first.path + ": its QOTA_TILES metadata is not 'COLUMNS,ROWS'");
+  }
+  const auto need = [&](const char* key) -> const std::string& {
+    const auto v = first.qota.find(key);
+    if (v == first.qota.end()) throw Error(first.path + ": its qota metadata has no " + key);
+    return v->second;
+  };
+  constexpr long long kInt = 2147483647;
+  const auto size = pairOf(need("QOTA_RASTER_SIZE"), 1, kInt), grid = pairOf(need("QOTA_TILES"), 1, kInt);
+  const auto side = pairOf(need("QOTA_TILE_SIZE") + ",1", 1, kInt);
+  if (!size || !grid || !side) throw Error(first.path + ": its qota metadata does not give a tile grid (damaged)");
+  const long long w = (*size)[0], h = (*size)[1], s = (*side)[0], across = (*grid)[0], down = (*grid)[1];
+  if (across != (w + s - 1) / s || down != (h + s - 1) / s) {
+    throw Error(first.path + ": its QOTA_TILES (" + need("QOTA_TILES") + ") is not the grid of its QOTA_RASTER_SIZE and "
+                "QOTA_TILE_SIZE (damaged)");
+  }
+  std::set<long long> present;  // row-major tile numbers
+  const auto firstAt = pairOf(first.qota.count("QOTA_TILE") ? first.qota.at("QOTA_TILE") : "", 0, kInt);
+  for (const Tile& t : tiles) {
+    const auto it = t.qota.find("QOTA_TILE");
+    const auto at = it == t.qota.end() ? std::nullopt : pairOf(it->second, 0, kInt);
+    if (!at || !firstAt || (*at)[0] >= across || (*at)[1] >= down) {
+      throw Error(t.path + ": its QOTA_TILE is not a tile of the run's " + std::to_string(across) + " x " +
+                  std::to_string(down) + " grid");
     }
+    const long long c = (*at)[0], r = (*at)[1];
+    if (t.width != std::min(s, w - c * s) || t.height != std::min(s, h - r * s) ||
+        t.col - first.col != (c - (*firstAt)[0]) * s || t.row - first.row != (r - (*firstAt)[1]) * s) {
+      throw Error(t.path + ": not where its QOTA_TILE (" + it->second + ") puts it on the run's grid");
+    }
+    if (!present.insert(r * across + c).second) throw Error(t.path + ": tile " + it->second + " is given twice");
+  }
+  const long long total = across * down;
+  const long long missingCount = total - static_cast<long long>(present.size());
+  if (missingCount > 0) {
     std::string missing;
-    int count = 0;
-    for (int r = 0; r < down; ++r) {
-      for (int c = 0; c < across; ++c) {
-        const std::string name = std::to_string(c) + "," + std::to_string(r);
-        if (!seen.count(name) && ++count <= 10) missing += (missing.empty() ? "" : " ") + name;
-      }
+    int named = 0;
+    for (long long k = 0; k < total && named < 10; ++k) {  // at most the tiles given + 10 steps
+      if (present.count(k)) continue;
+      missing += (missing.empty() ? "" : " ") + std::to_string(k % across) + "," + std::to_string(k / across);
+      ++named;
     }
-    if (count) {
-      throw Error(std::to_string(count) + " of the run's " + std::to_string(across * down) + " tiles are missing (--tile " +
-                  missing + (count > 10 ? " ..." : "") + "); compute them, or nothing is assembled");
-    }
+    throw Error(std::to_string(missingCount) + " of the run's " + std::to_string(total) + " tiles are missing (--tile " +
+                missing + (missingCount > 10 ? " ..." : "") + "); compute them, or nothing is assembled");
+  }
+}
+
+// Every tile there, none twice, none overlapping: by qota's tile metadata when every tile has it
+// (checkRun), else by area.
+void checkComplete(const std::vector<Tile>& tiles, long long width, long long height) {
+  const bool fromQota = std::all_of(tiles.begin(), tiles.end(), [](const Tile& t) { return !t.qota.empty(); });
+  if (fromQota) return checkRun(tiles);
+  if (std::any_of(tiles.begin(), tiles.end(), [](const Tile& t) { return !t.qota.empty(); })) {
+    const auto mine = std::find_if(tiles.begin(), tiles.end(), [](const Tile& t) { return !t.qota.empty(); });
+    const auto other = std::find_if(tiles.begin(), tiles.end(), [](const Tile& t) { return t.qota.empty(); });
+    throw Error(other->path + ": not a tile of qota's run (no qota metadata), unlike " + mine->path);
   }
   long long area = 0;
   for (std::size_t i = 0; i < tiles.size(); ++i) {
@@ -173,6 +269,12 @@ int assemble(const AssembleOptions& o, std::ostream& out, std::ostream& err) {
     gt[3] = g[3] + fc * g[4] + fr * g[5];
 
     OutputStage stage;
+    if (format == "VRT" && (g[2] != 0 || g[4] != 0 || g[5] > 0)) {
+      throw Error(o.output + ": a VRT mosaic holds north-up tiles only, and these are " +
+                  (g[2] != 0 || g[4] != 0 ? "rotated" : "south-up") + " (their geotransform " + formatNumber(g[1]) + "," +
+                  formatNumber(g[2]) + "," + formatNumber(g[4]) + "," + formatNumber(g[5]) +
+                  "); assemble them into a GeoTIFF (-o OUT.tif)");
+    }
     if (format == "VRT") {
       std::vector<std::string> absolute;
       std::vector<const char*> names;
@@ -182,7 +284,7 @@ int assemble(const AssembleOptions& o, std::ostream& out, std::ostream& err) {
       detail::GdalErrorLog errors;
       int usageError = 0;
       GDALDatasetH vrt = GDALBuildVRT(staged.c_str(), static_cast<int>(names.size()), nullptr, names.data(), nullptr, &usageError);
-      if (!vrt || usageError) throw Error(o.output + ": cannot build the VRT (" + errors.message() + ")");
+      if (!vrt || usageError) throw Error(o.output + ": cannot build the VRT (" + errors.reason() + ")");
       GDALClose(vrt);
       if (errors.failed()) throw Error(o.output + ": cannot write the VRT (" + errors.message() + ")");
     } else {
@@ -195,10 +297,11 @@ int assemble(const AssembleOptions& o, std::ostream& out, std::ostream& err) {
       grid.geotransform = gt;
       grid.crsWkt = tiles[0].crs;
       int block = 256;
+      MetadataItems fingerprint;  // the run's, sealed again for the whole raster
       if (tiles[0].qota.count("QOTA_TILE_SIZE")) {
         block = StreamedRaster::blockFor(std::atoi(tiles[0].qota.at("QOTA_TILE_SIZE").c_str()));
         for (const auto& [key, value] : tiles[0].qota) {
-          if (key != "QOTA_TILE") grid.metadata.push_back({key, value});
+          if (key != "QOTA_TILE" && key != "QOTA_CELLS" && key != "QOTA_CHECKSUM") fingerprint.push_back({key, value});
         }
       }
       grid.blockSize = block;
@@ -208,19 +311,32 @@ int assemble(const AssembleOptions& o, std::ostream& out, std::ostream& err) {
       std::vector<double> rows;
       for (std::size_t k = 0; k < tiles.size(); ++k) {
         const Tile& t = tiles[k];
+        detail::GdalErrorLog errors;
         std::unique_ptr<GDALDataset> ds(GDALDataset::Open(t.path.c_str(), GDAL_OF_RASTER));
-        if (!ds) throw Error(t.path + ": cannot open as a raster");
+        if (!ds) throw Error(t.path + ": cannot open as a raster (" + errors.reason() + ")");
+        const auto cells = t.qota.find("QOTA_CELLS");
+        CellsHash read(t.type == GDT_Byte);
         for (int r = 0; r < t.height; r += block) {
           const int n = std::min(block, t.height - r);
           rows.resize(static_cast<std::size_t>(t.width) * n);
-          if (ds->GetRasterBand(1)->RasterIO(GF_Read, 0, r, t.width, n, rows.data(), t.width, n, GDT_Float64, 0, 0) != CE_None) {
-            throw Error(t.path + ": cannot read rows " + std::to_string(r) + ".." + std::to_string(r + n - 1));
+          if (ds->GetRasterBand(1)->RasterIO(GF_Read, 0, r, t.width, n, rows.data(), t.width, n, GDT_Float64, 0, 0) != CE_None ||
+              errors.failed()) {
+            throw Error(t.path + ": damaged: cannot read rows " + std::to_string(r) + ".." + std::to_string(r + n - 1) +
+                        " (" + errors.reason() + ")");
           }
+          if (cells != t.qota.end()) read.add(rows);
           output.write(static_cast<int>(t.col), static_cast<int>(t.row) + r, t.width, n, rows);
+        }
+        if (cells != t.qota.end() && read.hex() != cells->second) {
+          throw Error(t.path + ": damaged: its cells are not those qota wrote (QOTA_CELLS); compute the tile again");
         }
         if (!o.quiet) out << "\rtile " << k + 1 << "/" << tiles.size() << std::flush;
       }
       if (!o.quiet) out << '\n';
+      if (!fingerprint.empty()) {
+        output.setMetadata(sealTile(fingerprint, {grid.width, grid.height, grid.geotransform,
+                                                  GDALGetDataTypeName(tiles[0].type), grid.nodata}));
+      }
       output.finish();
     }
     stage.commit();

@@ -165,6 +165,12 @@ void StreamedRaster::write(int col, int row, int width, int height, const std::v
   }
 }
 
+void StreamedRaster::setMetadata(const std::vector<std::pair<std::string, std::string>>& items) {
+  Open& o = *open_;
+  if (!o.ds) throw Error(w_.path + ": metadata set after it was finished");
+  for (const auto& [name, value] : items) o.ds->SetMetadataItem(name.c_str(), value.c_str());
+}
+
 void StreamedRaster::finish() {
   Open& o = *open_;
   o.band = nullptr;

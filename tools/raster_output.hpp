@@ -57,6 +57,8 @@ class StreamedRaster {
   StreamedRaster& operator=(const StreamedRaster&) = delete;
   // Values of the cells [col, col + width) x [row, row + height), row-major.
   void write(int col, int row, int width, int height, const std::vector<double>& values);
+  // More NAME, VALUE items of the dataset (or new values for them), before finish().
+  void setMetadata(const std::vector<std::pair<std::string, std::string>>& items);
   // Flushes and closes it (and makes the COG). Throws qota::Error naming the file on any error
   // (a full disk shows here); the stage then holds nothing to commit.
   void finish();

@@ -17,6 +17,8 @@
 #include "raster_output.hpp"
 #include "shadow_parts.hpp"
 #include "text_output.hpp"
+#include "tile_metadata.hpp"
+#include "qota/version.hpp"
 
 namespace qota::tools {
 namespace {
@@ -47,13 +49,11 @@ std::string clock(double seconds) {
 // The tiles, from the state file when there is one, else from a pass over the heights (then
 // written to the state file, when asked, at once: other jobs may use it while this one works).
 ShadowTiles passOverHeights(const ShadowOptions& o, const DemOptions& demOptions, const FrameOptions& frameOptions) {
-  if (!o.tilesState.empty() && std::filesystem::exists(o.tilesState)) {
-    std::ifstream in(o.tilesState, std::ios::binary);
-    std::stringstream text;
-    text << in.rdbuf();
-    if (!in && !in.eof()) throw Error(o.tilesState + ": cannot read");
+  std::error_code ec;
+  if (!o.tilesState.empty() && std::filesystem::exists(std::filesystem::symlink_status(o.tilesState, ec))) {
+    const std::string text = readSmallFile(o.tilesState, ShadowTiles::kMostStateBytes);
     try {
-      return ShadowTiles::restore(text.str(), o.source, demOptions, frameOptions);
+      return ShadowTiles::restore(text, o.source, demOptions, frameOptions);
     } catch (const Error& e) {
       throw Error(o.tilesState + ": " + e.what());
     }
@@ -129,9 +129,12 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
     // The lights: one, or every step of the hours that may be lit.
     std::vector<Eigen::Vector3d> lights;
     std::optional<LocalSpan> span;
+    std::string lightText;  // for the tiles' fingerprint
     if (o.hours) {
       span = hoursSpan(o);
       lights = tiles.sunlightSteps(span->start.julianDayUT, span->end.julianDayUT, (*o.hours)[2], tiles.horizonSlack());
+      lightText = "sunlight hours from " + span->start.utc + " to " + span->end.utc + " in steps of " +
+                  formatNumber((*o.hours)[2]) + " h";
       if (!o.quiet) {
         out << "sunlight: from " << span->start.local << " (" << span->start.utc << ") to " << span->end.local << " ("
             << span->end.utc << "), steps of " << formatNumber((*o.hours)[2]) << " h, " << lights.size()
@@ -140,6 +143,8 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
     } else {
       const LightChoice light = chooseLight(o, frame, out);
       if (!o.quiet) out << "light: " << light.description << '\n';
+      lightText = light.description + "; toward " + formatNumber(light.toward.x()) + "," +
+                  formatNumber(light.toward.y()) + "," + formatNumber(light.toward.z()) + " in the frame";
       if (light.toward.z() <= 0) {
         err << "qota shadow: the light is at or below the horizon at the centre"
             << (frame.body.ellipsoid ? "" : ": every cell is in shadow") << '\n';
@@ -185,11 +190,22 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
     grid.crsWkt = dem.crsWkt;
     grid.blockSize = StreamedRaster::blockFor(side);
     grid.nodata = o.hours ? -1.0 : double(o.nodataValue);
-    grid.metadata = {{"QOTA_RASTER_SIZE", std::to_string(dem.width) + "," + std::to_string(dem.height)},
-                     {"QOTA_TILE_SIZE", std::to_string(side)},
-                     {"QOTA_TILES", std::to_string(across) + "," + std::to_string(down)},
-                     {"QOTA_SOURCE", std::filesystem::path(o.source).filename().string()}};
-    if (o.tile) grid.metadata.push_back({"QOTA_TILE", std::to_string((*o.tile)[0]) + "," + std::to_string((*o.tile)[1])});
+    // The run's grid and everything the cells depend on (tile_metadata.hpp), sealed when written.
+    MetadataItems fingerprint{
+        {"QOTA_VERSION", QOTA_VERSION_STRING},
+        {"QOTA_SOURCE", std::filesystem::path(o.source).filename().string()},
+        {"QOTA_HEIGHTS", "band " + std::to_string(dem.band) + ", hash " + hexOf(tiles.heightBlocks().whole()) +
+                             " (blocks of " + std::to_string(tiles.heightBlocks().side()) + " cells)"},
+        {"QOTA_RASTER_SIZE", std::to_string(dem.width) + "," + std::to_string(dem.height)},
+        {"QOTA_TILE_SIZE", std::to_string(side)},
+        {"QOTA_TILES", std::to_string(across) + "," + std::to_string(down)},
+        {"QOTA_FRAME", std::string("flat ") + (o.flat ? "yes" : "no") + ", pixel size " + formatNumber(o.pixelSize) +
+                           ", z factor " + formatNumber(o.zFactor) + ", scale " + formatNumber(o.scale)},
+        {"QOTA_LIGHT", lightText},
+        {"QOTA_VALUES", o.hours ? std::string("hours of direct sunlight, nodata -1")
+                                : "lit " + std::to_string(o.litValue) + ", shadow " + std::to_string(o.shadowValue) +
+                                      ", nodata " + std::to_string(o.nodataValue)}};
+    if (o.tile) fingerprint.push_back({"QOTA_TILE", std::to_string((*o.tile)[0]) + "," + std::to_string((*o.tile)[1])});
     OutputStage stage;
     StreamedRaster output({o.output, format, o.creationOptions, !o.hours, o.hours ? -1.0 : double(o.nodataValue), true},
                           grid, stage);
@@ -219,6 +235,13 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
       }
     }
     if (!o.quiet) out << '\n';
+    if (o.tile) {  // the one tile's cells
+      CellsHash cells(!o.hours);
+      cells.add(values);
+      fingerprint.push_back({"QOTA_CELLS", cells.hex()});
+    }
+    output.setMetadata(sealTile(fingerprint, {grid.width, grid.height, grid.geotransform,
+                                              o.hours ? "Float32" : "Byte", grid.nodata}));
     output.finish();
     stage.commit();
     if (!o.quiet) {

@@ -2,6 +2,7 @@
 
 #include <fcntl.h>
 #include <signal.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -110,6 +111,36 @@ void AtomicFile::commit() {
   if (fd >= 0) ::close(fd);
   if (!synced) throw Error(target_.string() + ": cannot sync (" + std::generic_category().message(errno) + ")");
   stage_.commit();
+}
+
+std::string readSmallFile(const fs::path& path, std::uint64_t most) {
+  // O_NONBLOCK: opening a FIFO with no writer returns at once (and the file is refused below).
+  const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC | O_NOCTTY);
+  if (fd < 0) throw Error(path.string() + ": cannot open (" + std::strerror(errno) + ")");
+  struct Closer {
+    int fd;
+    ~Closer() { ::close(fd); }
+  } closer{fd};
+  struct stat st {};
+  if (::fstat(fd, &st) != 0) throw Error(path.string() + ": cannot read (" + std::strerror(errno) + ")");
+  if (!S_ISREG(st.st_mode)) {
+    throw Error(path.string() + ": not a regular file (a FIFO, a device or a folder); give a file");
+  }
+  if (static_cast<std::uint64_t>(st.st_size) > most) {
+    throw Error(path.string() + ": " + std::to_string(st.st_size) + " bytes, more than the " + std::to_string(most) +
+                " such a file can hold; not the file asked for");
+  }
+  std::string text;
+  char buffer[1 << 16];
+  for (;;) {
+    const ssize_t n = ::read(fd, buffer, sizeof buffer);
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) throw Error(path.string() + ": cannot read (" + std::strerror(errno) + ")");
+    if (n == 0) break;
+    text.append(buffer, static_cast<std::size_t>(n));
+    if (text.size() > most) throw Error(path.string() + ": grew while read, past " + std::to_string(most) + " bytes");
+  }
+  return text;
 }
 
 }  // namespace qota

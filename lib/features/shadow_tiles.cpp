@@ -10,6 +10,7 @@
 
 #include "qota/error.hpp"
 #include "qota/memory_budget.hpp"
+#include "qota/version.hpp"
 
 namespace qota {
 namespace {
@@ -36,11 +37,25 @@ struct ShadowTiles::Source {
   std::unique_ptr<DemWindows> windows;  // when reading a file
   HeightReader reader;
   mutable std::mutex lock;  // one read at a time
-  void read(const CellWindow& w, std::vector<double>& out) const {
+  // The heights of w; with `blocks`, read by whole blocks and checked against their hashes (the
+  // raster may not be the one the hashes were made from: a restored state's, or a file changed).
+  void read(const CellWindow& w, std::vector<double>& out, const HeightBlocks* blocks, const std::string& path) const {
     const std::lock_guard<std::mutex> guard(lock);
+    const CellWindow cover = blocks ? blocks->alignedOut(w) : w;
+    std::vector<double> all;
+    std::vector<double>& into = cover == w ? out : all;
+    into.resize(cover.cellCount());
+    reader(cover, into);
+    if (into.size() != cover.cellCount()) {
+      throw Error("a height reader gave " + std::to_string(into.size()) + " heights for " + std::to_string(cover.cellCount()) + " cells");
+    }
+    if (blocks) blocks->check(cover, into, path);
+    if (cover == w) return;
     out.resize(w.cellCount());
-    reader(w, out);
-    if (out.size() != w.cellCount()) throw Error("a height reader gave " + std::to_string(out.size()) + " heights for " + std::to_string(w.cellCount()) + " cells");
+    for (int r = 0; r < w.height; ++r) {
+      const std::size_t from = static_cast<std::size_t>(r + w.row - cover.row) * cover.width + (w.col - cover.col);
+      std::copy_n(all.begin() + static_cast<std::ptrdiff_t>(from), w.width, out.begin() + static_cast<std::ptrdiff_t>(r) * w.width);
+    }
   }
 };
 
@@ -114,9 +129,11 @@ void ShadowTiles::passOverHeights(const Progress& progress) {
   const int rowsAtOnce = static_cast<int>(std::clamp<std::int64_t>((4 << 20) / std::max(1, w), 1, h));
   std::vector<double> z;
   std::vector<std::uint8_t> valid;
+  blocks_ = HeightBlocks(w, h);
   for (int r = 0; r < h; r += rowsAtOnce) {
     const CellWindow rows{0, r, w, std::min(rowsAtOnce, h - r)};
-    source_->read(rows, z);
+    source_->read(rows, z, nullptr, path);
+    blocks_.addRows(rows.row, rows.height, z);
     heightsInMetres(basis_, rows, z, valid);
     for (std::size_t i = 0; i < z.size(); ++i) {
       if (valid[i]) lo = std::min(lo, z[i]), hi = std::max(hi, z[i]), ++validCells_;
@@ -310,7 +327,7 @@ void ShadowTiles::readFilled(const CellWindow& window, std::vector<double>& heig
                   " is too wide to fill the same way as over the whole raster within the memory allowed (" +
                   memory::gib(bytes) + "); fill it first (gdal_fillnodata) or allow more memory");
     }
-    source_->read(fill, z);
+    source_->read(fill, z, &blocks_, basis_.raster.path);
     heightsInMetres(basis_, fill, z, ok);
     fillVoids(z, fill.width, fill.height, &levels);
     if (!filledAsWhole(fill, ok, levels, window, rw, rh)) continue;
@@ -336,7 +353,7 @@ double ShadowTiles::lowestIn(const CellWindow& tile) const {
   if (!source_) throw Error(basis_.raster.path + ": tiles restored from a state read no heights; give them");
   std::vector<double> z;
   std::vector<std::uint8_t> valid;
-  source_->read(tile, z);
+  source_->read(tile, z, &blocks_, basis_.raster.path);
   heightsInMetres(basis_, tile, z, valid);
   return lowestOf(tile, std::move(z), valid);
 }
@@ -376,6 +393,12 @@ LocalFrame ShadowTiles::givenWindow(const CellWindow& given, std::vector<double>
     throw Error(basis_.raster.path + ": heights of cells " + cells(given) + " (" + std::to_string(z.size()) +
                 " given) for the tile " + cells(tile) + ": not on the raster or not around the tile");
   }
+  if (!blocks_.aligned(given)) {
+    throw Error(basis_.raster.path + ": heights of cells " + cells(given) + " given: not whole hash blocks of " +
+                std::to_string(blocks_.side()) + " cells, so they cannot be checked (give checkableWindow's " +
+                cells(blocks_.alignedOut(given)) + ")");
+  }
+  blocks_.check(given, z, basis_.raster.path);
   std::vector<std::uint8_t> valid;
   heightsInMetres(basis_, given, z, valid);
   const double lowest = lowestOf(tile, crop(z, given, tile), crop(valid, given, tile));
@@ -558,8 +581,12 @@ std::array<int, 4> ShadowTiles::haloFor(int tileWidth, int tileHeight, const std
 
 namespace {
 
-// state()'s text: one "name value" a line; numbers in hexadecimal floating point (every bit), text
-// as its length and its bytes.
+// state()'s text: a first line naming the format, then one "name value" a line; numbers in
+// hexadecimal floating point (every bit), text as its length and its bytes; last, "checksum" and
+// checksumOf everything before that line, so that an edit or damage anywhere is refused.
+constexpr const char* kStateMagic = "qota-shadow-tiles";
+constexpr int kStateFormat = 2;
+
 struct StateWriter {
   std::ostringstream out;
   void number(const char* name, double v) {
@@ -568,15 +595,19 @@ struct StateWriter {
     out << name << ' ' << std::string(buffer, end) << '\n';
   }
   void text(const char* name, const std::string& v) { out << name << ' ' << v.size() << ' ' << v << '\n'; }
+  std::string finish() {
+    std::string body = out.str();
+    return body + "checksum " + checksumOf(body) + "\n";
+  }
 };
 
 struct StateReader {
   std::istringstream in;
-  std::string expect(const char* name) {
+  [[noreturn]] static void refuse(const std::string& why) { throw Error("a shadow tiles state " + why); }
+  void expect(const char* name) {
     std::string got;
-    if (!(in >> got) || got != name) throw Error(std::string("a shadow tiles state without its '") + name + "'");
+    if (!(in >> got) || got != name) refuse(std::string("without its '") + name + "'");
     in.get();
-    return got;
   }
   double number(const char* name) {
     expect(name);
@@ -584,33 +615,73 @@ struct StateReader {
     in >> word;
     double v = 0;
     const auto [end, ec] = std::from_chars(word.data(), word.data() + word.size(), v, std::chars_format::hex);
-    if (ec != std::errc() || end != word.data() + word.size()) {
-      throw Error(std::string("a shadow tiles state with '") + name + "' not a number: " + word);
+    if (ec != std::errc() || end != word.data() + word.size()) refuse(std::string("with '") + name + "' not a number: " + word);
+    return v;
+  }
+  // A number that must be finite and in [lo, hi] (and whole, when asked).
+  double bounded(const char* name, double lo, double hi, bool whole = false) {
+    const double v = number(name);
+    if (!(v >= lo && v <= hi) || (whole && v != std::floor(v))) {
+      refuse(std::string("with '") + name + "' " + std::to_string(v) + ", which no raster gives");
     }
     return v;
   }
   std::string text(const char* name) {
     expect(name);
     std::size_t n = 0;
-    if (!(in >> n) || n > (1u << 24)) throw Error(std::string("a shadow tiles state with a bad '") + name + "'");
+    if (!(in >> n) || n > ShadowTiles::kMostStateBytes) refuse(std::string("with a bad '") + name + "'");
     in.get();
     std::string v(n, '\0');
-    if (!in.read(v.data(), static_cast<std::streamsize>(n))) throw Error(std::string("a shadow tiles state cut in '") + name + "'");
+    if (!in.read(v.data(), static_cast<std::streamsize>(n))) refuse(std::string("cut in '") + name + "'");
     return v;
   }
 };
+
+// The state's text without its checksum line, once that checksum is checked.
+std::string checkedStateBody(const std::string& state) {
+  const std::string magic = std::string(kStateMagic) + " ";
+  if (state.compare(0, magic.size(), magic) != 0) throw Error("not a shadow tiles state (no '" + std::string(kStateMagic) + "' line)");
+  const std::size_t line = state.rfind("\nchecksum ");
+  if (line == std::string::npos) {
+    if (state.compare(0, magic.size() + 2, magic + "1\n") == 0) {
+      throw Error("a shadow tiles state of an older qota (no checksum); make it again");
+    }
+    throw Error("a shadow tiles state that was edited, damaged or cut short (no checksum line); make it again");
+  }
+  const std::string body = state.substr(0, line + 1);
+  std::string sum = state.substr(line + 10);
+  if (!sum.empty() && sum.back() == '\n') sum.pop_back();
+  if (sum != checksumOf(body)) {
+    throw Error("a shadow tiles state that was edited or damaged (its checksum does not match its text); make it again");
+  }
+  return body;
+}
+
+std::string shortest(double v) {
+  char buffer[64];
+  return std::string(buffer, std::to_chars(buffer, buffer + sizeof buffer, v).ptr);
+}
+
+std::string nodataText(const std::optional<double>& nodata) {
+  if (!nodata) return "none";
+  char buffer[64];
+  return std::string(buffer, std::to_chars(buffer, buffer + sizeof buffer, *nodata, std::chars_format::hex).ptr);
+}
 
 }  // namespace
 
 std::string ShadowTiles::state() const {
   StateWriter w;
-  w.out << "qota-shadow-tiles 1\n";
+  w.out << kStateMagic << ' ' << kStateFormat << '\n';
   const DemTerrain& d = basis_.raster;
   const LocalFrame& f = basis_.shared;
+  w.text("qota", QOTA_VERSION_STRING);
   w.text("path", d.path);
   w.number("width", d.width), w.number("height", d.height);
   for (double g : d.geotransform) w.number("gt", g);
   w.text("crs", d.crsWkt);
+  w.number("band", d.band);
+  w.text("nodata", nodataText(d.nodata));
   w.text("unit", d.verticalUnit.name);
   w.number("metresPerUnit", d.verticalUnit.metresPerUnit);
   w.number("flat", basis_.options.flat), w.number("pixelSize", basis_.options.pixelSize);
@@ -619,33 +690,81 @@ std::string ShadowTiles::state() const {
   w.number("pixelSizeX", f.pixelSizeX), w.number("pixelSizeY", f.pixelSizeY);
   w.number("lowest", f.body.lowest), w.number("winding", f.gridWinding);
   w.number("slack", slack_), w.number("validCells", static_cast<double>(validCells_));
-  return w.out.str();
+  w.number("blockSide", blocks_.side());
+  std::string hashes;
+  hashes.reserve(blocks_.hashes().size() * 16);
+  for (std::uint64_t h : blocks_.hashes()) hashes += hexOf(h);
+  w.text("blocks", hashes);
+  return w.finish();
 }
 
 ShadowTiles ShadowTiles::restore(const std::string& state) {
-  StateReader r{std::istringstream(state)};
+  if (state.size() > kMostStateBytes) throw Error("a shadow tiles state of " + std::to_string(state.size()) + " bytes: larger than any");
+  StateReader r{std::istringstream(checkedStateBody(state))};
   std::string magic;
-  int version = 0;
-  if (!(r.in >> magic >> version) || magic != "qota-shadow-tiles" || version != 1) {
-    throw Error("not a shadow tiles state of this version of qota");
+  int format = 0;
+  if (!(r.in >> magic >> format) || magic != kStateMagic || format != kStateFormat) {
+    throw Error("a shadow tiles state of another format (" + std::to_string(format) + ", this qota reads " +
+                std::to_string(kStateFormat) + "); make it again");
   }
+  const std::string version = r.text("qota");
+  if (version != QOTA_VERSION_STRING) {
+    throw Error("a shadow tiles state made by qota " + version + ", not this qota " + QOTA_VERSION_STRING +
+                "; make it again");
+  }
+  constexpr double kInt = 2147483647.0;
   DemTerrain d;
   d.path = r.text("path");
-  d.width = static_cast<int>(r.number("width")), d.height = static_cast<int>(r.number("height"));
-  for (double& g : d.geotransform) g = r.number("gt");
+  d.width = static_cast<int>(r.bounded("width", 1, kInt, true));
+  d.height = static_cast<int>(r.bounded("height", 1, kInt, true));
+  for (double& g : d.geotransform) g = r.bounded("gt", -1e300, 1e300);
+  const auto& g = d.geotransform;
+  if (!(g[1] * g[5] - g[2] * g[4] != 0)) StateReader::refuse("with a geotransform without area");
   d.crsWkt = r.text("crs");
+  d.band = static_cast<int>(r.bounded("band", 1, kInt, true));
+  const std::string nodata = r.text("nodata");
+  if (nodata != "none") {
+    double v = 0;
+    const auto [end, ec] = std::from_chars(nodata.data(), nodata.data() + nodata.size(), v, std::chars_format::hex);
+    if (ec != std::errc() || end != nodata.data() + nodata.size()) StateReader::refuse("with a nodata value that is not a number");
+    d.nodata = v;
+  }
   d.verticalUnit.name = r.text("unit");
-  d.verticalUnit.metresPerUnit = r.number("metresPerUnit");
+  d.verticalUnit.metresPerUnit = r.bounded("metresPerUnit", 1e-12, 1e12);
   FrameOptions o;
-  o.flat = r.number("flat") != 0, o.pixelSize = r.number("pixelSize");
-  o.zFactor = r.number("zFactor"), o.scale = r.number("scale");
+  o.flat = r.bounded("flat", 0, 1, true) != 0;
+  o.pixelSize = r.bounded("pixelSize", 0, 1e300);
+  o.zFactor = r.bounded("zFactor", -1e300, 1e300), o.scale = r.bounded("scale", 0, 1e300);
   ShadowTiles t;
   t.basis_ = frameBasis(d, o);
   LocalFrame& f = t.basis_.shared;
   f.minHeight = r.number("minHeight"), f.maxHeight = r.number("maxHeight");
-  f.pixelSizeX = r.number("pixelSizeX"), f.pixelSizeY = r.number("pixelSizeY");
-  f.body.lowest = r.number("lowest"), f.gridWinding = static_cast<int>(r.number("winding"));
-  t.slack_ = r.number("slack"), t.validCells_ = static_cast<std::uint64_t>(r.number("validCells"));
+  f.pixelSizeX = r.bounded("pixelSizeX", 1e-300, 1e300), f.pixelSizeY = r.bounded("pixelSizeY", 1e-300, 1e300);
+  f.body.lowest = r.bounded("lowest", -1e300, 1e300);
+  f.gridWinding = static_cast<int>(r.bounded("winding", -1, 1, true));
+  t.slack_ = r.bounded("slack", 0, 360);
+  const double cells = static_cast<double>(d.width) * d.height;
+  t.validCells_ = static_cast<std::uint64_t>(r.bounded("validCells", 0, cells, true));
+  // The height range: finite and in order when the raster has data (the pass's +inf/-inf else).
+  if (f.gridWinding == 0 || (t.validCells_ > 0 && !(std::isfinite(f.minHeight) && std::isfinite(f.maxHeight) &&
+                                                    f.minHeight <= f.maxHeight))) {
+    StateReader::refuse("with a height range or winding that no raster gives");
+  }
+  const int side = static_cast<int>(r.bounded("blockSide", 64, kInt, true));
+  const std::string hex = r.text("blocks");
+  if (hex.size() % 16 != 0) StateReader::refuse("with a cut block hash");
+  std::vector<std::uint64_t> hashes(hex.size() / 16);
+  for (std::size_t k = 0; k < hashes.size(); ++k) {
+    const char* first = hex.data() + 16 * k;
+    const auto [end, ec] = std::from_chars(first, first + 16, hashes[k], 16);
+    if (ec != std::errc() || end != first + 16) StateReader::refuse("with a block hash that is not hexadecimal");
+  }
+  try {
+    t.blocks_ = HeightBlocks(d.width, d.height, side, std::move(hashes));
+  } catch (const Error& e) {
+    StateReader::refuse(std::string("with ") + e.what());
+  }
+  if (t.blocks_.side() != HeightBlocks(d.width, d.height).side()) StateReader::refuse("with blocks of another size");
   t.basis_.complete = true;
   return t;
 }
@@ -659,13 +778,38 @@ ShadowTiles ShadowTiles::restore(const std::string& state, const std::string& pa
   const DemTerrain& d = windows->dem();
   const DemTerrain& was = t.basis_.raster;
   const FrameOptions& o = t.basis_.options;
-  if (d.width != was.width || d.height != was.height || d.geotransform != was.geotransform || d.crsWkt != was.crsWkt ||
-      d.verticalUnit.name != was.verticalUnit.name || d.verticalUnit.metresPerUnit != was.verticalUnit.metresPerUnit) {
-    throw Error(path + ": not the raster of the shadow tiles' state (" + was.path + ": its size, geotransform, CRS or unit differ)");
+  const auto refuse = [&](const std::string& field, const std::string& state, const std::string& now) {
+    throw Error(path + ": not the raster of the shadow tiles' state (made from " + was.path + "): its " + field +
+                " differs (the state's " + state + ", this raster's " + now + ")");
+  };
+  const auto size = [](const DemTerrain& r) { return std::to_string(r.width) + " x " + std::to_string(r.height); };
+  const auto gt = [](const DemTerrain& r) {
+    std::string out;
+    for (double v : r.geotransform) out += (out.empty() ? "" : ",") + shortest(v);
+    return out;
+  };
+  const auto nodata = [](const DemTerrain& r) { return r.nodata ? shortest(*r.nodata) : std::string("none"); };
+  if (d.width != was.width || d.height != was.height) refuse("size", size(was), size(d));
+  if (d.geotransform != was.geotransform) refuse("geotransform", gt(was), gt(d));
+  if (d.crsWkt != was.crsWkt) refuse("CRS", "'" + was.crsWkt.substr(0, 60) + "...'", "'" + d.crsWkt.substr(0, 60) + "...'");
+  if (d.band != was.band) refuse("band", std::to_string(was.band), std::to_string(d.band));
+  if (d.nodata.has_value() != was.nodata.has_value() ||
+      (d.nodata && !(*d.nodata == *was.nodata || (std::isnan(*d.nodata) && std::isnan(*was.nodata))))) {
+    refuse("nodata value", nodata(was), nodata(d));
   }
-  if (frame.flat != o.flat || frame.pixelSize != o.pixelSize || frame.zFactor != o.zFactor || frame.scale != o.scale) {
-    throw Error(path + ": the shadow tiles' state was made with other frame options (--flat, --pixel-size, -z, -s)");
+  if (d.verticalUnit.name != was.verticalUnit.name || d.verticalUnit.metresPerUnit != was.verticalUnit.metresPerUnit) {
+    refuse("vertical unit", "'" + was.verticalUnit.name + "'", "'" + d.verticalUnit.name + "'");
   }
+  const auto option = [&](const char* name, double state, double now) {
+    if (state != now) {
+      throw Error(path + ": the shadow tiles' state was made with other frame options (" + name + " " +
+                  shortest(state) + ", this run " + shortest(now) + "); give the same, or another state file");
+    }
+  };
+  option("--flat", o.flat, frame.flat);
+  option("--pixel-size", o.pixelSize, frame.pixelSize);
+  option("-z", o.zFactor, frame.zFactor);
+  option("-s", o.scale, frame.scale);
   source->reader = [windows](const CellWindow& w, std::vector<double>& out) {
     windows->read(w.col, w.row, w.width, w.height, out);
   };

@@ -5,6 +5,7 @@
 #include <cpl_error.h>
 
 #include <string>
+#include <vector>
 
 namespace qota::detail {
 
@@ -34,6 +35,15 @@ class GdalErrorLog {
   GdalErrorLog& operator=(const GdalErrorLog&) = delete;
   bool failed() const { return failed_; }
   const std::string& message() const { return message_; }
+  // GDAL's warnings (the first few), in order: what it skipped or ignored.
+  const std::vector<std::string>& warnings() const { return warnings_; }
+  // The failure's message, else the warnings joined: why something came out empty.
+  std::string reason() const {
+    if (!message_.empty()) return message_;
+    std::string out;
+    for (const auto& w : warnings_) out += (out.empty() ? "" : "; ") + w;
+    return out.empty() ? std::string("GDAL gave no reason") : out;
+  }
 
  private:
   static void CPL_STDCALL handler(CPLErr level, CPLErrorNum, const char* msg) {
@@ -41,10 +51,13 @@ class GdalErrorLog {
     if (level == CE_Failure || level == CE_Fatal) {
       if (!self->failed_ && msg) self->message_ = msg;
       self->failed_ = true;
+    } else if (level == CE_Warning && msg && self->warnings_.size() < 8) {
+      self->warnings_.emplace_back(msg);
     }
   }
   bool failed_ = false;
   std::string message_;
+  std::vector<std::string> warnings_;
 };
 
 // GDAL's last error as ": message", or "" when there is none.

@@ -22,7 +22,9 @@ from __future__ import annotations
 
 import functools
 import os
+import shutil
 import threading
+import uuid
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,7 +32,7 @@ import numpy as np
 from . import _hours_span, _interop, _local_file, _qota
 from ._qota import Error
 
-__all__ = ["shadow", "tiles", "Tiles", "sample", "to_geotiff"]
+__all__ = ["shadow", "tiles", "Tiles", "sample", "to_geotiff", "to_zarr"]
 
 #: Cells of overlap added to the halo for filling voids (cells without data) the same way as over
 #: the whole raster: a void up to about this wide fills alike; a wider one near a block edge is
@@ -146,7 +148,7 @@ def tiles(da, *, band=1, z_factor=1.0, heights_from="auto") -> Tiles:
     units = plane.attrs.get("units", "")
     core = _qota._ShadowTiles.from_reader(plane.shape[0], plane.shape[1], _interop.dataarray_transform(plane),
                                           _interop.crs_text(plane.rio.crs), units if isinstance(units, str) else "",
-                                          label, read, float(z_factor))
+                                          label, read, float(z_factor), int(band))
     return Tiles(core, "array", label)
 
 
@@ -162,12 +164,25 @@ def _decoding(plane):
 
 # --- blocks with their overlap ---------------------------------------------------------------
 
-def _mask_block(tiles, raw, window, tile, decode, light, threads):
-    return tiles.mask_from_heights(window, _heights(raw, *decode), tile, light, threads)
+def _checked(call, tiles, source):
+    """call() with a hint added when the block's heights are not those the tiles were made from."""
+    try:
+        return call()
+    except Error as e:
+        if "are not those the shadow tiles were made from" not in str(e):
+            raise
+        raise Error(f"{e}. The tiles were made from {source}: give tiles made from this DataArray "
+                    f"(qota.dask.tiles(da)), or, when its values were changed after it was read from its file, "
+                    f"made from the array itself (heights_from='array')") from None
 
 
-def _hours_block(tiles, raw, window, tile, decode, span, step, lights, threads):
-    return tiles.hours_from_heights(window, _heights(raw, *decode), tile, span[0], span[1], step, lights, threads)
+def _mask_block(tiles, raw, window, tile, decode, light, threads, source):
+    return _checked(lambda: tiles.mask_from_heights(window, _heights(raw, *decode), tile, light, threads), tiles, source)
+
+
+def _hours_block(tiles, raw, window, tile, decode, span, step, lights, threads, source):
+    return _checked(lambda: tiles.hours_from_heights(window, _heights(raw, *decode), tile, span[0], span[1], step,
+                                                     lights, threads), tiles, source)
 
 
 def _by_blocks(data, overlap, tiles, task, dtype, *args):
@@ -188,6 +203,9 @@ def _by_blocks(data, overlap, tiles, task, dtype, *args):
         for width in data.chunks[1]:
             c0, r0 = max(0, col - west), max(0, row - north)
             c1, r1 = min(cols, col + width + east), min(rows, row + height + south)
+            # Whole hash blocks, so that the task can check the heights it is given.
+            c0, r0, w, h = tiles.checkable_window((c0, r0, c1 - c0, r1 - r0))
+            c1, r1 = c0 + w, r0 + h
             window, tile = (c0, r0, c1 - c0, r1 - r0), (col, row, width, height)
             cells = call(shared, data[r0:r1, c0:c1], window, tile, *args)
             line.append(dsa.from_delayed(cells, shape=(height, width), dtype=dtype))
@@ -212,9 +230,16 @@ def shadow(da, azimuth=None, altitude=None, *, time=None, tz=None, hours=None, b
     void_margin: cells of overlap beyond the halo for filling voids; a void too wide for it near a
         block edge is refused when that block is computed (qota.Error, "give a larger overlap").
     heights_from: where the client's one pass over the heights reads them (see qota.dask.tiles).
-    tiles: qota.dask.tiles of this DataArray (its band and z_factor), made before: no pass.
+    tiles: qota.dask.tiles of this DataArray (its band and z_factor), made before: no pass. Tiles of
+        another grid, band or z_factor are refused at once, and every block checks its heights
+        against the tiles' block hashes (another raster's heights on the same grid are refused
+        when computed).
     threads: threads a block's cells are tested on (0: every core); 1 suits workers that each run
         one task per core.
+
+    Chunks much smaller than the halo a block needs (a low sun's) are merged for the computation
+    into square blocks whose overlap is at most MOST_OVERLAP times their cells; the result is
+    given back on da's chunks.
 
     Returns a lazy DataArray on da's grid, dimensions, coordinates, CRS and chunks: uint8 255 lit,
     0 shadow, 128 nodata; or float32 hours, nodata -1. Refuses at once what qota.shadow refuses
@@ -232,11 +257,8 @@ def shadow(da, azimuth=None, altitude=None, *, time=None, tz=None, hours=None, b
                     "(rioxarray.open_rasterio(path, chunks=512)) or chunk it (da.chunk(512))")
     if tiles is None:  # (made from this very plane: nothing to check)
         tiles = _make_tiles(da, band=band, z_factor=z_factor, heights_from=heights_from)
-    elif ((tiles.core.height, tiles.core.width) != plane.shape
-          or not np.allclose(tiles.core.geotransform, _interop.dataarray_transform(plane), rtol=0,
-                             atol=1e-6 * abs(tiles.core.geotransform[1]))):
-        raise Error(f"the tiles are those of another raster ({tiles.source}, {tiles.core.width} x "
-                    f"{tiles.core.height} cells)")
+    else:
+        _check_tiles(tiles, plane, band, z_factor, heights_from)
     core = tiles.core
     if span_hours is None:
         sun = (azimuth, altitude) if time is None else core.sun_at(str(time), tz or "")
@@ -245,29 +267,132 @@ def shadow(da, azimuth=None, altitude=None, *, time=None, tz=None, hours=None, b
         start, end, step = span_hours
         span = _qota._local_span(str(time), tz or "", start, end)
         lights = core.sunlight_steps(span[0], span[1], step)
-    halo = core.halo_for(max(plane.data.chunks[1]), max(plane.data.chunks[0]), lights)
-    overlap = [side + int(void_margin) for side in halo]
+    data, overlap = _blocks_for_halo(plane.data, core, lights, int(void_margin))
     decode = _decoding(plane)
     if span_hours is None:
-        cells = _by_blocks(plane.data, overlap, core, _mask_block, np.uint8, decode, lights[0], int(threads))
-        return _interop.mask_like(template, cells, 128, "shadow")
-    cells = _by_blocks(plane.data, overlap, core, _hours_block, np.float32, decode, span, span_hours[2], lights,
-                       int(threads))
-    return _interop.mask_like(template, cells, -1.0, "sunlight_hours")
+        cells = _by_blocks(data, overlap, core, _mask_block, np.uint8, decode, lights[0], int(threads), tiles.source)
+        return _interop.mask_like(template, cells.rechunk(plane.data.chunks), 128, "shadow")
+    cells = _by_blocks(data, overlap, core, _hours_block, np.float32, decode, span, span_hours[2], lights,
+                       int(threads), tiles.source)
+    return _interop.mask_like(template, cells.rechunk(plane.data.chunks), -1.0, "sunlight_hours")
+
+
+def _check_tiles(tiles, plane, band, z_factor, heights_from):
+    """Refuses tiles that are not this call's: another raster's grid, band, heights or z_factor
+    (the heights themselves are checked block by block by the tasks, against the tiles' hashes)."""
+    if not isinstance(tiles, Tiles):
+        raise Error(f"tiles must be what qota.dask.tiles returns, got {type(tiles).__name__}")
+    core = tiles.core
+    if heights_from != "auto":
+        raise Error("heights_from chooses where tiles are made from; these tiles are given (made before): leave "
+                    "heights_from out, or leave out tiles")
+    if ((core.height, core.width) != plane.shape
+            or not np.allclose(core.geotransform, _interop.dataarray_transform(plane), rtol=0,
+                               atol=1e-6 * abs(core.geotransform[1]))):
+        raise Error(f"the tiles are those of another raster ({tiles.source}, {core.width} x {core.height} cells), "
+                    f"not of this {plane.shape[1]} x {plane.shape[0]} one")
+    if core.band != int(band):
+        raise Error(f"the tiles were made for band {core.band}, this call asks band={int(band)}")
+    if core.z_factor != float(z_factor):
+        raise Error(f"the tiles were made with z_factor={core.z_factor}, this call asks z_factor={float(z_factor)}: "
+                    f"make them with qota.dask.tiles(da, z_factor={float(z_factor)})")
+
+
+#: A block's window (the block and its overlap) is at most this many times the block's cells:
+#: chunks smaller than their halo (where each block would read hundreds of its neighbours) are
+#: merged for the computation.
+MOST_OVERLAP = 4.0
+
+
+def _blocks_for_halo(data, core, lights, void_margin):
+    """The dask array the blocks are computed on (data, or data rechunked into larger square
+    blocks when its chunks are small beside their halo, so that a call costs a small factor of
+    qota.shadow's time whatever the chunks) and the overlap (west, east, north, south) its blocks
+    need."""
+    def overlap_for(width, height):
+        return [side + void_margin for side in core.halo_for(width, height, lights)]
+
+    rows, cols = data.shape
+    width, height = max(data.chunks[1]), max(data.chunks[0])
+    overlap = overlap_for(width, height)
+
+    def ratio(w, h, o):
+        w, h = min(w, cols), min(h, rows)
+        return (min(cols, w + o[0] + o[1]) * min(rows, h + o[2] + o[3])) / (w * h)
+
+    if ratio(width, height, overlap) <= MOST_OVERLAP:
+        return data, overlap
+    side = max(width, height, 64)
+    while side < max(rows, cols):
+        side = min(2 * side, max(rows, cols))
+        overlap = overlap_for(side, side)
+        if ratio(side, side, overlap) <= MOST_OVERLAP:
+            break
+    return data.rechunk((min(side, rows), min(side, cols))), overlap_for(min(side, cols), min(side, rows))
 
 
 # --- writing -----------------------------------------------------------------------------------
 
+def _staged(path):
+    """A fresh path beside `path` (the same file system, so that moving it into place is a rename)
+    that no other writer uses."""
+    folder, name = os.path.split(os.path.abspath(path))
+    return os.path.join(folder, f".qota-partial-{os.getpid()}-{uuid.uuid4().hex[:12]}-{name}")
+
+
+def _remove(path):
+    if os.path.isdir(path) and not os.path.islink(path):
+        shutil.rmtree(path, ignore_errors=True)
+    elif os.path.lexists(path):
+        os.remove(path)
+
+
 def to_geotiff(result, path, *, lock=None, **profile):
     """Writes a (lazy) result as a tiled GeoTIFF, block by block as the blocks are computed
     (rioxarray's to_raster with tiled=True), with the source's geotransform as the result keeps
-    it. lock: one writer at a time across the workers; by default a distributed.Lock when a
-    distributed Client is active (the file must then be on a file system every worker sees), else
-    a threading lock. profile: creation options (compress="deflate", blockxsize=..., ...)."""
+    it. Whole or not at all: the file is written under a staging name beside `path` and renamed
+    into place only when every block succeeded; a failed block leaves `path` as it was. lock: one
+    writer at a time across the workers; by default a distributed.Lock when a distributed Client
+    is active (the folder must then be on a file system every worker sees), else a threading
+    lock. profile: creation options (compress="deflate", blockxsize=..., ...)."""
+    path = os.fspath(path)
+    staged = _staged(path)
     if lock is None:
-        lock = _writer_lock(os.fspath(path))
+        lock = _writer_lock(staged)
     profile.setdefault("recalc_transform", False)
-    result.rio.to_raster(os.fspath(path), tiled=True, lock=lock, compute=True, **profile)
+    try:
+        result.rio.to_raster(staged, tiled=True, lock=lock, compute=True, **profile)
+        os.replace(staged, path)
+    finally:
+        for leftover in (staged, staged + ".aux.xml"):
+            if os.path.lexists(leftover):
+                _remove(leftover)
+
+
+def to_zarr(result, path, *, name=None, **kwargs):
+    """Writes a (lazy) result as a Zarr store (xarray's to_zarr of a dataset with one variable,
+    `name`: the result's own name by default, "shadow" or "sunlight_hours"), whole or not at all:
+    written under a staging name beside `path`, then moved into place (a store already there is
+    replaced only then). kwargs: to_zarr's (consolidated=..., encoding=...)."""
+    path = os.fspath(path)
+    staged = _staged(path)
+    try:
+        result.to_dataset(name=name or result.name or "data").to_zarr(staged, mode="w-", **kwargs)
+        old = None
+        if os.path.lexists(path):
+            old = _staged(path)
+            os.replace(path, old)
+        try:
+            os.replace(staged, path)
+        except BaseException:
+            if old is not None:
+                os.replace(old, path)
+            raise
+        if old is not None:
+            _remove(old)
+    finally:
+        if os.path.lexists(staged):
+            _remove(staged)
 
 
 def _writer_lock(path):
@@ -324,11 +449,12 @@ def sample(source, points, *, band=1, x="x", y="y", by_block=False, block=1024):
         "height" with the same index and partitions; or a dask array of shape (n, 2), giving a
         dask array (n,) on the same row chunks. Each partition is answered in one batch by its
         process's sampler, which groups the batch's points by raster tile.
-    by_block: for a DataFrame with known divisions: shuffle the points first so that each
-        partition holds the points of whole raster blocks of `block` x `block` cells (where
-        many random points fall on a raster larger than a worker's tile cache, each tile is then
-        built once, not once a partition), then put the heights back in the input's partitions
-        and order. Costs two shuffles of the points.
+    by_block: for a DataFrame: shuffle the points first so that each partition holds the points
+        of whole raster blocks of `block` x `block` cells (where many random points fall on a
+        raster larger than a worker's tile cache, each tile is then built once, not once a
+        partition), then put the heights back in the input's partitions and order, by each
+        point's place there (whatever its index: repeated, unsorted or not numbers). Costs two
+        shuffles of the points.
     """
     path = _local_file(source)
     band = int(band)
@@ -350,22 +476,51 @@ def sample(source, points, *, band=1, x="x", y="y", by_block=False, block=1024):
                 f"got {type(points).__name__}")
 
 
+#: A point's place in its input: partition number * _PLACE + its row within the partition.
+_PLACE = 1 << 40
+
+
+def _with_places(frame, x, y, partition_info=None):
+    """The points' x, y and their place in the input (partition, row), which the heights are put
+    back by: the index cannot do it (its values may repeat, be unsorted or not numbers)."""
+    import pandas as pd
+
+    number = partition_info["number"] if partition_info else 0
+    return pd.DataFrame({x: frame[x].to_numpy(), y: frame[y].to_numpy(),
+                         "_qota_place": np.arange(len(frame), dtype=np.int64) + number * _PLACE})
+
+
+def _placed_heights(frame, path, band, x, y):
+    import pandas as pd
+
+    return pd.DataFrame({"_qota_place": frame["_qota_place"].to_numpy(),
+                         "height": _sample_xy(path, band, frame[x].to_numpy(), frame[y].to_numpy())})
+
+
+def _in_input_order(heights, points):
+    """The heights of one input partition (sorted by place), on the partition's own index."""
+    import pandas as pd
+
+    values = heights["height"].to_numpy()
+    if len(values) != len(points):
+        raise Error(f"{len(values)} heights came back for a partition of {len(points)} points")
+    return pd.Series(values, index=points.index, name="height")
+
+
 def _sample_by_block(path, band, points, x, y, description, block):
-    if not points.known_divisions:
-        raise Error("by_block needs points with known divisions (a sorted index), to put the heights back in their "
-                    "order; set_index or from_pandas gives them")
     if block < 1:
         raise Error(f"block must be a number of cells (1 or more), got {block}")
+    import dask.dataframe as dd
+
     across = -(-description["width"] // block)
-    keys = points.map_partitions(_block_keys, x, y, description["inverse_geotransform"], block, across,
+    n = points.npartitions
+    placed = points.map_partitions(_with_places, x, y, meta={x: "f8", y: "f8", "_qota_place": "i8"},
+                                   enforce_metadata=False)
+    keys = placed.map_partitions(_block_keys, x, y, description["inverse_geotransform"], block, across,
                                  meta=("_qota_block", "i8"))
-    heights = points[[x, y]].assign(_qota_block=keys).shuffle("_qota_block") \
-        .map_partitions(_sample_frame, path, band, x, y, "height", meta=("height", "f8"))
-    # Back in the input's partitions, each sorted by its index (known divisions: the input's order).
-    flat = heights.to_frame().reset_index()
-    restored = flat.set_index(flat.columns[0], divisions=points.divisions)["height"]
-    return restored.map_partitions(_index_named, points.index.name, meta=heights._meta)
-
-
-def _index_named(series, name):
-    return series.rename_axis(name)
+    heights = placed.assign(_qota_block=keys).shuffle("_qota_block") \
+        .map_partitions(_placed_heights, path, band, x, y, meta={"_qota_place": "i8", "height": "f8"})
+    # Back in the input's partitions, by place: partition k holds the places [k _PLACE, (k + 1) _PLACE).
+    divisions = [k * _PLACE for k in range(n)] + [n * _PLACE - 1]
+    back = heights.set_index("_qota_place", divisions=divisions, sorted=False)
+    return dd.map_partitions(_in_input_order, back, points, meta=("height", "f8"), align_dataframes=False)

@@ -551,7 +551,7 @@ qota::ShadowTiles tilesFromRaster(const std::string& path, int band, double zFac
 // NaN for no data. Returned restored from the state, so that nothing keeps `read`.
 qota::ShadowTiles tilesFromReader(int rows, int cols, const std::vector<double>& transform, const std::string& crs,
                                   const std::string& unit, const std::string& label, const py::function& read,
-                                  double zFactor) {
+                                  double zFactor, int band) {
   if (rows < 1 || cols < 1) throw qota::Error("the heights need at least one row and one column");
   checkTransform(transform);
   static std::atomic<unsigned> counter{0};
@@ -579,6 +579,7 @@ qota::ShadowTiles tilesFromReader(int rows, int cols, const std::vector<double>&
       throw;
     }
     description.path = label;
+    description.band = band;
     state = qota::ShadowTiles(description, reader, frame).state();
   }
   return qota::ShadowTiles::restore(state);
@@ -719,8 +720,19 @@ PYBIND11_MODULE(_qota, m) {
   py::class_<qota::ShadowTiles>(m, "_ShadowTiles")
       .def_static("from_raster", &tilesFromRaster, py::arg("path"), py::arg("band"), py::arg("z_factor"))
       .def_static("from_reader", &tilesFromReader, py::arg("rows"), py::arg("cols"), py::arg("transform"),
-                  py::arg("crs"), py::arg("unit"), py::arg("label"), py::arg("read"), py::arg("z_factor"))
+                  py::arg("crs"), py::arg("unit"), py::arg("label"), py::arg("read"), py::arg("z_factor"),
+                  py::arg("band") = 1)
       .def_property_readonly("width", [](const qota::ShadowTiles& t) { return t.dem().width; })
+      .def_property_readonly("band", [](const qota::ShadowTiles& t) { return t.dem().band; })
+      .def_property_readonly("z_factor", [](const qota::ShadowTiles& t) { return t.basis().options.zFactor; })
+      .def_property_readonly("crs", [](const qota::ShadowTiles& t) { return t.dem().crsWkt; })
+      .def_property_readonly("unit", [](const qota::ShadowTiles& t) { return t.dem().verticalUnit.name; })
+      .def_property_readonly("source", [](const qota::ShadowTiles& t) { return t.dem().path; })
+      .def_property_readonly("heights_hash", [](const qota::ShadowTiles& t) { return qota::hexOf(t.heightBlocks().whole()); })
+      .def("checkable_window", [](const qota::ShadowTiles& t, const Cells& w) {
+             const qota::CellWindow a = t.checkableWindow(cellsOf(w));
+             return Cells{a.col, a.row, a.width, a.height};
+           }, py::arg("window"))
       .def_property_readonly("height", [](const qota::ShadowTiles& t) { return t.dem().height; })
       .def_property_readonly("geotransform", [](const qota::ShadowTiles& t) { return t.dem().geotransform; })
       .def("state", [](const qota::ShadowTiles& t) { return py::bytes(t.state()); })

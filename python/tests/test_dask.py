@@ -123,9 +123,30 @@ def test_results_written_to_geotiff_and_zarr(client, part, tmp_path):
         assert back.nodata == 128 and back.crs == dem.rio.crs and back.transform == dem.rio.transform()
         assert back.profile["tiled"]
     pytest.importorskip("zarr")
-    mask.to_dataset(name="shadow").to_zarr(tmp_path / "shadow.zarr")
+    qota.dask.to_zarr(mask, tmp_path / "shadow.zarr")
     back = xr.open_zarr(tmp_path / "shadow.zarr", mask_and_scale=False)["shadow"]  # 128 kept, not NaN
     np.testing.assert_array_equal(back.values[0], want)
+    qota.dask.to_zarr(mask, tmp_path / "shadow.zarr")  # a store already there is replaced
+    np.testing.assert_array_equal(xr.open_zarr(tmp_path / "shadow.zarr", mask_and_scale=False)["shadow"].values[0],
+                                  want)
+
+
+def test_a_failed_block_leaves_the_output_as_it_was(client, wide_void, tmp_path):
+    # A void too wide for the margin makes some blocks fail: the files that were there before stay
+    # whole (a half-written GeoTIFF of nodata replaced them before), and nothing else is left.
+    mask = qota.dask.shadow(rioxarray.open_rasterio(wide_void, chunks=64), azimuth=100, altitude=35, void_margin=0)
+    tif, store = tmp_path / "shadow.tif", tmp_path / "shadow.zarr"
+    tif.write_bytes(b"OLD")
+    with pytest.raises(qota.Error, match="larger overlap"):
+        qota.dask.to_geotiff(mask, tif)
+    assert tif.read_bytes() == b"OLD"
+    pytest.importorskip("zarr")
+    store.mkdir()
+    (store / "kept").write_bytes(b"OLD")
+    with pytest.raises(qota.Error, match="larger overlap"):
+        qota.dask.to_zarr(mask, store)
+    assert (store / "kept").read_bytes() == b"OLD"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["shadow.tif", "shadow.zarr"]
 
 
 def test_points_equal_the_whole_terrain(client):
@@ -152,14 +173,40 @@ def test_points_equal_the_whole_terrain(client):
     np.testing.assert_array_equal(got.to_numpy(), want)
     array = dsa.from_array(np.column_stack([x, y]), chunks=(1700, 2))
     np.testing.assert_array_equal(qota.dask.sample(RAINIER, array).compute(), want)
+    # By block, whatever the index: values repeated (4 rows each, sorted), shuffled, not numbers,
+    # or unknown divisions: every height on its own row.
+    n = len(x)
+    for index in (np.repeat(np.arange(n // 4 + 1), 4)[:n], rng.permutation(n), np.array([f"p{i % 977}" for i in range(n)])):
+        points = pd.DataFrame({"x": x, "y": y}, index=index)
+        for frame in (dd.from_pandas(points, npartitions=4, sort=False), dd.from_pandas(points, npartitions=3)):
+            got = qota.dask.sample(RAINIER, frame, by_block=True, block=64).compute()
+            expected = pd.Series(terrain.heights(frame.x.compute().to_numpy(), frame.y.compute().to_numpy()),
+                                 index=frame.index.compute())
+            assert got.index.equals(expected.index)
+            np.testing.assert_array_equal(got.to_numpy(), expected.to_numpy())
 
 
-def test_refusals(client, part):
+@pytest.fixture(scope="module")
+def wide_void(part, tmp_path_factory):
+    """The part with a void 120 cells across: its fill reaches 60 cells in, farther than a block's
+    window without a void margin."""
+    with rasterio.open(part) as ds:
+        z, profile = ds.read(1), ds.profile
+    r, c = np.mgrid[0:z.shape[0], 0:z.shape[1]]
+    z[np.hypot(c - 150, r - 130) < 60] = NODATA
+    path = tmp_path_factory.mktemp("void") / "wide_void.tif"
+    with rasterio.open(path, "w", **profile) as out:
+        out.write(z, 1)
+    return path
+
+
+def test_refusals(client, part, wide_void):
     dem = rioxarray.open_rasterio(part, chunks=64)
     # Voids wider than the margin near a block edge: refused when the block is computed, naming
     # what it needs.
     with pytest.raises(qota.Error, match="larger overlap"):
-        qota.dask.shadow(dem, azimuth=315, altitude=6, void_margin=0).compute()
+        qota.dask.shadow(rioxarray.open_rasterio(wide_void, chunks=64), azimuth=100, altitude=35,
+                         void_margin=0).compute()
     with pytest.raises(qota.Error, match="give azimuth and altitude, or time"):
         qota.dask.shadow(dem, azimuth=315)
     with pytest.raises(qota.Error, match="one light"):
@@ -178,8 +225,45 @@ def test_refusals(client, part):
         qota.dask.shadow(dem.astype("f8"), azimuth=315, altitude=6, heights_from="file")
     with pytest.raises(qota.Error, match="no column 'lon'"):
         qota.dask.sample(RAINIER, dd.from_pandas(pd.DataFrame({"x": [0.0], "y": [0.0]}), npartitions=1), x="lon")
-    with pytest.raises(qota.Error, match="known divisions"):
-        frame = dd.from_pandas(pd.DataFrame({"x": [0.0], "y": [0.0]}), npartitions=1).clear_divisions()
-        qota.dask.sample(RAINIER, frame, by_block=True)
     with pytest.raises(FileNotFoundError):
         qota.dask.sample(DATA / "no_such.tif", dsa.zeros((3, 2)))
+
+
+def test_tiles_given_are_checked_against_the_call(client, part, tmp_path):
+    # Tiles of another raster on the same grid, of another band or z_factor: refused (before, no
+    # error and thousands of cells wrong; z_factor was ignored).
+    dem = rioxarray.open_rasterio(part, chunks=100)
+    flat_path = tmp_path / "flat.tif"
+    with rasterio.open(part) as ds:
+        profile = ds.profile
+        with rasterio.open(flat_path, "w", **profile) as out:
+            out.write(np.full((ds.height, ds.width), 700, np.float32), 1)
+    other = qota.dask.tiles(rioxarray.open_rasterio(flat_path, chunks=100))
+    with pytest.raises(qota.Error, match="are not those the shadow tiles were made from"):
+        qota.dask.shadow(dem, azimuth=90, altitude=5, tiles=other).compute()
+    mine = qota.dask.tiles(dem)
+    with pytest.raises(qota.Error, match="z_factor=1.0, this call asks z_factor=2.0"):
+        qota.dask.shadow(dem, azimuth=90, altitude=5, z_factor=2, tiles=mine)
+    two = xr.concat([dem, dem + 1], dim="band").assign_coords(band=[1, 2])
+    with pytest.raises(qota.Error, match="band 1, this call asks band=2"):
+        qota.dask.shadow(two, azimuth=90, altitude=5, band=2, tiles=qota.dask.tiles(two, band=1))
+    with pytest.raises(qota.Error, match="these tiles are given"):
+        qota.dask.shadow(dem, azimuth=90, altitude=5, heights_from="array", tiles=mine)
+    # z_factor honoured with tiles made with it.
+    got = qota.dask.shadow(dem, azimuth=90, altitude=5, z_factor=2, tiles=qota.dask.tiles(dem, z_factor=2))
+    np.testing.assert_array_equal(got.values[0], qota.shadow(part, azimuth=90, altitude=5, z_factor=2))
+    # A DataArray whose values were changed after it was read, with the file's tiles: refused,
+    # naming the cause and what to give.
+    changed = dem.copy(data=dem.data + 50)
+    with pytest.raises(qota.Error, match="heights_from='array'"):
+        qota.dask.shadow(changed, azimuth=90, altitude=5, tiles=mine).compute()
+
+
+def test_chunks_smaller_than_the_halo_are_merged(client):
+    # Chunks of 7 x 13 cells at a sun whose halo spans hundreds: before, no result in 150 s and a
+    # client of 4.7 GB; the blocks are now merged, and the cells are qota.shadow's.
+    dem = rioxarray.open_rasterio(DATA / "SainteHelens.dem", chunks={"y": 7, "x": 13})
+    mask = qota.dask.shadow(dem, 135, 20)
+    assert mask.chunks == dem.chunks
+    assert len(mask.data.__dask_graph__()) < 20000
+    np.testing.assert_array_equal(mask.values[0], qota.shadow(DATA / "SainteHelens.dem", 135, 20))

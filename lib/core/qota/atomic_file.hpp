@@ -14,6 +14,7 @@
 // is refused.
 #pragma once
 
+#include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -64,5 +65,10 @@ class AtomicFile {
   std::filesystem::path path_;
   std::ofstream stream_;
 };
+
+// The whole of a small input file (a state, a list): a regular file of at most `most` bytes,
+// read without blocking. Throws qota::Error naming the path when it is missing, is not a regular
+// file (a FIFO, a device, a folder: never waited on or read without end), or is larger.
+std::string readSmallFile(const std::filesystem::path& path, std::uint64_t most);
 
 }  // namespace qota

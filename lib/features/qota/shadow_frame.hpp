@@ -29,19 +29,13 @@
 #include <string>
 #include <vector>
 
+#include "qota/cell_window.hpp"
 #include "qota/dem.hpp"
 #include "qota/mesh.hpp"
 #include "qota/raster_grid.hpp"
 #include "qota/sun.hpp"
 
 namespace qota {
-
-// A rectangle of a raster's cells: columns [col, col + width), rows [row, row + height).
-struct CellWindow {
-  int col = 0, row = 0, width = 0, height = 0;
-  std::size_t cellCount() const { return static_cast<std::size_t>(width) * static_cast<std::size_t>(height); }
-  bool operator==(const CellWindow&) const = default;
-};
 
 // How a DEM becomes a frame (see above).
 struct FrameOptions {

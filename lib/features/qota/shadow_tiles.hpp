@@ -51,6 +51,7 @@
 #include <vector>
 
 #include "qota/dem.hpp"
+#include "qota/height_blocks.hpp"
 #include "qota/shadow.hpp"
 #include "qota/shadow_frame.hpp"
 #include "qota/sunlight.hpp"
@@ -70,15 +71,24 @@ class ShadowTiles {
   // may be called from one thread at a time only.
   ShadowTiles(const DemTerrain& description, HeightReader read, const FrameOptions& frame, const Progress& progress = {});
   // Text that makes the same tiles in another process (restore), without reading the raster
-  // again: the description, the frame's options and what the pass over the heights found, the
-  // numbers bit for bit. Tiles restored have no source: only the ...FromHeights calls.
+  // again: the description (band and nodata value included), the frame's options, what the pass
+  // over the heights found (the numbers bit for bit) and the heights' block hashes
+  // (heightBlocks), the qota version, and a checksum of all of it.
   std::string state() const;
+  // Tiles from a state. Throws qota::Error, naming what is wrong, for a state that is damaged or
+  // edited (its checksum), of another qota version, or holding values no raster gives. Tiles
+  // restored have no source: only the ...FromHeights calls, whose heights are checked against
+  // the state's block hashes.
   static ShadowTiles restore(const std::string& state);
   // The same, reading the raster at `path` again (a batch job's tile, without the pass over the
-  // heights another job made). Throws qota::Error when the raster or the frame's options are not
-  // the state's (its size, geotransform, CRS, vertical unit).
+  // heights another job made). Throws qota::Error naming the field when the raster or the frame's
+  // options are not the state's (its size, geotransform, CRS, band, nodata value, vertical unit;
+  // --flat, --pixel-size, -z, -s). Every window read later is checked against the state's block
+  // hashes, so another raster's heights under the same name are refused when read.
   static ShadowTiles restore(const std::string& state, const std::string& path, const DemOptions& dem,
                              const FrameOptions& frame);
+  // The most bytes a state may take (a state file larger is refused unread).
+  static constexpr std::uint64_t kMostStateBytes = 32ull << 20;
   ~ShadowTiles();
   ShadowTiles(ShadowTiles&&) noexcept;
   ShadowTiles& operator=(ShadowTiles&&) noexcept;
@@ -90,6 +100,12 @@ class ShadowTiles {
   const LocalFrame& frame() const { return basis_.shared; }
   // Cells with data in the raster.
   std::uint64_t validCells() const { return validCells_; }
+  // The raster's heights hashed by blocks in the pass over them: what every read is checked
+  // against, and (whole()) the identity of the heights in a tile's metadata.
+  const HeightBlocks& heightBlocks() const { return blocks_; }
+  // The smallest window of whole hash blocks that holds `window`: the heights ...FromHeights
+  // takes are those of such a window (they are checked block by block).
+  CellWindow checkableWindow(const CellWindow& window) const { return blocks_.alignedOut(window); }
 
   // Cells of halo beyond each side of `tile` (west, east, north, south: columns before and after,
   // rows above and below) for these lights, clipped to the raster. tileLowest: the tile's lowest
@@ -125,8 +141,10 @@ class ShadowTiles {
                                              double slack) const;
   // mask and hours from heights given instead of read: `window` (and its heights, as HeightReader
   // gives them) must hold the tile and its halo, and enough around its voids to fill them as over
-  // the whole raster (see above); else qota::Error says what it lacks. For Dask: `window` is a
-  // block with its overlap (at least haloFor's), `tile` the block.
+  // the whole raster (see above); else qota::Error says what it lacks. `window` is made of whole
+  // hash blocks (checkableWindow), and its heights are checked against the raster's block hashes:
+  // another raster's are refused. For Dask: `window` is a block with its overlap (at least
+  // haloFor's) made checkable, `tile` the block.
   std::vector<Light> maskFromHeights(const CellWindow& window, std::vector<double> heights, const CellWindow& tile,
                                      const Eigen::Vector3d& light, const IndexOptions& options = {},
                                      unsigned threads = 0, ShadowSearch search = ShadowSearch::Strips) const;
@@ -169,6 +187,7 @@ class ShadowTiles {
 
   std::unique_ptr<Source> source_;
   FrameBasis basis_;
+  HeightBlocks blocks_;
   std::uint64_t validCells_ = 0;
   double slack_ = 0;
 };

@@ -1,0 +1,63 @@
+// The seal of a tile's metadata (see tile_metadata.hpp).
+#include "tile_metadata.hpp"
+
+#include <algorithm>
+#include <charconv>
+#include <cstdint>
+
+#include "qota/height_blocks.hpp"
+
+namespace qota::tools {
+namespace {
+
+std::string bits(double v) {
+  char buffer[64];
+  return std::string(buffer, std::to_chars(buffer, buffer + sizeof buffer, v, std::chars_format::hex).ptr);
+}
+
+// The text the checksum is of: the items but the checksum, sorted by name, then the grid.
+std::string sealedText(MetadataItems items, const TileGrid& grid) {
+  items.erase(std::remove_if(items.begin(), items.end(), [](const auto& i) { return i.first == "QOTA_CHECKSUM"; }),
+              items.end());
+  std::sort(items.begin(), items.end());
+  std::string text;
+  for (const auto& [name, value] : items) text += name + "=" + std::to_string(value.size()) + ":" + value + "\n";
+  text += "size=" + std::to_string(grid.width) + "," + std::to_string(grid.height) + "\ngeotransform=";
+  for (double g : grid.geotransform) text += bits(g) + ",";
+  text += "\ntype=" + grid.dataType + "\nnodata=" + (grid.nodata ? bits(*grid.nodata) : std::string("none")) + "\n";
+  return text;
+}
+
+}  // namespace
+
+const std::vector<std::string>& runFields() {
+  static const std::vector<std::string> fields{"QOTA_VERSION", "QOTA_SOURCE", "QOTA_HEIGHTS", "QOTA_RASTER_SIZE",
+                                               "QOTA_TILE_SIZE", "QOTA_TILES", "QOTA_FRAME", "QOTA_LIGHT",
+                                               "QOTA_VALUES"};
+  return fields;
+}
+
+MetadataItems sealTile(MetadataItems items, const TileGrid& grid) {
+  const std::string sum = checksumOf(sealedText(items, grid));
+  items.push_back({"QOTA_CHECKSUM", sum});
+  return items;
+}
+
+bool sealHolds(const MetadataItems& items, const TileGrid& grid) {
+  const auto sum = std::find_if(items.begin(), items.end(), [](const auto& i) { return i.first == "QOTA_CHECKSUM"; });
+  return sum != items.end() && sum->second == checksumOf(sealedText(items, grid));
+}
+
+void CellsHash::add(const std::vector<double>& values) {
+  if (byteData_) {
+    std::vector<std::uint8_t> stored(values.size());
+    for (std::size_t i = 0; i < values.size(); ++i) stored[i] = static_cast<std::uint8_t>(values[i]);
+    hash_.add(stored.data(), stored.size());
+    return;
+  }
+  std::vector<float> stored(values.size());
+  for (std::size_t i = 0; i < values.size(); ++i) stored[i] = static_cast<float>(values[i]);
+  hash_.add(stored.data(), stored.size() * sizeof(float));
+}
+
+}  // namespace qota::tools
