@@ -4,7 +4,8 @@
 #
 #   scripts/fuzz.sh SECONDS [HARNESS...]
 #
-# Harnesses (tests/fuzz/fuzz_NAME.cpp): treefile, mesh, sample_line, raster, cli. Each first
+# Harnesses (tests/fuzz/fuzz_NAME.cpp): treefile, mesh, sample_line, raster, cli, tiles (tiles
+# states, and tiles' metadata and bytes given to qota assemble). Each first
 # replays its seed corpus (tests/fuzz/corpus/NAME) and every crash ever found
 # (tests/fuzz/crashes/NAME, kept as regressions once fixed), then fuzzes for SECONDS seconds
 # starting from the corpus (new inputs go to a scratch copy, not the repository). A crash, a
@@ -17,7 +18,7 @@ cd "$(dirname "$0")/.."
 seconds=${1:?usage: scripts/fuzz.sh SECONDS [HARNESS...]}
 shift
 harnesses=("$@")
-[ ${#harnesses[@]} -eq 0 ] && harnesses=(treefile mesh sample_line raster cli)
+[ ${#harnesses[@]} -eq 0 ] && harnesses=(treefile mesh sample_line raster cli tiles)
 
 ./scripts/install-deps.sh
 ./scripts/install-deps.sh clang-14 libclang-rt-14-dev

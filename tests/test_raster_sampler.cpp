@@ -212,18 +212,27 @@ TEST(RasterSampler, LeanTilesAnswerAsTheWholeTerrain) {
   EXPECT_EQ(lean, 30u);  // (89 x 69 cells in tiles of 16: 6 x 5)
 }
 
-TEST(RasterSampler, OneRowOrColumnHasNoCellsAndOffIsNone) {
+TEST(RasterSampler, OneRowOrColumnIsRefusedAndOffIsNone) {
+  // One row of pixel centres spans no triangle: refused, where it answered "none" at its own
+  // pixel centres before.
   const auto path = qota::test::scratchPath("sampler_row.tif");
   qota::test::RasterSpec spec;
   spec.width = 9, spec.height = 1;
   spec.bands = {std::vector<double>(9, 5.0)};
   qota::test::writeRaster(path, spec);
+  EXPECT_THROW(RasterSampler(path.string(), {}), qota::Error);
+  EXPECT_THROW(RasterSampler("/nonexistent/qota.tif", {}), qota::Error);
+  spec.width = 9, spec.height = 2;
+  spec.bands = {std::vector<double>(18, 5.0)};
+  qota::test::writeRaster(path, spec);
   RasterSampler sampler(path.string(), {});
-  std::vector<double> xs{0.5, 4.5, 100, kNaN}, ys{-0.5, -0.5, -0.5, 0};
+  std::vector<double> xs{0.5, 4.5, 100, kNaN}, ys{-0.5, -1.5, -0.5, 0};
   std::vector<std::optional<double>> out(4, 1.0);
   sampler.heights(xs, ys, {}, out);
-  for (const auto& h : out) EXPECT_FALSE(h.has_value());  // the whole terrain has no triangle either
-  EXPECT_THROW(RasterSampler("/nonexistent/qota.tif", {}), qota::Error);
+  EXPECT_EQ(out[0], 5.0);
+  EXPECT_EQ(out[1], 5.0);
+  EXPECT_FALSE(out[2].has_value());  // off the raster
+  EXPECT_FALSE(out[3].has_value());  // not a point
   std::vector<std::optional<double>> small(1);
   EXPECT_THROW(sampler.heights(xs, ys, {}, small), qota::Error);
 }

@@ -351,7 +351,7 @@ TEST(ShadowTiles, RefusesWhatCannotBeTiledExactly) {
   }
   // Tiles that fit a budget: their worst window fits it, a larger side's does not.
   const std::vector<Eigen::Vector3d> lights{tiles.frame().towardSun({135, 60})};
-  const std::uint64_t budget = 8000 * qota::ShadowTiles::bytesPerWindowCell();
+  const std::uint64_t budget = 8000 * qota::ShadowTiles::bytesPerWindowCell(lights);
   const int side = tiles.tileSideFor(budget, lights, 16);
   EXPECT_GE(side, 16);
   EXPECT_LT(side, 90);

@@ -262,19 +262,7 @@ void editTile(const std::string& path, const qota::tools::MetadataItems& changes
   ASSERT_TRUE(ds);
   for (const auto& [k, v] : changes) ds->SetMetadataItem(k.c_str(), v.c_str());
   if (!seal) return;
-  qota::tools::MetadataItems items;
-  for (char** i = ds->GetMetadata(); i && *i; ++i) {
-    const std::string t = *i;
-    if (t.rfind("QOTA_", 0) == 0 && t.rfind("QOTA_CHECKSUM=", 0) != 0) items.push_back({t.substr(0, t.find('=')), t.substr(t.find('=') + 1)});
-  }
-  qota::tools::TileGrid grid;
-  grid.width = ds->GetRasterXSize(), grid.height = ds->GetRasterYSize();
-  ds->GetGeoTransform(grid.geotransform.data());
-  grid.dataType = GDALGetDataTypeName(ds->GetRasterBand(1)->GetRasterDataType());
-  int has = 0;
-  const double nodata = ds->GetRasterBand(1)->GetNoDataValue(&has);
-  if (has) grid.nodata = nodata;
-  const auto sealed = qota::tools::sealTile(items, grid);
+  const auto sealed = qota::tools::sealTile(qota::tools::qotaItemsOf(*ds), qota::tools::tileGridOf(*ds));
   ds->SetMetadataItem("QOTA_CHECKSUM", sealed.back().second.c_str());
 }
 
@@ -354,6 +342,97 @@ TEST(TrustAssemble, RotatedTilesCannotMakeAVrtAndSayWhy) {
   expectRefused(assemble(tiles, vrt), "a VRT mosaic holds north-up tiles only, and these are rotated", vrt);
   const std::string tif = scratchPath("trust/rot.tif").string();
   EXPECT_EQ(assemble(tiles, tif).code, 0);
+}
+
+}  // namespace
+
+namespace {
+
+ToolRun sampleLines(const std::string& source, const std::string& input) {
+  qota::tools::SampleOptions o;
+  o.source = source;
+  std::istringstream in(input);
+  std::ostringstream out, err;
+  const int code = qota::tools::sample(o, in, out, err);
+  return {code, out.str(), err.str()};
+}
+
+TEST(TrustOutputs, CreationOptionsThatChangeTheValuesAreRefused) {
+  const HelensFiles& f = helens();
+  for (const std::vector<std::string>& co : std::vector<std::vector<std::string>>{
+           {"NBITS=1"}, {"COMPRESS=JPEG"}, {"COMPRESS=WEBP"}, {"COMPRESS=LERC_DEFLATE", "MAX_Z_ERROR=0.5"},
+           {"PIXELTYPE=SIGNEDBYTE"}}) {
+    ShadowOptions o = at(f.dem, "trust/co.tif");
+    o.creationOptions = co;
+    expectRefused(shadow(o), "the values written would not be the ones computed", o.output);
+    o.tileSize = 128;  // by tiles too
+    expectRefused(shadow(o), "the values written would not be the ones computed", o.output);
+  }
+  ShadowOptions hours = at(f.dem, "trust/co_hours.tif");
+  hours.azimuth.reset(), hours.altitude.reset();
+  hours.time = "2024-06-21", hours.tz = "UTC", hours.hours = std::array<double, 3>{6, 20, 2};
+  hours.creationOptions = {"NBITS=16"};  // half floats
+  expectRefused(shadow(hours), "hours are 32-bit floats", hours.output);
+  // Lossless options pass; an option GDAL does not know is reported as GDAL reports it.
+  ShadowOptions o = at(f.dem, "trust/co_ok.tif");
+  o.creationOptions = {"COMPRESS=ZSTD", "NBITS=8", "NO_SUCH_OPTION=1"};
+  const ToolRun run = shadow(o);
+  EXPECT_EQ(run.code, 0) << run.err;
+  EXPECT_NE(run.err.find("warning: GDAL: driver GTiff does not support creation option NO_SUCH_OPTION"), std::string::npos)
+      << run.err;
+}
+
+TEST(TrustInput, ARasterOfOneRowOrColumnIsRefusedNotAnsweredNone) {
+  RasterSpec s;
+  s.geotransform = {500000, 30, 0, 5100000, 0, -30};
+  s.type = GDT_Float32;
+  for (const auto& [w, h] : std::vector<std::pair<int, int>>{{100, 1}, {1, 100}, {1, 1}}) {
+    s.width = w, s.height = h, s.bands = {std::vector<double>(static_cast<std::size_t>(w) * h, 42.0)};
+    const std::string path = scratchPath("trust/thin_" + std::to_string(w) + "x" + std::to_string(h) + ".tif").string();
+    qota::test::writeRaster(path, s);
+    const ToolRun run = sampleLines(path, "500015 5099985\n");  // a pixel centre (none, exit 0 before)
+    EXPECT_EQ(run.code, 2) << run.out << run.err;
+    EXPECT_NE(run.err.find("at least 2 x 2 pixels"), std::string::npos) << run.err;
+  }
+}
+
+TEST(TrustInput, AByteOrderMarkAndCarriageReturnLinesAreRead) {
+  // 562500 5114500 is on Mount St. Helens's raster; the expected height is the same point's
+  // answer from a plain line.
+  const ToolRun plain = sampleLines(QOTA_DATA_DIR "/SainteHelens.dem", "562500 5114500\n562501 5114500\n");
+  ASSERT_EQ(plain.code, 0) << plain.err;
+  const ToolRun bom = sampleLines(QOTA_DATA_DIR "/SainteHelens.dem", "\xEF\xBB\xBF" "562500 5114500\n562501 5114500\n");
+  EXPECT_EQ(bom.code, 0) << bom.err;
+  EXPECT_EQ(bom.out, plain.out);
+  const ToolRun cr = sampleLines(QOTA_DATA_DIR "/SainteHelens.dem", "562500 5114500\r562501 5114500\r");
+  EXPECT_EQ(cr.code, 0) << cr.err;
+  EXPECT_EQ(cr.out, plain.out);
+  // What a terminal would not show is written as escapes in a message.
+  const ToolRun bad = sampleLines(QOTA_DATA_DIR "/SainteHelens.dem", "5625\x01" "00 5114500\n");
+  EXPECT_NE(bad.err.find("'5625\\x0100' is not a number"), std::string::npos) << bad.err;
+}
+
+TEST(TrustWork, AHugeRasterIsRefusedAtOnceWithItsEstimate) {
+  // A VRT declaring 10^6 x 10^6 cells over a small file: before, a pass over 10^12 heights
+  // started with no estimate and no progress after minutes.
+  const std::string vrt = scratchPath("trust/huge.vrt").string();
+  std::ofstream(vrt) << "<VRTDataset rasterXSize=\"1000000\" rasterYSize=\"1000000\"><GeoTransform>500000, 30, 0, "
+                        "5100000, 0, -30</GeoTransform><VRTRasterBand dataType=\"Float32\" band=\"1\"><SimpleSource>"
+                        "<SourceFilename relativeToVRT=\"1\">sh.tif</SourceFilename><SourceBand>1</SourceBand>"
+                        "<SrcRect xOff=\"0\" yOff=\"0\" xSize=\"50\" ySize=\"50\"/><DstRect xOff=\"0\" yOff=\"0\" "
+                        "xSize=\"50\" ySize=\"50\"/></SimpleSource></VRTRasterBand></VRTDataset>\n";
+  (void)helens();
+  ShadowOptions o = at(vrt, "trust/huge.tif");
+  o.pixelSize = 30;
+  expectRefused(shadow(o), "more than --max-cells 4294967296 allows: at the measured rates, reading its heights takes about",
+                o.output);
+  // --max-memory below a byte is no budget (it ran whole with the default before).
+  EXPECT_THROW(qota::tools::parseByteSize("0.5"), qota::Error);
+  EXPECT_THROW(qota::tools::parseByteSize("1e-300G"), qota::Error);
+  // A budget below what the process itself takes is refused, naming what it takes.
+  o = at(helens().dem, "trust/tiny_budget.tif");
+  o.maxMemory = 16ull << 20;
+  expectRefused(shadow(o), "the process itself takes", o.output);
 }
 
 }  // namespace

@@ -11,6 +11,7 @@
 #include <map>
 #include <set>
 
+#include "cancel.hpp"
 #include "gdal_errors.hpp"
 #include "qota_tools.hpp"
 #include "qota/error.hpp"
@@ -31,9 +32,6 @@ struct Tile {
   std::map<std::string, std::string> qota;  // its QOTA_* metadata, sealed (tile_metadata.hpp)
   long long col = 0, row = 0;                // its place on the first tile's grid
 };
-
-// The longest QOTA_* value a tile of qota's holds (a light's description); longer is damage.
-constexpr std::size_t kLongestItem = 4096;
 
 Tile describe(const std::string& path) {
   // A FIFO or a device would be waited on, or read without end: only files (and GDAL's own
@@ -68,14 +66,12 @@ Tile describe(const std::string& path) {
   const double nodata = band->GetNoDataValue(&has);
   if (has) t.nodata = nodata;
   MetadataItems items;
-  for (char** item = ds->GetMetadata(); item && *item; ++item) {
-    const std::string text = *item;
-    const auto eq = text.find('=');
-    if (text.rfind("QOTA_", 0) != 0 || eq == std::string::npos) continue;
-    if (text.size() > kLongestItem) throw Error(path + ": damaged: a QOTA_ metadata item of " + std::to_string(text.size()) + " bytes");
-    items.push_back({text.substr(0, eq), text.substr(eq + 1)});
+  try {
+    items = qotaItemsOf(*ds);
+  } catch (const Error& e) {
+    throw Error(path + ": " + e.what());
   }
-  if (!items.empty() && !sealHolds(items, {t.width, t.height, t.gt, GDALGetDataTypeName(t.type), t.nodata})) {
+  if (!items.empty() && !sealHolds(items, tileGridOf(*ds))) {
     throw Error(path + ": damaged or edited: its qota metadata, size, geotransform, data type or nodata value are "
                 "not those it was written with (QOTA_CHECKSUM); compute the tile again");
   }
@@ -247,6 +243,11 @@ int assemble(const AssembleOptions& o, std::ostream& out, std::ostream& err) {
     if (format != "GTiff" && format != "COG" && format != "VRT") {
       throw Error(o.output + ": tiles are assembled into a GeoTIFF, a COG or a VRT, not " + format);
     }
+    if (format != "VRT") {
+      for (const std::string& warning : checkCreationOptions(format, o.creationOptions, false, 255)) {
+        err << "qota assemble: warning: GDAL: " << warning << '\n';
+      }
+    }
     std::vector<Tile> tiles;
     for (const std::string& path : o.tiles) {
       std::error_code ec;
@@ -310,6 +311,7 @@ int assemble(const AssembleOptions& o, std::ostream& out, std::ostream& err) {
       StreamedRaster output(w, grid, stage);
       std::vector<double> rows;
       for (std::size_t k = 0; k < tiles.size(); ++k) {
+        throwIfCancelled();
         const Tile& t = tiles[k];
         detail::GdalErrorLog errors;
         std::unique_ptr<GDALDataset> ds(GDALDataset::Open(t.path.c_str(), GDAL_OF_RASTER));
@@ -368,6 +370,7 @@ std::uint64_t parseByteSize(const std::string& text) {
   if (used == 0 || s == scale.end() || !(number > 0) || !(number * s->second < 1.8e19)) {
     throw Error("'" + text + "' is not a size; give bytes, or a number with K, M, G or T (64M, 2G, 1.5GiB)");
   }
+  if (number * s->second < 1) throw Error("'" + text + "' is less than a byte; give a size such as 64M or 2G");
   return static_cast<std::uint64_t>(number * s->second);
 }
 

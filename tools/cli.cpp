@@ -158,6 +158,11 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
                         "Memory the run may take (64M, 2G...); a raster whose whole shadow would not fit "
                         "is shadowed by tiles with halos (the same values), streamed into a tiled GeoTIFF "
                         "or COG. Default: three quarters of the memory available");
+  shadowCmd->add_option("--max-cells", shadow.maxCells,
+                        "Refuse a raster of more cells than this (with the time it would take), before "
+                        "any work: raise it to run one that large")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
   shadowCmd->add_option("--tile-size", shadow.tileSize,
                         "Shadow by tiles of N x N cells (a multiple of 16), whatever the raster's size")
       ->check(CLI::Range(16, 1 << 20));

@@ -1,11 +1,13 @@
 // The qota command: one executable, one subcommand per tool (tools/cli.cpp parses, each tool is a
 // library function in qota_tools.hpp).
+#include <csignal>
 #include <iostream>
 
 #if defined(__GLIBC__)
 #include <malloc.h>
 #endif
 
+#include "cancel.hpp"
 #include "qota_tools.hpp"
 
 int main(int argc, char** argv) {
@@ -17,5 +19,12 @@ int main(int argc, char** argv) {
   mallopt(M_MMAP_THRESHOLD, 64 << 20);
   mallopt(M_TRIM_THRESHOLD, 128 << 20);
 #endif
-  return qota::tools::runCli(argc, argv, std::cin, std::cout, std::cerr);
+  qota::tools::installCancelHandlers();
+  const int code = qota::tools::runCli(argc, argv, std::cin, std::cout, std::cerr);
+  if (const int sig = qota::tools::cancelSignal()) {  // the outputs are cleaned up: end by the signal
+    std::cout.flush();
+    std::signal(sig, SIG_DFL);
+    std::raise(sig);
+  }
+  return code;
 }

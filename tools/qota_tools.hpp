@@ -114,6 +114,9 @@ struct ShadowOptions {
   // (column, row of the tile grid, from 0), written as a raster of its own, for batch
   // schedulers; qota assemble joins such tiles.
   std::uint64_t maxMemory = 0;
+  // A raster of more cells is refused before any work, with the time it would take (the pass
+  // over 10^12 heights alone takes hours): raise it to run one that large.
+  std::uint64_t maxCells = 1ull << 32;
   int tileSize = 0;
   std::optional<std::array<int, 2>> tile;
   // By tiles: the pass over the heights (the height range and the frame, ShadowTiles::state)

@@ -43,6 +43,56 @@ std::string driverForPath(const std::string& path) {
   throw Error(path + ": no GDAL driver writes '." + ext + "' files; give -of FORMAT");
 }
 
+std::vector<std::string> checkCreationOptions(const std::string& format, const std::vector<std::string>& options,
+                                              bool byteData, int mostValue) {
+  ensureGdalRegistered();
+  std::string f = format;
+  std::transform(f.begin(), f.end(), f.begin(), [](unsigned char c) { return std::toupper(c); });
+  CPLStringList co;
+  for (const auto& o : options) {
+    if (o.find('=') == std::string::npos) throw Error("-co " + o + ": expected NAME=VALUE");
+    co.AddString(o.c_str());
+  }
+  const auto value = [&](const char* name) {
+    std::string v = co.FetchNameValueDef(name, "");
+    std::transform(v.begin(), v.end(), v.begin(), [](unsigned char c) { return std::toupper(c); });
+    return v;
+  };
+  const auto refuse = [&](const std::string& what) {
+    throw Error(what + ": the values written would not be the ones computed; give lossless options "
+                "(COMPRESS=DEFLATE, LZW or ZSTD), or none");
+  };
+  if (f == "JPEG") refuse("-of JPEG (lossy)");
+  if (f == "WEBP" && value("LOSSLESS") != "YES") refuse("-of WEBP without -co LOSSLESS=YES (lossy)");
+  if (f == "JP2OPENJPEG" && value("REVERSIBLE") != "YES") refuse("-of JP2OpenJPEG without -co REVERSIBLE=YES (lossy)");
+  const std::string compress = value("COMPRESS");
+  if (compress == "JPEG") refuse("-co COMPRESS=JPEG (lossy)");
+  if (compress == "WEBP" && value("WEBP_LOSSLESS") != "YES") refuse("-co COMPRESS=WEBP without WEBP_LOSSLESS=YES (lossy)");
+  if (compress == "JXL" && value("JXL_LOSSLESS") == "NO") refuse("-co JXL_LOSSLESS=NO (lossy)");
+  if (compress.rfind("LERC", 0) == 0 && std::atof(value("MAX_Z_ERROR").c_str()) != 0) {
+    refuse("-co MAX_Z_ERROR=" + value("MAX_Z_ERROR") + " (lossy LERC)");
+  }
+  if (!value("NBITS").empty()) {
+    const int bits = std::atoi(value("NBITS").c_str());
+    int need = 1;
+    while (need < 8 && (1 << need) <= mostValue) ++need;
+    if (byteData && bits < need) {
+      refuse("-co NBITS=" + value("NBITS") + " (the value " + std::to_string(mostValue) + " needs " + std::to_string(need) + " bits)");
+    }
+    if (!byteData && bits != 32) refuse("-co NBITS=" + value("NBITS") + " (hours are 32-bit floats)");
+  }
+  if (value("PIXELTYPE") == "SIGNEDBYTE") refuse("-co PIXELTYPE=SIGNEDBYTE (values over 127 read as negative)");
+  // What GDAL itself says of the options (an unknown name, a value out of its list).
+  std::vector<std::string> warnings;
+  if (GDALDriver* driver = GetGDALDriverManager()->GetDriverByName(format == "COG" ? "COG" : format.c_str())) {
+    detail::GdalErrorLog log;
+    GDALValidateCreationOptions(driver, co.List());
+    warnings = log.warnings();
+    if (log.failed()) warnings.push_back(log.message());
+  }
+  return warnings;
+}
+
 void writeRaster(const RasterWrite& w, const DemTerrain& grid, const std::vector<double>& values, OutputStage& stage) {
   ensureGdalRegistered();
   const std::string format = w.format.empty() ? driverForPath(w.path) : w.format;

@@ -21,6 +21,14 @@ namespace qota::tools {
 // qota::Error when none does.
 std::string driverForPath(const std::string& path);
 
+// Refuses creation options and formats that would change the values written (qota::Error naming
+// the option): lossy compression (JPEG, WebP, JPEG XL or LERC with an error allowed, the JPEG
+// and WebP formats), fewer bits than the values need (NBITS below what `mostValue` takes in a
+// Byte band; 16-bit floats), signed bytes. Returns GDAL's own warnings on the rest (an option the
+// driver does not know), for the tool to print. byteData: Byte values (else Float32).
+std::vector<std::string> checkCreationOptions(const std::string& format, const std::vector<std::string>& options,
+                                              bool byteData, int mostValue);
+
 // One band on the DEM's grid and georeferencing. `type`: "Byte" or "Float32" (the values are
 // converted). Throws qota::Error naming the file when it cannot be written.
 struct RasterWrite {

@@ -29,16 +29,26 @@
 #include "qota/error.hpp"
 #include "qota/raster_sampler.hpp"
 #include "qota/treefile.hpp"
+#include "cancel.hpp"
 #include "qota_tools.hpp"
 #include "text_output.hpp"
 
 namespace qota::tools {
 namespace {
 
-// "'token' <what>", built by appending (GCC 12 warns falsely on "'" + std::string + "'").
+// "'token' <what>", built by appending (GCC 12 warns falsely on "'" + std::string + "'"), with
+// bytes a terminal would not show (control characters, a byte-order mark) written as escapes.
 std::string quoted(std::string_view token, std::string_view what) {
   std::string m = "'";
-  m += token;
+  for (const char c : token) {
+    const auto u = static_cast<unsigned char>(c);
+    if (u >= 0x20 && u < 0x7f) {
+      m += c;
+    } else {
+      static const char* hex = "0123456789ABCDEF";
+      m += c == '\r' ? std::string("\\r") : c == '\t' ? std::string("\\t") : std::string{'\\', 'x', hex[u >> 4], hex[u & 15]};
+    }
+  }
   m += "' ";
   m += what;
   return m;
@@ -340,13 +350,23 @@ class LineLoop {
     };
     std::string data, raw, ahead;  // data: the last block's unfinished line, then this block
     std::vector<std::string_view> lines;
+    bool first = true, crOnly = false;
     for (bool end = readBlock(raw);;) {
+      if (first) {
+        // A UTF-8 byte-order mark is not part of the first line; a file whose lines end in a
+        // carriage return alone (classic Mac OS) has no newline in its first block.
+        if (raw.compare(0, 3, "\xEF\xBB\xBF") == 0) raw.erase(0, 3);
+        crOnly = raw.find('\n') == std::string::npos && raw.find('\r') != std::string::npos;
+        first = false;
+      }
+      if (crOnly) std::replace(raw.begin(), raw.end(), '\r', '\n');
       data.append(raw);
       std::future<bool> next;
       if (!end) next = std::async(std::launch::async, [&] { return readBlock(ahead); });
       const std::size_t start = splitLines(data, end, lines);
       constexpr std::size_t kBatch = 1 << 16;
       for (std::size_t b = 0; b < lines.size(); b += kBatch) {
+        throwIfCancelled();
         batchOf(std::span<const std::string_view>(lines).subspan(b, std::min(kBatch, lines.size() - b)));
       }
       data.erase(0, start);

@@ -10,6 +10,7 @@
 #include "qota/instant.hpp"
 #include "qota/shadow.hpp"
 #include "qota/sunlight.hpp"
+#include "cancel.hpp"
 #include "qota_tools.hpp"
 #include "raster_output.hpp"
 #include "shadow_parts.hpp"
@@ -18,9 +19,9 @@
 namespace qota::tools {
 
 Progress termProgress(bool quiet, double lo, double hi) {
-  if (quiet) return {};
+  if (quiet) return [](double, const char*) { return !cancelRequested(); };
   return [lo, hi](double done, const char* message) {
-    return GDALTermProgress(lo + (hi - lo) * done, message, nullptr) != FALSE;
+    return GDALTermProgress(lo + (hi - lo) * done, message, nullptr) != FALSE && !cancelRequested();
   };
 }
 
@@ -144,7 +145,13 @@ int shadow(const ShadowOptions& o, std::ostream& out, std::ostream& err) {
     }
     const std::string format = o.output.empty() ? "" : o.format.empty() ? driverForPath(o.output) : o.format;
     checkOptions(o, format);
+    const int mostValue = std::max({o.litValue, o.shadowValue, o.nodataValue});
+    for (const std::string& warning : checkCreationOptions(format, o.creationOptions, !o.hours, mostValue)) {
+      err << "qota shadow: warning: GDAL: " << warning << '\n';
+    }
+    const std::uint64_t resident = memory::residentBytes();
     if (runsByTiles(o)) return shadowByTiles(o, format, out, err);
+    const std::uint64_t estimate = wholeEstimate(o, resident);
     DemOptions demOptions;
     demOptions.band = o.band;
     demOptions.lonLatAsCartesian = true;  // read as lon/lat: the frame puts it on its ellipsoid
@@ -226,7 +233,7 @@ int shadow(const ShadowOptions& o, std::ostream& out, std::ostream& err) {
     stage.commit();
     if (!o.quiet) {
       out << "written: " << o.output << (o.png.empty() ? "" : " and " + o.png) << '\n'
-          << "memory: peak " << memory::peakBytes() / (1 << 20) << " MiB (estimated " << dem.estimatedBytes / (1 << 20)
+          << "memory: peak " << memory::peakBytes() / (1 << 20) << " MiB (estimated " << estimate / (1 << 20)
           << " MiB)\n";
     }
     return 0;

@@ -14,6 +14,7 @@
 #include "qota/memory_budget.hpp"
 #include "qota/shadow_tiles.hpp"
 #include "qota/sunlight.hpp"
+#include "cancel.hpp"
 #include "raster_output.hpp"
 #include "shadow_parts.hpp"
 #include "text_output.hpp"
@@ -23,15 +24,26 @@
 namespace qota::tools {
 namespace {
 
-// What a run by tiles holds besides the tiles' windows: the process with its libraries
-// (memory::kProcessBase), GDAL's block cache (set to kGdalCache below) and a margin for the
-// output's compression buffers and the tile's values.
-constexpr std::uint64_t kGdalCache = 64ull << 20;
-constexpr std::uint64_t kFixedBytes = memory::kProcessBase + kGdalCache + (32ull << 20);
+// What a run by tiles holds besides the tiles' windows: the process as it is when the run starts
+// (its libraries, measured then), what PROJ's database and GDAL's drivers add once used (measured
+// up to 8 MiB on the test rasters, with GDAL's cache of a small tile; kLater), GDAL's block cache
+// (a thirty-second of the budget, 2 to 64 MiB: it holds the blocks read and the output's blocks
+// until written) and the tile's values.
+constexpr std::uint64_t kLater = 8ull << 20;
+constexpr std::uint64_t kTileBytesPerCell = 16;  // the values written and the tile's lights
 
-// What the whole raster in memory takes (measured 170 bytes a cell on the Rainier DEM's run,
-// loadDem's mesh and the frame's together), with a margin.
-constexpr std::uint64_t kWholeBytesPerCell = 220;
+std::uint64_t gdalCacheFor(std::uint64_t allowed) {
+  return std::clamp<std::uint64_t>(allowed / 32, 2ull << 20, 64ull << 20);
+}
+// The whole raster's run loads more of GDAL and PROJ than a tile's (measured up to 11 MiB).
+constexpr std::uint64_t kWholeLater = 12ull << 20;
+
+
+// Measured rates on one core of this project's reference machine (bench/shadow_tiles.sh): the
+// pass over the heights reads 60 M cells a second or more, and shadows by tiles take about 0.4 us
+// a cell at mid suns (more at low ones). For estimates printed before long work, not promises.
+constexpr double kPassCellsPerSecond = 60e6;
+constexpr double kShadowCellsPerSecond = 2.5e6;
 
 std::uint64_t memoryAllowed(const ShadowOptions& o) {
   if (o.maxMemory) return o.maxMemory;
@@ -39,16 +51,45 @@ std::uint64_t memoryAllowed(const ShadowOptions& o) {
   return available ? available / 4 * 3 : 4ull << 30;
 }
 
+// Bytes a pixel of the band takes (GDAL's cache holds blocks of them).
+std::uint64_t pixelBytes(const std::string& path, int band) {
+  std::unique_ptr<GDALDataset> ds(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER));
+  GDALRasterBand* b = ds ? ds->GetRasterBand(std::max(1, band)) : nullptr;
+  return b ? static_cast<std::uint64_t>(GDALGetDataTypeSizeBytes(b->GetRasterDataType())) : 8;
+}
+
+std::string mib(std::uint64_t bytes) { return std::to_string((bytes + (1 << 20) - 1) >> 20) + " MiB"; }
+
 std::string clock(double seconds) {
-  const auto s = static_cast<long long>(std::llround(std::max(0.0, seconds)));
+  const auto s = static_cast<long long>(std::llround(std::min(std::max(0.0, seconds), 3.6e9)));
   char text[32];
   std::snprintf(text, sizeof text, "%lld:%02lld:%02lld", s / 3600, s / 60 % 60, s % 60);
   return text;
 }
 
+// A progress line that moves within a second on any input: "what: 12.3 %, 0:00:04 elapsed, ETA
+// 0:00:29", rewritten at most ten times a second; none when quiet.
+Progress etaProgress(bool quiet, std::ostream& out, const std::string& what) {
+  if (quiet) return [](double, const char*) { return !cancelRequested(); };
+  const auto started = std::chrono::steady_clock::now();
+  auto shown = started - std::chrono::seconds(1);
+  return [&out, what, started, shown](double done, const char*) mutable {
+    if (cancelRequested()) return false;
+    const auto now = std::chrono::steady_clock::now();
+    if (done < 1 && now - shown < std::chrono::milliseconds(100)) return true;
+    shown = now;
+    const double elapsed = std::chrono::duration<double>(now - started).count();
+    out << '\r' << what << ": " << formatNumber(100 * done, 3) << " %, " << clock(elapsed) << " elapsed";
+    if (done > 0 && done < 1) out << ", ETA " << clock(elapsed / done - elapsed);
+    out << "   " << (done >= 1 ? "\n" : "") << std::flush;
+    return true;
+  };
+}
+
 // The tiles, from the state file when there is one, else from a pass over the heights (then
 // written to the state file, when asked, at once: other jobs may use it while this one works).
-ShadowTiles passOverHeights(const ShadowOptions& o, const DemOptions& demOptions, const FrameOptions& frameOptions) {
+ShadowTiles passOverHeights(const ShadowOptions& o, const DemOptions& demOptions, const FrameOptions& frameOptions,
+                            std::uint64_t passBytes, std::ostream& out) {
   std::error_code ec;
   if (!o.tilesState.empty() && std::filesystem::exists(std::filesystem::symlink_status(o.tilesState, ec))) {
     const std::string text = readSmallFile(o.tilesState, ShadowTiles::kMostStateBytes);
@@ -58,7 +99,7 @@ ShadowTiles passOverHeights(const ShadowOptions& o, const DemOptions& demOptions
       throw Error(o.tilesState + ": " + e.what());
     }
   }
-  ShadowTiles tiles(o.source, demOptions, frameOptions, termProgress(o.quiet, 0, 1));
+  ShadowTiles tiles(o.source, demOptions, frameOptions, etaProgress(o.quiet, out, "reading the heights"), passBytes);
   if (!o.tilesState.empty()) {
     AtomicFile file(o.tilesState);
     file.stream() << tiles.state();
@@ -69,14 +110,32 @@ ShadowTiles passOverHeights(const ShadowOptions& o, const DemOptions& demOptions
 
 }  // namespace
 
-bool runsByTiles(const ShadowOptions& o) {
-  if (o.tileSize > 0 || o.tile || !o.tilesState.empty()) return true;
+std::vector<Eigen::Vector3d> lightsForEstimate(const ShadowOptions& o) {
+  // Only the light's altitude matters: -az/-alt and --sun-vector say it; an instant or hours
+  // take the lowest sun's cost.
+  if (o.sunVector && o.sunVector->allFinite()) return {*o.sunVector};
+  if (o.time.empty() && !o.hours) {
+    const double alt = o.altitude.value_or(45) * M_PI / 180;
+    return {Eigen::Vector3d(0, std::cos(alt), std::sin(alt))};
+  }
+  return {};
+}
+
+std::uint64_t wholeEstimate(const ShadowOptions& o, std::uint64_t resident) {
   DemOptions demOptions;
   demOptions.band = o.band;
   demOptions.lonLatAsCartesian = true;
   const DemTerrain d = describeDem(o.source, demOptions);
   const std::uint64_t cells = static_cast<std::uint64_t>(d.width) * static_cast<std::uint64_t>(d.height);
-  return memory::kProcessBase + cells * kWholeBytesPerCell > memoryAllowed(o);
+  // The process, what its libraries add, the raster's and the output's blocks in GDAL's cache,
+  // the terrain, its frame and the mask (or the hours and their step's mask).
+  return resident + kWholeLater + cells * (pixelBytes(o.source, o.band) + (o.hours ? 4 + 16 : 1)) +
+         cells * ShadowTiles::bytesPerWholeCell(lightsForEstimate(o));
+}
+
+bool runsByTiles(const ShadowOptions& o) {
+  if (o.tileSize > 0 || o.tile || !o.tilesState.empty()) return true;
+  return wholeEstimate(o, memory::residentBytes()) > memoryAllowed(o);
 }
 
 int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostream& out, std::ostream& err) {
@@ -90,28 +149,54 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
       throw Error("--tile-size " + std::to_string(o.tileSize) +
                   ": give a positive multiple of 16 (a GeoTIFF's blocks; 256, 512, 1024...)");
     }
+    // The budget: the process as it is now, GDAL's cache scaled to the budget, and the rest for
+    // the tiles' windows.
     const std::uint64_t allowed = memoryAllowed(o);
-    if (allowed <= kFixedBytes) {
-      throw Error("--max-memory " + memory::gib(allowed) + ": the process, GDAL's cache and the output take " +
-                  memory::gib(kFixedBytes) + " before any tile; allow more");
+    DemOptions demOptions;
+    demOptions.band = o.band;
+    demOptions.lonLatAsCartesian = true;
+    const DemTerrain described = describeDem(o.source, demOptions);
+    const double cells = static_cast<double>(described.width) * static_cast<double>(described.height);
+    // GDAL's cache need hold no more than the raster's blocks and the output's.
+    const std::uint64_t cache = std::min<std::uint64_t>(
+        gdalCacheFor(allowed),
+        std::max<double>(1 << 20, cells * static_cast<double>(pixelBytes(o.source, o.band) + (o.hours ? 4 : 1))));
+    const std::uint64_t fixed = memory::residentBytes() + kLater + cache;
+    if (allowed <= fixed + (1ull << 20)) {
+      throw Error("--max-memory " + mib(allowed) + ": the process itself takes " + mib(fixed - cache) +
+                  " and GDAL's cache " + mib(cache) + " before any tile; allow at least " +
+                  mib(fixed + (8ull << 20)));
     }
-    const std::uint64_t windowBytes = allowed - kFixedBytes;
-    GDALSetCacheMax64(static_cast<GIntBig>(kGdalCache));
+    const std::uint64_t windowBytes = allowed - fixed;
+    GDALSetCacheMax64(static_cast<GIntBig>(cache));
     const auto started = std::chrono::steady_clock::now();
     const auto seconds = [&] {
       return std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
     };
 
-    DemOptions demOptions;
-    demOptions.band = o.band;
-    demOptions.lonLatAsCartesian = true;
     FrameOptions frameOptions;
     frameOptions.flat = o.flat;
     frameOptions.pixelSize = o.pixelSize;
     frameOptions.zFactor = o.zFactor;
     frameOptions.scale = o.scale;
+    // Work sized before it starts: the pass over the heights reads every cell, and the shadows
+    // take each about a microsecond; a raster beyond --max-cells is refused with the estimate.
+    const double passSeconds = o.tilesState.empty() ? cells / kPassCellsPerSecond : 0;
+    const double shadowSeconds = (o.tile ? std::min(cells, double(o.tileSize) * o.tileSize) : cells) /
+                                 kShadowCellsPerSecond * (o.hours ? 10.0 : 1.0);
+    if (cells > static_cast<double>(o.maxCells)) {
+      throw Error(o.source + ": " + std::to_string(described.width) + " x " + std::to_string(described.height) +
+                  " cells (" + formatReadable(cells, 0) + "), more than --max-cells " + std::to_string(o.maxCells) +
+                  " allows: at the measured rates, reading its heights takes about " + clock(cells / kPassCellsPerSecond) +
+                  " and its shadows about " + clock(cells / kShadowCellsPerSecond) +
+                  (o.hours ? " a step" : "") + "; give --max-cells " + std::to_string(static_cast<std::uint64_t>(cells)) + " to run it");
+    }
+    if (!o.quiet) {
+      out << "estimate: " << formatReadable(cells, 0) << " cells; " << (passSeconds > 0 ? "reading the heights about " + clock(passSeconds) + ", " : std::string())
+          << "the shadows about " << clock(shadowSeconds) << (o.hours ? " (hours: more at many steps)" : "") << '\n';
+    }
     if (o.tile) {  // checked before the pass over the heights, which a large raster makes long
-      const DemTerrain d = describeDem(o.source, demOptions);
+      const DemTerrain& d = described;
       const int across = (d.width + o.tileSize - 1) / o.tileSize, down = (d.height + o.tileSize - 1) / o.tileSize;
       const auto [c, r] = *o.tile;
       if (c < 0 || r < 0 || c >= across || r >= down) {
@@ -121,7 +206,11 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
       }
     }
     if (!o.quiet) out << "qota shadow: " << o.source << " -> " << o.output << " (" << format << ", by tiles)\n";
-    const ShadowTiles tiles = passOverHeights(o, demOptions, frameOptions);
+    // The pass over the heights holds a band of rows: half the windows' share at most.
+    const std::uint64_t passBytes = std::clamp<std::uint64_t>(windowBytes / 2, 1ull << 20, ShadowTiles::kPassBytes);
+    std::error_code ec;
+    const bool restoring = !o.tilesState.empty() && std::filesystem::exists(std::filesystem::symlink_status(o.tilesState, ec));
+    const ShadowTiles tiles = passOverHeights(o, demOptions, frameOptions, passBytes, out);
     const LocalFrame& frame = tiles.frame();
     const DemTerrain& dem = tiles.dem();
     if (!o.quiet) out << "frame: " << frame.description << '\n';
@@ -152,15 +241,35 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
       lights = {light.toward};
     }
 
-    // The tile grid.
-    const int side = o.tileSize > 0 ? o.tileSize : tiles.tileSideFor(windowBytes, lights, 256);
+    // The tile grid: the largest tiles (a multiple of 256 cells a side, or of 16 below that)
+    // whose windows, planned from the heights' block ranges, fit the budget.
+    const std::uint64_t perCell = ShadowTiles::bytesPerWindowCell(lights) + kTileBytesPerCell;
+    const auto gridOf = [&](int s) {
+      std::vector<CellWindow> all;
+      for (int r = 0; r < dem.height; r += s) {
+        for (int c = 0; c < dem.width; c += s) all.push_back({c, r, std::min(s, dem.width - c), std::min(s, dem.height - r)});
+      }
+      return all;
+    };
+    const auto fits = [&](int s) { return tiles.largestWindowCells(gridOf(s), lights) * perCell <= windowBytes; };
+    int side = o.tileSize;
+    if (side <= 0) {
+      for (const int multiple : {256, 16}) {
+        int lo = 0, hi = (std::max(dem.width, dem.height) + multiple - 1) / multiple;  // lo fits (0: none), hi + 1 not
+        if (fits(hi * multiple)) lo = hi;
+        while (hi - lo > 1) {
+          const int mid = (lo + hi) / 2;
+          (fits(mid * multiple) ? lo : hi) = mid;
+        }
+        side = lo * multiple;
+        if (side > 0) break;
+      }
+    }
     if (side == 0) {
-      const std::array<int, 4> halo = tiles.haloFor(256, 256, lights);
-      const std::uint64_t need =
-          static_cast<std::uint64_t>(256 + halo[0] + halo[1]) * (256 + halo[2] + halo[3]) * ShadowTiles::bytesPerWindowCell();
-      throw Error("--max-memory " + memory::gib(allowed) + ": a tile of 256 cells with the halo its shadows need (" +
-                  std::to_string(halo[0] + halo[1]) + " x " + std::to_string(halo[2] + halo[3]) + " cells) takes " +
-                  memory::gib(need + kFixedBytes) + "; allow that much, or use a higher sun");
+      const std::uint64_t need = tiles.largestWindowCells(gridOf(16), lights) * perCell;
+      throw Error("--max-memory " + mib(allowed) + ": even tiles of 16 cells need windows of up to " +
+                  mib(need) + " to hold every triangle that can shade them (a low sun's reach), so the run takes about " +
+                  mib(fixed + need) + "; allow that much, or use a higher sun");
     }
     const int across = (dem.width + side - 1) / side, down = (dem.height + side - 1) / side;
     std::vector<std::array<int, 2>> todo;
@@ -175,9 +284,18 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
       const int col = t[0] * side, row = t[1] * side;
       return CellWindow{col, row, std::min(side, dem.width - col), std::min(side, dem.height - row)};
     };
+    // The memory estimate, from the windows the tiles to do will read.
+    std::vector<CellWindow> planned;
+    for (const auto& t : todo) planned.push_back(tileOf(t));
+    const std::uint64_t largest = tiles.largestWindowCells(planned, lights);
+    const std::uint64_t passRows = std::clamp<std::uint64_t>(passBytes / ShadowTiles::kPassBytesPerCell / dem.width, 1,
+                                                             static_cast<std::uint64_t>(dem.height));
+    const std::uint64_t passHeld = restoring ? 0 : passRows * dem.width * ShadowTiles::kPassBytesPerCell;
+    const std::uint64_t estimate = fixed + std::max(passHeld, largest * perCell);
     if (!o.quiet) {
       out << "tiles: " << todo.size() << " of " << side << " x " << side << " cells (" << across << " x " << down
-          << " over the raster), memory allowed " << memory::gib(allowed) << '\n';
+          << " over the raster); memory estimated " << mib(estimate) << " of " << mib(allowed) << " allowed (the process "
+          << mib(fixed - cache) << ", GDAL's cache " << mib(cache) << ", windows of up to " << largest << " cells)\n";
     }
 
     // The output: the whole raster, or the one tile's cells, on the DEM's grid.
@@ -213,6 +331,7 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
     std::uint64_t lit = 0, valid = 0;
     std::vector<double> values;
     for (std::size_t k = 0; k < todo.size(); ++k) {
+      throwIfCancelled();
       const CellWindow tile = tileOf(todo[k]);
       values.resize(tile.cellCount());
       if (o.hours) {
@@ -249,7 +368,8 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
         out << "lit: " << formatNumber(valid ? 100.0 * lit / valid : 0.0, 2) << " % of " << valid << " cells\n";
       }
       out << "written: " << o.output << '\n'
-          << "memory: peak " << memory::peakBytes() / (1 << 20) << " MiB (allowed " << allowed / (1 << 20) << " MiB)\n"
+          << "memory: peak " << memory::peakBytes() / (1 << 20) << " MiB (estimated " << estimate / (1 << 20)
+          << " MiB, allowed " << allowed / (1 << 20) << " MiB)\n"
           << "time: " << formatNumber(seconds(), 3) << " s\n";
     }
     return 0;

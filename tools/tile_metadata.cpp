@@ -1,10 +1,13 @@
 // The seal of a tile's metadata (see tile_metadata.hpp).
 #include "tile_metadata.hpp"
 
+#include <gdal_priv.h>
+
 #include <algorithm>
 #include <charconv>
 #include <cstdint>
 
+#include "qota/error.hpp"
 #include "qota/height_blocks.hpp"
 
 namespace qota::tools {
@@ -37,7 +40,34 @@ const std::vector<std::string>& runFields() {
   return fields;
 }
 
+MetadataItems qotaItemsOf(GDALDataset& dataset) {
+  constexpr std::size_t kLongestItem = 4096;  // a light's description is the longest qota writes
+  MetadataItems items;
+  for (char** item = dataset.GetMetadata(); item && *item; ++item) {
+    const std::string text = *item;
+    const auto eq = text.find('=');
+    if (text.rfind("QOTA_", 0) != 0 || eq == std::string::npos) continue;
+    if (text.size() > kLongestItem) throw Error("damaged: a QOTA_ metadata item of " + std::to_string(text.size()) + " bytes");
+    items.push_back({text.substr(0, eq), text.substr(eq + 1)});
+  }
+  return items;
+}
+
+TileGrid tileGridOf(GDALDataset& dataset) {
+  TileGrid grid;
+  grid.width = dataset.GetRasterXSize(), grid.height = dataset.GetRasterYSize();
+  if (dataset.GetGeoTransform(grid.geotransform.data()) != CE_None) grid.geotransform = {0, 1, 0, 0, 0, 1};
+  GDALRasterBand* band = dataset.GetRasterCount() > 0 ? dataset.GetRasterBand(1) : nullptr;
+  grid.dataType = band ? GDALGetDataTypeName(band->GetRasterDataType()) : "";
+  int has = 0;
+  const double nodata = band ? band->GetNoDataValue(&has) : 0;
+  if (has) grid.nodata = nodata;
+  return grid;
+}
+
 MetadataItems sealTile(MetadataItems items, const TileGrid& grid) {
+  items.erase(std::remove_if(items.begin(), items.end(), [](const auto& i) { return i.first == "QOTA_CHECKSUM"; }),
+              items.end());
   const std::string sum = checksumOf(sealedText(items, grid));
   items.push_back({"QOTA_CHECKSUM", sum});
   return items;

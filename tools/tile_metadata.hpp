@@ -20,6 +20,8 @@
 
 #include "qota/height_blocks.hpp"
 
+class GDALDataset;
+
 namespace qota::tools {
 
 using MetadataItems = std::vector<std::pair<std::string, std::string>>;
@@ -35,6 +37,11 @@ struct TileGrid {
   std::string dataType;  // GDAL's name ("Byte", "Float32")
   std::optional<double> nodata;
 };
+
+// A dataset's QOTA_* items (checksum included) and its grid, as sealTile and sealHolds take them.
+// Throws qota::Error for an item longer than any qota writes (damage).
+MetadataItems qotaItemsOf(GDALDataset& dataset);
+TileGrid tileGridOf(GDALDataset& dataset);
 
 // `items` with QOTA_CHECKSUM (of items and grid) added last.
 MetadataItems sealTile(MetadataItems items, const TileGrid& grid);

@@ -90,6 +90,8 @@ void setLimit(std::uint64_t bytes) { gLimit.store(bytes); }
 
 std::uint64_t peakBytes() { return procKib("/proc/self/status", "VmHWM:"); }
 
+std::uint64_t residentBytes() { return procKib("/proc/self/status", "VmRSS:"); }
+
 std::string gib(std::uint64_t bytes) {
   std::ostringstream s;
   s.precision(3);

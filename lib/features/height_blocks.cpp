@@ -85,11 +85,22 @@ void HeightBlocks::addRows(int row, int count, const std::vector<double>& height
     if (r % side_ == 0) {
       for (int k = 0; k < n; ++k) XXH3_64bits_reset(stateAt(open_, k));
     }
+    if (r % side_ == 0) {
+      lows_.resize(lows_.size() + n, INFINITY);
+      highs_.resize(highs_.size() + n, -INFINITY);
+    }
+    double* low = lows_.data() + lows_.size() - n;
+    double* high = highs_.data() + highs_.size() - n;
     const double* line = heights.data() + static_cast<std::size_t>(r - row) * width_;
     for (int k = 0; k < n; ++k) {
       const int c0 = k * side_, w = std::min(side_, width_ - c0);
       canonicalCopy(line + c0, static_cast<std::size_t>(w), segment.data());
       XXH3_64bits_update(stateAt(open_, k), segment.data(), static_cast<std::size_t>(w) * sizeof(double));
+      for (int i = 0; i < w; ++i) {
+        const double v = segment[static_cast<std::size_t>(i)];
+        if (v < low[k]) low[k] = v;  // (NaN never is)
+        if (v > high[k]) high[k] = v;
+      }
     }
     if (r + 1 == height_ || (r + 1) % side_ == 0) {
       for (int k = 0; k < n; ++k) hashes_.push_back(XXH3_64bits_digest(stateAt(open_, k)));
@@ -97,6 +108,32 @@ void HeightBlocks::addRows(int row, int count, const std::vector<double>& height
   }
   rowsAdded_ = row + count;
   if (complete()) open_ = {};
+}
+
+std::pair<double, double> HeightBlocks::rangeOver(const CellWindow& w) const {
+  double lo = INFINITY, hi = -INFINITY;
+  if (lows_.size() != hashes_.size() || !complete()) return {-INFINITY, INFINITY};  // nothing known
+  const CellWindow a = alignedOut(w);
+  for (int r = a.row / side_; r < (a.row + a.height + side_ - 1) / side_; ++r) {
+    for (int c = a.col / side_; c < (a.col + a.width + side_ - 1) / side_; ++c) {
+      const std::size_t k = static_cast<std::size_t>(r) * across() + c;
+      lo = std::min(lo, lows_[k]), hi = std::max(hi, highs_[k]);
+    }
+  }
+  return {lo, hi};
+}
+
+void HeightBlocks::setRanges(std::vector<double> lows, std::vector<double> highs) {
+  if (lows.size() != hashes_.size() || highs.size() != hashes_.size()) {
+    throw Error(std::to_string(lows.size()) + " block height ranges for " + std::to_string(hashes_.size()) + " blocks");
+  }
+  for (std::size_t k = 0; k < lows.size(); ++k) {
+    const bool empty = lows[k] == INFINITY && highs[k] == -INFINITY;
+    if (!empty && !(std::isfinite(lows[k]) && std::isfinite(highs[k]) && lows[k] <= highs[k])) {
+      throw Error("a block height range that no raster gives");
+    }
+  }
+  lows_ = std::move(lows), highs_ = std::move(highs);
 }
 
 CellWindow HeightBlocks::alignedOut(const CellWindow& w) const {

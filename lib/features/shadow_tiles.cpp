@@ -6,6 +6,7 @@
 #include <charconv>
 #include <cmath>
 #include <mutex>
+#include <optional>
 #include <sstream>
 
 #include "qota/error.hpp"
@@ -95,7 +96,7 @@ Eigen::Vector2d pixelsOf(const Local& l, const Eigen::Vector3d& d) {
 }  // namespace
 
 ShadowTiles::ShadowTiles(const std::string& path, const DemOptions& demOptions, const FrameOptions& frameOptions,
-                         const Progress& progress)
+                         const Progress& progress, std::uint64_t bytes)
     : source_(std::make_unique<Source>()) {
   source_->windows = std::make_unique<DemWindows>(path, demOptions);
   const DemWindows* windows = source_->windows.get();
@@ -103,21 +104,21 @@ ShadowTiles::ShadowTiles(const std::string& path, const DemOptions& demOptions, 
     windows->read(w.col, w.row, w.width, w.height, out);
   };
   basis_ = frameBasis(windows->dem(), frameOptions);
-  passOverHeights(progress);
+  passOverHeights(progress, bytes);
 }
 
 ShadowTiles::ShadowTiles(const DemTerrain& description, HeightReader read, const FrameOptions& frameOptions,
-                         const Progress& progress)
+                         const Progress& progress, std::uint64_t bytes)
     : source_(std::make_unique<Source>()) {
   source_->reader = std::move(read);
   basis_ = frameBasis(description, frameOptions);
-  passOverHeights(progress);
+  passOverHeights(progress, bytes);
 }
 
 ShadowTiles::ShadowTiles(ShadowTiles&&) noexcept = default;
 ShadowTiles& ShadowTiles::operator=(ShadowTiles&&) noexcept = default;
 
-void ShadowTiles::passOverHeights(const Progress& progress) {
+void ShadowTiles::passOverHeights(const Progress& progress, std::uint64_t bytes) {
   const std::string& path = basis_.raster.path;
   const int w = basis_.raster.width, h = basis_.raster.height;
   const RasterGrid::Closure& closure = basis_.closure;
@@ -126,7 +127,8 @@ void ShadowTiles::passOverHeights(const Progress& progress) {
   }
   // The height range: one pass by rows, a few million cells at a time.
   double lo = INFINITY, hi = -INFINITY;
-  const int rowsAtOnce = static_cast<int>(std::clamp<std::int64_t>((4 << 20) / std::max(1, w), 1, h));
+  const std::uint64_t cellsAtOnce = std::max<std::uint64_t>(1, (bytes ? bytes : kPassBytes) / kPassBytesPerCell);
+  const int rowsAtOnce = static_cast<int>(std::clamp<std::uint64_t>(cellsAtOnce / std::max(1, w), 1, h));
   std::vector<double> z;
   std::vector<std::uint8_t> valid;
   blocks_ = HeightBlocks(w, h);
@@ -179,14 +181,42 @@ void ShadowTiles::passOverHeights(const Progress& progress) {
 
 ShadowTiles::~ShadowTiles() = default;
 
-std::uint64_t ShadowTiles::bytesPerWindowCell() {
+namespace {
+
+// How much of a low light's extra memory a light takes: 0 at high suns (the cotangent of the
+// altitude at most 1.5), 1 at low ones (at least 7.5: altitude 7.6 degrees and below), in between
+// linearly. A low light's rays cross more triangles, and the strips hold each triangle once for
+// every strip it spans.
+double lowLightShare(const std::vector<Eigen::Vector3d>& lights) {
+  double share = lights.empty() ? 1.0 : 0.0;
+  for (const Eigen::Vector3d& l : lights) {
+    const Eigen::Vector3d u = l.normalized();
+    const double across = std::hypot(u.x(), u.y());
+    const double cot = u.z() > 0 ? across / u.z() : INFINITY;
+    share = std::max(share, std::clamp((cot - 1.5) / 6.0, 0.0, 1.0));
+  }
+  return share;
+}
+
+}  // namespace
+
+std::uint64_t ShadowTiles::bytesPerWindowCell() { return bytesPerWindowCell({}); }
+
+std::uint64_t ShadowTiles::bytesPerWindowCell(const std::vector<Eigen::Vector3d>& lights) {
   // A window's frame at the mask's peak: vertices (24), validity and light (2), the triangles'
-  // corners (24) and facing (2), the strips (24 a triangle entry, up to about 2 entries a cell
-  // at a low sun), the cell order (8); before them, the heights read and filled and the
-  // vertices' pixel coordinates. Measured on the 4804^2 Rainier mosaic as one window (peak RSS
-  // less the process's, over the cells): 91 bytes at altitude 30 and 80, 103 at 5, 118 at 2;
-  // with a quarter more.
-  return 150;
+  // corners (24) and facing (2), the strips (24 a triangle entry, up to about 2 entries a cell at
+  // a low sun), the cell order (8); before them, the heights read and filled. Measured on the
+  // Rainier DEM (bench/shadow_memory.sh: single tiles of 16 to 1024 cells from a state, peak RSS
+  // less the process's, over the window's planned cells): 92 to 101 bytes at altitudes 30 and
+  // 60, 129 to 138 at 10, 142 to 144 at 5, 149 to 155 at 2; taken with a tenth more.
+  return static_cast<std::uint64_t>(std::ceil(105 + 66 * lowLightShare(lights)));
+}
+
+std::uint64_t ShadowTiles::bytesPerWholeCell(const std::vector<Eigen::Vector3d>& lights) {
+  // The whole raster in memory (loadDem's mesh, then the frame and the mask): measured on the
+  // Rainier DEM 128 to 134 bytes a cell at altitudes 30 and 60, 157 at 10, 171 at 5, 184 at 2
+  // (peak RSS less the process's); taken with a tenth more.
+  return static_cast<std::uint64_t>(std::ceil(150 + 66 * lowLightShare(lights)));
 }
 
 std::array<int, 4> ShadowTiles::halo(const CellWindow& tile, const std::vector<Eigen::Vector3d>& lights,
@@ -259,7 +289,7 @@ CellWindow ShadowTiles::windowOf(const CellWindow& tile, const std::array<int, 4
 
 int ShadowTiles::tileSideFor(std::uint64_t bytes, const std::vector<Eigen::Vector3d>& lights, int multiple) const {
   const int w = basis_.raster.width, h = basis_.raster.height;
-  const std::uint64_t most = bytes / bytesPerWindowCell();
+  const std::uint64_t most = bytes / bytesPerWindowCell(lights);
   // Whether tiles of `side` fit; a larger side never takes a smaller window.
   const auto fits = [&](int side) {
     const std::array<int, 4> o = haloFor(side, side, lights);
@@ -358,10 +388,11 @@ double ShadowTiles::lowestIn(const CellWindow& tile) const {
   return lowestOf(tile, std::move(z), valid);
 }
 
-LocalFrame ShadowTiles::frameOver(const CellWindow& tile, const CellWindow& window, std::uint64_t bytes) const {
-  if (bytes && window.cellCount() * bytesPerWindowCell() > bytes) {
+LocalFrame ShadowTiles::frameOver(const CellWindow& tile, const CellWindow& window, std::uint64_t bytes,
+                                  const std::vector<Eigen::Vector3d>& lights) const {
+  if (bytes && window.cellCount() * bytesPerWindowCell(lights) > bytes) {
     throw Error(basis_.raster.path + ": cells " + cells(tile) + " need a window of " + cells(window) + " (" +
-                memory::gib(window.cellCount() * bytesPerWindowCell()) + ") to hold every triangle that can shade them, over the " +
+                memory::gib(window.cellCount() * bytesPerWindowCell(lights)) + ") to hold every triangle that can shade them, over the " +
                 memory::gib(bytes) + " allowed; use smaller tiles or allow more memory");
   }
   std::vector<double> z;
@@ -378,7 +409,7 @@ LocalFrame ShadowTiles::windowOfTile(const CellWindow& tile, const std::vector<E
     return {};
   }
   window = windowOf(tile, halo(tile, lights, lowest));
-  return frameOver(tile, window, bytes);
+  return frameOver(tile, window, bytes, lights);
 }
 
 LocalFrame ShadowTiles::givenWindow(const CellWindow& given, std::vector<double> z, const CellWindow& tile,
@@ -517,7 +548,7 @@ SunlightHours ShadowTiles::hours(const CellWindow& tile, double startJulianDay, 
   double frameSlack = 0;
   CellWindow inside;
   const auto load = [&](int g) {
-    frame = frameOver(tile, windowOf(tile, halo(tile, groupLights[g], lowest)), bytes);
+    frame = frameOver(tile, windowOf(tile, halo(tile, groupLights[g], lowest)), bytes, groupLights[g]);
     // Every step the window computes is among its lights when its slack is within the bound
     // they were chosen with (sunlightHours's skip, for the window).
     if (frame.body.ellipsoid && frame.horizonSlack() > slack_ + 1e-9) {
@@ -555,6 +586,46 @@ SunlightHours ShadowTiles::hoursFromHeights(const CellWindow& window, std::vecto
 }
 
 std::array<int, 4> ShadowTiles::haloFor(int tileWidth, int tileHeight, const std::vector<Eigen::Vector3d>& lights) const {
+  return haloAtMost(tileWidth, tileHeight, lights, basis_.shared.minHeight);
+}
+
+std::uint64_t ShadowTiles::largestWindowCells(const std::vector<CellWindow>& tiles,
+                                              const std::vector<Eigen::Vector3d>& lights) const {
+  const LocalFrame& f = basis_.shared;
+  const int rw = basis_.raster.width, rh = basis_.raster.height;
+  int tw = 1, th = 1;
+  for (const CellWindow& t : tiles) tw = std::max(tw, t.width), th = std::max(th, t.height);
+  // The halo falls as a tile's lowest cell rises: tiles take the halo of the level at or below
+  // their bound, one of kLevels between the raster's lowest and highest (a few dozen halos for any
+  // number of tiles).
+  constexpr int kLevels = 32;
+  const double lo = std::isfinite(f.minHeight) ? f.minHeight : 0, hi = std::isfinite(f.maxHeight) ? f.maxHeight : lo;
+  std::vector<std::optional<std::array<int, 4>>> halos(kLevels + 1);
+  const double metres = f.metresPerUnit;
+  std::uint64_t most = 0;
+  for (const CellWindow& t : tiles) {
+    const auto [low, high] = blocks_.rangeOver(t);
+    const double bound = metres >= 0 ? low * metres : high * metres;  // the tile's lowest, at least
+    if (!std::isfinite(bound) && bound > 0) {  // no data: no window beyond the tile
+      most = std::max<std::uint64_t>(most, t.cellCount());
+      continue;
+    }
+    const int level = hi > lo && std::isfinite(bound)
+                          ? std::clamp(static_cast<int>(std::floor((bound - lo) / (hi - lo) * kLevels)), 0, kLevels)
+                          : 0;
+    if (!halos[static_cast<std::size_t>(level)]) {
+      halos[static_cast<std::size_t>(level)] = haloAtMost(tw, th, lights, lo + (hi - lo) * level / kLevels);
+    }
+    const std::array<int, 4>& h = *halos[static_cast<std::size_t>(level)];
+    const auto across = static_cast<std::uint64_t>(std::min(t.col + t.width + h[1], rw) - std::max(t.col - h[0], 0));
+    const auto down = static_cast<std::uint64_t>(std::min(t.row + t.height + h[3], rh) - std::max(t.row - h[2], 0));
+    most = std::max(most, across * down);
+  }
+  return most;
+}
+
+std::array<int, 4> ShadowTiles::haloAtMost(int tileWidth, int tileHeight, const std::vector<Eigen::Vector3d>& lights,
+                                           double lowestHeight) const {
   const LocalFrame& f = basis_.shared;
   const int w = basis_.raster.width, h = basis_.raster.height;
   std::array<int, 4> out{0, 0, 0, 0};
@@ -564,7 +635,7 @@ std::array<int, 4> ShadowTiles::haloFor(int tileWidth, int tileHeight, const std
   for (const auto& [c, r] : {std::pair{0.5, 0.5}, std::pair{0.0, 0.0}, std::pair{1.0, 0.0}, std::pair{0.0, 1.0},
                              std::pair{1.0, 1.0}}) {
     const CellWindow tile{static_cast<int>(c * (w - tw)), static_cast<int>(r * (h - th)), tw, th};
-    double lowest = f.minHeight;
+    double lowest = lowestHeight;
     if (f.body.ellipsoid) {
       // The surface falls below the tangent plane at the tile's centre by at most d^2 / 2R at a
       // distance d (R: the ellipsoid's least radius of curvature, b^2 / a); d is at most half
@@ -695,6 +766,18 @@ std::string ShadowTiles::state() const {
   hashes.reserve(blocks_.hashes().size() * 16);
   for (std::uint64_t h : blocks_.hashes()) hashes += hexOf(h);
   w.text("blocks", hashes);
+  // The blocks' height ranges (in the raster's unit): what plans a tile's window before reading it.
+  const auto numbers = [](const std::vector<double>& values) {
+    std::string out;
+    char buffer[64];
+    for (double v : values) {
+      out.append(buffer, std::to_chars(buffer, buffer + sizeof buffer, v, std::chars_format::hex).ptr);
+      out += ' ';
+    }
+    return out;
+  };
+  w.text("blockLows", numbers(blocks_.lows()));
+  w.text("blockHighs", numbers(blocks_.highs()));
   return w.finish();
 }
 
@@ -765,6 +848,26 @@ ShadowTiles ShadowTiles::restore(const std::string& state) {
     StateReader::refuse(std::string("with ") + e.what());
   }
   if (t.blocks_.side() != HeightBlocks(d.width, d.height).side()) StateReader::refuse("with blocks of another size");
+  const auto numbers = [](const std::string& text) {
+    std::vector<double> out;
+    const char* p = text.data();
+    const char* end = p + text.size();
+    while (p < end) {
+      double v = 0;
+      const auto [next, ec] = std::from_chars(p, end, v, std::chars_format::hex);
+      if (ec != std::errc() || next == end || *next != ' ') StateReader::refuse("with a block height range that is not numbers");
+      out.push_back(v);
+      p = next + 1;
+    }
+    return out;
+  };
+  std::vector<double> lows = numbers(r.text("blockLows"));  // (in this order: the text's)
+  std::vector<double> highs = numbers(r.text("blockHighs"));
+  try {
+    t.blocks_.setRanges(std::move(lows), std::move(highs));
+  } catch (const Error& e) {
+    StateReader::refuse(std::string("with ") + e.what());
+  }
   t.basis_.complete = true;
   return t;
 }

@@ -156,6 +156,12 @@ DemTerrain openDem(const std::string& path, const DemOptions& options,
   dem.driver = ds->GetDriver() ? ds->GetDriver()->GetDescription() : "";
   dem.width = ds->GetRasterXSize();
   dem.height = ds->GetRasterYSize();
+  if (dem.width < 2 || dem.height < 2) {
+    // Vertices are the pixel centres: one row or column of them spans no triangle, so there
+    // would be no surface to answer on, not even at the pixels' own centres.
+    throw Error(path + ": a raster of " + std::to_string(dem.width) + " x " + std::to_string(dem.height) +
+                " pixels; its pixel centres make no surface (qota needs at least 2 x 2 pixels)");
+  }
   double gt[6];
   if (ds->GetGeoTransform(gt) == CE_None) std::copy(gt, gt + 6, dem.geotransform.begin());
   checkGeotransform(path, dem.geotransform, dem.width, dem.height);

@@ -63,6 +63,28 @@ def _number_or_none(value, name):
         raise Error(f"{name} must be a number, got {value!r}") from None
 
 
+def _whole(value, name, lo=1, hi=2**31 - 1):
+    """A whole-number argument (band, threads, ...) in [lo, hi], or qota.Error naming it."""
+    if isinstance(value, bool) or not isinstance(value, (int, _np.integer)):
+        if isinstance(value, (float, _np.floating)) and float(value).is_integer():
+            value = int(value)
+        else:
+            raise Error(f"{name} must be a whole number, got {value!r}")
+    if not lo <= int(value) <= hi:
+        raise Error(f"{name} must be from {lo} to {hi}, got {value}")
+    return int(value)
+
+
+def _number(value, name):
+    """A real-number argument (azimuth, z_factor, ...) as a float, or qota.Error naming it."""
+    if isinstance(value, (bool, str, bytes)):
+        raise Error(f"{name} must be a number, got {value!r}")
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        raise Error(f"{name} must be a number, got {value!r}") from None
+
+
 def _coords(value, name):
     """A query coordinate as a float64 array: any real numbers (ints, floats, their arrays, any
     byte order or memory layout); complex numbers, strings and the like are refused, naming the
@@ -95,10 +117,16 @@ def _flat(a):
 
 
 def _heights_array(heights):
-    """A 2-D height grid as float64: masked cells (numpy.ma) become NaN, which are holes."""
+    """A 2-D height grid as contiguous float64: masked cells (numpy.ma) become NaN, which are
+    holes. One too large for memory is a MemoryError naming it (a broadcast view is made whole
+    here)."""
     if isinstance(heights, _np.ma.MaskedArray):
         heights = heights.astype(_np.float64).filled(_np.nan)
-    return _coords(heights, "heights")
+    a = _coords(heights, "heights")
+    try:
+        return _np.ascontiguousarray(a)
+    except MemoryError as e:
+        raise MemoryError(f"heights of shape {a.shape}: {e}") from None
 
 
 class Terrain:
@@ -155,9 +183,9 @@ class Terrain:
         if _interop.is_rasterio_dataset(path):
             local = _interop.local_file_of(path)
             if local is None:
-                return cls._from_grid(_interop.rasterio_grid(path, int(band)), mapping, radius, length)
+                return cls._from_grid(_interop.rasterio_grid(path, _whole(band, "band")), mapping, radius, length)
             path = local
-        return cls(_qota._Terrain.from_raster(_local_file(path), int(band), mapping,
+        return cls(_qota._Terrain.from_raster(_local_file(path), _whole(band, "band"), mapping,
                                               _number_or_none(radius, "radius"), _number_or_none(length, "length")))
 
     @classmethod
@@ -170,7 +198,7 @@ class Terrain:
         from_raster. Needs rioxarray (imported here, on first use)."""
         if not _interop.is_dataarray(da):
             raise Error(f"from_xarray takes an xarray.DataArray, got {type(da).__name__}")
-        return cls._from_grid(_interop.dataarray_grid(da, int(band)), _mapping(mapping), radius, length)
+        return cls._from_grid(_interop.dataarray_grid(da, _whole(band, "band")), _mapping(mapping), radius, length)
 
     @classmethod
     def _from_grid(cls, grid, mapping, radius, length) -> "Terrain":
@@ -360,6 +388,13 @@ def shadow(dem_path, azimuth=None, altitude=None, *, time=None, tz=None, hours=N
     """
     if time is None and (azimuth is None or altitude is None):
         raise Error("give azimuth and altitude, or time")
+    azimuth = None if azimuth is None else _number(azimuth, "azimuth")
+    altitude = None if altitude is None else _number(altitude, "altitude")
+    band, z_factor = _whole(band, "band"), _number(z_factor, "z_factor")
+    if time is not None and not isinstance(time, str):
+        raise Error(f"time must be an ISO 8601 text, got {time!r}")
+    if tz is not None and not isinstance(tz, str):
+        raise Error(f"tz must be a text (an offset or an IANA zone name), got {tz!r}")
     if _interop.is_dataarray(dem_path) or _interop.is_rasterio_dataset(dem_path):
         return _shadow_in_memory(dem_path, azimuth, altitude, time, tz, band, z_factor, output, hours)
     return _shadow_file(_local_file(dem_path), output, azimuth, altitude, time, tz, band, z_factor, hours)

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import _hours_span, _interop, _local_file, _qota
+from . import _hours_span, _interop, _local_file, _number, _qota, _whole
 from ._qota import Error
 
 __all__ = ["shadow", "tiles", "Tiles", "sample", "to_geotiff", "to_zarr"]
@@ -67,6 +67,8 @@ def _check_light(azimuth, altitude, time, tz, hours):
         raise Error("tz needs time (the date and time it is the zone of)")
     if hours is not None and time is None:
         raise Error("hours needs time for the date")
+    if time is None:
+        azimuth, altitude = _number(azimuth, "azimuth"), _number(altitude, "altitude")
     if time is None and not (-90 <= float(altitude) <= 90 and np.isfinite(float(azimuth))):
         raise Error(f"altitude must be between -90 and 90 degrees and azimuth finite, got {azimuth} {altitude}")
     if hours is not None:
@@ -131,7 +133,8 @@ def tiles(da, *, band=1, z_factor=1.0, heights_from="auto") -> Tiles:
     da.copy(data=...))."""
     if heights_from not in ("auto", "file", "array"):
         raise Error(f"heights_from must be 'auto', 'file' or 'array', got {heights_from!r}")
-    plane = _plane(da, int(band))[1]
+    band, z_factor = _whole(band, "band"), _number(z_factor, "z_factor")
+    plane = _plane(da, band)[1]
     if heights_from != "array":
         source = _source_file(plane)
         if source is not None:
@@ -247,6 +250,8 @@ def shadow(da, azimuth=None, altitude=None, *, time=None, tz=None, hours=None, b
     distance at which its rays clear the body's curve: a few hundred kilometres at the horizon).
     """
     span_hours = _check_light(azimuth, altitude, time, tz, hours)
+    band, z_factor, threads = _whole(band, "band"), _number(z_factor, "z_factor"), _whole(threads, "threads", 0)
+    void_margin = _whole(void_margin, "void_margin", 0)
     if not _interop.is_dataarray(da):
         raise Error(f"qota.dask.shadow takes an xarray.DataArray, got {type(da).__name__}")
     if int(void_margin) < 0:
@@ -347,6 +352,22 @@ def _remove(path):
         os.remove(path)
 
 
+def _check_lossless(profile):
+    """Refuses creation options that would change the values written (as qota shadow does)."""
+    options = {str(k).lower(): str(v).lower() for k, v in profile.items()}
+    compress = options.get("compress", "")
+    lossy = (compress == "jpeg" or (compress == "webp" and options.get("webp_lossless") != "true"
+                                    and options.get("webp_lossless") != "yes")
+             or (compress.startswith("lerc") and float(options.get("max_z_error", 0) or 0) != 0)
+             or options.get("jxl_lossless") in ("no", "false") or options.get("pixeltype") == "signedbyte")
+    if "nbits" in options and options["nbits"] not in ("8", "32"):
+        lossy = True
+    if lossy:
+        shown = ", ".join(f"{k}={v!r}" for k, v in profile.items())
+        raise Error(f"to_geotiff({shown}): the values written would not be the ones computed; give lossless "
+                    f"options (compress='deflate', 'lzw' or 'zstd'), or none")
+
+
 def to_geotiff(result, path, *, lock=None, **profile):
     """Writes a (lazy) result as a tiled GeoTIFF, block by block as the blocks are computed
     (rioxarray's to_raster with tiled=True), with the source's geotransform as the result keeps
@@ -356,6 +377,7 @@ def to_geotiff(result, path, *, lock=None, **profile):
     is active (the folder must then be on a file system every worker sees), else a threading
     lock. profile: creation options (compress="deflate", blockxsize=..., ...)."""
     path = os.fspath(path)
+    _check_lossless(profile)
     staged = _staged(path)
     if lock is None:
         lock = _writer_lock(staged)
@@ -457,7 +479,7 @@ def sample(source, points, *, band=1, x="x", y="y", by_block=False, block=1024):
         shuffles of the points.
     """
     path = _local_file(source)
-    band = int(band)
+    band, block = _whole(band, "band"), _whole(block, "block")
     description = _qota._describe_raster(path, band)  # refused here, on the client, if unreadable
     if hasattr(points, "map_partitions") and hasattr(points, "columns"):
         for column in (x, y):

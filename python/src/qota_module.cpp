@@ -356,8 +356,11 @@ void checkTransform(const std::vector<double>& transform) {
 // less clear message).
 void checkGrid(const py::array_t<double, py::array::c_style | py::array::forcecast>& heights,
                const std::vector<double>& transform) {
-  if (heights.ndim() != 2 || heights.shape(0) < 1 || heights.shape(1) < 1) {
-    throw qota::Error("heights must be a 2-D array (rows, columns) of at least one value");
+  if (heights.ndim() != 2) throw qota::Error("heights must be a 2-D array (rows, columns)");
+  if (heights.shape(0) < 2 || heights.shape(1) < 2) {
+    throw qota::Error("heights of " + std::to_string(heights.shape(0)) + " x " + std::to_string(heights.shape(1)) +
+                      " values: at least 2 x 2 are needed (the values are the pixel centres, and one row or "
+                      "column of them spans no surface)");
   }
   if (heights.shape(0) > std::numeric_limits<int>::max() || heights.shape(1) > std::numeric_limits<int>::max()) {
     throw qota::Error("heights has more rows or columns than GDAL takes");

@@ -140,6 +140,8 @@ def test_a_failed_block_leaves_the_output_as_it_was(client, wide_void, tmp_path)
     with pytest.raises(qota.Error, match="larger overlap"):
         qota.dask.to_geotiff(mask, tif)
     assert tif.read_bytes() == b"OLD"
+    with pytest.raises(qota.Error, match="would not be the ones computed"):
+        qota.dask.to_geotiff(mask, tif, compress="jpeg")
     pytest.importorskip("zarr")
     store.mkdir()
     (store / "kept").write_bytes(b"OLD")

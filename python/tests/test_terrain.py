@@ -319,3 +319,25 @@ def test_outer_half_pixel_takes_the_nearest_centres_height():
     # Off the raster: no terrain.
     off = terrain.heights(np.array([99.999, 140.001, 120.0, 120.0]), np.array([480.0, 480.0, 500.001, 469.999]))
     assert np.isnan(off).all()
+
+
+def test_arguments_are_refused_by_name():
+    # pybind11's "incompatible function arguments" before: now qota.Error (or MemoryError) naming
+    # the argument.
+    with pytest.raises(qota.Error, match="band must be from 1 to"):
+        qota.Terrain.from_raster(DATA / "SainteHelens.dem", band=2**40)
+    with pytest.raises(qota.Error, match="band must be a whole number"):
+        qota.Terrain.from_raster(DATA / "SainteHelens.dem", band="1")
+    with pytest.raises(qota.Error, match="azimuth must be a number"):
+        qota.shadow(DATA / "SainteHelens.dem", "abc", 45)
+    with pytest.raises(qota.Error, match="z_factor must be a number"):
+        qota.shadow(DATA / "SainteHelens.dem", 90, 45, z_factor=[2])
+    with pytest.raises(MemoryError, match="heights of shape"):
+        qota.Terrain.from_array(np.broadcast_to(1.0, (1000000, 1000000)), (0, 1, 0, 0, 0, -1))
+
+
+def test_one_row_or_column_is_refused():
+    # One row of pixel centres spans no surface: refused, not NaN at the centres.
+    for shape in ((1, 100), (100, 1), (1, 1)):
+        with pytest.raises(qota.Error, match="at least 2 x 2"):
+            qota.Terrain.from_array(np.full(shape, 42.0), (500000, 30, 0, 5100000, 0, -30))

@@ -41,6 +41,8 @@ std::uint64_t availableBytes();
 void setLimit(std::uint64_t bytes);
 // This process's peak resident memory so far (VmHWM), in bytes; 0 when unknown.
 std::uint64_t peakBytes();
+// This process's resident memory now (VmRSS), in bytes; 0 when unknown.
+std::uint64_t residentBytes();
 // "1.23 GiB".
 std::string gib(std::uint64_t bytes);
 // Throws qota::Error when `cost` for these vertices and triangles exceeds the memory available

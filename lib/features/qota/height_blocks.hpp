@@ -15,6 +15,7 @@
 
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "qota/cell_window.hpp"
@@ -51,6 +52,17 @@ class HeightBlocks {
   // row-major), given in order from row 0. Throws qota::Error for rows out of order.
   void addRows(int row, int count, const std::vector<double>& heights);
 
+  // The least and greatest heights with data (not NaN) in the blocks that meet `w`, in the
+  // raster's unit: bounds of the heights in w ({+inf, -inf} where the blocks have no data).
+  std::pair<double, double> rangeOver(const CellWindow& w) const;
+  // Every block's least and greatest height, as rangeOver gives them, row-major (restore: the
+  // same, given back to setRanges).
+  const std::vector<double>& lows() const { return lows_; }
+  const std::vector<double>& highs() const { return highs_; }
+  // Throws qota::Error unless both have one value a block, each low at most its high (or the
+  // pair {+inf, -inf}).
+  void setRanges(std::vector<double> lows, std::vector<double> highs);
+
   // The smallest window made of whole blocks (cut by the raster's edges) that holds `w` (a window
   // on the raster).
   CellWindow alignedOut(const CellWindow& w) const;
@@ -64,6 +76,7 @@ class HeightBlocks {
   int width_ = 0, height_ = 0, side_ = 64;
   int rowsAdded_ = 0;
   std::vector<std::uint64_t> hashes_;
+  std::vector<double> lows_, highs_;  // per block, over its cells with data
   std::vector<std::uint64_t> open_;  // addRows: the current row of blocks' XXH3 states, as raw bytes
 };
 

@@ -61,15 +61,20 @@ namespace qota {
 class ShadowTiles {
  public:
   // Opens the raster and reads it once, by rows, for what every window shares: the height range
-  // and the frame's centre (frameBasis, completeBasis). progress: that pass's fraction.
-  ShadowTiles(const std::string& path, const DemOptions& dem, const FrameOptions& frame, const Progress& progress = {});
+  // and the frame's centre (frameBasis, completeBasis). progress: that pass's fraction. bytes:
+  // the most the pass holds at once (rows of kPassBytesPerCell a cell; 0: kPassBytes).
+  ShadowTiles(const std::string& path, const DemOptions& dem, const FrameOptions& frame, const Progress& progress = {},
+              std::uint64_t bytes = 0);
+  static constexpr std::uint64_t kPassBytes = 24ull << 20;
+  static constexpr std::uint64_t kPassBytesPerCell = 16;
   // Heights of a window of the raster, as DemWindows reads them: row-major, in the raster's unit
   // (scale and offset applied), NaN where there is no data.
   using HeightReader = std::function<void(const CellWindow& window, std::vector<double>& heights)>;
   // The same from any source of heights (a Dask array, ...); description: the raster's size,
   // geotransform, CRS, vertical unit and path (for messages), as describeDem gives them. `read`
   // may be called from one thread at a time only.
-  ShadowTiles(const DemTerrain& description, HeightReader read, const FrameOptions& frame, const Progress& progress = {});
+  ShadowTiles(const DemTerrain& description, HeightReader read, const FrameOptions& frame, const Progress& progress = {},
+              std::uint64_t bytes = 0);
   // Text that makes the same tiles in another process (restore), without reading the raster
   // again: the description (band and nodata value included), the frame's options, what the pass
   // over the heights found (the numbers bit for bit) and the heights' block hashes
@@ -114,8 +119,16 @@ class ShadowTiles {
   // The window a tile is computed in: the tile and its halo.
   CellWindow windowOf(const CellWindow& tile, const std::array<int, 4>& halo) const;
 
-  // The most bytes a window of this many cells takes at its peak (measured; see the .cpp).
-  static std::uint64_t bytesPerWindowCell();
+  // The most bytes a window takes at its peak, per cell (measured; see the .cpp): more at a low
+  // light, whose rays cross more triangles. lights: the run's (their lowest decides).
+  static std::uint64_t bytesPerWindowCell();  // (the lowest lights')
+  static std::uint64_t bytesPerWindowCell(const std::vector<Eigen::Vector3d>& lights);
+  // The same for a whole raster's shadows in memory (loadDem, localFrame, shadowMask), per cell.
+  static std::uint64_t bytesPerWholeCell(const std::vector<Eigen::Vector3d>& lights);
+  // The most cells any of `tiles`' windows takes under these lights: at least what mask and hours
+  // read for each, planned from the blocks' height ranges (HeightBlocks::rangeOver) without
+  // reading any heights. For estimates and for choosing a tile size.
+  std::uint64_t largestWindowCells(const std::vector<CellWindow>& tiles, const std::vector<Eigen::Vector3d>& lights) const;
   // The largest square tile side (a multiple of `multiple`, at least `multiple`) whose worst-case
   // window under these lights fits in `bytes`; 0 when none does.
   int tileSideFor(std::uint64_t bytes, const std::vector<Eigen::Vector3d>& lights, int multiple) const;
@@ -155,6 +168,10 @@ class ShadowTiles {
   // The most halo any tile of this size (at most; tiles at the raster's edges are smaller) needs
   // under these lights, per side (west, east, north, south): an overlap for blocks of that size.
   std::array<int, 4> haloFor(int tileWidth, int tileHeight, const std::vector<Eigen::Vector3d>& lights) const;
+  // The same for tiles whose lowest valid cell is at least `lowest` metres (haloFor: the raster's
+  // lowest).
+  std::array<int, 4> haloAtMost(int tileWidth, int tileHeight, const std::vector<Eigen::Vector3d>& lights,
+                                double lowest) const;
 
   // A bound on the whole raster's LocalFrame::horizonSlack, from its outermost cells (the tilt
   // between the centre's up and a cell's is largest on the raster's rim), without reading it all.
@@ -163,7 +180,7 @@ class ShadowTiles {
  private:
   struct Source;
   ShadowTiles() = default;
-  void passOverHeights(const Progress& progress);
+  void passOverHeights(const Progress& progress, std::uint64_t bytes);
   // The filled heights (metres) and validity of `window`, equal to the whole raster's fill there.
   void readFilled(const CellWindow& window, std::vector<double>& heights, std::vector<std::uint8_t>& valid,
                   std::uint64_t bytes) const;
@@ -175,7 +192,8 @@ class ShadowTiles {
   // windowOfTile's steps: the tile's lowest (read from the source), and the frame over a window
   // (refused over `bytes`).
   double lowestIn(const CellWindow& tile) const;
-  LocalFrame frameOver(const CellWindow& tile, const CellWindow& window, std::uint64_t bytes) const;
+  LocalFrame frameOver(const CellWindow& tile, const CellWindow& window, std::uint64_t bytes,
+                       const std::vector<Eigen::Vector3d>& lights) const;
   // The frame of a window given whole (...FromHeights), checked to hold the tile's halo and fill;
   // an empty frame for a tile without data.
   // halo before clipping to the raster.

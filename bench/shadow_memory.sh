@@ -1,0 +1,36 @@
+#!/usr/bin/env bash
+# qota shadow's memory estimate beside its measured peak, across rasters, budgets (--max-memory)
+# and lights: whole rasters and runs by tiles, masks and hours of sunlight. Prints one line a run,
+# "raster budget light: peak P MiB, estimated E MiB, ratio E/P", and checks that every estimate
+# bounds its peak (E >= P) within 1.5 times (E <= 1.5 P); exit 1 when one does not, 0 else.
+#
+#   bench/shadow_memory.sh [BUILD] [quick]      (default build; quick: fewer runs, for ctest)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+build=${1:-build}
+qota=$build/tools/qota
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+rasters=(data/mt_rainier_90m.tif data/SainteHelens.dem)
+budgets=(64M 128M 256M 1G)
+lights=("-az 90 -alt 2" "-az 135 -alt 10" "-az 315 -alt 45" "--time 2024-06-21 --tz America/Los_Angeles --hours 6 20 2")
+if [ "${2:-}" = quick ]; then budgets=(64M 256M 1G); lights=("-az 90 -alt 2" "-az 315 -alt 45" "--time 2024-06-21 --tz America/Los_Angeles --hours 6 20 2"); fi
+failed=0
+for dem in "${rasters[@]}"; do
+  for budget in "${budgets[@]}"; do
+    for light in "${lights[@]}"; do
+      # shellcheck disable=SC2086
+      if ! log=$("$qota" shadow "$dem" -o "$work/out.tif" $light --max-memory "$budget" 2>&1); then
+        echo "$(basename "$dem") $budget $light: refused: $(echo "$log" | tail -1)"
+        continue
+      fi
+      line=$(echo "$log" | tr '\r' '\n' | grep -o 'peak [0-9]* MiB (estimated [0-9]* MiB' | tail -1)
+      peak=$(echo "$line" | awk '{print $2}') est=$(echo "$line" | awk '{print $5}')
+      mode=$(echo "$log" | grep -q 'by tiles' && echo tiles || echo whole)
+      verdict=$(awk -v p="$peak" -v e="$est" 'BEGIN { r = e / p; printf "%.2f %s", r, (e >= p && r <= 1.5) ? "ok" : "FAIL" }')
+      echo "$(basename "$dem") $budget $light ($mode): peak $peak MiB, estimated $est MiB, ratio $verdict"
+      case $verdict in *FAIL) failed=1 ;; esac
+    done
+  done
+done
+exit $failed
