@@ -196,30 +196,21 @@ def _by_blocks(data, overlap, tiles, task, dtype, *args):
     import dask.array as dsa
     from dask.base import tokenize
 
-    west, east, north, south = overlap
     rows, cols = data.shape
     shared = dask.delayed(tiles, name="qota-tiles-" + tokenize(tiles.state()))  # one copy, restored once a worker
     call = dask.delayed(task, pure=True)
-    parts, row = [], 0
-    for height in data.chunks[0]:
-        line, col = [], 0
-        for width in data.chunks[1]:
-            c0, r0 = max(0, col - west), max(0, row - north)
-            c1, r1 = min(cols, col + width + east), min(rows, row + height + south)
-            # Whole hash blocks, so that the task can check the heights it is given.
-            c0, r0, w, h = tiles.checkable_window((c0, r0, c1 - c0, r1 - r0))
-            c1, r1 = c0 + w, r0 + h
-            window, tile = (c0, r0, c1 - c0, r1 - r0), (col, row, width, height)
-            cells = call(shared, data[r0:r1, c0:c1], window, tile, *args)
-            line.append(dsa.from_delayed(cells, shape=(height, width), dtype=dtype))
-            col += width
-        parts.append(line)
-        row += height
-    return dsa.block(parts)
+    blocks = _blocks_of(data.chunks)
+    # Whole hash blocks, so that the task can check the heights it is given.
+    windows = _windows_of(tiles, blocks, overlap, rows, cols)
+    cells = [dsa.from_delayed(call(shared, data[r0:r0 + h, c0:c0 + w], (c0, r0, w, h), block, *args),
+                              shape=(block[3], block[2]), dtype=dtype)
+             for block, (c0, r0, w, h) in zip(blocks, windows)]
+    across = len(data.chunks[1])
+    return dsa.block([cells[k:k + across] for k in range(0, len(cells), across)])
 
 
 def shadow(da, azimuth=None, altitude=None, *, time=None, tz=None, hours=None, band=1, z_factor=1.0,
-           void_margin=VOID_MARGIN, heights_from="auto", tiles=None, threads=1):
+           void_margin=VOID_MARGIN, heights_from="auto", tiles=None, threads=1, max_memory=None):
     """Shadows (or hours of sunlight) of a chunked DataArray, lazily, on its own blocks.
 
     da: an xarray.DataArray backed by a dask array, with rioxarray's accessor (e.g.
@@ -239,6 +230,11 @@ def shadow(da, azimuth=None, altitude=None, *, time=None, tz=None, hours=None, b
         when computed).
     threads: threads a block's cells are tested on (0: every core); 1 suits workers that each run
         one task per core.
+    max_memory: the most a task may take, in bytes or as a size ("2G", "512M"; what a worker
+        thread has): blocks whose task would take more are computed as smaller square blocks (the
+        result keeps da's chunks); refused when even blocks of 16 cells need more (a low sun's
+        halo). The estimate of a task's peak is the result's attrs["qota_task_memory"] (bytes),
+        measured to bound the peak within 1.5 times.
 
     Chunks much smaller than the halo a block needs (a low sun's) are merged for the computation
     into square blocks whose overlap is at most MOST_OVERLAP times their cells; the result is
@@ -252,6 +248,7 @@ def shadow(da, azimuth=None, altitude=None, *, time=None, tz=None, hours=None, b
     span_hours = _check_light(azimuth, altitude, time, tz, hours)
     band, z_factor, threads = _whole(band, "band"), _number(z_factor, "z_factor"), _whole(threads, "threads", 0)
     void_margin = _whole(void_margin, "void_margin", 0)
+    max_memory = None if max_memory is None else _size(max_memory, "max_memory")
     if not _interop.is_dataarray(da):
         raise Error(f"qota.dask.shadow takes an xarray.DataArray, got {type(da).__name__}")
     if int(void_margin) < 0:
@@ -272,14 +269,24 @@ def shadow(da, azimuth=None, altitude=None, *, time=None, tz=None, hours=None, b
         start, end, step = span_hours
         span = _qota._local_span(str(time), tz or "", start, end)
         lights = core.sunlight_steps(span[0], span[1], step)
-    data, overlap = _blocks_for_halo(plane.data, core, lights, int(void_margin))
+    data, overlap, task_bytes = _blocks_for_halo(plane.data, core, lights, int(void_margin), max_memory)
     decode = _decoding(plane)
     if span_hours is None:
         cells = _by_blocks(data, overlap, core, _mask_block, np.uint8, decode, lights[0], int(threads), tiles.source)
-        return _interop.mask_like(template, cells.rechunk(plane.data.chunks), 128, "shadow")
-    cells = _by_blocks(data, overlap, core, _hours_block, np.float32, decode, span, span_hours[2], lights,
-                       int(threads), tiles.source)
-    return _interop.mask_like(template, cells.rechunk(plane.data.chunks), -1.0, "sunlight_hours")
+        result = _interop.mask_like(template, cells.rechunk(plane.data.chunks), 128, "shadow")
+    else:
+        cells = _by_blocks(data, overlap, core, _hours_block, np.float32, decode, span, span_hours[2], lights,
+                           int(threads), tiles.source)
+        result = _interop.mask_like(template, cells.rechunk(plane.data.chunks), -1.0, "sunlight_hours")
+    result.attrs["qota_task_memory"] = int(task_bytes)
+    return result
+
+
+def _size(value, name):
+    """A size in bytes: a whole number, or a text as qota shadow --max-memory takes ("64M", "2G")."""
+    if isinstance(value, str):
+        return _qota._byte_size(value)
+    return _whole(value, name, 1, 2**63 - 1)
 
 
 def _check_tiles(tiles, plane, band, z_factor, heights_from):
@@ -309,11 +316,55 @@ def _check_tiles(tiles, plane, band, z_factor, heights_from):
 MOST_OVERLAP = 4.0
 
 
-def _blocks_for_halo(data, core, lights, void_margin):
-    """The dask array the blocks are computed on (data, or data rechunked into larger square
-    blocks when its chunks are small beside their halo, so that a call costs a small factor of
-    qota.shadow's time whatever the chunks) and the overlap (west, east, north, south) its blocks
-    need."""
+#: What a task holds besides the core's frame: a cell of its given window as read, decoded to
+#: float64 and copied for the core (24 bytes), and its Python objects and output block
+#: (_TASK_FIXED). The core's frame of a window given whole holds less than qota shadow's tiles,
+#: which also read and fill it: _FRAME_SHARE of ShadowTiles.bytes_per_window_cell. Measured with
+#: test_dask's task-memory test (one task's peak in a fresh process).
+_TASK_BYTES_PER_CELL = 24
+_TASK_FIXED = 2 << 20
+_FRAME_SHARE = 0.86
+
+
+def _blocks_of(chunks):
+    """The blocks (col, row, width, height) of a 2-D dask array's chunks."""
+    out, row = [], 0
+    for h in chunks[0]:
+        col = 0
+        for w in chunks[1]:
+            out.append((col, row, w, h))
+            col += w
+        row += h
+    return out
+
+
+def _windows_of(core, blocks, overlap, rows, cols):
+    """Each block's window: the block and its overlap, clipped to the raster, widened to whole hash
+    blocks (what the task is given)."""
+    west, east, north, south = overlap
+    out = []
+    for col, row, w, h in blocks:
+        c0, r0 = max(0, col - west), max(0, row - north)
+        c1, r1 = min(cols, col + w + east), min(rows, row + h + south)
+        out.append(core.checkable_window((c0, r0, c1 - c0, r1 - r0)))
+    return out
+
+
+def _task_bytes(core, lights, blocks, overlap, rows, cols):
+    """The most memory a task of these blocks takes: its given window's cells as read and
+    decoded, and the core's frame over the window it needs (planned from the heights' block
+    ranges), at the core's bytes a cell."""
+    given = max(w * h for _, _, w, h in _windows_of(core, blocks, overlap, rows, cols))
+    frame = core.largest_window_cells(blocks, lights)
+    per_cell = _qota._ShadowTiles.bytes_per_window_cell(lights)
+    return int(_TASK_FIXED + given * _TASK_BYTES_PER_CELL + frame * _FRAME_SHARE * per_cell)
+
+
+def _blocks_for_halo(data, core, lights, void_margin, max_memory):
+    """The dask array the blocks are computed on, the overlap (west, east, north, south) its blocks
+    need and the memory a task takes (bytes). data is rechunked into square blocks when its chunks
+    are small beside their halo (so that a call costs a small factor of qota.shadow's time whatever
+    the chunks), or when a task would take more than max_memory (then blocks as large as fit)."""
     def overlap_for(width, height):
         return [side + void_margin for side in core.halo_for(width, height, lights)]
 
@@ -325,15 +376,33 @@ def _blocks_for_halo(data, core, lights, void_margin):
         w, h = min(w, cols), min(h, rows)
         return (min(cols, w + o[0] + o[1]) * min(rows, h + o[2] + o[3])) / (w * h)
 
-    if ratio(width, height, overlap) <= MOST_OVERLAP:
-        return data, overlap
-    side = max(width, height, 64)
-    while side < max(rows, cols):
-        side = min(2 * side, max(rows, cols))
-        overlap = overlap_for(side, side)
-        if ratio(side, side, overlap) <= MOST_OVERLAP:
-            break
-    return data.rechunk((min(side, rows), min(side, cols))), overlap_for(min(side, cols), min(side, rows))
+    def task(side):
+        s = min(side, rows), min(side, cols)
+        blocks = _blocks_of(((s[0],) * (rows // s[0]) + ((rows % s[0],) if rows % s[0] else ()),
+                             (s[1],) * (cols // s[1]) + ((cols % s[1],) if cols % s[1] else ())))
+        return _task_bytes(core, lights, blocks, overlap_for(s[1], s[0]), rows, cols)
+
+    if ratio(width, height, overlap) > MOST_OVERLAP:
+        side = max(width, height, 64)
+        while side < max(rows, cols):
+            side = min(2 * side, max(rows, cols))
+            if ratio(side, side, overlap_for(side, side)) <= MOST_OVERLAP:
+                break
+        data = data.rechunk((min(side, rows), min(side, cols)))
+        width, height = max(data.chunks[1]), max(data.chunks[0])
+        overlap = overlap_for(width, height)
+    need = _task_bytes(core, lights, _blocks_of(data.chunks), overlap, rows, cols)
+    if max_memory is None or need <= max_memory:
+        return data, overlap, need
+    lo, hi = 0, max(width, height)  # the largest square side (a multiple of 16) whose task fits
+    while hi - lo > 16:
+        mid = (lo + hi) // 32 * 16
+        lo, hi = (mid, hi) if task(mid) <= max_memory else (lo, mid)
+    if lo == 0:
+        raise Error(f"max_memory={max_memory}: even blocks of 16 cells take {task(16)} bytes a task at this light "
+                    f"(the halo their shadows need); give more")
+    data = data.rechunk((min(lo, rows), min(lo, cols)))
+    return data, overlap_for(min(lo, cols), min(lo, rows)), task(lo)
 
 
 # --- writing -----------------------------------------------------------------------------------
@@ -350,6 +419,26 @@ def _remove(path):
         shutil.rmtree(path, ignore_errors=True)
     elif os.path.lexists(path):
         os.remove(path)
+
+
+def _computed(result):
+    """The result with every block computed (held where it was computed: the workers' memory on a
+    cluster, 1 byte a cell for masks, 4 for hours), so that a failing block fails before anything
+    is written, and no block still running writes after a failure was reported."""
+    from dask import persist
+
+    (done,) = persist(result)  # Dask's local schedulers: computed here, raising the first failure
+    try:
+        from distributed import futures_of, wait
+    except ImportError:
+        return done
+    futures = futures_of(done)
+    if futures:
+        wait(futures)  # every block finished, failed or not: none is still running
+        for future in futures:
+            if future.status == "error":
+                future.result()  # raises the block's own error
+    return done
 
 
 def _check_lossless(profile):
@@ -369,15 +458,17 @@ def _check_lossless(profile):
 
 
 def to_geotiff(result, path, *, lock=None, **profile):
-    """Writes a (lazy) result as a tiled GeoTIFF, block by block as the blocks are computed
-    (rioxarray's to_raster with tiled=True), with the source's geotransform as the result keeps
-    it. Whole or not at all: the file is written under a staging name beside `path` and renamed
-    into place only when every block succeeded; a failed block leaves `path` as it was. lock: one
+    """Writes a (lazy) result as a tiled GeoTIFF (rioxarray's to_raster with tiled=True), with the
+    source's geotransform as the result keeps it. Whole or not at all: every block is computed
+    first (held in the workers' memory: 1 byte a cell for masks, 4 for hours), then the file is
+    written under a staging name beside `path` and renamed into place; a failed block leaves
+    `path` as it was. lock: one
     writer at a time across the workers; by default a distributed.Lock when a distributed Client
     is active (the folder must then be on a file system every worker sees), else a threading
     lock. profile: creation options (compress="deflate", blockxsize=..., ...)."""
     path = os.fspath(path)
     _check_lossless(profile)
+    result = _computed(result)
     staged = _staged(path)
     if lock is None:
         lock = _writer_lock(staged)
@@ -394,9 +485,11 @@ def to_geotiff(result, path, *, lock=None, **profile):
 def to_zarr(result, path, *, name=None, **kwargs):
     """Writes a (lazy) result as a Zarr store (xarray's to_zarr of a dataset with one variable,
     `name`: the result's own name by default, "shadow" or "sunlight_hours"), whole or not at all:
-    written under a staging name beside `path`, then moved into place (a store already there is
-    replaced only then). kwargs: to_zarr's (consolidated=..., encoding=...)."""
+    every block computed first (as to_geotiff), written under a staging name beside `path`, then
+    moved into place (a store already there is replaced only then). kwargs: to_zarr's
+    (consolidated=..., encoding=...)."""
     path = os.fspath(path)
+    result = _computed(result)
     staged = _staged(path)
     try:
         result.to_dataset(name=name or result.name or "data").to_zarr(staged, mode="w-", **kwargs)

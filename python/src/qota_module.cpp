@@ -732,6 +732,15 @@ PYBIND11_MODULE(_qota, m) {
       .def_property_readonly("unit", [](const qota::ShadowTiles& t) { return t.dem().verticalUnit.name; })
       .def_property_readonly("source", [](const qota::ShadowTiles& t) { return t.dem().path; })
       .def_property_readonly("heights_hash", [](const qota::ShadowTiles& t) { return qota::hexOf(t.heightBlocks().whole()); })
+      .def_static("bytes_per_window_cell", [](const std::vector<std::array<double, 3>>& lights) {
+             return qota::ShadowTiles::bytesPerWindowCell(lightsOf(lights));
+           }, py::arg("lights"))
+      .def("largest_window_cells", [](const qota::ShadowTiles& t, const std::vector<Cells>& tiles,
+                                      const std::vector<std::array<double, 3>>& lights) {
+             std::vector<qota::CellWindow> windows;
+             for (const Cells& c : tiles) windows.push_back(cellsOf(c));
+             return t.largestWindowCells(windows, lightsOf(lights));
+           }, py::arg("tiles"), py::arg("lights"))
       .def("checkable_window", [](const qota::ShadowTiles& t, const Cells& w) {
              const qota::CellWindow a = t.checkableWindow(cellsOf(w));
              return Cells{a.col, a.row, a.width, a.height};
@@ -759,6 +768,7 @@ PYBIND11_MODULE(_qota, m) {
       .def(py::pickle([](const qota::ShadowTiles& t) { return py::make_tuple(py::bytes(t.state())); },
                       [](const py::tuple& s) { return qota::ShadowTiles::restore(s[0].cast<std::string>()); }));
   m.def("_describe_raster", &describeRaster, py::arg("path"), py::arg("band"));
+  m.def("_byte_size", &qota::tools::parseByteSize, py::arg("text"));
   m.def("_local_span", &localSpan, py::arg("time"), py::arg("tz"), py::arg("start"), py::arg("end"));
   m.def(
       "_check_hours", [](double start, double end, double step) { qota::checkHoursWindow(start, end, step, "hours"); },

@@ -269,3 +269,17 @@ def test_chunks_smaller_than_the_halo_are_merged(client):
     assert mask.chunks == dem.chunks
     assert len(mask.data.__dask_graph__()) < 20000
     np.testing.assert_array_equal(mask.values[0], qota.shadow(DATA / "SainteHelens.dem", 135, 20))
+
+
+def test_max_memory_sizes_the_blocks(client, part):
+    # A budget smaller than the chunks' tasks: smaller blocks that fit, the same cells.
+    dem = rioxarray.open_rasterio(part, chunks=300)
+    whole = qota.dask.shadow(dem, azimuth=135, altitude=40)
+    small = qota.dask.shadow(dem, azimuth=135, altitude=40, max_memory="4M")
+    assert small.attrs["qota_task_memory"] <= 4 << 20 < whole.attrs["qota_task_memory"]
+    assert small.chunks == dem.chunks
+    np.testing.assert_array_equal(small.values[0], qota.shadow(part, azimuth=135, altitude=40))
+    with pytest.raises(qota.Error, match="even blocks of 16 cells"):
+        qota.dask.shadow(dem, azimuth=135, altitude=2, max_memory=1 << 20)
+    with pytest.raises(qota.Error, match="not a size"):
+        qota.dask.shadow(dem, azimuth=135, altitude=40, max_memory="lots")
