@@ -18,11 +18,15 @@ class CMakeBuild(build_ext):
         root = Path(__file__).resolve().parent
         out = Path(self.get_ext_fullpath(ext.name)).resolve().parent
         build = Path(os.environ.get("QOTA_PYTHON_BUILD_DIR", root / "build-python"))
-        subprocess.run(["cmake", "-S", str(root), "-B", str(build), "-DCMAKE_BUILD_TYPE=Release",
-                        "-DQOTA_BUILD_PYTHON=ON", "-DQOTA_BUILD_TESTS=OFF", "-DQOTA_BUILD_BENCH=OFF",
-                        "-DQOTA_BUILD_EXAMPLES=OFF", "-DQOTA_BUILD_TOOLS=ON", "-DQOTA_INSTALL=OFF",
-                        "-DCMAKE_POSITION_INDEPENDENT_CODE=ON", f"-DPython_EXECUTABLE={sys.executable}",
-                        f"-DCMAKE_LIBRARY_OUTPUT_DIRECTORY={out}"], check=True)
+        cache = build / "CMakeCache.txt"
+        own = [f"-DPython_EXECUTABLE={sys.executable}", f"-DCMAKE_LIBRARY_OUTPUT_DIRECTORY={out}"]
+        if cache.exists() and "QOTA_BUILD_PYTHON:BOOL=ON" in cache.read_text():
+            options = own  # a build made with the extension (scripts/test.sh's): its options kept
+        else:
+            options = ["-DCMAKE_BUILD_TYPE=Release", "-DQOTA_BUILD_PYTHON=ON", "-DQOTA_BUILD_TESTS=OFF",
+                       "-DQOTA_BUILD_BENCH=OFF", "-DQOTA_BUILD_EXAMPLES=OFF", "-DQOTA_BUILD_TOOLS=ON",
+                       "-DQOTA_INSTALL=OFF", "-DCMAKE_POSITION_INDEPENDENT_CODE=ON"] + own
+        subprocess.run(["cmake", "-S", str(root), "-B", str(build)] + options, check=True)
         subprocess.run(["cmake", "--build", str(build), "--target", "qota_python", "-j",
                         os.environ.get("QOTA_JOBS", "2")], check=True)
 

@@ -20,12 +20,11 @@ shift
 harnesses=("$@")
 [ ${#harnesses[@]} -eq 0 ] && harnesses=(treefile mesh sample_line raster cli tiles)
 
-./scripts/install-deps.sh
-./scripts/install-deps.sh clang-14 libclang-rt-14-dev
-cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPILER=clang++-14 \
-  -DQOTA_SANITIZE=address,undefined -DQOTA_BUILD_FUZZERS=ON -DQOTA_BUILD_TESTS=OFF \
-  -DQOTA_BUILD_EXAMPLES=OFF -DQOTA_BUILD_BENCH=OFF > /dev/null
-cmake --build build-fuzz -j2 --target $(printf 'qota_fuzz_%s ' "${harnesses[@]}") > build-fuzz/build.log 2>&1 ||
+# The harnesses live in build-asan, the instrumented build scripts/sanitize.sh runs the tests in
+# (after it, nothing is left to build).
+./scripts/configure-asan.sh
+mkdir -p build-fuzz
+cmake --build build-asan -j2 --target $(printf 'qota_fuzz_%s ' "${harnesses[@]}") > build-fuzz/build.log 2>&1 ||
   { tail -40 build-fuzz/build.log; exit 2; }
 
 # A smaller quarantine, and freed memory returned to the system: the raster harness's RSS would
@@ -35,7 +34,7 @@ export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
 export LSAN_OPTIONS=${LSAN_OPTIONS:-suppressions=$PWD/tests/fuzz/lsan.supp}
 failed=0
 for name in "${harnesses[@]}"; do
-  bin=build-fuzz/tests/fuzz/fuzz_$name
+  bin=build-asan/tests/fuzz/fuzz_$name
   # Absolute paths: a harness may change its working folder (fuzz_cli runs in its own).
   seeds=$PWD/tests/fuzz/corpus/$name known=$PWD/tests/fuzz/crashes/$name
   work=$PWD/build-fuzz/corpus/$name artifacts=$PWD/build-fuzz/crashes/$name

@@ -11,6 +11,10 @@ root=$PWD
 venv=${1:-build-venv}
 case $venv in /*) ;; *) venv=$root/$venv ;; esac
 [ -x "$venv/bin/python" ] || /usr/bin/python3 -m venv --system-site-packages "$venv"
+# The main build, when scripts/test.sh made it with the extension: its libraries are reused.
+if [ -z "${QOTA_PYTHON_BUILD_DIR:-}" ] && grep -qs '^QOTA_BUILD_PYTHON:BOOL=ON' "$root/build/CMakeCache.txt"; then
+  export QOTA_PYTHON_BUILD_DIR=$root/build
+fi
 "$venv/bin/pip" install --no-build-isolation --no-deps --quiet "$root"
 # The qota tool, for the test that holds qota.shadow to the tool's mask: the main build's, else
 # built in the package's CMake folder (its libraries are compiled there already: seconds).

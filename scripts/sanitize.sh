@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # The whole test suite under AddressSanitizer + UndefinedBehaviorSanitizer (build-asan), then
 # the tests that run threads under ThreadSanitizer (build-tsan). Any report fails the run. The
-# ASan build is also the shared-library build (BUILD_SHARED_LIBS=ON): every test runs against
-# libqota*.so, and package.find_package checks the install (SONAMEs, the tool's RPATH).
+# ASan build (scripts/configure-asan.sh: clang, shared with scripts/fuzz.sh) is also the
+# shared-library build (BUILD_SHARED_LIBS=ON): every test runs against libqota*.so, and
+# package.find_package checks the install (SONAMEs, the tool's RPATH).
 #
 #   scripts/sanitize.sh [asan|tsan]     (default: both)
 set -euo pipefail
@@ -16,14 +17,14 @@ export LSAN_OPTIONS=${LSAN_OPTIONS:-suppressions=$PWD/tests/fuzz/lsan.supp}
 export TSAN_OPTIONS=${TSAN_OPTIONS:-halt_on_error=1:second_deadlock_stack=1:suppressions=$PWD/tests/tsan.supp}
 
 if [ "$which" = all ] || [ "$which" = asan ]; then
-  cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DQOTA_SANITIZE=address,undefined \
-    -DQOTA_BUILD_TESTS=ON -DQOTA_BUILD_EXAMPLES=ON -DQOTA_BUILD_BENCH=OFF -DBUILD_SHARED_LIBS=ON > /dev/null
+  ./scripts/configure-asan.sh  # (clang; the fuzzers are built there too, for scripts/fuzz.sh)
   cmake --build build-asan -j2
   ctest --test-dir build-asan -j2 --output-on-failure --timeout 1200
 fi
 if [ "$which" = all ] || [ "$which" = tsan ]; then
-  cmake -S . -B build-tsan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DQOTA_SANITIZE=thread \
-    -DQOTA_BUILD_TESTS=ON -DQOTA_BUILD_EXAMPLES=OFF -DQOTA_BUILD_BENCH=OFF > /dev/null
+  # Line tables only: the stacks of a report, without the full debug information's build time.
+  cmake -S . -B build-tsan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -g1 -DNDEBUG" \
+    -DQOTA_SANITIZE=thread -DQOTA_BUILD_TESTS=ON -DQOTA_BUILD_EXAMPLES=OFF -DQOTA_BUILD_BENCH=OFF > /dev/null
   cmake --build build-tsan -j2 --target qota_tests
   # The tests whose code runs threads: shadows (the strips and cell passes), parallel batches,
   # the deferred quadtree, statistics read while others query.
