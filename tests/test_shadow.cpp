@@ -328,7 +328,9 @@ TEST(Shadow, CurvatureLowersDistantTerrain) {
   // On the ellipsoid, terrain far away drops below the tangent plane (about 8 m at 10 km), so
   // fewer cells are shaded at a low sun than on the flat frame.
   const qota::DemTerrain dem = qota::loadDem(QOTA_DATA_DIR "/mt_rainier_90m.tif", {.lonLatAsCartesian = true});
-  const LocalFrame curved = qota::localFrame(dem, false), flat = qota::localFrame(dem, true);
+  qota::FrameOptions overEllipsoid;  // (the curvature alone: no geoid's undulation)
+  overEllipsoid.heightRef = "ellipsoid";
+  const LocalFrame curved = qota::localFrame(dem, overEllipsoid), flat = qota::localFrame(dem, true);
   EXPECT_GT(curved.mesh.vertices[0].z(), -1000.0);
   EXPECT_LT(curved.mesh.vertices[0].z(), flat.mesh.vertices[0].z());
   // The far corner sinks below the tangent plane by about d^2 / 2R.

@@ -88,6 +88,14 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
       ->check(CLI::PositiveNumber);
   sampleCmd->add_flag("-w,--lat-lon", sample.swapXY,
                       "Input lines are 'lat lon' (or 'y x') instead of 'lon lat'");
+  sampleCmd->add_option("--height-ref", sample.heightRef,
+                        "geodetic: what the raster's heights are over: ellipsoid, egm96, egm2008, crs (its "
+                        "vertical CRS) or a geoid grid's path; default: its vertical CRS, else EGM96 on "
+                        "the Earth and the ellipsoid elsewhere (said once)");
+  sampleCmd->add_option("--output-height-ref", sample.outputHeightRef,
+                        "geodetic: print heights over the ellipsoid (ellipsoid) instead of the source's own "
+                        "reference")
+      ->check(CLI::IsMember({"ellipsoid"}));
   addTreeOptions(sampleCmd, sample.terrain);
 
   InfoOptions info;
@@ -121,6 +129,21 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
   shadowCmd->add_option("--sun-vector", sunVector, "Vector toward the light: east,north,up")
       ->delimiter(',')
       ->expected(3);
+  std::vector<double> at, sunVectorBody, subsolar;
+  shadowCmd->add_option("--at", at,
+                        "LON,LAT: -az/-alt are east-north-up at this place (default: the DEM's centre)")
+      ->delimiter(',')
+      ->expected(2);
+  shadowCmd->add_option("--sun-vector-body", sunVectorBody,
+                        "X,Y,Z: the direction to the Sun in the body-fixed, body-centred frame (ECEF; "
+                        "SPICE's spkpos in IAU_MARS, IAU_MOON): the same light at any place, poles included")
+      ->delimiter(',')
+      ->expected(3);
+  shadowCmd->add_option("--subsolar", subsolar,
+                        "LON,LAT: the Sun over this point (east longitude, planetocentric latitude: the "
+                        "Sun's declination)")
+      ->delimiter(',')
+      ->expected(2);
   shadowCmd->add_option("--time", shadow.time,
                         "Date and time, ISO 8601 with its UTC offset (2024-06-21T14:00+02:00, or "
                         "...Z), or without one and --tz: the Sun's position seen from the DEM's "
@@ -147,6 +170,10 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
                         "known (gdaldem's -s; a degree counts as 111120 m)")
       ->check(CLI::PositiveNumber);
   shadowCmd->add_option("--pixel-size", shadow.pixelSize, "Metres per pixel for a raster without CRS");
+  shadowCmd->add_option("--height-ref", shadow.heightRef,
+                        "On the ellipsoid: what the heights are over: ellipsoid, egm96, egm2008, crs or a "
+                        "geoid grid's path; default: the raster's vertical CRS, else EGM96 on the Earth and "
+                        "the ellipsoid elsewhere (said in the frame line, recorded in the output)");
   shadowCmd->add_option("--png", shadow.png, "Also write a PNG preview: the shadows over a hillshade");
   shadowCmd->add_option("--lit-value", shadow.litValue, "Output value of lit cells")->capture_default_str();
   shadowCmd->add_option("--shadow-value", shadow.shadowValue, "Output value of shadowed cells")
@@ -215,6 +242,8 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
   buildCmd->add_option("--length", build.source.length, "cylindrical: station length")
       ->check(CLI::PositiveNumber);
   buildCmd->add_flag("-q,--quiet", build.quiet, "No summary");
+  buildCmd->add_option("--height-ref", build.source.heightRef,
+                       "geodetic: what the raster's heights are over (see sample); recorded in the tree file");
   buildCmd->add_option("-b,--band", build.source.band, "Raster band holding the heights")
       ->check(CLI::Range(1, 1 << 30));
   addTreeOptions(buildCmd, build.source.terrain);
@@ -255,6 +284,9 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
   if (*infoCmd) return tools::info(info, out, err);
   if (*shadowCmd) {
     if (!sunVector.empty()) shadow.sunVector = Eigen::Vector3d(sunVector[0], sunVector[1], sunVector[2]);
+    if (!sunVectorBody.empty()) shadow.sunVectorBody = Eigen::Vector3d(sunVectorBody[0], sunVectorBody[1], sunVectorBody[2]);
+    if (!subsolar.empty()) shadow.subsolar = std::array<double, 2>{subsolar[0], subsolar[1]};
+    if (!at.empty()) shadow.at = std::array<double, 2>{at[0], at[1]};
     if (!hours.empty()) shadow.hours = std::array<double, 3>{hours[0], hours[1], hours[2]};
     if (!tileAt.empty()) shadow.tile = std::array<int, 2>{tileAt[0], tileAt[1]};
     if (!maxMemory.empty()) {

@@ -70,12 +70,21 @@ TreeFile openIndex(const SourceOptions& o) {
       throw Error(o.source + ": the tree file was built from band " + std::to_string(tf.source.band) +
                   " of " + tf.source.path + ", not band " + std::to_string(o.band));
     }
+    if (!o.heightRef.empty()) {
+      throw Error(o.source + ": --height-ref is given when a tree file is built (qota build); this one's heights are over the " +
+                  (tf.source.geoidGrid.empty() ? std::string("ellipsoid") : tf.source.heightRef));
+    }
     if (!o.mapping.empty() && o.mapping != mappingNameOf(tf.index)) {
       throw Error(o.source + ": the tree file was built in the " +
                   std::string(mappingNameOf(tf.index)) + " mapping, not " + o.mapping +
                   " (leave --mapping out or rebuild it)");
     }
     return tf;
+  }
+  if (!o.heightRef.empty() && (o.mapping != "geodetic" || !isRaster(o.source))) {
+    throw Error("--height-ref applies to a raster's heights placed on an ellipsoid (--mapping geodetic); the " +
+                (o.mapping.empty() ? std::string("cartesian") : o.mapping) + " mapping of " + o.source +
+                " keeps its heights as they are");
   }
   if (!isRaster(o.source)) {
     // A mesh file, in world coordinates: the mapping's default frame (a sphere or cylinder
@@ -108,9 +117,14 @@ TreeFile openIndex(const SourceOptions& o) {
     return {SphericalIndex(planet.dem.mesh, planet.mapping, o.terrain), sourceOf(planet.dem)};
   }
   if (o.mapping == "geodetic") {
+    demOptions.heightRef = o.heightRef;
     const EllipsoidTerrain t = loadOnEllipsoid(o.source, demOptions);
-    return {GeodeticIndex(t.dem.mesh, t.mapping, o.terrain), sourceOf(t.dem)};
+    TreeSource source = sourceOf(t.dem);
+    source.heightRef = t.heightRef.describe();
+    source.geoidGrid = t.heightRef.grid;
+    return {GeodeticIndex(t.dem.mesh, t.mapping, o.terrain), source};
   }
+
   if (o.mapping == "cylindrical") {
     // The raster is the station's relief: columns around the axis, rows along it.
     const DemTerrain dem = loadDem(o.source, demOptions);

@@ -17,6 +17,8 @@ struct SourceOptions {
   double length = 0;                  // cylindrical: station length
   int band = 0;                       // raster band (1-based); 0: the raster's only band
   bool heightsOnly = false;           // only heights at points (sample): no quadtree on a grid
+  // geodetic: what the raster's heights are over (qota/geoid.hpp; "": its own, else assumed)
+  std::string heightRef = {};
   IndexOptions terrain;
 };
 

@@ -57,6 +57,12 @@ struct SampleOptions {
   double radius = 0;
   double length = 0;
   bool swapXY = false;      // input lines are "y x" (lat lon), as GeographicLib's -w
+  // geodetic: what the raster's heights are over (qota/geoid.hpp: ellipsoid, egm96, egm2008,
+  // crs, a grid's path; "": its own, else assumed and said once on `err`). The surface is placed
+  // over the ellipsoid; heights read (--query-z) and printed are in that same reference unless
+  // outputHeightRef is "ellipsoid" (printed over the ellipsoid).
+  std::string heightRef = {};
+  std::string outputHeightRef = {};
   IndexOptions terrain;
 };
 int sample(const SampleOptions& options, std::istream& in, std::ostream& out, std::ostream& err);
@@ -95,7 +101,15 @@ struct ShadowOptions {
   bool quiet = false;
   int band = 0;                          // 1-based; 0: the raster's only band
   std::optional<double> azimuth, altitude;
+  // -az/-alt are east-north-up at this (longitude, latitude) (default: the DEM's centre); refused
+  // within kPoleDegrees of a pole, where east and north are undefined.
+  std::optional<std::array<double, 2>> at;
   std::optional<Eigen::Vector3d> sunVector;
+  // The direction to the Sun in the body-fixed, body-centred frame (SPICE's spkpos in IAU_MARS,
+  // an ECEF vector), or the sub-solar point (east longitude, planetocentric latitude: the Sun's
+  // declination): the same light anywhere on the body, poles included.
+  std::optional<Eigen::Vector3d> sunVectorBody;
+  std::optional<std::array<double, 2>> subsolar;
   std::string time;                      // ISO 8601
   std::string tz;                        // zone of a time without offset: +HH:MM or an IANA name
   std::optional<std::array<double, 3>> hours;  // start, end, step (local hours of the date)
@@ -123,6 +137,8 @@ struct ShadowOptions {
   // read from this file when it exists (made for the same raster and frame options, else an
   // error), else made and written there, so that the jobs of a batch make it once.
   std::string tilesState;
+  // On the ellipsoid: what the heights are over (FrameOptions::heightRef); recorded in the output.
+  std::string heightRef = {};
 };
 int shadow(const ShadowOptions& options, std::ostream& out, std::ostream& err);
 

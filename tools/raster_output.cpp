@@ -117,6 +117,7 @@ void writeRaster(const RasterWrite& w, const DemTerrain& grid, const std::vector
   std::copy(grid.geotransform.begin(), grid.geotransform.end(), gt);
   ds->SetGeoTransform(gt);
   if (!grid.crsWkt.empty()) ds->SetProjection(grid.crsWkt.c_str());
+  for (const auto& [name, value] : w.metadata) ds->SetMetadataItem(name.c_str(), value.c_str());
   GDALRasterBand* band = ds->GetRasterBand(1);
   band->SetNoDataValue(w.nodata);
   if (band->RasterIO(GF_Write, 0, 0, grid.width, grid.height, const_cast<double*>(values.data()),

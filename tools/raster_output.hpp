@@ -38,6 +38,7 @@ struct RasterWrite {
   bool byteData = true;
   double nodata = 0;
   bool quiet = true;   // no progress on stdout
+  std::vector<std::pair<std::string, std::string>> metadata = {};  // NAME, VALUE items of the dataset
 };
 void writeRaster(const RasterWrite& w, const DemTerrain& grid, const std::vector<double>& values, OutputStage& stage);
 

@@ -27,6 +27,7 @@
 #include "qota/curved.hpp"
 #include "qota/dem.hpp"
 #include "qota/error.hpp"
+#include "qota/geoid.hpp"
 #include "qota/raster_sampler.hpp"
 #include "qota/treefile.hpp"
 #include "cancel.hpp"
@@ -177,6 +178,7 @@ std::shared_ptr<const DemTerrain> gridOf(const TreeSource& source) {
   grid->path = source.path;
   grid->width = source.width, grid->height = source.height;
   grid->geotransform = source.geotransform;
+  grid->lonLat = crsIsGeographic(source.crsWkt) && source.geotransform[2] == 0 && source.geotransform[4] == 0;
   return grid;
 }
 
@@ -226,8 +228,12 @@ Surface rasterSurface(std::shared_ptr<RasterSampler> sampler) {
 
 // The terrain of options.source: a raster in the Cartesian mapping through the tile sampler,
 // else an index (a tree file, a mesh, or a raster in a curved mapping) queried point by point.
-Surface openSurface(const SampleOptions& options, TreeSource& source) {
+Surface openSurface(const SampleOptions& options, TreeSource& source, std::ostream& err) {
   const bool cartesian = options.mapping.empty() || options.mapping == "cartesian";
+  if (!options.heightRef.empty() && options.mapping != "geodetic") {
+    throw Error("--height-ref applies to a raster's heights placed on an ellipsoid (--mapping geodetic); the " +
+                (cartesian ? std::string("cartesian") : options.mapping) + " mapping keeps its heights as they are");
+  }
   if (cartesian && !isTreeFile(options.source)) {
     requireSource(options.source);
     if (isRaster(options.source)) {
@@ -251,6 +257,14 @@ Surface openSurface(const SampleOptions& options, TreeSource& source) {
   so.band = options.band;
   so.heightsOnly = true;
   so.terrain = options.terrain;
+  so.heightRef = options.heightRef;
+  if (!options.outputHeightRef.empty() && options.outputHeightRef != "ellipsoid") {
+    throw Error("--output-height-ref '" + options.outputHeightRef + "': heights are printed over the source's own "
+                "reference, or over the ellipsoid with --output-height-ref ellipsoid");
+  }
+  if (!options.outputHeightRef.empty() && options.mapping != "geodetic" && !isTreeFile(options.source)) {
+    throw Error("--output-height-ref applies to heights on an ellipsoid (--mapping geodetic)");
+  }
   auto tree = std::make_shared<TreeFile>(openIndex(so));
   if (tree->source.path.empty()) tree->source.path = options.source;
   source = tree->source;
@@ -263,6 +277,9 @@ Surface openSurface(const SampleOptions& options, TreeSource& source) {
       std::string problem;
       if (!onSurface(grid.get(), x, y, problem)) return outside("none", problem);
       const Eigen::Vector3d m = mapping.toMapped(Eigen::Vector3d(x, y, z ? *z : 0.0));
+      if (!grid && !index->tree().box().contains(m.x(), m.y())) {  // a mesh: off its footprint
+        return outside("none", "point (" + formatNumber(px) + ", " + formatNumber(py) + ") is off the terrain");
+      }
       const std::optional<Hit> hit = z ? index->below(m.x(), m.y(), m.z()) : index->top(m.x(), m.y());
       if (!hit) return Answer{};
       // The height in the source's own coordinates: along "up" from its world origin (a mesh's
@@ -277,23 +294,47 @@ Surface openSurface(const SampleOptions& options, TreeSource& source) {
                 " mapping reads longitude/latitude (or angle/axial) coordinates");
   }
   // A geodetic source's heights are in the raster's vertical unit (converted to metres for the
-  // ellipsoid): the query height comes in it and the answer goes out in it, as for cartesian.
+  // ellipsoid) and over its own reference (a geoid's undulation added to place them over the
+  // ellipsoid): the query height comes in them and the answer goes out in them, as for
+  // cartesian, unless the answer is asked over the ellipsoid.
   const double metres = tree->source.metresPerUnit;
+  auto geoid = std::make_shared<Geoid>(storedHeightReference(tree->source.heightRef, tree->source.geoidGrid));
+  const bool overEllipsoid = options.outputHeightRef == "ellipsoid";
+  if (!geoid->ellipsoidal() && tree->source.heightRef.find("assumed") != std::string::npos) {
+    err << "qota sample: note: " << tree->source.path << ": heights taken over the " << tree->source.heightRef
+        << " (" << kHeightRefChoices << ")\n";
+  }
   return std::visit(
       [&](const auto& index) -> Surface {
         using Index = std::decay_t<decltype(index)>;
         constexpr bool kGeodetic = std::is_same_v<Index, GeodeticIndex>;
+        constexpr bool kSpherical = std::is_same_v<Index, SphericalIndex>;
         constexpr bool kLatitude = !std::is_same_v<Index, CylindricalIndex>;
-        return pointByPoint([tree, &index, grid, metres](double u, double v, const double* z) {
+        return pointByPoint([tree, &index, grid, metres, geoid, overEllipsoid](double u, double v, const double* z) {
           if (kLatitude && !(v >= -90.0 && v <= 90.0)) {
             return outside("error", "latitude " + formatNumber(v) + " is outside [-90, 90]");
           }
           std::string problem;
           if (kGeodetic && !onSurface(grid.get(), u, v, problem)) return outside("none", problem);
+          // A regional raster as a planet: off its footprint is off the terrain (its inside keeps
+          // the mesh's own closure: no outer half pixel is moved onto the centres here).
+          if (kSpherical && grid && !grid->onRaster(u, v)) {
+            return outside("none", "point (" + formatNumber(u) + ", " + formatNumber(v) + ") is off the raster");
+          }
+          if (kLatitude) u -= 360.0 * std::floor((u + 180.0) / 360.0);  // the index's longitudes: [-180, 180)
+          if (!grid && !index.tree().box().contains(u, v)) {  // a mesh: off its footprint
+            return outside("none", "point (" + formatNumber(u) + ", " + formatNumber(v) + ") is off the terrain");
+          }
           const double scale = kGeodetic ? metres : 1.0;
-          const std::optional<Hit> hit = z ? index.below(u, v, *z * scale) : index.top(u, v);
+          const double n = kGeodetic ? geoid->undulation(u, v) : 0.0;  // (0 over the ellipsoid)
+          if (std::isnan(n)) return outside("none", "point (" + formatNumber(u) + ", " + formatNumber(v) + ") is outside the geoid grid");
+          // (over a geoid, a height printed and asked again is widened by a few units in the last
+          // place, so that it finds its own surface: z + N - N is not always z to the last bit)
+          const double zh = z ? *z * scale + n : 0.0;
+          const double below = n != 0 ? zh + std::fabs(zh) * 8 * std::numeric_limits<double>::epsilon() : zh;
+          const std::optional<Hit> hit = z ? index.below(u, v, below) : index.top(u, v);
           if (!hit) return Answer{};
-          return Answer{hit->height / scale, hit->world, "", ""};
+          return Answer{(hit->height - (overEllipsoid ? 0.0 : n)) / scale, hit->world, "", ""};
         });
       },
       tree->index);
@@ -374,10 +415,18 @@ class LineLoop {
       end = next.get();
       raw.swap(ahead);
     }
+    if (failures_ > kMostMessages) {
+      err_ << "qota sample: " << where_ << ": " << failures_ - kMostMessages << " more failed lines (" << failures_
+           << " in all; the first " << kMostMessages << " are named above)\n";
+    }
     return failed_;
   }
 
  private:
+  // Repeated per-line messages are capped (as GDAL caps its repeated errors): the first ones,
+  // then a count.
+  static constexpr std::uint64_t kMostMessages = 20;
+  std::uint64_t failures_ = 0;
   // The complete lines of data (and its unfinished last one at the end of the input), found on
   // every core; returns where the unfinished line starts.
   static std::size_t splitLines(const std::string& data, bool end, std::vector<std::string_view>& lines) {
@@ -487,8 +536,9 @@ class LineLoop {
     for (std::size_t s = 0; s < slices; ++s) out_.write(text[s].data(), static_cast<std::streamsize>(text[s].size()));
     for (std::size_t i = 0; i < n; ++i) {
       if (results_[i].problem.empty()) continue;
-      err_ << "qota sample: " << where_ << ':' << first + i << ": " << results_[i].problem << '\n';
       failed_ = true;
+      if (++failures_ > kMostMessages) continue;  // (counted, and said once at the end)
+      err_ << "qota sample: " << where_ << ':' << first + i << ": " << results_[i].problem << '\n';
     }
   }
 
@@ -579,7 +629,7 @@ int sample(const SampleOptions& options, std::istream& in, std::ostream& out, st
                   std::to_string(kMaxPrecision) + " decimals");
     }
     TreeSource source;
-    const Surface surface = openSurface(options, source);
+    const Surface surface = openSurface(options, source, err);
     const std::unique_ptr<OGRCoordinateTransformation> transform = makeTransform(options.srs, source);
 
     std::ifstream file;

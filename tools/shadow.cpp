@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <iostream>
 
+#include "qota/enu.hpp"
 #include "qota/error.hpp"
 #include "qota/instant.hpp"
 #include "qota/shadow.hpp"
@@ -28,16 +29,79 @@ Progress termProgress(bool quiet, double lo, double hi) {
 namespace {
 
 int lightKinds(const ShadowOptions& o) {
-  return (o.azimuth || o.altitude ? 1 : 0) + (o.sunVector ? 1 : 0) + (o.time.empty() ? 0 : 1);
+  return (o.azimuth || o.altitude ? 1 : 0) + (o.sunVector ? 1 : 0) + (o.time.empty() ? 0 : 1) +
+         (o.sunVectorBody ? 1 : 0) + (o.subsolar ? 1 : 0);
+}
+
+// East, north and up at (lon, lat) on the frame's body, or the refusal where they are undefined.
+EnuMapping enuAt(const LocalFrame& frame, double lon, double lat, const std::string& what) {
+  if (!frame.geographicLocation) {
+    throw Error(what + " needs the DEM on its body (a CRS): this raster has none");
+  }
+  if (!(std::fabs(lat) <= 90) || !std::isfinite(lon)) {
+    throw Error(what + ": longitude " + formatNumber(lon) + ", latitude " + formatNumber(lat) + " is no place");
+  }
+  return EnuMapping(lat, lon, 0.0, frame.body.a > 0 ? frame.body.a : 6378137.0,
+                    frame.body.a > 0 ? 1 - frame.body.b / frame.body.a : 1 / 298.257223563);
+}
+
+// The frame's direction of a vector in the body-fixed, body-centred frame.
+Eigen::Vector3d fromBody(const LocalFrame& frame, const Eigen::Vector3d& v) {
+  const Eigen::Vector3d d = v.normalized();
+  if (frame.body.ellipsoid) return frame.body.rotation * d;
+  // A flat frame: the direction's azimuth and altitude at the centre, turned to grid north.
+  const EnuMapping enu = enuAt(frame, frame.centreLon, frame.centreLat, "a body vector");
+  SunPosition s;
+  s.azimuth = std::atan2(d.dot(enu.east()), d.dot(enu.north())) * 180 / M_PI;
+  s.altitude = std::asin(std::clamp(d.dot(enu.up()), -1.0, 1.0)) * 180 / M_PI;
+  return frame.towardSun(s);
+}
+
+std::string vectorText(const Eigen::Vector3d& v) {
+  return formatNumber(v.x(), 9) + "," + formatNumber(v.y(), 9) + "," + formatNumber(v.z(), 9);
 }
 
 }  // namespace
 
 LightChoice chooseLight(const ShadowOptions& o, const LocalFrame& frame, std::ostream& out) {
+  // East-north-up at the centre is undefined at a pole: what is given in it is refused there.
+  // (A flat frame takes its grid's own north, as it takes the grid itself.)
+  const bool atPole = frame.body.ellipsoid && std::fabs(frame.centreLat) > 90 - kPoleDegrees;
+  const auto poleRefused = [&](const std::string& what) {
+    throw Error(what + " are east-north-up at the DEM's centre, " + formatNumber(frame.centreLon, 6) + ", " +
+                formatNumber(frame.centreLat, 6) + ", within " + formatNumber(kPoleDegrees) +
+                " degrees of a pole, where east and north are undefined; give the light in the body's own frame "
+                "(--sun-vector-body X,Y,Z or --subsolar LON,LAT), or -az/-alt at a place away from the pole (--at LON,LAT)");
+  };
+  if (o.at && !(o.azimuth || o.altitude)) throw Error("--at is where -az/-alt are east-north-up; give them with it");
+  if (o.sunVectorBody || o.subsolar) {
+    Eigen::Vector3d v;
+    std::string said;
+    if (o.sunVectorBody) {
+      if (!o.sunVectorBody->allFinite() || o.sunVectorBody->squaredNorm() == 0) {
+        throw Error("--sun-vector-body must be a nonzero finite vector x,y,z (body-fixed, body-centred)");
+      }
+      v = *o.sunVectorBody;
+      said = "body-fixed sun vector " + vectorText(v.normalized());
+    } else {
+      const auto [lon, lat] = *o.subsolar;
+      if (!(std::fabs(lat) <= 90) || !std::isfinite(lon)) {
+        throw Error("--subsolar " + formatNumber(lon) + "," + formatNumber(lat) + ": give the sub-solar longitude and "
+                    "latitude (degrees, latitude in [-90, 90])");
+      }
+      const double c = std::cos(lat * M_PI / 180);
+      v = Eigen::Vector3d(c * std::cos(lon * M_PI / 180), c * std::sin(lon * M_PI / 180), std::sin(lat * M_PI / 180));
+      said = "the Sun over " + formatNumber(lon, 6) + ", " + formatNumber(lat, 6) + " (sub-solar point)";
+    }
+    if (!frame.geographicLocation) throw Error("--sun-vector-body and --subsolar need the DEM on its body (a CRS)");
+    const Eigen::Vector3d toward = fromBody(frame, v);
+    return {toward, said + "; toward " + vectorText(toward) + " in the frame"};
+  }
   if (o.sunVector) {
     if (!o.sunVector->allFinite() || o.sunVector->squaredNorm() == 0) {
       throw Error("--sun-vector must be a nonzero finite vector x,y,z (east, north, up)");
     }
+    if (atPole) poleRefused("--sun-vector's east, north and up");
     const Eigen::Vector3d v = o.sunVector->normalized();
     return {v, "light vector " + formatNumber(v.x(), 6) + "," + formatNumber(v.y(), 6) + "," +
                    formatNumber(v.z(), 6) + " (east, north, up at the centre)"};
@@ -58,6 +122,19 @@ LightChoice chooseLight(const ShadowOptions& o, const LocalFrame& frame, std::os
     throw Error("altitude must be between -90 and 90 degrees and azimuth finite, got -az " +
                 formatNumber(sun.azimuth) + " -alt " + formatNumber(sun.altitude));
   }
+  if (o.time.empty() && o.at) {
+    // East-north-up at the place given: the same light, seen from the frame.
+    const auto [lon, lat] = *o.at;
+    const EnuMapping enu = enuAt(frame, lon, lat, "--at");
+    if (std::fabs(lat) > 90 - kPoleDegrees) poleRefused("-az/-alt at --at " + formatNumber(lon) + "," + formatNumber(lat));
+    const Eigen::Vector3d local = towardSunEnu(sun);
+    const Eigen::Vector3d body = local.x() * enu.east() + local.y() * enu.north() + local.z() * enu.up();
+    const Eigen::Vector3d toward = fromBody(frame, body);
+    return {toward, "azimuth " + formatNumber(sun.azimuth, 3) + " deg, altitude " + formatNumber(sun.altitude, 3) +
+                        " deg at " + formatNumber(lon, 6) + ", " + formatNumber(lat, 6) + "; toward " + vectorText(toward) +
+                        " in the frame"};
+  }
+  if (o.time.empty() && atPole) poleRefused("-az/-alt");
   return {frame.towardSun(sun), "azimuth " + formatNumber(sun.azimuth, 3) + " deg, altitude " +
                                     formatNumber(sun.altitude, 3) + " deg (" + from + ")"};
 }
@@ -115,7 +192,9 @@ bool sameFile(const std::string& a, const std::string& b) {
 // Everything that can be refused before any work: the light, the values, the outputs.
 void checkOptions(const ShadowOptions& o, const std::string& format) {
   if (o.output.empty()) throw Error("an output file is needed: -o OUT");
-  if (lightKinds(o) > 1) throw Error("give one light: -az/-alt, --sun-vector or --time");
+  if (lightKinds(o) > 1) {
+    throw Error("give one light: -az/-alt, --sun-vector, --time, --sun-vector-body or --subsolar");
+  }
   if (!o.tz.empty() && o.time.empty()) throw Error("--tz needs --time (the date and time it is the zone of)");
   if (o.hours && o.time.empty()) throw Error("--hours needs --time for the date");
   for (int v : {o.litValue, o.shadowValue, o.nodataValue}) {
@@ -162,6 +241,7 @@ int shadow(const ShadowOptions& o, std::ostream& out, std::ostream& err) {
     frameOptions.pixelSize = o.pixelSize;
     frameOptions.zFactor = o.zFactor;
     frameOptions.scale = o.scale;
+    frameOptions.heightRef = o.heightRef;
     const LocalFrame frame = localFrame(dem, frameOptions);
     if (!o.quiet) {
       out << "qota shadow: " << o.source << " -> " << o.output << " (" << format << ")\n"
@@ -223,7 +303,8 @@ int shadow(const ShadowOptions& o, std::ostream& out, std::ostream& err) {
 
     // Both outputs staged, then placed together: a failing preview leaves no mask either.
     OutputStage stage;
-    RasterWrite w{o.output, format, o.creationOptions, !o.hours, o.hours ? -1.0 : double(o.nodataValue), true};
+    RasterWrite w{o.output, format, o.creationOptions, !o.hours, o.hours ? -1.0 : double(o.nodataValue), true,
+                  {{"QOTA_FRAME", frame.description}}};
     writeRaster(w, dem, values, stage);
     if (!o.png.empty()) {
       const std::vector<double> grey = preview(frame, shownLight.z() > 0 ? shownLight : Eigen::Vector3d(0, 0, 1),

@@ -12,6 +12,10 @@
 
 namespace qota::tools {
 
+// How near a pole east-north-up is taken as undefined (degrees of latitude: about a kilometre
+// on the Earth, 60 m on the Moon): -az/-alt and --sun-vector there are refused.
+constexpr double kPoleDegrees = 0.01;
+
 struct LightChoice {
   Eigen::Vector3d toward;  // unit, frame coordinates
   std::string description;

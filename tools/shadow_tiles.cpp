@@ -11,6 +11,7 @@
 
 #include "qota/atomic_file.hpp"
 #include "qota/error.hpp"
+#include "qota/geoid.hpp"
 #include "qota/memory_budget.hpp"
 #include "qota/shadow_tiles.hpp"
 #include "qota/sunlight.hpp"
@@ -56,6 +57,21 @@ std::uint64_t pixelBytes(const std::string& path, int band) {
   std::unique_ptr<GDALDataset> ds(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER));
   GDALRasterBand* b = ds ? ds->GetRasterBand(std::max(1, band)) : nullptr;
   return b ? static_cast<std::uint64_t>(GDALGetDataTypeSizeBytes(b->GetRasterDataType())) : 8;
+}
+
+// What the geoid grid the frame loads takes (qota/geoid.hpp: its nodes as floats), when the run
+// is on the ellipsoid and the heights are over a geoid; 0 else (or when it cannot be told: the
+// frame's own error comes later).
+std::uint64_t geoidBytes(const ShadowOptions& o, const DemTerrain& dem) {
+  if (o.flat || dem.crsWkt.empty()) return 0;
+  try {
+    const HeightReference ref = heightReferenceOf(dem, o.heightRef);
+    if (ref.ellipsoidal()) return 0;
+    std::unique_ptr<GDALDataset> ds(GDALDataset::Open(ref.grid.c_str(), GDAL_OF_RASTER));
+    return ds ? static_cast<std::uint64_t>(ds->GetRasterXSize()) * static_cast<std::uint64_t>(ds->GetRasterYSize()) * 4 : 0;
+  } catch (const Error&) {
+    return 0;
+  }
 }
 
 std::string mib(std::uint64_t bytes) { return std::to_string((bytes + (1 << 20) - 1) >> 20) + " MiB"; }
@@ -129,7 +145,7 @@ std::uint64_t wholeEstimate(const ShadowOptions& o, std::uint64_t resident) {
   const std::uint64_t cells = static_cast<std::uint64_t>(d.width) * static_cast<std::uint64_t>(d.height);
   // The process, what its libraries add, the raster's and the output's blocks in GDAL's cache,
   // the terrain, its frame and the mask (or the hours and their step's mask).
-  return resident + kWholeLater + cells * (pixelBytes(o.source, o.band) + (o.hours ? 4 + 16 : 1)) +
+  return resident + kWholeLater + geoidBytes(o, d) + cells * (pixelBytes(o.source, o.band) + (o.hours ? 4 + 16 : 1)) +
          cells * ShadowTiles::bytesPerWholeCell(lightsForEstimate(o));
 }
 
@@ -161,7 +177,7 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
     const std::uint64_t cache = std::min<std::uint64_t>(
         gdalCacheFor(allowed),
         std::max<double>(1 << 20, cells * static_cast<double>(pixelBytes(o.source, o.band) + (o.hours ? 4 : 1))));
-    const std::uint64_t fixed = memory::residentBytes() + kLater + cache;
+    const std::uint64_t fixed = memory::residentBytes() + kLater + cache + geoidBytes(o, described);
     if (allowed <= fixed + (1ull << 20)) {
       throw Error("--max-memory " + mib(allowed) + ": the process itself takes " + mib(fixed - cache) +
                   " and GDAL's cache " + mib(cache) + " before any tile; allow at least " +
@@ -179,6 +195,7 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
     frameOptions.pixelSize = o.pixelSize;
     frameOptions.zFactor = o.zFactor;
     frameOptions.scale = o.scale;
+    frameOptions.heightRef = o.heightRef;
     // Work sized before it starts: the pass over the heights reads every cell, and the shadows
     // take each about a microsecond; a raster beyond --max-cells is refused with the estimate.
     const double passSeconds = o.tilesState.empty() ? cells / kPassCellsPerSecond : 0;
@@ -318,7 +335,8 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
         {"QOTA_TILE_SIZE", std::to_string(side)},
         {"QOTA_TILES", std::to_string(across) + "," + std::to_string(down)},
         {"QOTA_FRAME", std::string("flat ") + (o.flat ? "yes" : "no") + ", pixel size " + formatNumber(o.pixelSize) +
-                           ", z factor " + formatNumber(o.zFactor) + ", scale " + formatNumber(o.scale)},
+                           ", z factor " + formatNumber(o.zFactor) + ", scale " + formatNumber(o.scale) +
+                           (tiles.basis().geoid ? ", heights over the " + tiles.basis().heightRef.describe() : std::string())},
         {"QOTA_LIGHT", lightText},
         {"QOTA_VALUES", o.hours ? std::string("hours of direct sunlight, nodata -1")
                                 : "lit " + std::to_string(o.litValue) + ", shadow " + std::to_string(o.shadowValue) +

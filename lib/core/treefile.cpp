@@ -14,7 +14,7 @@ namespace qota {
 namespace {
 
 constexpr char kMagic[8] = {'Q', 'O', 'T', 'A', 'T', 'R', 'E', 'E'};
-constexpr std::uint32_t kVersion = 3;  // 2: the grid keeps no plane table; 3: band and unit
+constexpr std::uint32_t kVersion = 4;  // 2: the grid keeps no plane table; 3: band and unit; 4: height reference
 constexpr std::uint32_t kOldestVersion = 3;  // version 2 stored its statistics with padding
 // Structs written as they are must have no padding, whose bytes would be whatever memory held:
 // the same index must always make the same file.
@@ -376,6 +376,8 @@ void saveTree(const std::string& path, const Index& index, const TreeSource& sou
   w.pod(source.band);
   w.str(source.verticalUnit);
   w.pod(source.metresPerUnit);
+  w.str(source.heightRef);
+  w.str(source.geoidGrid);
   TreeFileAccess::write(w, index);
   const std::uint64_t payload = w.bytes(), checksum = w.checksum();
   out.seekp(16);
@@ -442,6 +444,10 @@ TreeFile loadTree(const std::string& path) {
   source.band = r.pod<int>("source");
   source.verticalUnit = r.str("source");
   source.metresPerUnit = r.pod<double>("source");
+  if (version >= 4) {
+    source.heightRef = r.str("source");
+    source.geoidGrid = r.str("source");
+  }
   if (!(source.metresPerUnit > 0) || !std::isfinite(source.metresPerUnit) || source.band < 1) {
     r.fail("bad source band or vertical unit");
   }

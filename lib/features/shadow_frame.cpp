@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <tuple>
 #include <memory>
 #include <sstream>
 
@@ -240,6 +241,30 @@ void checkInsideProjection(const DemTerrain& dem, OGRCoordinateTransformation& t
   }
 }
 
+// The heights' reference on the ellipsoid and the range of its undulation over the raster: over
+// the longitudes and latitudes of the raster's edges (sampled along them: a projected raster's
+// are curves) and its inside, which lies between them.
+void geoidOver(FrameBasis& b, OGRCoordinateTransformation* toGeo) {
+  b.heightRef = heightReferenceOf(b.raster, b.options.heightRef);
+  b.geoid = std::make_shared<const Geoid>(b.heightRef);
+  if (b.geoid->ellipsoidal()) return;
+  const DemTerrain& dem = b.raster;
+  constexpr int kSamples = 64;
+  double lon0 = INFINITY, lon1 = -INFINITY, lat0 = INFINITY, lat1 = -INFINITY;
+  const auto& gt = dem.geotransform;
+  for (int k = 0; k <= kSamples; ++k) {
+    const double t = static_cast<double>(k) / kSamples;
+    for (const auto& [c, r] : {std::pair{t * dem.width, 0.0}, std::pair{t * dem.width, double(dem.height)},
+                               std::pair{0.0, t * dem.height}, std::pair{double(dem.width), t * dem.height}}) {
+      double x = gt[0] + c * gt[1] + r * gt[2], y = gt[3] + c * gt[4] + r * gt[5];
+      if (toGeo && !toGeo->Transform(1, &x, &y)) continue;
+      lon0 = std::min(lon0, x), lon1 = std::max(lon1, x), lat0 = std::min(lat0, y), lat1 = std::max(lat1, y);
+    }
+  }
+  if (!(lon0 <= lon1 && lat0 <= lat1)) throw Error(dem.path + ": its edges cannot be converted to longitude/latitude");
+  std::tie(b.geoidLow, b.geoidHigh) = b.geoid->rangeOver(lon0, std::max(lat0, -90.0), lon1, std::min(lat1, 90.0));
+}
+
 }  // namespace
 
 FrameBasis frameBasis(const DemTerrain& dem, const FrameOptions& o) {
@@ -290,10 +315,12 @@ FrameBasis frameBasis(const DemTerrain& dem, const FrameOptions& o) {
     if (!toGeo || !toGrid) throw Error(dem.path + ": its CRS cannot be converted to longitude/latitude");
     if (!toGeo->Transform(1, &lon0, &lat0)) throw Error(dem.path + ": its centre cannot be converted to longitude/latitude");
     if (ellipsoid) checkInsideProjection(dem, *toGeo, *toGrid);
+    if (ellipsoid) geoidOver(b, toGeo.get());
     // Where true north points on the grid at the centre (for a flat projected frame).
     double nx = lon0, ny = lat0 + 0.01;
     if (toGrid->Transform(1, &nx, &ny)) f.trueNorthFromY = std::atan2(nx - centre[0], ny - centre[1]) / kDeg;
   }
+  if (ellipsoid && b.geographic) geoidOver(b, nullptr);
   f.geographicLocation = true;
   f.centreLon = lon0;
   f.centreLat = lat0;
@@ -308,7 +335,8 @@ FrameBasis frameBasis(const DemTerrain& dem, const FrameOptions& o) {
     f.description = std::string(b.geographic ? "" : "projected grid put ") + "on the " +
                     (f.body.name.empty() ? "" : f.body.name + " ") + "ellipsoid (a = " + std::to_string(b.a) +
                     " m), east-north-up at the centre" + (b.closure.wrapsColumns ? ", closed round the globe" : "") +
-                    (b.closure.northCap || b.closure.southCap ? " and over the poles" : "");
+                    (b.closure.northCap || b.closure.southCap ? " and over the poles" : "") +
+                    "; heights over the " + b.heightRef.describe();
   } else {
     f.description = b.geographic ? "flat east-north-up metres around the centre (--flat)" : "projected grid metres (--flat)";
   }
@@ -423,8 +451,15 @@ LocalFrame windowFrame(const FrameBasis& b, const CellWindow& window, std::vecto
           throw Error(dem.path + ": pixel (" + std::to_string(col[i]) + ", " + std::to_string(row[i]) +
                       ") is at latitude " + std::to_string(lat[i]) + ", beyond the pole");
         }
+        // Over the ellipsoid: the height over the geoid plus the geoid's undulation there.
+        const double n = b.geoid ? b.geoid->undulation(lon[i], lat[i]) : 0.0;
+        if (std::isnan(n)) {
+          throw Error(dem.path + ": pixel (" + std::to_string(col[i]) + ", " + std::to_string(row[i]) + ") at " +
+                      std::to_string(lon[i]) + ", " + std::to_string(lat[i]) + " is outside the geoid grid " +
+                      b.heightRef.grid);
+        }
         Eigen::Vector3d X;
-        earth.Forward(lat[i], lon[i], height[i], X.x(), X.y(), X.z());
+        earth.Forward(lat[i], lon[i], height[i] + n, X.x(), X.y(), X.z());
         f.mesh.vertices[i] = f.body.rotation * (X - f.body.origin);
       }
     } else if (b.geographic) {
@@ -454,6 +489,8 @@ void completeBasis(FrameBasis& b, double minHeight, double maxHeight, const Loca
   LocalFrame& f = b.shared;
   f.minHeight = minHeight, f.maxHeight = maxHeight;
   if (!(f.minHeight <= f.maxHeight)) f.minHeight = f.maxHeight = 0;
+  // Over the ellipsoid: the heights over the geoid plus its undulation, which lies in this range.
+  f.minHeight += b.geoidLow, f.maxHeight += b.geoidHigh;
   const int w = b.raster.width, h = b.raster.height;
   // The centre square's top-left cell, in the centre frame's own numbering.
   const int cc = (w - 1) / 2 - centre.window.col, cr = (h - 1) / 2 - centre.window.row;

@@ -605,7 +605,8 @@ std::uint64_t ShadowTiles::largestWindowCells(const std::vector<CellWindow>& til
   std::uint64_t most = 0;
   for (const CellWindow& t : tiles) {
     const auto [low, high] = blocks_.rangeOver(t);
-    const double bound = metres >= 0 ? low * metres : high * metres;  // the tile's lowest, at least
+    // The tile's lowest, at least (over the ellipsoid: with the geoid's least undulation).
+    const double bound = (metres >= 0 ? low * metres : high * metres) + basis_.geoidLow;
     if (!std::isfinite(bound) && bound > 0) {  // no data: no window beyond the tile
       most = std::max<std::uint64_t>(most, t.cellCount());
       continue;
@@ -757,6 +758,11 @@ std::string ShadowTiles::state() const {
   w.number("metresPerUnit", d.verticalUnit.metresPerUnit);
   w.number("flat", basis_.options.flat), w.number("pixelSize", basis_.options.pixelSize);
   w.number("zFactor", basis_.options.zFactor), w.number("scale", basis_.options.scale);
+  w.text("heightRefAsked", basis_.options.heightRef);
+  w.text("verticalCrs", d.verticalReference.name);
+  w.number("verticalEpsg", d.verticalReference.epsg);
+  w.number("verticalEllipsoidal", d.verticalReference.ellipsoidal), w.number("earth", d.verticalReference.earth);
+  w.text("heightRef", basis_.heightRef.name);
   w.number("minHeight", f.minHeight), w.number("maxHeight", f.maxHeight);
   w.number("pixelSizeX", f.pixelSizeX), w.number("pixelSizeY", f.pixelSizeY);
   w.number("lowest", f.body.lowest), w.number("winding", f.gridWinding);
@@ -818,8 +824,18 @@ ShadowTiles ShadowTiles::restore(const std::string& state) {
   o.flat = r.bounded("flat", 0, 1, true) != 0;
   o.pixelSize = r.bounded("pixelSize", 0, 1e300);
   o.zFactor = r.bounded("zFactor", -1e300, 1e300), o.scale = r.bounded("scale", 0, 1e300);
+  o.heightRef = r.text("heightRefAsked");
+  d.verticalReference.name = r.text("verticalCrs");
+  d.verticalReference.epsg = static_cast<int>(r.bounded("verticalEpsg", 0, kInt, true));
+  d.verticalReference.ellipsoidal = r.bounded("verticalEllipsoidal", 0, 1, true) != 0;
+  d.verticalReference.earth = r.bounded("earth", 0, 1, true) != 0;
+  const std::string heightRef = r.text("heightRef");
   ShadowTiles t;
   t.basis_ = frameBasis(d, o);
+  if (t.basis_.heightRef.name != heightRef) {
+    throw Error("a shadow tiles state made over the " + heightRef + ", which is the " + t.basis_.heightRef.name +
+                " here; make it again");
+  }
   LocalFrame& f = t.basis_.shared;
   f.minHeight = r.number("minHeight"), f.maxHeight = r.number("maxHeight");
   f.pixelSizeX = r.bounded("pixelSizeX", 1e-300, 1e300), f.pixelSizeY = r.bounded("pixelSizeY", 1e-300, 1e300);
@@ -913,6 +929,14 @@ ShadowTiles ShadowTiles::restore(const std::string& state, const std::string& pa
   option("--pixel-size", o.pixelSize, frame.pixelSize);
   option("-z", o.zFactor, frame.zFactor);
   option("-s", o.scale, frame.scale);
+  if (frame.heightRef != o.heightRef) {
+    throw Error(path + ": the shadow tiles' state was made with other frame options (--height-ref '" + o.heightRef +
+                "', this run '" + frame.heightRef + "'); give the same, or another state file");
+  }
+  if (d.verticalReference.name != was.verticalReference.name || d.verticalReference.epsg != was.verticalReference.epsg ||
+      d.verticalReference.ellipsoidal != was.verticalReference.ellipsoidal) {
+    refuse("vertical CRS", "'" + was.verticalReference.name + "'", "'" + d.verticalReference.name + "'");
+  }
   source->reader = [windows](const CellWindow& w, std::vector<double>& out) {
     windows->read(w.col, w.row, w.width, w.height, out);
   };

@@ -44,7 +44,7 @@ std::array<double, 6> DemTerrain::inverseGeotransform() const {
 std::array<double, 2> DemTerrain::pixelOf(double x, double y) const { return pixelOf(x, y, inverseGeotransform()); }
 
 bool DemTerrain::onRaster(double x, double y) const {
-  const auto [col, row] = pixelOf(x, y);
+  const auto [col, row] = pixelOf(turnedOnto(x), y);
   return col >= 0 && col <= width && row >= 0 && row <= height;
 }
 
@@ -86,6 +86,25 @@ VerticalUnit verticalUnitOf(const std::string& path, GDALRasterBand* band,
     }
   }
   return unit;
+}
+
+VerticalReference verticalReferenceOf(const OGRSpatialReference* srs) {
+  VerticalReference v;
+  if (!srs) return v;
+  OGRErr e = OGRERR_NONE;
+  const double a = srs->GetSemiMajor(&e);
+  // The Earth's ellipsoids all have a semi-major axis within a few kilometres of 6378 km.
+  v.earth = e != OGRERR_NONE || (a > 6.36e6 && a < 6.39e6);
+  if (srs->IsCompound() || srs->IsVertical()) {
+    const char* name = srs->GetAttrValue("VERT_CS");
+    v.name = name && *name ? name : "a vertical CRS";
+    const char* code = srs->GetAuthorityCode("VERT_CS");
+    const char* authority = srs->GetAuthorityName("VERT_CS");
+    if (code && authority && std::string(authority) == "EPSG") v.epsg = std::atoi(code);
+  } else if (srs->IsGeographic() && srs->GetAxesCount() == 3) {
+    v.ellipsoidal = true;
+  }
+  return v;
 }
 
 // A geotransform that places pixels usably: finite, invertible, with pixel sizes and an extent
@@ -175,6 +194,8 @@ DemTerrain openDem(const std::string& path, const DemOptions& options,
   const double nodata = band->GetNoDataValue(&hasNodata);
   if (hasNodata) dem.nodata = nodata;
   dem.verticalUnit = verticalUnitOf(path, band, srs);
+  dem.verticalReference = verticalReferenceOf(srs);
+  dem.lonLat = srs && srs->IsGeographic() && dem.geotransform[2] == 0 && dem.geotransform[4] == 0;
   if (!options.lonLatAsCartesian && srs && srs->IsGeographic()) {
     throw Error(path + ": the raster is in longitude/latitude degrees, so as a Cartesian terrain "
                 "its x and y would be degrees and its heights metres, and slopes, normals and "
@@ -222,6 +243,13 @@ void readHeights(const DemTerrain& dem, GDALRasterBand* band, int col, int row, 
 
 }  // namespace
 
+bool crsIsGeographic(const std::string& wkt) {
+  if (wkt.empty()) return false;
+  OGRSpatialReference srs;
+  QuietGdalErrors quiet;
+  return srs.importFromWkt(wkt.c_str()) == OGRERR_NONE && srs.IsGeographic();
+}
+
 std::optional<double> metresPerLengthUnit(const std::string& unitText) {
   const std::string u = lowerTrimmed(unitText);
   if (u == "m" || u == "metre" || u == "meter" || u == "metres" || u == "meters") return 1.0;
@@ -245,8 +273,18 @@ std::optional<std::array<double, 2>> DemTerrain::surfacePoint(double x, double y
   return surfacePoint(x, y, inverseGeotransform());
 }
 
+double DemTerrain::turnedOnto(double x) const {
+  if (!lonLat || !std::isfinite(x)) return x;
+  const auto& g = geotransform;
+  const double west = std::min(g[0], g[0] + width * g[1]), east = std::max(g[0], g[0] + width * g[1]);
+  if (x >= west && x <= east) return x;
+  const double turned = x + 360.0 * std::round((0.5 * (west + east) - x) / 360.0);
+  return turned >= west && turned <= east ? turned : x;
+}
+
 std::optional<std::array<double, 2>> DemTerrain::surfacePoint(double x, double y,
                                                                const std::array<double, 6>& inverse) const {
+  x = turnedOnto(x);
   const auto [col, row] = pixelOf(x, y, inverse);
   if (!(col >= 0 && col <= width && row >= 0 && row <= height)) return std::nullopt;
   const double c = std::clamp(col, 0.5, width - 0.5), r = std::clamp(row, 0.5, height - 0.5);

@@ -18,12 +18,36 @@ bool readCrs(const DemTerrain& dem, OGRSpatialReference& srs) {
   return true;
 }
 
+}  // namespace
+
+std::string geographicCrsOf(const DemTerrain& dem) {
+  OGRSpatialReference srs;
+  if (!readCrs(dem, srs)) return "EPSG:4326";
+  OGRSpatialReference geo;
+  if (geo.CopyGeogCSFrom(&srs) != OGRERR_NONE) return "EPSG:4326";
+  const char* authority = geo.GetAuthorityName(nullptr);
+  const char* code = geo.GetAuthorityCode(nullptr);
+  if (authority && code) return std::string(authority) + ":" + code;
+  // No identifier (a body's CRS written without one): its PROJ string, which gdalwarp takes.
+  char* proj4 = nullptr;
+  std::string out = "EPSG:4326";
+  if (geo.exportToProj4(&proj4) == OGRERR_NONE && proj4 && *proj4) {
+    out = std::string("'") + proj4 + "'";
+    while (out.size() > 2 && out[out.size() - 2] == ' ') out.erase(out.size() - 2, 1);
+  }
+  CPLFree(proj4);
+  return out;
+}
+
+namespace {
+
 // Checks that the raster is a north-up lon/lat grid (the only layout a globe is built from).
 void requireLonLatGrid(const DemTerrain& dem, const char* what) {
   const auto& gt = dem.geotransform;
   if (!demIsLonLat(dem)) {
     throw Error(dem.path + ": " + what + " needs a raster in longitude/latitude degrees (a "
-                "geographic CRS); reproject it with gdalwarp -t_srs EPSG:4326");
+                "geographic CRS); reproject it with gdalwarp -t_srs " + geographicCrsOf(dem) +
+                " (its own body's longitude/latitude)");
   }
   if (gt[2] != 0.0 || gt[4] != 0.0 || !(gt[1] > 0.0) || !(gt[5] < 0.0)) {
     throw Error(dem.path + ": " + what + " needs a north-up raster without rotation "
@@ -126,16 +150,25 @@ EllipsoidTerrain loadOnEllipsoid(const std::string& path, const DemOptions& opti
   DemTerrain dem = loadDem(path, demOptions);
   if (!demIsLonLat(dem)) {
     throw Error(dem.path + ": the geodetic mapping needs a raster in longitude/latitude degrees "
-                "(a geographic CRS); reproject it with gdalwarp -t_srs EPSG:4326");
+                "(a geographic CRS); reproject it with gdalwarp -t_srs " + geographicCrsOf(dem) +
+                " (its own body's longitude/latitude)");
   }
   double a, f;
   demEllipsoid(dem, a, f);
-  EllipsoidTerrain terrain{std::move(dem), GeodeticMapping(a, f)};
+  HeightReference reference = heightReferenceOf(dem, options.heightRef);
+  EllipsoidTerrain terrain{std::move(dem), GeodeticMapping(a, f), std::move(reference)};
+  const Geoid geoid(terrain.heightRef);
   const double metres = terrain.dem.verticalUnit.metresPerUnit;
   for (Eigen::Vector3d& p : terrain.dem.mesh.vertices) {
     if (!std::isfinite(p.z())) continue;
-    // (lon, lat, h) is the mapped point, h in metres
-    p = terrain.mapping.toWorld(metres == 1 ? p : Eigen::Vector3d(p.x(), p.y(), p.z() * metres));
+    // (lon, lat, h) is the mapped point, h in metres over the ellipsoid: over the geoid, plus its
+    // undulation there.
+    const double n = geoid.undulation(p.x(), p.y());
+    if (std::isnan(n)) {
+      throw Error(terrain.dem.path + ": the point " + std::to_string(p.x()) + ", " + std::to_string(p.y()) +
+                  " is outside the geoid grid " + terrain.heightRef.grid);
+    }
+    p = terrain.mapping.toWorld(Eigen::Vector3d(p.x(), p.y(), p.z() * metres + n));
   }
   return terrain;
 }

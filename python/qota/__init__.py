@@ -155,7 +155,8 @@ class Terrain:
         self._t = impl
 
     @classmethod
-    def from_raster(cls, path, band: int = 1, mapping: str = "cartesian", radius=None, length=None) -> "Terrain":
+    def from_raster(cls, path, band: int = 1, mapping: str = "cartesian", radius=None, length=None, *,
+                    height_ref=None) -> "Terrain":
         """A raster as a terrain in a mapping, as `qota sample --mapping --radius --length` reads it.
 
         path: a GDAL raster (GeoTIFF, VRT, ...; a path or GDAL's /vsi... name), an open rasterio
@@ -174,40 +175,51 @@ class Terrain:
             or its ellipsoid's mean radius, 6371008.8 for WGS84); cylindrical: the station's
             radius (default 250). Refused for the other mappings.
         length: cylindrical: the station's length (default 1000). Refused for the others.
+        height_ref: geodetic: what the raster's heights are over ("ellipsoid", "egm96", "egm2008",
+            "crs", or a geoid grid's path; default: the raster's vertical CRS, else the EGM96 geoid
+            on the Earth and the ellipsoid elsewhere). The surface is placed over the ellipsoid
+            with the geoid's undulation; heights are read and answered in the raster's own
+            reference. The choice is the terrain's height_ref. Refused for the other mappings.
         """
         mapping = _mapping(mapping)
+        if height_ref is not None and not isinstance(height_ref, (str, _os.PathLike)):
+            raise Error(f"height_ref must be a text or a path, got {height_ref!r}")
         if _interop.is_dataarray(path):
-            return cls.from_xarray(path, band=band, mapping=mapping, radius=radius, length=length)
+            return cls.from_xarray(path, band=band, mapping=mapping, radius=radius, length=length, height_ref=height_ref)
         if _interop.is_xarray_dataset(path):
             raise Error("an xarray.Dataset: give one of its variables (a DataArray), e.g. ds['elevation']")
         if _interop.is_rasterio_dataset(path):
             local = _interop.local_file_of(path)
             if local is None:
-                return cls._from_grid(_interop.rasterio_grid(path, _whole(band, "band")), mapping, radius, length)
+                return cls._from_grid(_interop.rasterio_grid(path, _whole(band, "band")), mapping, radius, length,
+                                      height_ref)
             path = local
         return cls(_qota._Terrain.from_raster(_local_file(path), _whole(band, "band"), mapping,
-                                              _number_or_none(radius, "radius"), _number_or_none(length, "length")))
+                                              _number_or_none(radius, "radius"), _number_or_none(length, "length"),
+                                              "" if height_ref is None else _os.fspath(height_ref)))
 
     @classmethod
-    def from_xarray(cls, da, band: int = 1, mapping: str = "cartesian", radius=None, length=None) -> "Terrain":
+    def from_xarray(cls, da, band: int = 1, mapping: str = "cartesian", radius=None, length=None, *,
+                    height_ref=None) -> "Terrain":
         """An xarray.DataArray with rioxarray's `rio` accessor (rioxarray.open_rasterio, or any
         array with x/y coordinates and a CRS written by rio.write_crs), as from_raster reads the
         same raster: its values, rio.transform(), rio.nodata (NaN cells are holes too), rio.crs
         and the `units` attribute (the vertical unit). A 2-D (y, x) array is the band; a 3-D one
-        gives band `band` (1-based) of its third dimension. mapping, radius and length as for
-        from_raster. Needs rioxarray (imported here, on first use)."""
+        gives band `band` (1-based) of its third dimension. mapping, radius, length and height_ref
+        as for from_raster. Needs rioxarray (imported here, on first use)."""
         if not _interop.is_dataarray(da):
             raise Error(f"from_xarray takes an xarray.DataArray, got {type(da).__name__}")
-        return cls._from_grid(_interop.dataarray_grid(da, _whole(band, "band")), _mapping(mapping), radius, length)
+        return cls._from_grid(_interop.dataarray_grid(da, _whole(band, "band")), _mapping(mapping), radius, length,
+                              height_ref)
 
     @classmethod
-    def _from_grid(cls, grid, mapping, radius, length) -> "Terrain":
+    def _from_grid(cls, grid, mapping, radius, length, height_ref=None) -> "Terrain":
         return cls.from_array(grid.heights, grid.transform, grid.nodata, crs=grid.crs or None, unit=grid.unit or None,
-                              mapping=mapping, radius=radius, length=length)
+                              mapping=mapping, radius=radius, length=length, height_ref=height_ref)
 
     @classmethod
     def from_array(cls, heights, transform, nodata=None, *, crs=None, unit=None, mapping: str = "cartesian",
-                   radius=None, length=None) -> "Terrain":
+                   radius=None, length=None, height_ref=None) -> "Terrain":
         """A 2-D array (rows, columns) of heights as from_raster would read the same raster.
 
         transform: a GDAL geotransform (6 numbers) or an affine.Affine (rasterio's).
@@ -219,12 +231,14 @@ class Terrain:
         unit: the heights' unit, as a band's unit type ("m", "ft", "US survey foot", ...);
             spherical and cylindrical convert heights to metres with it, geodetic takes and gives
             heights in it. None: metres.
-        mapping, radius, length: as for from_raster.
+        mapping, radius, length, height_ref: as for from_raster (a compound crs states the heights'
+            reference: "EPSG:4326+5773").
         """
         return cls(_qota._Terrain.from_array(_heights_array(heights), _interop.gdal_transform(transform),
                                              None if nodata is None else float(nodata), _interop.crs_text(crs),
                                              "" if unit is None else str(unit), _mapping(mapping),
-                                             _number_or_none(radius, "radius"), _number_or_none(length, "length")))
+                                             _number_or_none(radius, "radius"), _number_or_none(length, "length"),
+                                             "" if height_ref is None else _os.fspath(height_ref)))
 
     @classmethod
     def from_mesh(cls, vertices, triangles, *, mapping: str = "cartesian") -> "Terrain":
@@ -253,6 +267,12 @@ class Terrain:
         return self._t.mapping
 
     @property
+    def height_ref(self) -> str | None:
+        """What the heights are over (geodetic): "ellipsoid", or the geoid with why ("EGM96
+        geoid (egm96_15.gtx); assumed: ..."); None in the other mappings."""
+        return self._t.height_ref or None
+
+    @property
     def crs(self) -> str | None:
         """The source raster's CRS as WKT, or None (a mesh, a raster without one)."""
         return self._t.crs or None
@@ -262,6 +282,9 @@ class Terrain:
         return method(*[_flat(a) for a in b]).reshape(b[0].shape)
 
     def _hits(self, mode, polygons, normals, **arrays):
+        if normals and self._t._lon_lat_map:
+            raise Error("normals of a longitude/latitude raster in the cartesian mapping would mix degrees and "
+                        "metres (its heights are right); load it with mapping='geodetic', or reproject it")
         b = _broadcast(**arrays)
         shape = b[0].shape
         flat = [_flat(a) for a in b]
@@ -328,12 +351,30 @@ def _hours_span(hours):
     return start, end, step
 
 
-def _shadow_file(dem_path, output, azimuth, altitude, time, tz, band, z_factor, hours):
+def _vector(value, name, n):
+    """A light vector (or place) argument as n floats, or None; qota.Error naming it otherwise."""
+    if value is None:
+        return None
+    try:
+        v = [float(x) for x in value]
+    except (TypeError, ValueError):
+        raise Error(f"{name} must be {n} numbers, got {value!r}") from None
+    if len(v) != n:
+        raise Error(f"{name} must be {n} numbers, got {len(v)}")
+    return v
+
+
+def _shadow_file(dem_path, output, azimuth, altitude, time, tz, band, z_factor, hours, height_ref=None, light=None):
     """qota shadow on a raster file, into `output` (or a temporary file), as a uint8 array (float32
-    hours with `hours`)."""
+    hours with `hours`). light: sun_vector, sun_vector_body, subsolar, flat."""
+    light = light or {}
+
     def run(path):
         return _qota._shadow(dem_path, path, azimuth, altitude, time or "", tz or "", int(band), float(z_factor),
-                             _hours_span(hours))
+                             _hours_span(hours), "" if height_ref is None else _os.fspath(height_ref),
+                             _vector(light.get("sun_vector"), "sun_vector", 3),
+                             _vector(light.get("sun_vector_body"), "sun_vector_body", 3),
+                             _vector(light.get("subsolar"), "subsolar", 2), bool(light.get("flat", False)))
 
     if output is not None:
         return run(str(output))
@@ -367,7 +408,7 @@ def _shadow_in_memory(dem, azimuth, altitude, time, tz, band, z_factor, output, 
 
 
 def shadow(dem_path, azimuth=None, altitude=None, *, time=None, tz=None, hours=None, band=1, z_factor=1.0,
-           output=None):
+           output=None, height_ref=None, sun_vector=None, sun_vector_body=None, subsolar=None, flat=False):
     """Where the terrain of a DEM shades itself from the Sun, as `qota shadow` computes it.
 
     dem_path: a raster file, or an xarray.DataArray (rioxarray) or an open rasterio dataset.
@@ -384,10 +425,21 @@ def shadow(dem_path, azimuth=None, altitude=None, *, time=None, tz=None, hours=N
     local clock times start and end (0 to 48) of `time`'s date, in steps of `step` hours, a cell
     lit at a step's middle counting the whole step (`qota shadow --hours`).
 
+    height_ref: on the ellipsoid, what the heights are over ("ellipsoid", "egm96", "egm2008", "crs",
+    a geoid grid's path; default: the raster's vertical CRS, else EGM96 on the Earth), as
+    `qota shadow --height-ref`; a raster file only.
+
+    Other lights, as the tool's: sun_vector=(east, north, up) at the DEM's centre;
+    sun_vector_body=(x, y, z) toward the Sun in the body-fixed, body-centred frame (SPICE's spkpos
+    in IAU_MARS); subsolar=(lon, lat), the Sun over that point (planetocentric latitude). flat:
+    no curvature (qota shadow --flat). -az/-alt and sun_vector are refused at a pole.
+
     For a raster in chunks, over Dask: qota.dask.shadow.
     """
-    if time is None and (azimuth is None or altitude is None):
-        raise Error("give azimuth and altitude, or time")
+    light = {"sun_vector": sun_vector, "sun_vector_body": sun_vector_body, "subsolar": subsolar, "flat": flat}
+    others = sum(v is not None for v in (sun_vector, sun_vector_body, subsolar))
+    if time is None and others == 0 and (azimuth is None or altitude is None):
+        raise Error("give azimuth and altitude, or time, sun_vector, sun_vector_body or subsolar")
     azimuth = None if azimuth is None else _number(azimuth, "azimuth")
     altitude = None if altitude is None else _number(altitude, "altitude")
     band, z_factor = _whole(band, "band"), _number(z_factor, "z_factor")
@@ -396,8 +448,12 @@ def shadow(dem_path, azimuth=None, altitude=None, *, time=None, tz=None, hours=N
     if tz is not None and not isinstance(tz, str):
         raise Error(f"tz must be a text (an offset or an IANA zone name), got {tz!r}")
     if _interop.is_dataarray(dem_path) or _interop.is_rasterio_dataset(dem_path):
+        if height_ref is not None or others or flat:
+            raise Error("height_ref, sun_vector, sun_vector_body, subsolar and flat take a raster file; give the "
+                        "DataArray's or dataset's file")
         return _shadow_in_memory(dem_path, azimuth, altitude, time, tz, band, z_factor, output, hours)
-    return _shadow_file(_local_file(dem_path), output, azimuth, altitude, time, tz, band, z_factor, hours)
+    return _shadow_file(_local_file(dem_path), output, azimuth, altitude, time, tz, band, z_factor, hours, height_ref,
+                        light)
 
 
 def sun_position(time, lon, lat, *, tz=None):

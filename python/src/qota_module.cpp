@@ -27,6 +27,7 @@
 #include "qota/error.hpp"
 #include "qota/instant.hpp"
 #include "qota/raster_sampler.hpp"
+#include "qota/geoid.hpp"
 #include "qota/shadow_tiles.hpp"
 #include "qota/sun.hpp"
 #include "qota/sunlight.hpp"
@@ -58,9 +59,20 @@ bool knownMapping(const std::string& m) {
 //   spherical, cylindrical: metres (the radius, the distance from the axis) on both sides.
 struct Frame {
   double du = 0, dv = 0, dh = 0, scale = 1;
+  // Geodetic: heights over a geoid (qota/geoid.hpp), placed over the ellipsoid by its undulation
+  // at the point's longitude and latitude, and given back over it.
+  std::shared_ptr<const qota::Geoid> geoid;
+  bool longitudes = false;  // u is a longitude (spherical, geodetic)
   qota::Point2 point(double x, double y) const { return {x - du, y - dv}; }
-  double toIndex(double z) const { return (z - dh) * scale; }
-  double fromIndex(double h) const { return h / scale + dh; }
+  double undulation(const qota::Point2& p) const { return geoid ? geoid->undulation(p.u, p.v) : 0.0; }
+  // side: +1 for "at or below z", -1 for "at or above", 0 neither. Over a geoid, z + N then
+  // - N does not always give z back to the last bit: a height answered and asked again is widened
+  // by a few units in the last place toward the side asked, so that it finds its own surface.
+  double toIndex(double z, const qota::Point2& p, int side = 0) const {
+    const double h = (z - dh) * scale + undulation(p);
+    return geoid && side ? h + side * std::fabs(h) * 8 * std::numeric_limits<double>::epsilon() : h;
+  }
+  double fromIndex(double h, const qota::Point2& p) const { return (h - undulation(p)) / scale + dh; }
 };
 
 // The frame of an index read from anywhere; an index the Python package has no coordinates for
@@ -76,11 +88,18 @@ Frame frameOf(const qota::AnyIndex& index, const qota::TreeSource& source, const
   }
   if (std::holds_alternative<qota::GeodeticIndex>(index)) {
     const double m = source.metresPerUnit;
-    return {0, 0, 0, m > 0 && std::isfinite(m) ? m : 1.0};
+    Frame f{0, 0, 0, m > 0 && std::isfinite(m) ? m : 1.0, nullptr, true};
+    if (!source.geoidGrid.empty()) {
+      f.geoid = std::make_shared<const qota::Geoid>(qota::storedHeightReference(source.heightRef, source.geoidGrid));
+    }
+    return f;
   }
-  if (std::holds_alternative<qota::SphericalIndex>(index) || std::holds_alternative<qota::CylindricalIndex>(index)) {
-    return {};
+  if (std::holds_alternative<qota::SphericalIndex>(index)) {
+    Frame f;
+    f.longitudes = true;
+    return f;
   }
+  if (std::holds_alternative<qota::CylindricalIndex>(index)) return {};
   throw qota::Error(where + ": a terrain in the " + std::string(qota::tools::mappingNameOf(index)) +
                     " mapping (the Python package reads cartesian, spherical, geodetic and cylindrical ones)");
 }
@@ -100,6 +119,7 @@ class Terrain {
       qota::DemTerrain grid;
       grid.width = source_.width, grid.height = source_.height;
       grid.geotransform = source_.geotransform;
+      grid.lonLat = qota::crsIsGeographic(source_.crsWkt) && grid.geotransform[2] == 0 && grid.geotransform[4] == 0;
       footprint_ = std::move(grid);
       inverse_ = footprint_->inverseGeotransform();
     }
@@ -109,7 +129,7 @@ class Terrain {
     return batch(x, y, nullptr, [](const auto& index, auto pts, auto, auto out) { index.heightsParallel(pts, out); });
   }
   py::array_t<double> below(const Array& x, const Array& y, const Array& z) const {
-    return batch(x, y, &z, [](const auto& index, auto pts, auto zs, auto out) { index.heightsBelowParallel(pts, zs, out); });
+    return batch(x, y, &z, [](const auto& index, auto pts, auto zs, auto out) { index.heightsBelowParallel(pts, zs, out); }, 1);
   }
   py::array_t<double> above(const Array& x, const Array& y, const Array& z) const {
     // No batch for "above" in the library: one query a point, in slices on every core.
@@ -120,7 +140,7 @@ class Terrain {
           out[i] = hit ? std::optional(hit->height) : std::nullopt;
         }
       });
-    });
+    }, -1);
   }
 
   // The top hit (mode "top", z unused), or the nearest hit below or above z ("below", "above") at
@@ -148,9 +168,9 @@ class Terrain {
               for (std::size_t i = lo; i < hi; ++i) {
                 const qota::Point2 q = place(px[i], py_[i]);
                 const auto hit = kind == 0   ? index.top(q.u, q.v)
-                                 : kind == 1 ? index.below(q.u, q.v, f.toIndex(pz[i]))
-                                             : index.above(q.u, q.v, f.toIndex(pz[i]));
-                h[i] = hit ? f.fromIndex(hit->height) : kNaN;
+                                 : kind == 1 ? index.below(q.u, q.v, f.toIndex(pz[i], q, 1))
+                                             : index.above(q.u, q.v, f.toIndex(pz[i], q, -1));
+                h[i] = hit ? f.fromIndex(hit->height, q) : kNaN;
                 p[i] = hit ? static_cast<std::int64_t>(hit->polygon) : -1;
                 for (int k = 0; k < 3; ++k) nrm[3 * i + k] = hit ? hit->normal[k] : kNaN;
               }
@@ -167,7 +187,7 @@ class Terrain {
     const std::vector<qota::Hit> hits = std::visit([&](const auto& index) { return index.all(q.u, q.v); }, index_);
     std::vector<py::tuple> out;
     for (const qota::Hit& h : hits) {
-      out.push_back(py::make_tuple(frame_.fromIndex(h.height), h.polygon,
+      out.push_back(py::make_tuple(frame_.fromIndex(h.height, q), h.polygon,
                                    py::make_tuple(h.normal.x(), h.normal.y(), h.normal.z())));
     }
     return out;
@@ -192,6 +212,14 @@ class Terrain {
   const std::string& source() const { return source_.path; }
   std::string mapping() const { return qota::tools::mappingNameOf(index_); }
   const std::string& crs() const { return source_.crsWkt; }
+  // A lon/lat raster in the cartesian mapping: x, y in degrees, z in metres (heights are right,
+  // normals are not).
+  bool lonLatMap() const { return std::holds_alternative<qota::TerrainIndex>(index_) && qota::crsIsGeographic(source_.crsWkt); }
+  // What the heights are over: the source's reference as described (geodetic), else "".
+  std::string heightRef() const {
+    if (!std::holds_alternative<qota::GeodeticIndex>(index_)) return "";
+    return source_.geoidGrid.empty() && source_.heightRef.empty() ? "ellipsoid" : source_.heightRef;
+  }
 
  private:
   static void requireFlat(const Array& x, const Array& y, const Array* z) {
@@ -209,13 +237,16 @@ class Terrain {
       if (!p) return {kNaN, kNaN};
       x = (*p)[0], y = (*p)[1];
     }
-    return frame_.point(x, y);
+    qota::Point2 q = frame_.point(x, y);
+    // The curved indexes' longitudes are [-180, 180): a longitude names a meridian at any turn.
+    if (frame_.longitudes) q.u -= 360.0 * std::floor((q.u + 180.0) / 360.0);
+    return q;
   }
 
   // Maps the points (and z) into the index's frame, runs run(index, points, zs, out) with the GIL
   // released, and maps the answers back (NaN for no terrain).
   template <class Run>
-  py::array_t<double> batch(const Array& x, const Array& y, const Array* z, Run&& run) const {
+  py::array_t<double> batch(const Array& x, const Array& y, const Array* z, Run&& run, int side = 0) const {
     requireFlat(x, y, z);
     const std::size_t n = static_cast<std::size_t>(x.shape(0));
     std::vector<qota::Point2> pts(n);
@@ -233,7 +264,7 @@ class Terrain {
       // took a third of the batch's time).
       qota::batch::inSlices(n, 0, 1 << 15, [&](std::size_t lo, std::size_t hi) {
         for (std::size_t i = lo; i < hi; ++i) pts[i] = place(px[i], py_[i]);
-        for (std::size_t i = lo; pz && i < hi; ++i) zs[i] = f.toIndex(pz[i]);
+        for (std::size_t i = lo; pz && i < hi; ++i) zs[i] = f.toIndex(pz[i], pts[i], side);
       });
       std::visit(
           [&](const auto& index) {
@@ -242,7 +273,7 @@ class Terrain {
           },
           index_);
       qota::batch::inSlices(n, 0, 1 << 15, [&](std::size_t lo, std::size_t hi) {
-        for (std::size_t i = lo; i < hi; ++i) r[i] = out[i] ? f.fromIndex(*out[i]) : kNaN;
+        for (std::size_t i = lo; i < hi; ++i) r[i] = out[i] ? f.fromIndex(*out[i], pts[i]) : kNaN;
       });
     }
     return result;
@@ -292,8 +323,9 @@ qota::TreeFile rasterTree(const qota::tools::SourceOptions& o) {
 }
 
 Terrain fromRaster(const std::string& path, int band, const std::string& mapping, std::optional<double> radius,
-                   std::optional<double> length) {
-  const qota::tools::SourceOptions o = rasterOptions(path, band, mapping, radius, length);
+                   std::optional<double> length, const std::string& heightRef) {
+  qota::tools::SourceOptions o = rasterOptions(path, band, mapping, radius, length);
+  o.heightRef = heightRef;
   py::gil_scoped_release release;
   return Terrain(rasterTree(o));
 }
@@ -384,11 +416,12 @@ void writeRaster(const std::string& path, py::array_t<double, py::array::c_style
 Terrain fromArray(py::array_t<double, py::array::c_style | py::array::forcecast> heights,
                   const std::vector<double>& transform, std::optional<double> nodata, const std::string& crs,
                   const std::string& unit, const std::string& mapping, std::optional<double> radius,
-                  std::optional<double> length) {
+                  std::optional<double> length, const std::string& heightRef) {
   checkGrid(heights, transform);
   static std::atomic<unsigned> counter{0};
   const std::string path = "/vsimem/qota_python_" + std::to_string(counter++) + ".tif";
-  const qota::tools::SourceOptions o = rasterOptions(path, 1, mapping, radius, length);
+  qota::tools::SourceOptions o = rasterOptions(path, 1, mapping, radius, length);
+  o.heightRef = heightRef;
   const int rows = static_cast<int>(heights.shape(0)), cols = static_cast<int>(heights.shape(1));
   const double* data = heights.data();
   py::gil_scoped_release release;
@@ -462,7 +495,9 @@ Terrain load(const std::string& path) {
 // uint8 lit, shadow, nodata; with hours (start, end, step), float32 hours of sunlight.
 py::array shadow(const std::string& dem, const std::string& output, std::optional<double> azimuth,
                  std::optional<double> altitude, const std::string& time, const std::string& tz, int band, double zFactor,
-                 std::optional<std::array<double, 3>> hours) {
+                 std::optional<std::array<double, 3>> hours, const std::string& heightRef,
+                 std::optional<std::array<double, 3>> sunVector, std::optional<std::array<double, 3>> sunVectorBody,
+                 std::optional<std::array<double, 2>> subsolar, bool flat) {
   qota::tools::ShadowOptions o;
   o.source = dem;
   o.output = output;
@@ -474,6 +509,11 @@ py::array shadow(const std::string& dem, const std::string& output, std::optiona
   o.tz = tz;
   o.zFactor = zFactor;
   o.hours = hours;
+  o.heightRef = heightRef;
+  if (sunVector) o.sunVector = Eigen::Vector3d((*sunVector)[0], (*sunVector)[1], (*sunVector)[2]);
+  if (sunVectorBody) o.sunVectorBody = Eigen::Vector3d((*sunVectorBody)[0], (*sunVectorBody)[1], (*sunVectorBody)[2]);
+  o.subsolar = subsolar;
+  o.flat = flat;
   std::ostringstream out, err;
   int code = 0;
   {
@@ -716,7 +756,9 @@ PYBIND11_MODULE(_qota, m) {
     }
   });
   m.def("_shadow", &shadow, py::arg("dem"), py::arg("output"), py::arg("azimuth"), py::arg("altitude"),
-        py::arg("time"), py::arg("tz"), py::arg("band"), py::arg("z_factor"), py::arg("hours") = py::none());
+        py::arg("time"), py::arg("tz"), py::arg("band"), py::arg("z_factor"), py::arg("hours") = py::none(),
+        py::arg("height_ref") = "", py::arg("sun_vector") = py::none(), py::arg("sun_vector_body") = py::none(),
+        py::arg("subsolar") = py::none(), py::arg("flat") = false);
   m.def("_sun_position", &sunPosition, py::arg("time"), py::arg("lon"), py::arg("lat"), py::arg("tz"));
   m.def("_write_raster", &writeRaster, py::arg("path"), py::arg("heights"), py::arg("transform"),
         py::arg("nodata") = py::none(), py::arg("crs") = "", py::arg("unit") = "");
@@ -778,10 +820,10 @@ PYBIND11_MODULE(_qota, m) {
       .def("heights", &Sampler::heights, py::arg("x"), py::arg("y"));
   py::class_<Terrain>(m, "_Terrain")
       .def_static("from_raster", &fromRaster, py::arg("path"), py::arg("band"), py::arg("mapping"),
-                  py::arg("radius") = py::none(), py::arg("length") = py::none())
+                  py::arg("radius") = py::none(), py::arg("length") = py::none(), py::arg("height_ref") = "")
       .def_static("from_array", &fromArray, py::arg("heights"), py::arg("transform"), py::arg("nodata") = py::none(),
                   py::arg("crs") = "", py::arg("unit") = "", py::arg("mapping") = "cartesian",
-                  py::arg("radius") = py::none(), py::arg("length") = py::none())
+                  py::arg("radius") = py::none(), py::arg("length") = py::none(), py::arg("height_ref") = "")
       .def_static("from_mesh", &fromMesh, py::arg("vertices"), py::arg("triangles"), py::arg("mapping") = "cartesian")
       .def_static("load", &load, py::arg("path"))
       .def("heights", &Terrain::heights)
@@ -793,5 +835,7 @@ PYBIND11_MODULE(_qota, m) {
       .def("stats", &Terrain::stats)
       .def_property_readonly("source", &Terrain::source)
       .def_property_readonly("mapping", &Terrain::mapping)
-      .def_property_readonly("crs", &Terrain::crs);
+      .def_property_readonly("crs", &Terrain::crs)
+      .def_property_readonly("height_ref", &Terrain::heightRef)
+      .def_property_readonly("_lon_lat_map", &Terrain::lonLatMap);
 }

@@ -142,7 +142,7 @@ def test_lon_lat_sources_in_the_geodetic_mapping(tmp_path, stack):
     want = answers(hits) / 0.3048
     sources = every_source(path, stack)
     for name in ("path", "dataset", "memory dataset", "DataArray", "masked"):
-        terrain = qota.Terrain.from_raster(sources[name], mapping="geodetic")
+        terrain = qota.Terrain.from_raster(sources[name], mapping="geodetic", height_ref="ellipsoid")
         assert terrain.mapping == "geodetic"
         assert_matches(terrain.heights(lon, lat), want, near)
     spherical = qota.Terrain.from_xarray(sources["DataArray"], mapping="spherical", radius=3389500.0)

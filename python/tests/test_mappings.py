@@ -229,8 +229,9 @@ def normal_lines(lon, lat, a, f):
 def test_geodetic_heights_along_the_ellipsoid_normal(crs, a, f):
     rng = np.random.default_rng(12)
     heights, transform = local_raster(rng)
-    terrain = qota.Terrain.from_array(heights, transform, nodata=-32768, crs=crs, mapping="geodetic")
-    assert terrain.mapping == "geodetic"
+    terrain = qota.Terrain.from_array(heights, transform, nodata=-32768, crs=crs, mapping="geodetic",
+                                      height_ref="ellipsoid")  # (the geoid: test_geoid.py)
+    assert terrain.mapping == "geodetic" and terrain.height_ref.startswith("ellipsoid")
     v, t = ellipsoid_mesh(np.where(heights == -32768, np.nan, heights), transform, a, f)
     n = 2000
     lon, lat = rng.uniform(-121.995, -121.855, n), rng.uniform(46.885, 46.995, n)
@@ -248,7 +249,8 @@ def test_geodetic_heights_in_the_rasters_unit():
     # and answers are in feet (as qota sample reads and prints them).
     rng = np.random.default_rng(13)
     heights, transform = local_raster(rng)
-    feet = qota.Terrain.from_array(heights, transform, nodata=-32768, crs="EPSG:4326", unit="ft", mapping="geodetic")
+    feet = qota.Terrain.from_array(heights, transform, nodata=-32768, crs="EPSG:4326", unit="ft", mapping="geodetic",
+                                   height_ref="ellipsoid")
     v, t = ellipsoid_mesh(np.where(heights == -32768, np.nan, heights), transform, WGS84_A, WGS84_F, metres=0.3048)
     n = 1000
     lon, lat = rng.uniform(-121.995, -121.855, n), rng.uniform(46.885, 46.995, n)
@@ -343,7 +345,8 @@ def test_every_mapping_answers_every_call(tmp_path):
 def test_a_geodetic_tree_keeps_its_unit(tmp_path):
     rng = np.random.default_rng(17)
     heights, transform = local_raster(rng)
-    feet = qota.Terrain.from_array(heights, transform, nodata=-32768, crs="EPSG:4326", unit="ft", mapping="geodetic")
+    feet = qota.Terrain.from_array(heights, transform, nodata=-32768, crs="EPSG:4326", unit="ft", mapping="geodetic",
+                                   height_ref="ellipsoid")
     feet.save(tmp_path / "feet.qota")
     back = qota.Terrain.load(tmp_path / "feet.qota")
     x, y = rng.uniform(-121.99, -121.86, 300), rng.uniform(46.89, 46.99, 300)

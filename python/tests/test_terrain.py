@@ -341,3 +341,26 @@ def test_one_row_or_column_is_refused():
     for shape in ((1, 100), (100, 1), (1, 1)):
         with pytest.raises(qota.Error, match="at least 2 x 2"):
             qota.Terrain.from_array(np.full(shape, 42.0), (500000, 30, 0, 5100000, 0, -30))
+
+
+def test_heights_over_a_geoid_and_lights_of_the_body():
+    # SRTM heights are over EGM96: the terrain says so (assumed), and answers in the raster's own
+    # heights; over the ellipsoid when asked.
+    rainier = DATA / "mt_rainier_90m.tif"
+    geoid = qota.Terrain.from_raster(rainier, mapping="geodetic")
+    assert "EGM96 geoid" in geoid.height_ref and "assumed" in geoid.height_ref
+    assert qota.Terrain.from_raster(rainier, mapping="geodetic", height_ref="ellipsoid").height_ref.startswith("ellipsoid")
+    assert qota.Terrain.from_raster(rainier).height_ref is None  # a map keeps its heights
+    x, y = -121.5, 46.5  # a pixel centre: its own value
+    assert geoid.heights(x, y) == pytest.approx(qota.Terrain.from_raster(rainier).heights(x, y), abs=1e-6)
+    with pytest.raises(qota.Error, match="egm2008|us_nga_egm08_25"):
+        qota.Terrain.from_raster(rainier, mapping="geodetic", height_ref="egm2008")
+    # Lights in the body's frame, as the tool takes them: the same cells from a vector and from
+    # its sub-solar point; refused where they do not apply.
+    dem = DATA / "SainteHelens.dem"
+    v = qota.shadow(dem, sun_vector_body=(0.3, -0.9, 0.2))
+    lon, lat = np.degrees(np.arctan2(-0.9, 0.3)), np.degrees(np.arcsin(0.2 / np.linalg.norm([0.3, -0.9, 0.2])))
+    np.testing.assert_array_equal(qota.shadow(dem, subsolar=(lon, lat)), v)
+    assert qota.shadow(dem, sun_vector=(0.5, 0.5, 0.7), flat=True).shape == v.shape
+    with pytest.raises(qota.Error, match="sun_vector_body must be 3 numbers"):
+        qota.shadow(dem, sun_vector_body=(1, 2))

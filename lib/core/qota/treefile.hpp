@@ -42,6 +42,12 @@ struct TreeSource {
   int band = 1;                 // the raster band the heights came from
   std::string verticalUnit;     // the raster's vertical unit ("" when it said nothing)
   double metresPerUnit = 1;     // of that unit
+  // On an ellipsoid (the geodetic mapping): what the raster's heights were over (qota/geoid.hpp),
+  // said as HeightReference::describe says it, and its geoid grid's path ("" for the ellipsoid);
+  // the index holds heights over the ellipsoid, and the tools turn them back. Tree files before
+  // version 4: the ellipsoid.
+  std::string heightRef = {};
+  std::string geoidGrid = {};
 };
 
 struct TreeFile {

@@ -26,11 +26,13 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "qota/cell_window.hpp"
 #include "qota/dem.hpp"
+#include "qota/geoid.hpp"
 #include "qota/mesh.hpp"
 #include "qota/raster_grid.hpp"
 #include "qota/sun.hpp"
@@ -46,6 +48,9 @@ struct FrameOptions {
   // known (0: metres). Horizontal units: the CRS's linear unit, a degree counted as 111120 m
   // (gdaldem's convention), or the metre of --pixel-size for a raster without CRS.
   double scale = 0;
+  // What the heights are over, on an ellipsoid (qota/geoid.hpp: "ellipsoid", "egm96", "egm2008",
+  // "crs", a grid's path; "": the raster's own, else assumed). Not used by flat frames.
+  std::string heightRef = {};
 };
 
 // The DEM's vertices in a local metric east-north-up frame (same vertex indices as dem.mesh for
@@ -129,6 +134,12 @@ LocalFrame localFrame(const DemTerrain& dem, const FrameOptions& options);
 struct FrameBasis {
   DemTerrain raster;   // the raster's description (no mesh)
   FrameOptions options;
+  // On an ellipsoid: the heights' reference and its geoid (none for the ellipsoid), whose least
+  // and greatest undulation over the raster widen the height range (so that it bounds the
+  // heights over the ellipsoid the frame places).
+  HeightReference heightRef;
+  std::shared_ptr<const Geoid> geoid;
+  double geoidLow = 0, geoidHigh = 0;
   LocalFrame shared;   // the fields every window's frame copies (no mesh, cells or grid)
   RasterGrid::Closure closure;  // the whole raster's
   bool geographic = false;

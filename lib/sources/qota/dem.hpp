@@ -59,6 +59,9 @@ struct DemOptions {
   // What the caller builds on the terrain, for the memory check (qota/memory_budget.hpp): by
   // default a TerrainIndex with its quadtree.
   memory::PerItem then = memory::kCartesianIndex;
+  // On an ellipsoid (loadOnEllipsoid): what the heights are over (qota/geoid.hpp: "ellipsoid",
+  // "egm96", "egm2008", "crs", a grid's path; "": the raster's own, else assumed). Maps ignore it.
+  std::string heightRef = {};
 };
 
 // The vertical unit of a raster's heights.
@@ -72,6 +75,16 @@ struct VerticalUnit {
 // metres; std::nullopt for a text that is not a length unit.
 std::optional<double> metresPerLengthUnit(const std::string& unitText);
 
+// What the raster says of its heights' reference (qota/geoid.hpp resolves it): a vertical CRS
+// (alone or in a compound CRS), or a three-dimensional geographic CRS (heights over the
+// ellipsoid), or nothing; and whether its CRS's ellipsoid is the Earth's.
+struct VerticalReference {
+  std::string name;          // the vertical CRS's name ("EGM96 height"); "" when it states none
+  int epsg = 0;              // its EPSG code, 0 when unknown
+  bool ellipsoidal = false;  // a geographic 3D CRS: heights over the ellipsoid, stated
+  bool earth = true;         // the CRS's ellipsoid is the Earth's (or there is no CRS)
+};
+
 struct DemTerrain {
   std::string path;
   std::string driver;  // GDAL driver short name
@@ -83,6 +96,11 @@ struct DemTerrain {
   int band = 1;               // the band read (1-based)
   std::uint64_t estimatedBytes = 0;  // the job's peak memory as loadDem estimated it
   VerticalUnit verticalUnit;  // of the heights in mesh (they are kept in this unit)
+  VerticalReference verticalReference;  // what the raster states of its heights' reference
+  // A north-up grid in longitude/latitude degrees: a longitude names a meridian whatever its turn,
+  // so onRaster and surfacePoint take x at whichever of x + 360 k lies on the raster (a MOLA grid
+  // in 0..360 east answers -9.8 as 350.2; a tile across the antimeridian answers -179.8).
+  bool lonLat = false;
   Mesh mesh;                   // vertex index = row * width + col
   CartesianMapping mapping;    // gravity -Z, origin at the raster centre
 
@@ -102,6 +120,9 @@ struct DemTerrain {
   }
   // True when the world point lies on the raster's footprint.
   bool onRaster(double x, double y) const;
+  // x moved by whole turns of 360 degrees onto the raster's longitudes when it is a lonLat grid
+  // and some turn is on it (else x as it is).
+  double turnedOnto(double x) const;
   // The point whose height answers for (x, y) under the outer half-pixel rule: (x, y) itself
   // between the outermost pixel centres, else the nearest point on their lines (the pixel
   // coordinates clamped to [0.5, size - 0.5], converted back with the geotransform's own
@@ -116,6 +137,9 @@ struct DemTerrain {
 // The geometry of a raster, without reading its pixels: size, geotransform, CRS, band, nodata,
 // vertical unit. The same checks as loadDem (the file opens as a raster, the band exists).
 DemTerrain describeDem(const std::string& path, const DemOptions& options = {});
+
+// Whether a CRS (WKT) is geographic (longitude/latitude); false for none or one GDAL cannot read.
+bool crsIsGeographic(const std::string& wkt);
 
 // Reads a raster into a terrain. Throws qota::Error naming the file when it cannot be opened, has
 // no such band (or several and none was named), has a unit type that is not a length, is in

@@ -15,6 +15,7 @@
 #include <string>
 
 #include "qota/dem.hpp"
+#include "qota/geoid.hpp"
 #include "qota/geodetic.hpp"
 #include "qota/mesh.hpp"
 #include "qota/spherical.hpp"
@@ -44,17 +45,23 @@ PlanetTerrain loadPlanet(const std::string& path, const PlanetOptions& options =
 struct EllipsoidTerrain {
   DemTerrain dem;             // dem.mesh in geocentric (ECEF) metres
   GeodeticMapping mapping;    // the CRS's ellipsoid (WGS84 when it has none)
+  HeightReference heightRef;  // what the raster's heights are over (DemOptions::heightRef)
 };
 
 // Reads a DEM in a geographic CRS (an SRTM tile, say) and puts every pixel centre at its height
-// above the CRS's ellipsoid, with GeographicLib's geocentric conversion. Throws qota::Error
-// when the raster is not in lon/lat degrees.
+// above the CRS's ellipsoid, with GeographicLib's geocentric conversion: the raster's height
+// plus the geoid's undulation there when the heights are over a geoid (qota/geoid.hpp). Throws
+// qota::Error when the raster is not in lon/lat degrees, or its geoid grid is missing or does
+// not cover it.
 EllipsoidTerrain loadOnEllipsoid(const std::string& path, const DemOptions& options = {});
 
 // The ellipsoid (a, f) of a raster's CRS; WGS84 when it has none or it cannot be read.
 void demEllipsoid(const DemTerrain& dem, double& a, double& f);
 // True when the raster's CRS is geographic (or it has no CRS and lies within lon/lat bounds).
 bool demIsLonLat(const DemTerrain& dem);
+// The longitude/latitude CRS of the raster's own body, as gdalwarp -t_srs takes it ("EPSG:4326",
+// "IAU_2015:49900", or a PROJ string in quotes); EPSG:4326 for a raster without CRS.
+std::string geographicCrsOf(const DemTerrain& dem);
 
 struct StationOptions {
   double radius = 250;   // distance from the spin axis to the zero level of the relief, metres
