@@ -11,10 +11,13 @@ build=${1:-build}
 qota=$build/tools/qota
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
-rasters=(data/mt_rainier_90m.tif data/SainteHelens.dem)
+# Mars too: the Rainier tile on Mars's sphere (whose Sun, at an instant, is Mars24's).
+gdal_translate -q -a_srs "+proj=longlat +R=3396190 +no_defs" data/mt_rainier_90m.tif "$work/mars.tif"
+rasters=(data/mt_rainier_90m.tif data/SainteHelens.dem "$work/mars.tif")
 budgets=(64M 128M 256M 1G)
 lights=("-az 90 -alt 2" "-az 135 -alt 10" "-az 315 -alt 45" "--time 2024-06-21 --tz America/Los_Angeles --hours 6 20 2")
-if [ "${2:-}" = quick ]; then budgets=(64M 256M 1G); lights=("-az 90 -alt 2" "-az 315 -alt 45" "--time 2024-06-21 --tz America/Los_Angeles --hours 6 20 2"); fi
+if [ "${2:-}" = quick ]; then budgets=(64M 1G); lights=("-az 90 -alt 2" "-az 315 -alt 45" "--time 2024-06-21 --tz America/Los_Angeles --hours 6 20 2"); fi
+lights+=("--time 2004-01-03T13:46:31Z")  # (on Mars: Mars24's example B, the Sun 62 degrees below the horizon)
 failed=0
 for dem in "${rasters[@]}"; do
   for budget in "${budgets[@]}"; do

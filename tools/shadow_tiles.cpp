@@ -127,14 +127,58 @@ ShadowTiles passOverHeights(const ShadowOptions& o, const DemOptions& demOptions
 }  // namespace
 
 std::vector<Eigen::Vector3d> lightsForEstimate(const ShadowOptions& o) {
-  // Only the light's altitude matters: -az/-alt and --sun-vector say it; an instant or hours
-  // take the lowest sun's cost.
-  if (o.sunVector && o.sunVector->allFinite()) return {*o.sunVector};
-  if (o.time.empty() && !o.hours) {
-    const double alt = o.altitude.value_or(45) * M_PI / 180;
-    return {Eigen::Vector3d(0, std::cos(alt), std::sin(alt))};
+  // Only the light's altitude matters: -az/-alt and --sun-vector say it; an instant, hours or a
+  // body's vector are placed on the raster's frame (its centre and body, without its heights).
+  try {
+    DemOptions demOptions;
+    demOptions.band = o.band;
+    demOptions.lonLatAsCartesian = true;
+    FrameOptions frameOptions;
+    frameOptions.flat = o.flat, frameOptions.pixelSize = o.pixelSize, frameOptions.zFactor = o.zFactor;
+    frameOptions.scale = o.scale, frameOptions.heightRef = o.heightRef;
+    const DemTerrain dem = describeDem(o.source, demOptions);
+    const FrameBasis basis = frameBasis(dem, frameOptions);
+    const LocalFrame& f = basis.shared;
+    // A light below every cell's horizon by more than the horizon's dip shades the whole raster
+    // without a mask (shadowMask's shortcut): a bound of that slack from the raster's extent (the
+    // angle from its centre to its corners) and the dip from 9 km of relief, a degree more.
+    double slack = 0;
+    if (f.body.ellipsoid) {
+      const auto& g = dem.geotransform;
+      const double cornerX = std::fabs(g[1]) * dem.width / 2 + std::fabs(g[2]) * dem.height / 2;
+      const double cornerY = std::fabs(g[4]) * dem.width / 2 + std::fabs(g[5]) * dem.height / 2;
+      const double across = basis.geographic ? std::hypot(cornerX, cornerY) : std::hypot(cornerX, cornerY) / f.body.a * 180 / M_PI;
+      slack = std::min(180.0, across) + std::acos(f.body.b / (f.body.b + 9000.0)) * 180 / M_PI + 1.0;
+    }
+    const auto masked = [&](const Eigen::Vector3d& light) {
+      const double altitude = std::asin(std::clamp(light.normalized().z(), -1.0, 1.0)) * 180 / M_PI;
+      return f.body.ellipsoid ? altitude > -slack : altitude > 0;
+    };
+    const Eigen::Vector3d none(0, 0, 1);  // (a light whose mask costs the least: none is made)
+    if (o.hours) {
+      std::vector<Eigen::Vector3d> lights;
+      const LocalSpan span = hoursSpan(o);
+      for (const SunlightStep& step : qota::sunlightSteps(span.start.julianDayUT, span.end.julianDayUT, (*o.hours)[2])) {
+        const Eigen::Vector3d light = f.towardSun(sunOverFrame(f, step.middleJulianDay, o.source));
+        if (masked(light)) lights.push_back(light);
+      }
+      if (lights.empty()) lights.push_back(none);
+      return lights;
+    }
+    std::ostringstream quiet;
+    ShadowOptions q = o;
+    q.quiet = true;
+    const Eigen::Vector3d light = chooseLight(q, f, quiet).toward;
+    return {masked(light) ? light : none};
+  } catch (const std::exception&) {
+    // (the run says what is wrong; the estimate takes the light's altitude alone, or the costliest)
+    if (o.sunVector && o.sunVector->allFinite()) return {*o.sunVector};
+    if (o.time.empty() && !o.hours && !o.sunVectorBody && !o.subsolar) {
+      const double alt = o.altitude.value_or(45) * M_PI / 180;
+      return {Eigen::Vector3d(0, std::cos(alt), std::sin(alt))};
+    }
+    return {};
   }
-  return {};
 }
 
 std::uint64_t wholeEstimate(const ShadowOptions& o, std::uint64_t resident) {

@@ -63,6 +63,15 @@ std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& to
     report(1.0, "light below the horizon");
     return out;
   }
+  if (frame.body.ellipsoid && std::asin(std::clamp(light.z(), -1.0, 1.0)) * 180 / M_PI < -frame.horizonSlack()) {
+    // Below every cell's horizon by more than the dip from the highest terrain: every ray enters
+    // the body, which shades the cell whatever the terrain (sunCanLight's argument, sunlight.hpp).
+    for (std::size_t i = 0; i < cellCount; ++i) {
+      if (frame.valid[i] && tested(i)) out[i] = Light::Shadow;
+    }
+    report(1.0, "light below every cell's horizon");
+    return out;
+  }
 
   // The strips need a horizontal direction to the light (not straight overhead), and keep their
   // ranges in floats: coordinates far beyond any planet's (localFrame refuses heights beyond

@@ -202,6 +202,14 @@ double lowLightShare(const std::vector<Eigen::Vector3d>& lights) {
 
 std::uint64_t ShadowTiles::bytesPerWindowCell() { return bytesPerWindowCell({}); }
 
+// How much more a light below the horizon takes (its rays' strips cross every triangle facing
+// away, which is most of them): 0 at the horizon and above, 1 from 20 degrees below.
+double belowShare(const std::vector<Eigen::Vector3d>& lights) {
+  double share = lights.empty() ? 1.0 : 0.0;
+  for (const Eigen::Vector3d& l : lights) share = std::max(share, std::clamp(-l.normalized().z() / 0.34, 0.0, 1.0));
+  return share;
+}
+
 std::uint64_t ShadowTiles::bytesPerWindowCell(const std::vector<Eigen::Vector3d>& lights) {
   // A window's frame at the mask's peak: vertices (24), validity and light (2), the triangles'
   // corners (24) and facing (2), the strips (24 a triangle entry, up to about 2 entries a cell at
@@ -209,14 +217,17 @@ std::uint64_t ShadowTiles::bytesPerWindowCell(const std::vector<Eigen::Vector3d>
   // Rainier DEM (bench/shadow_memory.sh: single tiles of 16 to 1024 cells from a state, peak RSS
   // less the process's, over the window's planned cells): 92 to 101 bytes at altitudes 30 and
   // 60, 129 to 138 at 10, 142 to 144 at 5, 149 to 155 at 2; taken with a tenth more.
-  return static_cast<std::uint64_t>(std::ceil(105 + 66 * lowLightShare(lights)));
+  // Below the horizon (a tile whose cells still see the Sun): up to 40 more (measured: whole
+  // rasters take up to 34 more at 20 degrees below and beyond).
+  return static_cast<std::uint64_t>(std::ceil(105 + 66 * lowLightShare(lights) + 40 * belowShare(lights)));
 }
 
 std::uint64_t ShadowTiles::bytesPerWholeCell(const std::vector<Eigen::Vector3d>& lights) {
   // The whole raster in memory (loadDem's mesh, then the frame and the mask): measured on the
   // Rainier DEM 128 to 134 bytes a cell at altitudes 30 and 60, 157 at 10, 171 at 5, 184 at 2
   // (peak RSS less the process's); taken with a tenth more.
-  return static_cast<std::uint64_t>(std::ceil(150 + 66 * lowLightShare(lights)));
+  // Below the horizon: up to 40 more (250 a cell measured at 45 degrees below on Rainier).
+  return static_cast<std::uint64_t>(std::ceil(150 + 66 * lowLightShare(lights) + 40 * belowShare(lights)));
 }
 
 std::array<int, 4> ShadowTiles::halo(const CellWindow& tile, const std::vector<Eigen::Vector3d>& lights,
