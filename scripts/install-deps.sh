@@ -15,6 +15,7 @@ packages=(
   libcli11-dev                  # argument parsing for the qota tool
   libpng-dev                    # PNG previews
   libxxhash-dev                 # block hashes of heights, checksums of states and tiles
+  proj-data                     # the EGM96 geoid grid (egm96_15.gtx) heights over a geoid need
   libnova-dev                   # solar position (VSOP87) for qota shadow
   libhowardhinnant-date-dev tzdata  # dates and IANA time zones for qota shadow --time/--tz
   libassimp-dev                 # mesh files (OBJ, PLY, glTF, STL, ...)

@@ -56,7 +56,7 @@ TEST(Bodies, ALongitudeNamesAMeridianAtAnyTurn) {
   const std::string mars360 = lonLatGrid("lon360.tif", 0, 360, 60, 120, "+proj=longlat +R=3396190 +no_defs");
   // A tile across the antimeridian (170 to 190 east), asked at -179.5 (= 180.5).
   const std::string across = lonLatGrid("lon_across.tif", 170, 20, 20, 40, "EPSG:4326");
-  for (const std::string& mapping : {"cartesian", "geodetic", "spherical"}) {
+  for (const std::string mapping : {"cartesian", "geodetic", "spherical"}) {
     qota::tools::SampleOptions o;
     o.mapping = mapping;
     if (mapping == "geodetic") o.heightRef = "ellipsoid";
@@ -69,14 +69,18 @@ TEST(Bodies, ALongitudeNamesAMeridianAtAnyTurn) {
     lines >> a >> b >> c;
     EXPECT_EQ(a, b) << mapping;
     EXPECT_EQ(a, c) << mapping;
-    if (mapping != "spherical") EXPECT_NEAR(a, want, 1e-6) << mapping;
+    if (mapping != "spherical") {
+      EXPECT_NEAR(a, want, 1e-6) << mapping;
+    }
     o.source = across;
     run = sample(o, "180.5 10.5\n-179.5 10.5\n");
     ASSERT_EQ(run.code, 0) << mapping << ": " << run.err;
     std::istringstream more(run.out);
     more >> a >> b;
     EXPECT_EQ(a, b) << mapping;
-    if (mapping != "spherical") EXPECT_NEAR(a, 1000 + 180.5 + 105, 1e-6) << mapping;
+    if (mapping != "spherical") {
+      EXPECT_NEAR(a, 1000 + 180.5 + 105, 1e-6) << mapping;
+    }
   }
 }
 

@@ -58,7 +58,7 @@ TEST(CartesianMapping, RoundTrip) {
 }
 
 TEST(CartesianMapping, RejectsBadGravityAndOrigin) {
-  EXPECT_THROW(CartesianMapping(Eigen::Vector3d::Zero()), qota::Error);
+  EXPECT_THROW((void)CartesianMapping(Eigen::Vector3d::Zero()), qota::Error);
   EXPECT_THROW(CartesianMapping(Eigen::Vector3d(0, NAN, -1)), qota::Error);
   EXPECT_THROW(CartesianMapping(Eigen::Vector3d(0, 0, -1), Eigen::Vector3d(INFINITY, 0, 0)),
                qota::Error);

@@ -64,3 +64,79 @@ TEST(EnuMapping, DescribeReadsBackAndBadValuesAreErrors) {
 }
 
 }  // namespace
+
+
+// The mapping reached from the tool: a DEM placed on its ellipsoid and seen east-north-up.
+#include <proj.h>
+
+#include <sstream>
+
+#include "qota_tools.hpp"
+#include "raster_files.hpp"
+
+namespace {
+
+TEST(EnuTool, PixelCentresInTheFrameAreLocalCartesians) {
+  // qota sample --mapping enu on a crop round Rainier's summit: at a pixel centre's (east, north)
+  // in the frame, the answer is the centre's up, computed independently: its height over EGM96
+  // plus PROJ's undulation there, to ECEF by GeographicLib, into the frame by LocalCartesian.
+  const qota::test::RasterValues rainier = qota::test::readRaster(QOTA_DATA_DIR "/mt_rainier_90m.tif");
+  qota::test::RasterSpec s;
+  s.width = s.height = 200;
+  s.geotransform = rainier.geotransform;
+  s.geotransform[0] += 200 * rainier.geotransform[1];
+  s.geotransform[3] += 100 * rainier.geotransform[5];
+  s.crs = "EPSG:4326";
+  s.nodata = -32768;
+  s.bands = {{}};
+  for (int r = 100; r < 300; ++r) {
+    for (int c = 200; c < 400; ++c) s.bands[0].push_back(rainier.at(c, r));
+  }
+  const std::string path = qota::test::scratchPath("enu_summit.tif").string();
+  qota::test::writeRaster(path, s);
+  PJ_CONTEXT* ctx = proj_context_create();
+  PJ* raw = proj_create_crs_to_crs(ctx, "EPSG:4326+5773", "EPSG:4979", nullptr);
+  PJ* egm96 = proj_normalize_for_visualization(ctx, raw);
+  const double lat0 = 46.85, lon0 = -121.76, h0 = 1000;
+  const GeographicLib::LocalCartesian frame(lat0, lon0, h0, GeographicLib::Geocentric::WGS84());
+  std::string input;
+  std::vector<double> want;
+  for (int k = 0; k < 60; ++k) {
+    const int c = 20 + (k * 37) % 160, r = 20 + (k * 53) % 160;
+    const double lon = s.geotransform[0] + (c + 0.5) * s.geotransform[1], lat = s.geotransform[3] + (r + 0.5) * s.geotransform[5];
+    const double h = s.bands[0][static_cast<std::size_t>(r) * 200 + c];
+    if (h == -32768) continue;
+    const double n = proj_trans(egm96, PJ_FWD, proj_coord(lon, lat, 0, 0)).xyz.z;
+    double e = 0, no = 0, u = 0;
+    frame.Forward(lat, lon, h + n, e, no, u);
+    std::ostringstream line;
+    line.precision(17);
+    line << e << ' ' << no << '\n';
+    input += line.str();
+    want.push_back(u);
+  }
+  proj_destroy(egm96);
+  proj_destroy(raw);
+  proj_context_destroy(ctx);
+  qota::tools::SampleOptions o;
+  o.source = path;
+  o.mapping = "enu";
+  o.origin = std::array<double, 3>{lat0, lon0, h0};
+  std::istringstream in(input);
+  std::ostringstream out, err;
+  ASSERT_EQ(qota::tools::sample(o, in, out, err), 0) << err.str();
+  std::istringstream answers(out.str());
+  for (const double u : want) {
+    std::string text;
+    ASSERT_TRUE(std::getline(answers, text));
+    if (text == "none") continue;  // (every triangle round the centre touches a void)
+    EXPECT_NEAR(std::stod(text), u, 1e-3);
+  }
+  // Off the terrain in the frame: far east of it.
+  std::istringstream far("90000 0\n");
+  std::ostringstream none, says;
+  EXPECT_EQ(qota::tools::sample(o, far, none, says), 1);
+  EXPECT_EQ(none.str(), "none\n");
+}
+
+}  // namespace

@@ -249,3 +249,38 @@ TEST(Geoid, ShadowsRecordTheirReference) {
 }
 
 }  // namespace
+
+namespace {
+
+TEST(Geoid, MolasRadiusConventionOnASphere) {
+  // MOLA's topography is "radius minus 3,396,000 m": on Mars's sphere of 3,396,190 m (the CRS's),
+  // --height-ref radius:3396000 puts a height H at radius 3396000 + H, and prints H back.
+  RasterSpec s;
+  s.width = s.height = 20;
+  s.geotransform = {10, 0.01, 0, 20, 0, -0.01};
+  s.crs = "+proj=longlat +R=3396190 +no_defs";
+  s.bands = {std::vector<double>(400, -2500.0)};
+  const std::string path = scratchPath("mola.tif").string();
+  qota::test::writeRaster(path, s);
+  qota::tools::SampleOptions o;
+  o.source = path;
+  o.mapping = "geodetic";
+  o.heightRef = "radius:3396000";
+  o.printWorld = true;
+  // A pixel centre: a vertex of the triangles, where the surface is the raster's height exactly
+  // (between vertices the triangles are chords of the sphere, up to centimetres below it).
+  const SampleRun run = sample(o, "10.105 19.895\n");
+  ASSERT_EQ(run.code, 0) << run.err;
+  std::istringstream line(run.out);
+  double h = 0, x = 0, y = 0, z = 0;
+  ASSERT_TRUE(line >> h >> x >> y >> z);
+  EXPECT_NEAR(h, -2500, 1e-6);
+  EXPECT_NEAR(std::sqrt(x * x + y * y + z * z), 3396000 - 2500, 1e-3);
+  // On a flattened ellipsoid a sphere's heights run along radii: refused, naming the mapping that
+  // takes them.
+  s.crs = "+proj=longlat +a=3396190 +rf=169.894447223612 +no_defs";
+  qota::test::writeRaster(path, s);
+  EXPECT_NE(sample(o, "10.1 19.9\n").err.find("--mapping spherical --radius 3396000"), std::string::npos);
+}
+
+}  // namespace

@@ -76,9 +76,11 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
                         "closed planet; lines 'lon lat [r]', prints the surface radius), geodetic "
                         "(a lon/lat raster on its ellipsoid; lines 'lon lat [h]', prints the "
                         "height along the normal), cylindrical (the raster as a station's relief; "
-                        "lines 'angle axial [h]', prints the distance from the axis); default: a "
-                        "tree file's own, else cartesian")
-      ->check(CLI::IsMember({"cartesian", "spherical", "geodetic", "cylindrical"}));
+                        "lines 'angle axial [h]', prints the distance from the axis), enu (the "
+                        "raster on its ellipsoid in the east-north-up frame at --origin; lines "
+                        "'east north [up]' in metres, prints the up); default: a tree file's own, "
+                        "else cartesian")
+      ->check(CLI::IsMember({"cartesian", "spherical", "geodetic", "cylindrical", "enu"}));
   sampleCmd->add_option("--radius", sample.radius,
                         "spherical: the planet's reference radius in metres (default: from the "
                         "raster's CRS, 6371008.8 for WGS84); cylindrical: the station's radius "
@@ -88,6 +90,12 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
       ->check(CLI::PositiveNumber);
   sampleCmd->add_flag("-w,--lat-lon", sample.swapXY,
                       "Input lines are 'lat lon' (or 'y x') instead of 'lon lat'");
+  std::vector<double> sampleOrigin;
+  sampleCmd->add_option("--origin", sampleOrigin,
+                        "enu: the frame's origin LAT,LON[,H] (H metres over the ellipsoid); default: the "
+                        "raster's centre at height 0")
+      ->delimiter(',')
+      ->expected(2, 3);
   sampleCmd->add_option("--height-ref", sample.heightRef,
                         "geodetic: what the raster's heights are over: ellipsoid, egm96, egm2008, crs (its "
                         "vertical CRS) or a geoid grid's path; default: its vertical CRS, else EGM96 on "
@@ -236,7 +244,7 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
       ->required();
   buildCmd->add_option("--mapping", build.source.mapping,
                        "cartesian (default), spherical, geodetic or cylindrical (see sample)")
-      ->check(CLI::IsMember({"cartesian", "spherical", "geodetic", "cylindrical"}));
+      ->check(CLI::IsMember({"cartesian", "spherical", "geodetic", "cylindrical", "enu"}));
   buildCmd->add_option("--radius", build.source.radius, "spherical: planet radius; cylindrical: station radius")
       ->check(CLI::PositiveNumber);
   buildCmd->add_option("--length", build.source.length, "cylindrical: station length")
@@ -280,7 +288,12 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
     return code == 0 ? 0 : 2;
   }
   if (*buildCmd) return tools::build(build, out, err);
-  if (*sampleCmd) return tools::sample(sample, in, out, err);
+  if (*sampleCmd) {
+    if (!sampleOrigin.empty()) {
+      sample.origin = std::array<double, 3>{sampleOrigin[0], sampleOrigin[1], sampleOrigin.size() > 2 ? sampleOrigin[2] : 0.0};
+    }
+    return tools::sample(sample, in, out, err);
+  }
   if (*infoCmd) return tools::info(info, out, err);
   if (*shadowCmd) {
     if (!sunVector.empty()) shadow.sunVector = Eigen::Vector3d(sunVector[0], sunVector[1], sunVector[2]);

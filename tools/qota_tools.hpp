@@ -52,7 +52,9 @@ struct SampleOptions {
   // its CRS's ellipsoid; points "lon lat [h]", output the height along the ellipsoid normal, in
   // the raster's vertical unit), or "cylindrical" (the raster as the relief of a station of
   // `radius` (default 250) and `length` (default 1000) around the z axis; points "angle axial
-  // [h]", output the distance from the axis in metres, "below" meaning away from it).
+  // [h]", output the distance from the axis in metres, "below" meaning away from it), or "enu"
+  // (the raster on its ellipsoid seen in the east-north-up frame at `origin`: lines "east north
+  // [up]" in metres, output the terrain's up in metres).
   std::string mapping;       // empty: a tree file's own mapping, else cartesian
   double radius = 0;
   double length = 0;
@@ -63,6 +65,9 @@ struct SampleOptions {
   // outputHeightRef is "ellipsoid" (printed over the ellipsoid).
   std::string heightRef = {};
   std::string outputHeightRef = {};
+  // enu: the frame's origin (latitude, longitude, height over the ellipsoid); none: the raster's
+  // centre at height 0. Lines are "east north [up]" in metres; answers the terrain's up.
+  std::optional<std::array<double, 3>> origin = {};
   IndexOptions terrain;
 };
 int sample(const SampleOptions& options, std::istream& in, std::ostream& out, std::ostream& err);

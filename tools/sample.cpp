@@ -230,7 +230,7 @@ Surface rasterSurface(std::shared_ptr<RasterSampler> sampler) {
 // else an index (a tree file, a mesh, or a raster in a curved mapping) queried point by point.
 Surface openSurface(const SampleOptions& options, TreeSource& source, std::ostream& err) {
   const bool cartesian = options.mapping.empty() || options.mapping == "cartesian";
-  if (!options.heightRef.empty() && options.mapping != "geodetic") {
+  if (!options.heightRef.empty() && options.mapping != "geodetic" && options.mapping != "enu") {
     throw Error("--height-ref applies to a raster's heights placed on an ellipsoid (--mapping geodetic); the " +
                 (cartesian ? std::string("cartesian") : options.mapping) + " mapping keeps its heights as they are");
   }
@@ -258,6 +258,7 @@ Surface openSurface(const SampleOptions& options, TreeSource& source, std::ostre
   so.heightsOnly = true;
   so.terrain = options.terrain;
   so.heightRef = options.heightRef;
+  so.origin = options.origin;
   if (!options.outputHeightRef.empty() && options.outputHeightRef != "ellipsoid") {
     throw Error("--output-height-ref '" + options.outputHeightRef + "': heights are printed over the source's own "
                 "reference, or over the ellipsoid with --output-height-ref ellipsoid");
@@ -309,7 +310,7 @@ Surface openSurface(const SampleOptions& options, TreeSource& source, std::ostre
         using Index = std::decay_t<decltype(index)>;
         constexpr bool kGeodetic = std::is_same_v<Index, GeodeticIndex>;
         constexpr bool kSpherical = std::is_same_v<Index, SphericalIndex>;
-        constexpr bool kLatitude = !std::is_same_v<Index, CylindricalIndex>;
+        constexpr bool kLatitude = kGeodetic || kSpherical;  // (u a longitude, v a latitude)
         return pointByPoint([tree, &index, grid, metres, geoid, overEllipsoid](double u, double v, const double* z) {
           if (kLatitude && !(v >= -90.0 && v <= 90.0)) {
             return outside("error", "latitude " + formatNumber(v) + " is outside [-90, 90]");

@@ -10,9 +10,11 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <limits>
 
 #include "gdal_errors.hpp"
 #include "qota/error.hpp"
+#include "qota/globe.hpp"
 
 namespace qota {
 namespace {
@@ -99,7 +101,7 @@ HeightReference ellipsoid(const std::string& why) {
 
 std::string HeightReference::describe() const {
   std::string s = name;
-  if (!grid.empty()) s += " (" + fs::path(grid).filename().string() + ")";
+  if (!grid.empty() && grid.rfind("radius:", 0) != 0) s += " (" + fs::path(grid).filename().string() + ")";
   if (!why.empty()) s += "; " + why;
   return s;
 }
@@ -109,6 +111,28 @@ HeightReference heightReferenceOf(const DemTerrain& dem, const std::string& aske
   if (asked == "ellipsoid") return ellipsoid("asked (--height-ref ellipsoid)");
   for (const KnownGeoid& g : kGeoids) {
     if (asked == g.word) return geoid(g, std::string("asked (--height-ref ") + g.word + ")", dem.path);
+  }
+  if (asked.rfind("radius:", 0) == 0) {
+    // Over a sphere of radius R: on a spherical body (the CRS's ellipsoid a sphere), a constant
+    // undulation R - a; on a flattened one the sphere's heights run along radii, not normals: the
+    // spherical mapping takes them as they are.
+    char* end = nullptr;
+    const double radius = std::strtod(asked.c_str() + 7, &end);
+    if (end == asked.c_str() + 7 || *end || !(radius > 0 && radius < 1e9)) {
+      throw Error("--height-ref '" + askedText + "': radius:R takes a radius in metres (radius:3396000)");
+    }
+    double a = 0, f = 0;
+    demEllipsoid(dem, a, f);
+    if (f != 0) {
+      throw Error(dem.path + ": --height-ref " + askedText + " (heights over a sphere) on a flattened ellipsoid: a "
+                  "sphere's heights run along its radii; take them with --mapping spherical --radius " +
+                  askedText.substr(7));
+    }
+    HeightReference r;
+    r.name = "sphere of radius " + askedText.substr(7) + " m";
+    r.grid = "radius:" + askedText.substr(7) + ":" + std::to_string(radius - a);
+    r.why = "asked (--height-ref " + askedText + ")";
+    return r;
   }
   if (!asked.empty() && asked != "crs") {
     std::error_code ec;
@@ -149,6 +173,10 @@ HeightReference storedHeightReference(const std::string& name, const std::string
   r.why = "as recorded";
   if (grid.empty()) return r;
   r.name = name;
+  if (grid.rfind("radius:", 0) == 0) {
+    r.grid = grid;
+    return r;
+  }
   std::error_code ec;
   if (fs::is_regular_file(grid, ec)) {
     r.grid = grid;
@@ -168,6 +196,11 @@ HeightReference storedHeightReference(const std::string& name, const std::string
 Geoid::Geoid(const HeightReference& reference) {
   if (reference.ellipsoidal()) return;
   path_ = reference.grid;
+  if (path_.rfind("radius:", 0) == 0) {  // "radius:R:R-a"
+    constant_ = std::strtod(path_.c_str() + path_.rfind(':') + 1, nullptr);
+    if (constant_ == 0) constant_ = std::numeric_limits<double>::denorm_min();  // (a sphere of radius a: still said)
+    return;
+  }
   ensureGdalRegistered();
   detail::GdalErrorLog errors;
   std::unique_ptr<GDALDataset> ds(GDALDataset::Open(path_.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
@@ -210,6 +243,7 @@ double Geoid::node(long long col, long long row) const {
 }
 
 double Geoid::undulation(double lon, double lat) const {
+  if (constant_ != 0) return constant_;
   if (ellipsoidal()) return 0;
   double x = (lon - lon0_) / dlon_;
   if (wraps_) x -= 360.0 / dlon_ * std::floor(x * dlon_ / 360.0);
@@ -222,6 +256,7 @@ double Geoid::undulation(double lon, double lat) const {
 }
 
 std::pair<double, double> Geoid::rangeOver(double lon0, double lat0, double lon1, double lat1) const {
+  if (constant_ != 0) return {constant_, constant_};
   if (ellipsoidal()) return {0.0, 0.0};
   const double xa = (lon0 - lon0_) / dlon_, xb = (lon1 - lon0_) / dlon_;
   const double ya = (lat0 - lat0_) / dlat_, yb = (lat1 - lat0_) / dlat_;

@@ -30,7 +30,7 @@ from ._qota import Error, __version__
 __all__ = ["Terrain", "Error", "__version__", "shadow", "sun_position", "MAPPINGS"]
 
 #: The mappings a terrain can be built in (Terrain.mapping is one of these).
-MAPPINGS = ("cartesian", "spherical", "geodetic", "cylindrical")
+MAPPINGS = ("cartesian", "spherical", "geodetic", "cylindrical", "enu")
 
 
 def _local_file(path):
@@ -83,6 +83,19 @@ def _number(value, name):
         return float(value)
     except (TypeError, ValueError):
         raise Error(f"{name} must be a number, got {value!r}") from None
+
+
+def _origin(origin):
+    """origin=(lat, lon[, h]) as the three numbers the C++ side takes, or None."""
+    if origin is None:
+        return None
+    try:
+        values = [float(v) for v in origin]
+    except (TypeError, ValueError):
+        raise Error(f"origin must be (lat, lon[, h]) in degrees and metres, got {origin!r}") from None
+    if len(values) not in (2, 3):
+        raise Error(f"origin must be (lat, lon[, h]) in degrees and metres, got {origin!r}")
+    return values + [0.0] * (3 - len(values))
 
 
 def _coords(value, name):
@@ -156,7 +169,7 @@ class Terrain:
 
     @classmethod
     def from_raster(cls, path, band: int = 1, mapping: str = "cartesian", radius=None, length=None, *,
-                    height_ref=None) -> "Terrain":
+                    height_ref=None, origin=None) -> "Terrain":
         """A raster as a terrain in a mapping, as `qota sample --mapping --radius --length` reads it.
 
         path: a GDAL raster (GeoTIFF, VRT, ...; a path or GDAL's /vsi... name), an open rasterio
@@ -180,27 +193,31 @@ class Terrain:
             on the Earth and the ellipsoid elsewhere). The surface is placed over the ellipsoid
             with the geoid's undulation; heights are read and answered in the raster's own
             reference. The choice is the terrain's height_ref. Refused for the other mappings.
+        origin: enu: the east-north-up frame's origin (lat, lon[, h]): the raster is placed on its
+            ellipsoid as "geodetic" places it and seen from there; x, y are east, north and
+            heights up, in metres. Default: the raster's centre at height 0.
         """
         mapping = _mapping(mapping)
         if height_ref is not None and not isinstance(height_ref, (str, _os.PathLike)):
             raise Error(f"height_ref must be a text or a path, got {height_ref!r}")
         if _interop.is_dataarray(path):
-            return cls.from_xarray(path, band=band, mapping=mapping, radius=radius, length=length, height_ref=height_ref)
+            return cls.from_xarray(path, band=band, mapping=mapping, radius=radius, length=length, height_ref=height_ref,
+                                   origin=origin)
         if _interop.is_xarray_dataset(path):
             raise Error("an xarray.Dataset: give one of its variables (a DataArray), e.g. ds['elevation']")
         if _interop.is_rasterio_dataset(path):
             local = _interop.local_file_of(path)
             if local is None:
                 return cls._from_grid(_interop.rasterio_grid(path, _whole(band, "band")), mapping, radius, length,
-                                      height_ref)
+                                      height_ref, origin)
             path = local
         return cls(_qota._Terrain.from_raster(_local_file(path), _whole(band, "band"), mapping,
                                               _number_or_none(radius, "radius"), _number_or_none(length, "length"),
-                                              "" if height_ref is None else _os.fspath(height_ref)))
+                                              "" if height_ref is None else _os.fspath(height_ref), _origin(origin)))
 
     @classmethod
     def from_xarray(cls, da, band: int = 1, mapping: str = "cartesian", radius=None, length=None, *,
-                    height_ref=None) -> "Terrain":
+                    height_ref=None, origin=None) -> "Terrain":
         """An xarray.DataArray with rioxarray's `rio` accessor (rioxarray.open_rasterio, or any
         array with x/y coordinates and a CRS written by rio.write_crs), as from_raster reads the
         same raster: its values, rio.transform(), rio.nodata (NaN cells are holes too), rio.crs
@@ -210,16 +227,16 @@ class Terrain:
         if not _interop.is_dataarray(da):
             raise Error(f"from_xarray takes an xarray.DataArray, got {type(da).__name__}")
         return cls._from_grid(_interop.dataarray_grid(da, _whole(band, "band")), _mapping(mapping), radius, length,
-                              height_ref)
+                              height_ref, origin)
 
     @classmethod
-    def _from_grid(cls, grid, mapping, radius, length, height_ref=None) -> "Terrain":
+    def _from_grid(cls, grid, mapping, radius, length, height_ref=None, origin=None) -> "Terrain":
         return cls.from_array(grid.heights, grid.transform, grid.nodata, crs=grid.crs or None, unit=grid.unit or None,
-                              mapping=mapping, radius=radius, length=length, height_ref=height_ref)
+                              mapping=mapping, radius=radius, length=length, height_ref=height_ref, origin=origin)
 
     @classmethod
     def from_array(cls, heights, transform, nodata=None, *, crs=None, unit=None, mapping: str = "cartesian",
-                   radius=None, length=None, height_ref=None) -> "Terrain":
+                   radius=None, length=None, height_ref=None, origin=None) -> "Terrain":
         """A 2-D array (rows, columns) of heights as from_raster would read the same raster.
 
         transform: a GDAL geotransform (6 numbers) or an affine.Affine (rasterio's).
@@ -238,18 +255,20 @@ class Terrain:
                                              None if nodata is None else float(nodata), _interop.crs_text(crs),
                                              "" if unit is None else str(unit), _mapping(mapping),
                                              _number_or_none(radius, "radius"), _number_or_none(length, "length"),
-                                             "" if height_ref is None else _os.fspath(height_ref)))
+                                             "" if height_ref is None else _os.fspath(height_ref), _origin(origin)))
 
     @classmethod
-    def from_mesh(cls, vertices, triangles, *, mapping: str = "cartesian") -> "Terrain":
+    def from_mesh(cls, vertices, triangles, *, mapping: str = "cartesian", origin=None) -> "Terrain":
         """An (N, 3) float array of vertices and an (M, 3) integer array of triangles, in world
         coordinates of the mapping's default frame: cartesian with gravity -z; spherical about the
-        origin; geodetic in ECEF metres on WGS84; cylindrical about the z axis."""
+        origin; geodetic in ECEF metres on WGS84; cylindrical about the z axis; enu: ECEF metres
+        seen east-north-up from origin=(lat, lon[, h]), by default the ellipsoid point under the
+        centre of the vertices' box (as `qota sample MESH --mapping enu`)."""
         triangles = _np.asarray(triangles)
         if triangles.size and not _np.issubdtype(triangles.dtype, _np.integer):
             raise Error(f"triangles must be integers (vertex indices), got {triangles.dtype}")
         return cls(_qota._Terrain.from_mesh(_coords(vertices, "vertices"), triangles.astype(_np.int64, copy=False),
-                                            _mapping(mapping)))
+                                            _mapping(mapping), _origin(origin)))
 
     @classmethod
     def load(cls, path) -> "Terrain":

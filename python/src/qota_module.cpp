@@ -28,6 +28,7 @@
 #include "qota/instant.hpp"
 #include "qota/raster_sampler.hpp"
 #include "qota/geoid.hpp"
+#include "qota/terrain_face.hpp"
 #include "qota/shadow_tiles.hpp"
 #include "qota/sun.hpp"
 #include "qota/sunlight.hpp"
@@ -45,102 +46,27 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 // The mappings a Python terrain may be in, as their names ("cartesian", ...): the raster and mesh
 // builders take one of these.
-const char* const kMappings = "cartesian, spherical, geodetic or cylindrical";
+const char* const kMappings = "cartesian, spherical, geodetic, cylindrical or enu";
 bool knownMapping(const std::string& m) {
-  return m == "cartesian" || m == "spherical" || m == "geodetic" || m == "cylindrical";
+  return m == "cartesian" || m == "spherical" || m == "geodetic" || m == "cylindrical" || m == "enu";
 }
 
-// How the Python side's coordinates meet the index's mapped (u, v, h): u = x - du, v = y - dv,
-// h = (z - dh) * scale, and an answer H goes back as H / scale + dh. The three cases:
-//   cartesian: the index works relative to an origin near the data (du, dv, dh), for precision;
-//     the conversion is an exact subtraction, heights stay in the source's own unit;
-//   geodetic: the index's h is metres along the normal, the Python side's the raster's vertical
-//     unit (scale: metres per unit), as `qota sample` reads and prints them;
-//   spherical, cylindrical: metres (the radius, the distance from the axis) on both sides.
-struct Frame {
-  double du = 0, dv = 0, dh = 0, scale = 1;
-  // Geodetic: heights over a geoid (qota/geoid.hpp), placed over the ellipsoid by its undulation
-  // at the point's longitude and latitude, and given back over it.
-  std::shared_ptr<const qota::Geoid> geoid;
-  bool longitudes = false;  // u is a longitude (spherical, geodetic)
-  qota::Point2 point(double x, double y) const { return {x - du, y - dv}; }
-  double undulation(const qota::Point2& p) const { return geoid ? geoid->undulation(p.u, p.v) : 0.0; }
-  // side: +1 for "at or below z", -1 for "at or above", 0 neither. Over a geoid, z + N then
-  // - N does not always give z back to the last bit: a height answered and asked again is widened
-  // by a few units in the last place toward the side asked, so that it finds its own surface.
-  double toIndex(double z, const qota::Point2& p, int side = 0) const {
-    const double h = (z - dh) * scale + undulation(p);
-    return geoid && side ? h + side * std::fabs(h) * 8 * std::numeric_limits<double>::epsilon() : h;
-  }
-  double fromIndex(double h, const qota::Point2& p) const { return (h - undulation(p)) / scale + dh; }
-};
-
-// The frame of an index read from anywhere; an index the Python package has no coordinates for
-// (a tilted Cartesian frame, east-north-up) is refused.
-Frame frameOf(const qota::AnyIndex& index, const qota::TreeSource& source, const std::string& where) {
-  if (const auto* cartesian = std::get_if<qota::TerrainIndex>(&index)) {
-    if (!cartesian->mapping().vertical()) {
-      throw qota::Error(where + ": a Cartesian terrain with tilted gravity (the Python package reads "
-                        "vertical gravity, spherical, geodetic and cylindrical terrains)");
-    }
-    const Eigen::Vector3d o = cartesian->mapping().origin();
-    return {o.x(), o.y(), o.z(), 1.0};
-  }
-  if (std::holds_alternative<qota::GeodeticIndex>(index)) {
-    const double m = source.metresPerUnit;
-    Frame f{0, 0, 0, m > 0 && std::isfinite(m) ? m : 1.0, nullptr, true};
-    if (!source.geoidGrid.empty()) {
-      f.geoid = std::make_shared<const qota::Geoid>(qota::storedHeightReference(source.heightRef, source.geoidGrid));
-    }
-    return f;
-  }
-  if (std::holds_alternative<qota::SphericalIndex>(index)) {
-    Frame f;
-    f.longitudes = true;
-    return f;
-  }
-  if (std::holds_alternative<qota::CylindricalIndex>(index)) return {};
-  throw qota::Error(where + ": a terrain in the " + std::string(qota::tools::mappingNameOf(index)) +
-                    " mapping (the Python package reads cartesian, spherical, geodetic and cylindrical ones)");
-}
-
-// A terrain in any of the mappings above: queries at (x, y[, z]) in the mapping's coordinates
-// (map x, y; lon, lat; angle, axial), heights in its h. Every index answers the same calls, so
-// each query is written once over them (std::visit), with the loops inside the visit: no
-// dispatch per point.
+// A terrain in any mapping (qota::Terrain, qota/terrain_face.hpp: points in the source's own
+// coordinates, heights in its unit and vertical reference), batched over numpy arrays with the
+// GIL released. The Python package reads the cartesian (vertical gravity), spherical, geodetic
+// and cylindrical mappings; another is refused with the face's message.
 class Terrain {
  public:
-  explicit Terrain(qota::TreeFile tree)
-      : index_(std::move(tree.index)), source_(std::move(tree.source)), frame_(frameOf(index_, source_, source_.path)) {
-    // A raster's footprint in the cartesian and geodetic mappings (a map, lon/lat on the
-    // ellipsoid): the outer half-pixel rule, as `qota sample` keeps it (dem.hpp).
-    const bool map = std::holds_alternative<qota::TerrainIndex>(index_) || std::holds_alternative<qota::GeodeticIndex>(index_);
-    if (map && source_.width > 0 && source_.height > 0) {
-      qota::DemTerrain grid;
-      grid.width = source_.width, grid.height = source_.height;
-      grid.geotransform = source_.geotransform;
-      grid.lonLat = qota::crsIsGeographic(source_.crsWkt) && grid.geotransform[2] == 0 && grid.geotransform[4] == 0;
-      footprint_ = std::move(grid);
-      inverse_ = footprint_->inverseGeotransform();
-    }
-  }
+  explicit Terrain(qota::TreeFile tree) : t_(std::move(tree)) {}
 
   py::array_t<double> heights(const Array& x, const Array& y) const {
-    return batch(x, y, nullptr, [](const auto& index, auto pts, auto, auto out) { index.heightsParallel(pts, out); });
+    return batch(x, y, nullptr, [this](auto xs, auto ys, auto, auto out) { t_.heights(xs, ys, out); });
   }
   py::array_t<double> below(const Array& x, const Array& y, const Array& z) const {
-    return batch(x, y, &z, [](const auto& index, auto pts, auto zs, auto out) { index.heightsBelowParallel(pts, zs, out); }, 1);
+    return batch(x, y, &z, [this](auto xs, auto ys, auto zs, auto out) { t_.below(xs, ys, zs, out); });
   }
   py::array_t<double> above(const Array& x, const Array& y, const Array& z) const {
-    // No batch for "above" in the library: one query a point, in slices on every core.
-    return batch(x, y, &z, [](const auto& index, auto pts, auto zs, auto out) {
-      qota::batch::inSlices(pts.size(), 0, 4096, [&](std::size_t lo, std::size_t hi) {
-        for (std::size_t i = lo; i < hi; ++i) {
-          const auto hit = index.above(pts[i].u, pts[i].v, zs[i]);
-          out[i] = hit ? std::optional(hit->height) : std::nullopt;
-        }
-      });
-    }, -1);
+    return batch(x, y, &z, [this](auto xs, auto ys, auto zs, auto out) { t_.above(xs, ys, zs, out); });
   }
 
   // The top hit (mode "top", z unused), or the nearest hit below or above z ("below", "above") at
@@ -159,47 +85,43 @@ class Terrain {
     double* h = heights.mutable_data();
     std::int64_t* p = polygons.mutable_data();
     double* nrm = normals.mutable_data();
-    const Frame f = frame_;
     {
       py::gil_scoped_release release;
       std::visit(
           [&](const auto& index) {
             qota::batch::inSlices(n, 0, 4096, [&](std::size_t lo, std::size_t hi) {
               for (std::size_t i = lo; i < hi; ++i) {
-                const qota::Point2 q = place(px[i], py_[i]);
+                const qota::Point2 q = t_.mapped(px[i], py_[i]);
                 const auto hit = kind == 0   ? index.top(q.u, q.v)
-                                 : kind == 1 ? index.below(q.u, q.v, f.toIndex(pz[i], q, 1))
-                                             : index.above(q.u, q.v, f.toIndex(pz[i], q, -1));
-                h[i] = hit ? f.fromIndex(hit->height, q) : kNaN;
+                                 : kind == 1 ? index.below(q.u, q.v, t_.toIndex(pz[i], q, 1))
+                                             : index.above(q.u, q.v, t_.toIndex(pz[i], q, -1));
+                h[i] = hit ? t_.fromIndex(hit->height, q) : kNaN;
                 p[i] = hit ? static_cast<std::int64_t>(hit->polygon) : -1;
                 for (int k = 0; k < 3; ++k) nrm[3 * i + k] = hit ? hit->normal[k] : kNaN;
               }
             });
           },
-          index_);
+          t_.index());
     }
     return py::make_tuple(heights, polygons, normals);
   }
 
   // Every surface on the line of (x, y), top first: (height, polygon id, normal).
   std::vector<py::tuple> all(double x, double y) const {
-    const qota::Point2 q = place(x, y);
-    const std::vector<qota::Hit> hits = std::visit([&](const auto& index) { return index.all(q.u, q.v); }, index_);
     std::vector<py::tuple> out;
-    for (const qota::Hit& h : hits) {
-      out.push_back(py::make_tuple(frame_.fromIndex(h.height, q), h.polygon,
-                                   py::make_tuple(h.normal.x(), h.normal.y(), h.normal.z())));
+    for (const qota::Hit& h : t_.all(x, y)) {
+      out.push_back(py::make_tuple(h.height, h.polygon, py::make_tuple(h.normal.x(), h.normal.y(), h.normal.z())));
     }
     return out;
   }
 
   void save(const std::string& path) const {
     py::gil_scoped_release release;
-    qota::saveTree(path, index_, source_);
+    qota::saveTree(path, t_.index(), t_.source());
   }
 
   py::dict stats() const {
-    const qota::IndexStats s = std::visit([](const auto& index) { return index.stats(); }, index_);
+    const qota::IndexStats s = std::visit([](const auto& index) { return index.stats(); }, t_.index());
     py::dict d;
     d["polygons"] = s.polygons;
     d["triangles"] = s.triangles;
@@ -209,16 +131,14 @@ class Terrain {
     return d;
   }
 
-  const std::string& source() const { return source_.path; }
-  std::string mapping() const { return qota::tools::mappingNameOf(index_); }
-  const std::string& crs() const { return source_.crsWkt; }
+  const std::string& source() const { return t_.source().path; }
+  std::string mapping() const { return t_.mapping(); }
+  const std::string& crs() const { return t_.source().crsWkt; }
+  std::string heightRef() const { return t_.heightRef(); }
   // A lon/lat raster in the cartesian mapping: x, y in degrees, z in metres (heights are right,
   // normals are not).
-  bool lonLatMap() const { return std::holds_alternative<qota::TerrainIndex>(index_) && qota::crsIsGeographic(source_.crsWkt); }
-  // What the heights are over: the source's reference as described (geodetic), else "".
-  std::string heightRef() const {
-    if (!std::holds_alternative<qota::GeodeticIndex>(index_)) return "";
-    return source_.geoidGrid.empty() && source_.heightRef.empty() ? "ellipsoid" : source_.heightRef;
+  bool lonLatMap() const {
+    return std::holds_alternative<qota::TerrainIndex>(t_.index()) && qota::crsIsGeographic(t_.source().crsWkt);
   }
 
  private:
@@ -228,68 +148,29 @@ class Terrain {
     }
   }
 
-  // The index's (u, v) of the point (x, y): on a raster's footprint, a point of the outer half
-  // pixel answers with the height of the nearest point on the outermost pixel centres' lines, and
-  // a point off the raster has no terrain (NaN, which no index holds).
-  qota::Point2 place(double x, double y) const {
-    if (footprint_) {
-      const auto p = footprint_->surfacePoint(x, y, inverse_);
-      if (!p) return {kNaN, kNaN};
-      x = (*p)[0], y = (*p)[1];
-    }
-    qota::Point2 q = frame_.point(x, y);
-    // The curved indexes' longitudes are [-180, 180): a longitude names a meridian at any turn.
-    if (frame_.longitudes) q.u -= 360.0 * std::floor((q.u + 180.0) / 360.0);
-    return q;
-  }
-
-  // Maps the points (and z) into the index's frame, runs run(index, points, zs, out) with the GIL
-  // released, and maps the answers back (NaN for no terrain).
+  // run(x, y, z, out) over the arrays' spans with the GIL released; NaN for no terrain.
   template <class Run>
-  py::array_t<double> batch(const Array& x, const Array& y, const Array* z, Run&& run, int side = 0) const {
+  py::array_t<double> batch(const Array& x, const Array& y, const Array* z, Run&& run) const {
     requireFlat(x, y, z);
     const std::size_t n = static_cast<std::size_t>(x.shape(0));
-    std::vector<qota::Point2> pts(n);
-    std::vector<double> zs(z ? n : 0);  // per call: batches run with the GIL released
-    std::vector<std::optional<double>> out(n);
     py::array_t<double> result(static_cast<py::ssize_t>(n));
-    const double* px = x.data();
-    const double* py_ = y.data();
-    const double* pz = z ? z->data() : nullptr;
-    double* r = result.mutable_data();
-    const Frame f = frame_;
+    const std::span<const double> xs(x.data(), n), ys(y.data(), n), zs(z ? z->data() : nullptr, z ? n : 0);
+    const std::span<double> out(result.mutable_data(), n);
     {
       py::gil_scoped_release release;
-      // Into the index's frame on every core, as the batch itself runs (a loop here on one core
-      // took a third of the batch's time).
-      qota::batch::inSlices(n, 0, 1 << 15, [&](std::size_t lo, std::size_t hi) {
-        for (std::size_t i = lo; i < hi; ++i) pts[i] = place(px[i], py_[i]);
-        for (std::size_t i = lo; pz && i < hi; ++i) zs[i] = f.toIndex(pz[i], pts[i], side);
-      });
-      std::visit(
-          [&](const auto& index) {
-            run(index, std::span<const qota::Point2>(pts), std::span<const double>(zs),
-                std::span<std::optional<double>>(out));
-          },
-          index_);
-      qota::batch::inSlices(n, 0, 1 << 15, [&](std::size_t lo, std::size_t hi) {
-        for (std::size_t i = lo; i < hi; ++i) r[i] = out[i] ? f.fromIndex(*out[i], pts[i]) : kNaN;
-      });
+      run(xs, ys, zs, out);
     }
     return result;
   }
 
-  qota::AnyIndex index_;
-  qota::TreeSource source_;
-  Frame frame_;
-  std::optional<qota::DemTerrain> footprint_;  // a raster's, for the outer half pixel
-  std::array<double, 6> inverse_{};            // its inverse geotransform
+  qota::Terrain t_;
 };
 
 // The raster options of `qota sample --mapping --radius --length`, checked as the tool checks
 // them (positive numbers), and refused where they do not apply rather than ignored.
 qota::tools::SourceOptions rasterOptions(const std::string& path, int band, const std::string& mapping,
-                                         std::optional<double> radius, std::optional<double> length) {
+                                         std::optional<double> radius, std::optional<double> length,
+                                         std::optional<std::array<double, 3>> origin = std::nullopt) {
   if (!knownMapping(mapping)) {
     throw qota::Error("mapping '" + mapping + "' is not one of " + kMappings);
   }
@@ -307,6 +188,8 @@ qota::tools::SourceOptions rasterOptions(const std::string& path, int band, cons
   o.mapping = mapping;
   o.radius = radius.value_or(0.0);  // 0: the tool's defaults (the CRS's radius; 250 and 1000)
   o.length = length.value_or(0.0);
+  if (origin && mapping != "enu") throw qota::Error("origin applies to the enu mapping, not " + mapping);
+  o.origin = origin;
   return o;
 }
 
@@ -323,8 +206,9 @@ qota::TreeFile rasterTree(const qota::tools::SourceOptions& o) {
 }
 
 Terrain fromRaster(const std::string& path, int band, const std::string& mapping, std::optional<double> radius,
-                   std::optional<double> length, const std::string& heightRef) {
-  qota::tools::SourceOptions o = rasterOptions(path, band, mapping, radius, length);
+                   std::optional<double> length, const std::string& heightRef,
+                   std::optional<std::array<double, 3>> origin) {
+  qota::tools::SourceOptions o = rasterOptions(path, band, mapping, radius, length, origin);
   o.heightRef = heightRef;
   py::gil_scoped_release release;
   return Terrain(rasterTree(o));
@@ -416,11 +300,12 @@ void writeRaster(const std::string& path, py::array_t<double, py::array::c_style
 Terrain fromArray(py::array_t<double, py::array::c_style | py::array::forcecast> heights,
                   const std::vector<double>& transform, std::optional<double> nodata, const std::string& crs,
                   const std::string& unit, const std::string& mapping, std::optional<double> radius,
-                  std::optional<double> length, const std::string& heightRef) {
+                  std::optional<double> length, const std::string& heightRef,
+                  std::optional<std::array<double, 3>> origin) {
   checkGrid(heights, transform);
   static std::atomic<unsigned> counter{0};
   const std::string path = "/vsimem/qota_python_" + std::to_string(counter++) + ".tif";
-  qota::tools::SourceOptions o = rasterOptions(path, 1, mapping, radius, length);
+  qota::tools::SourceOptions o = rasterOptions(path, 1, mapping, radius, length, origin);
   o.heightRef = heightRef;
   const int rows = static_cast<int>(heights.shape(0)), cols = static_cast<int>(heights.shape(1));
   const double* data = heights.data();
@@ -443,7 +328,7 @@ Terrain fromArray(py::array_t<double, py::array::c_style | py::array::forcecast>
 // metres, a cylinder about the z axis.
 Terrain fromMesh(py::array_t<double, py::array::c_style | py::array::forcecast> vertices,
                  py::array_t<std::int64_t, py::array::c_style | py::array::forcecast> triangles,
-                 const std::string& mapping) {
+                 const std::string& mapping, std::optional<std::array<double, 3>> origin) {
   if (!knownMapping(mapping)) throw qota::Error("mapping '" + mapping + "' is not one of " + kMappings);
   if (vertices.ndim() != 2 || vertices.shape(1) != 3) throw qota::Error("vertices must be an (N, 3) array");
   if (triangles.ndim() != 2 || triangles.shape(1) != 3) throw qota::Error("triangles must be an (M, 3) array");
@@ -470,25 +355,26 @@ Terrain fromMesh(py::array_t<double, py::array::c_style | py::array::forcecast> 
     mesh.indices.push_back(static_cast<std::uint32_t>(t[k]));
   }
   if (n == 0 || m == 0) throw qota::Error("the mesh has no triangles");
-  const auto index = [&]() -> qota::AnyIndex {
-    if (mapping == "spherical") return qota::SphericalIndex(mesh, qota::SphericalMapping());
-    if (mapping == "geodetic") return qota::GeodeticIndex(mesh, qota::GeodeticMapping());
-    if (mapping == "cylindrical") return qota::CylindricalIndex(mesh, qota::CylindricalMapping());
-    const Eigen::Vector3d origin(0.5 * (lo.x() + hi.x()), 0.5 * (lo.y() + hi.y()), 0.0);
-    return qota::TerrainIndex(mesh, qota::CartesianMapping({0, 0, -1}, origin));
-  };
+  // (origin: the enu frame's, checked by meshIndex as the tools check it)
+  qota::AnyIndex index = qota::meshIndex(mesh, mapping, {0.5 * (lo.x() + hi.x()), 0.5 * (lo.y() + hi.y()), 0.0}, origin);
   qota::TreeSource source;
   source.path = "<mesh>";
-  return Terrain(qota::TreeFile{index(), source});
+  return Terrain(qota::TreeFile{std::move(index), source});
 }
 
 // A tree file, in the mapping it was built in.
 Terrain load(const std::string& path) {
   py::gil_scoped_release release;
   qota::TreeFile tree = qota::loadTree(path);
-  frameOf(tree.index, tree.source, path);  // refused naming the tree file, not its source
   if (tree.source.path.empty()) tree.source.path = path;
-  return Terrain(std::move(tree));
+  const std::string source = tree.source.path;
+  try {
+    return Terrain(std::move(tree));
+  } catch (const qota::Error& e) {  // named by the tree file, not its source
+    std::string what = e.what();
+    if (what.rfind(source + ": ", 0) == 0) what = what.substr(source.size() + 2);
+    throw qota::Error(path + ": " + what);
+  }
 }
 
 // qota shadow itself (the same cells, the same checks and messages), into `output`, read back:
@@ -820,11 +706,14 @@ PYBIND11_MODULE(_qota, m) {
       .def("heights", &Sampler::heights, py::arg("x"), py::arg("y"));
   py::class_<Terrain>(m, "_Terrain")
       .def_static("from_raster", &fromRaster, py::arg("path"), py::arg("band"), py::arg("mapping"),
-                  py::arg("radius") = py::none(), py::arg("length") = py::none(), py::arg("height_ref") = "")
+                  py::arg("radius") = py::none(), py::arg("length") = py::none(), py::arg("height_ref") = "",
+                  py::arg("origin") = py::none())
       .def_static("from_array", &fromArray, py::arg("heights"), py::arg("transform"), py::arg("nodata") = py::none(),
                   py::arg("crs") = "", py::arg("unit") = "", py::arg("mapping") = "cartesian",
-                  py::arg("radius") = py::none(), py::arg("length") = py::none(), py::arg("height_ref") = "")
-      .def_static("from_mesh", &fromMesh, py::arg("vertices"), py::arg("triangles"), py::arg("mapping") = "cartesian")
+                  py::arg("radius") = py::none(), py::arg("length") = py::none(), py::arg("height_ref") = "",
+                  py::arg("origin") = py::none())
+      .def_static("from_mesh", &fromMesh, py::arg("vertices"), py::arg("triangles"), py::arg("mapping") = "cartesian",
+                  py::arg("origin") = std::nullopt)
       .def_static("load", &load, py::arg("path"))
       .def("heights", &Terrain::heights)
       .def("below", &Terrain::below)

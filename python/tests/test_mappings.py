@@ -395,8 +395,10 @@ def test_mapping_options_are_checked(tmp_path):
     terrains()["cylindrical"].save(tmp_path / "t.qota")
     with pytest.raises(qota.Error, match="a tree file, not a raster"):
         qota.Terrain.from_raster(tmp_path / "t.qota", mapping="cylindrical")
-    with pytest.raises(qota.Error, match="mapping"):
+    with pytest.raises(qota.Error, match="ECEF vertices on the Earth"):
         qota.Terrain.from_mesh([[0, 0, 1], [1, 0, 1], [0, 1, 1]], [[0, 1, 2]], mapping="enu")
+    with pytest.raises(qota.Error, match="origin applies to the enu mapping"):
+        qota.Terrain.from_mesh([[0, 0, 1], [1, 0, 1], [0, 1, 1]], [[0, 1, 2]], origin=(0, 0))
     with pytest.raises(qota.Error, match="not a coordinate reference system"):
         qota.Terrain.from_array(heights, transform, crs="EPSG:999999", mapping="geodetic")
 
@@ -473,3 +475,49 @@ def test_curved_batches_run_while_other_threads_run():
     for g in got:
         for a, b in zip(g, want):
             np.testing.assert_array_equal(a, b)
+
+
+def test_enu_is_reached_as_the_tool_reaches_it(tmp_path):
+    # A DEM on its ellipsoid seen east-north-up at an origin: Terrain.from_raster(mapping="enu")
+    # answers as `qota sample --mapping enu` does (the tool's output, read here), and a tree file
+    # keeps it. (Each answer against GeographicLib's LocalCartesian: EnuTool.* in the C++ suite.)
+    import subprocess
+    from test_interop import RAINIER
+    origin = (46.85, -121.76, 1000.0)
+    terrain = qota.Terrain.from_raster(RAINIER, mapping="enu", origin=origin)
+    assert terrain.mapping == "enu"
+    rng = np.random.default_rng(21)
+    east, north = rng.uniform(-20000, 20000, 200), rng.uniform(-20000, 20000, 200)
+    got = terrain.heights(east, north)
+    assert np.count_nonzero(~np.isnan(got)) > 150
+    tool = os.environ.get("QOTA_TOOL") or str(Path(__file__).resolve().parents[2] / "build" / "tools" / "qota")
+    if os.path.exists(tool):
+        text = "".join(f"{e!r} {n!r}\n" for e, n in zip(east, north))
+        run = subprocess.run([tool, "sample", str(RAINIER), "--mapping", "enu", "--origin", "46.85,-121.76,1000"],
+                             input=text, capture_output=True, text=True)
+        want = np.array([np.nan if v == "none" else float(v) for v in run.stdout.split()])
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-9)
+    terrain.save(tmp_path / "enu.qota")
+    np.testing.assert_array_equal(qota.Terrain.load(tmp_path / "enu.qota").heights(east, north), got)
+    with pytest.raises(qota.Error, match="origin applies to the enu mapping"):
+        qota.Terrain.from_raster(RAINIER, origin=origin)
+
+
+def test_enu_mesh_is_seen_from_its_origin():
+    # ECEF vertices of a square 100 m above the origin's tangent plane (built here with the
+    # textbook east-north-up rotation): from_mesh(mapping="enu") answers 100 over it, nothing
+    # outside it.
+    a, f = 6378137.0, 1 / 298.257223563
+    lat, lon = np.radians(46.85), np.radians(-121.76)
+    e2 = f * (2 - f)
+    n = a / np.sqrt(1 - e2 * np.sin(lat) ** 2)
+    centre = np.array([n * np.cos(lat) * np.cos(lon), n * np.cos(lat) * np.sin(lon), n * (1 - e2) * np.sin(lat)])
+    east = np.array([-np.sin(lon), np.cos(lon), 0])
+    north = np.array([-np.sin(lat) * np.cos(lon), -np.sin(lat) * np.sin(lon), np.cos(lat)])
+    up = np.array([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat)])
+    square = [(-500, -500), (500, -500), (500, 500), (-500, 500)]
+    vertices = [centre + e * east + nn * north + 100 * up for e, nn in square]
+    terrain = qota.Terrain.from_mesh(vertices, [[0, 1, 2], [0, 2, 3]], mapping="enu", origin=(46.85, -121.76))
+    got = terrain.heights([0, 120, -480, 600], [0, -300, 470, 0])
+    np.testing.assert_allclose(got[:3], 100, atol=1e-6)
+    assert np.isnan(got[3])

@@ -6,7 +6,8 @@
 //
 // The reference, in this order:
 // - asked: --height-ref (height_ref= in Python): "ellipsoid", "egm96", "egm2008", "crs" (the
-//   raster's own vertical CRS, which must then be stated) or the path of a grid file;
+//   raster's own vertical CRS, which must then be stated), "radius:R" (heights over a sphere of
+//   radius R metres, on a body whose CRS is a sphere: MOLA's convention) or the path of a grid;
 // - stated by the raster: a compound CRS (EPSG:4326+5773: EGM96 height; +3855: EGM2008 height),
 //   a vertical CRS in its metadata, or a three-dimensional geographic CRS (EPSG:4979: heights over
 //   the ellipsoid);
@@ -30,7 +31,9 @@ namespace qota {
 
 struct HeightReference {
   std::string name = "ellipsoid";  // "ellipsoid", "EGM96 geoid", "EGM2008 geoid", or a grid's file name
-  std::string grid;                // the geoid grid's path; empty: heights are over the ellipsoid
+  // The geoid grid's path; "radius:R" for a sphere of radius R metres on a spherical body (MOLA's
+  // "topography = radius - 3396000 m": a constant undulation R - a); empty: over the ellipsoid.
+  std::string grid;
   std::string why;                 // "stated by its vertical CRS EGM96 height (EPSG:5773)", ...
   bool assumed = false;            // neither stated nor asked
   bool ellipsoidal() const { return grid.empty(); }
@@ -49,7 +52,7 @@ HeightReference heightReferenceOf(const DemTerrain& dem, const std::string& aske
 HeightReference storedHeightReference(const std::string& name, const std::string& grid);
 
 // The option's words, for help and messages.
-inline constexpr const char* kHeightRefChoices = "ellipsoid, egm96, egm2008, crs, or a grid file";
+inline constexpr const char* kHeightRefChoices = "ellipsoid, egm96, egm2008, crs, radius:R, or a grid file";
 
 // A geoid grid in memory (a few megabytes for EGM96's 15-minute grid), or none (the ellipsoid).
 class Geoid {
@@ -57,7 +60,7 @@ class Geoid {
   Geoid() = default;  // the ellipsoid: N = 0
   // Throws qota::Error naming the grid when GDAL cannot read it as longitude/latitude.
   explicit Geoid(const HeightReference& reference);
-  bool ellipsoidal() const { return values_.empty(); }
+  bool ellipsoidal() const { return values_.empty() && constant_ == 0; }
   // N in metres at (lon, lat) degrees; NaN outside a grid that covers part of the body.
   double undulation(double lon, double lat) const;
   // The least and greatest N over the box [lon0, lon1] x [lat0, lat1] (degrees; lon1 may pass
@@ -71,6 +74,7 @@ class Geoid {
   double lon0_ = 0, lat0_ = 0, dlon_ = 1, dlat_ = -1;  // the first node's centre and the steps
   bool wraps_ = false;
   std::vector<float> values_;
+  double constant_ = 0;  // a sphere's undulation over a spherical body (radius:R)
 };
 
 }  // namespace qota

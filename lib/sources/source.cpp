@@ -1,4 +1,4 @@
-#include "index_source.hpp"
+#include "qota/source.hpp"
 
 #include <gdal_priv.h>
 
@@ -7,12 +7,15 @@
 #include <memory>
 
 #include "gdal_errors.hpp"
+#include <GeographicLib/Geocentric.hpp>
+
 #include "qota/dem.hpp"
+#include "qota/enu.hpp"
 #include "qota/error.hpp"
 #include "qota/globe.hpp"
 #include "qota/mesh_io.hpp"
 
-namespace qota::tools {
+namespace qota {
 
 bool isRaster(const std::string& path) {
   ensureGdalRegistered();
@@ -57,6 +60,36 @@ void requireSource(const std::string& path) {
   }
 }
 
+AnyIndex meshIndex(const Mesh& mesh, const std::string& mapping, const Eigen::Vector3d& cartesianOrigin,
+                   const std::optional<std::array<double, 3>>& origin, const IndexOptions& terrain) {
+  if (origin && mapping != "enu") throw Error("--origin applies to the enu mapping (the frame's origin)");
+  if (mapping.empty() || mapping == "cartesian") {
+    return TerrainIndex(mesh, CartesianMapping(Eigen::Vector3d(0, 0, -1), cartesianOrigin), terrain);
+  }
+  if (mapping == "spherical") return SphericalIndex(mesh, SphericalMapping(), terrain);
+  if (mapping == "geodetic") return GeodeticIndex(mesh, GeodeticMapping(), terrain);
+  if (mapping == "cylindrical") return CylindricalIndex(mesh, CylindricalMapping(), terrain);
+  if (mapping == "enu") {
+    // ECEF vertices (a city model in EPSG:4978) seen from the origin, by default the point of the
+    // ellipsoid under the centre of their box, at that centre's height.
+    std::array<double, 3> at{0, 0, 0};
+    if (origin) {
+      at = *origin;
+    } else {
+      Eigen::Vector3d lo = Eigen::Vector3d::Constant(INFINITY), hi = -lo;
+      for (const Eigen::Vector3d& v : mesh.vertices) lo = lo.cwiseMin(v), hi = hi.cwiseMax(v);
+      const Eigen::Vector3d c = 0.5 * (lo + hi);
+      if (c.norm() < 1e5) {
+        throw Error("the enu mapping takes ECEF vertices on the Earth; these are centred " +
+                    std::to_string(c.norm()) + " m from its centre (give the origin, or another mapping)");
+      }
+      GeographicLib::Geocentric::WGS84().Reverse(c.x(), c.y(), c.z(), at[0], at[1], at[2]);
+    }
+    return EnuIndex(mesh, EnuMapping(at[0], at[1], at[2]), terrain);
+  }
+  throw Error("mapping '" + mapping + "' is not one of cartesian, spherical, geodetic, cylindrical, enu");
+}
+
 TreeFile openIndex(const SourceOptions& o) {
   requireSource(o.source);
   DemOptions demOptions;
@@ -81,8 +114,9 @@ TreeFile openIndex(const SourceOptions& o) {
     }
     return tf;
   }
-  if (!o.heightRef.empty() && (o.mapping != "geodetic" || !isRaster(o.source))) {
-    throw Error("--height-ref applies to a raster's heights placed on an ellipsoid (--mapping geodetic); the " +
+  if (o.origin && o.mapping != "enu") throw Error("--origin applies to the enu mapping (the frame's origin)");
+  if (!o.heightRef.empty() && ((o.mapping != "geodetic" && o.mapping != "enu") || !isRaster(o.source))) {
+    throw Error("--height-ref applies to a raster's heights placed on an ellipsoid (--mapping geodetic or enu); the " +
                 (o.mapping.empty() ? std::string("cartesian") : o.mapping) + " mapping of " + o.source +
                 " keeps its heights as they are");
   }
@@ -94,16 +128,7 @@ TreeFile openIndex(const SourceOptions& o) {
     TreeSource source;
     source.path = o.source;
     source.crsWkt = file.crsWkt;
-    if (o.mapping.empty() || o.mapping == "cartesian") {
-      return {TerrainIndex(file.mesh, CartesianMapping(Eigen::Vector3d(0, 0, -1), file.origin),
-                           o.terrain),
-              source};
-    }
-    if (o.mapping == "spherical") return {SphericalIndex(file.mesh, SphericalMapping(), o.terrain), source};
-    if (o.mapping == "geodetic") return {GeodeticIndex(file.mesh, GeodeticMapping(), o.terrain), source};
-    if (o.mapping == "cylindrical") {
-      return {CylindricalIndex(file.mesh, CylindricalMapping(), o.terrain), source};
-    }
+    return {meshIndex(file.mesh, o.mapping, file.origin, o.origin, o.terrain), source};
   }
   if (o.mapping.empty() || o.mapping == "cartesian") {
     const DemTerrain dem = loadDem(o.source, demOptions);
@@ -125,6 +150,25 @@ TreeFile openIndex(const SourceOptions& o) {
     return {GeodeticIndex(t.dem.mesh, t.mapping, o.terrain), source};
   }
 
+  if (o.mapping == "enu") {
+    // The DEM on its ellipsoid as the geodetic mapping places it (its heights over their
+    // reference), seen in the east-north-up frame at the origin (default: the raster's centre, at
+    // height 0 on the ellipsoid). Answers are metres up in that frame: no raster footprint.
+    demOptions.heightRef = o.heightRef;
+    const EllipsoidTerrain t = loadOnEllipsoid(o.source, demOptions);
+    std::array<double, 3> at{0, 0, 0};
+    if (o.origin) {
+      at = *o.origin;
+    } else {
+      const auto centre = t.dem.pixelCentre((t.dem.width - 1) / 2.0, (t.dem.height - 1) / 2.0);
+      at = {centre[1], centre[0], 0.0};
+    }
+    TreeSource source = sourceOf(t.dem);
+    source.width = source.height = 0;
+    source.heightRef = t.heightRef.describe();
+    source.metresPerUnit = 1;  // (answers in the frame's metres)
+    return {EnuIndex(t.dem.mesh, EnuMapping(at[0], at[1], at[2], t.mapping.a(), t.mapping.f()), o.terrain), source};
+  }
   if (o.mapping == "cylindrical") {
     // The raster is the station's relief: columns around the axis, rows along it.
     const DemTerrain dem = loadDem(o.source, demOptions);
@@ -141,7 +185,7 @@ TreeFile openIndex(const SourceOptions& o) {
     source.width = source.height = 0;  // not a map: no raster footprint to check points against
     return {CylindricalIndex(stationMesh(relief, station), CylindricalMapping(), o.terrain), source};
   }
-  throw Error("--mapping '" + o.mapping + "' is not one of cartesian, spherical, cylindrical, geodetic");
+  throw Error("--mapping '" + o.mapping + "' is not one of cartesian, spherical, geodetic, cylindrical, enu");
 }
 
-}  // namespace qota::tools
+}  // namespace qota
