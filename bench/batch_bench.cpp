@@ -27,7 +27,7 @@ int main(int argc, char** argv) {
     in.seekg(0);
     in.read(reinterpret_cast<char*>(xy.data()), static_cast<std::streamsize>(xy.size() * sizeof(double)));
     const qota::DemTerrain dem = qota::loadDem(argv[1], {.lonLatAsCartesian = true});
-    const qota::TerrainIndex index(dem.mesh, dem.mapping);
+    const qota::CartesianIndex index(dem.mesh, dem.mapping);
     const Eigen::Vector3d o = index.mapping().origin();
     std::vector<double> runs;
     std::vector<qota::Point2> pts(n);
@@ -38,7 +38,8 @@ int main(int argc, char** argv) {
       const auto start = std::chrono::steady_clock::now();
       for (std::size_t i = 0; i < n; ++i) pts[i] = {xy[i] - o.x(), xy[n + i] - o.y()};
       index.heightsParallel(pts, out);
-      for (std::size_t i = 0; i < n; ++i) heights[i] = out[i] ? *out[i] + o.z() : std::numeric_limits<double>::quiet_NaN();
+      for (std::size_t i = 0; i < n; ++i)
+        heights[i] = out[i] ? *out[i] + o.z() : std::numeric_limits<double>::quiet_NaN();
       runs.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
     }
     std::vector<double> sorted = runs;

@@ -34,8 +34,8 @@ struct Setting {
 
 void run(const Terrain& t, std::size_t queries, const std::vector<Setting>& settings) {
   std::printf("\n%s: %zu polygons\n", t.name.c_str(), t.mesh.polygonCount());
-  std::printf("  %-8s %-8s %-9s %9s %8s %11s %9s %9s %s\n", "Maxpoly", "Maxdepth", "cuts", "nodes", "MB",
-              "avg tests", "ns/query", "build s", "same answers");
+  std::printf("  %-8s %-8s %-9s %9s %8s %11s %9s %9s %s\n", "Maxpoly", "Maxdepth", "cuts", "nodes", "MB", "avg tests",
+              "ns/query", "build s", "same answers");
   for (const Setting s : settings) {
     std::vector<std::optional<double>> reference;
     for (const Cuts cuts : {Cuts::Midpoint, Cuts::CostModel}) {
@@ -43,7 +43,7 @@ void run(const Terrain& t, std::size_t queries, const std::vector<Setting>& sett
       o.gridFastPath = false;
       o.tree = {s.maxPoly, s.maxDepth, cuts};
       const auto t0 = Clock::now();
-      const qota::TerrainIndex index(t.mesh, t.mapping, o);
+      const qota::CartesianIndex index(t.mesh, t.mapping, o);
       const double build = std::chrono::duration<double>(Clock::now() - t0).count();
       const auto& st = index.stats();
       std::mt19937_64 rng(7);

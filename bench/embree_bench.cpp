@@ -32,9 +32,7 @@
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double seconds(Clock::time_point a, Clock::time_point b) {
-  return std::chrono::duration<double>(b - a).count();
-}
+double seconds(Clock::time_point a, Clock::time_point b) { return std::chrono::duration<double>(b - a).count(); }
 
 std::atomic<std::int64_t> embreeBytes{0};
 bool monitor(void*, ssize_t bytes, bool) {
@@ -44,7 +42,7 @@ bool monitor(void*, ssize_t bytes, bool) {
 
 struct Terrain {
   std::string name;
-  qota::Mesh mesh;                // world frame
+  qota::Mesh mesh;  // world frame
   qota::CartesianMapping mapping;
   std::optional<qota::Heightfield> grid;  // the direct-indexing baseline, when there is one
 };
@@ -78,8 +76,8 @@ void buildEmbree(Embree& e, const Terrain& t) {
   }
   std::size_t triangles = 0;
   for (std::size_t p = 0; p < t.mesh.polygonCount(); ++p) triangles += t.mesh.polygon(p).size() - 2;
-  auto* idx = static_cast<unsigned*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
-                                                             3 * sizeof(unsigned), triangles));
+  auto* idx = static_cast<unsigned*>(
+      rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), triangles));
   std::size_t k = 0;
   for (std::size_t p = 0; p < t.mesh.polygonCount(); ++p) {
     const auto c = t.mesh.polygon(p);
@@ -185,7 +183,7 @@ Agreement agree(const Timing& a, const Timing& b, double tolerance) {
 void run(const Terrain& t, std::size_t n) {
   // qota.
   const auto q0 = Clock::now();
-  const qota::TerrainIndex index(t.mesh, t.mapping);
+  const qota::CartesianIndex index(t.mesh, t.mapping);
   const double qotaBuild = seconds(q0, Clock::now());
   const double bytesNow = static_cast<double>(index.memoryBytesNow());  // before anything builds the tree
   Embree e;
@@ -261,7 +259,7 @@ void run(const Terrain& t, std::size_t n) {
   if (index.gridFastPath()) {
     qota::IndexOptions o;
     o.gridFastPath = false;
-    const qota::TerrainIndex general(t.mesh, t.mapping, o);
+    const qota::CartesianIndex general(t.mesh, t.mapping, o);
     quadtreeBytes = static_cast<double>(general.memoryBytesNow());
     qt = timeQueries(hit, [&](double u, double v) {
       const auto h = general.heightBelow(u, v, INFINITY);
@@ -280,22 +278,22 @@ void run(const Terrain& t, std::size_t n) {
                   aw = agree(qw, ew, tolerance);
   const double tris = static_cast<double>(index.stats().triangles);
   std::printf("\n%s: %.0f triangles\n", t.name.c_str(), tris);
-  std::printf("  build (1 thread):    qota %.3f s   embree %.3f s   (qota/embree %.2f)\n", qotaBuild,
-              e.buildSeconds, qotaBuild / e.buildSeconds);
+  std::printf("  build (1 thread):    qota %.3f s   embree %.3f s   (qota/embree %.2f)\n", qotaBuild, e.buildSeconds,
+              qotaBuild / e.buildSeconds);
   const double queryBytes = bytesNow / tris;
-  std::printf("  bytes per triangle:  qota %.0f (%.0f with its quadtree)   embree %.0f (of which its vertex and index buffers: %.0f)\n",
-              queryBytes, static_cast<double>(index.stats().memoryBytes) / tris,
-              static_cast<double>(e.bytes) / tris, static_cast<double>(e.bufferBytes) / tris);
-  std::printf("  %-22s %9s %9s %9s %12s %9s\n", "ns/query", "qota", "embree", "ratio", "qota batch",
-              "embree16");
-  std::printf("  %-22s %9.1f %9.1f %8.1fx %12.1f %9.1f\n", "random hit", qh.ns, eh.ns, eh.ns / qh.ns, qhb.ns,
-              eh16.ns);
+  std::printf(
+      "  bytes per triangle:  qota %.0f (%.0f with its quadtree)   embree %.0f (of which its vertex and index buffers: "
+      "%.0f)\n",
+      queryBytes, static_cast<double>(index.stats().memoryBytes) / tris, static_cast<double>(e.bytes) / tris,
+      static_cast<double>(e.bufferBytes) / tris);
+  std::printf("  %-22s %9s %9s %9s %12s %9s\n", "ns/query", "qota", "embree", "ratio", "qota batch", "embree16");
+  std::printf("  %-22s %9.1f %9.1f %8.1fx %12.1f %9.1f\n", "random hit", qh.ns, eh.ns, eh.ns / qh.ns, qhb.ns, eh16.ns);
   std::printf("  %-22s %9.1f %9.1f %8.1fx\n", "random miss", qm.ns, em.ns, em.ns / qm.ns);
   std::printf("  %-22s %9.1f %9.1f %8.1fx\n", "coherent walk", qw.ns, ew.ns, ew.ns / qw.ns);
-  std::printf("  %-22s %9.1f %9.1f %8.1fx   (same heights: %s)\n", "walk with a cursor", qwc.ns, ew.ns,
-              ew.ns / qwc.ns, agree(qw, qwc, 0).differ == 0 && agree(qw, qwc, 0).onlyOne == 0 ? "yes" : "NO");
-  std::printf("  %-22s %9.1f ns random hit, 2 threads (same answers: %s)\n", "qota batched, both cores",
-              parallelNs, parallelSame ? "yes" : "NO");
+  std::printf("  %-22s %9.1f %9.1f %8.1fx   (same heights: %s)\n", "walk with a cursor", qwc.ns, ew.ns, ew.ns / qwc.ns,
+              agree(qw, qwc, 0).differ == 0 && agree(qw, qwc, 0).onlyOne == 0 ? "yes" : "NO");
+  std::printf("  %-22s %9.1f ns random hit, 2 threads (same answers: %s)\n", "qota batched, both cores", parallelNs,
+              parallelSame ? "yes" : "NO");
   if (qt) {
     std::printf("  %-22s %9.1f ns random hit (%.1fx embree), %.0f bytes per triangle (identical heights: %s)\n",
                 "qota quadtree only", qt->ns, eh.ns / qt->ns, quadtreeBytes / tris,
@@ -305,11 +303,12 @@ void run(const Terrain& t, std::size_t n) {
     std::printf("  %-22s %9.1f (hit)  %9.1f (walk): qota/grid %.1fx hit, %.1fx walk, %.1fx walk with a cursor\n",
                 "direct grid indexing", gh->ns, gw->ns, qh.ns / gh->ns, qw.ns / gw->ns, qwc.ns / gw->ns);
   }
-  std::printf("  agreement: %zu hits compared, %zu differ by more than %.2g (worst %.2g), %zu answered "
-              "by one side only; rtcIntersect16: %zu differ, %zu one side; walk: %zu differ, %zu one "
-              "side; batch = single: %s\n",
-              a.compared, a.differ, tolerance, a.worst, a.onlyOne, a16.differ, a16.onlyOne, aw.differ,
-              aw.onlyOne, ab.differ == 0 && ab.onlyOne == 0 ? "yes" : "NO");
+  std::printf(
+      "  agreement: %zu hits compared, %zu differ by more than %.2g (worst %.2g), %zu answered "
+      "by one side only; rtcIntersect16: %zu differ, %zu one side; walk: %zu differ, %zu one "
+      "side; batch = single: %s\n",
+      a.compared, a.differ, tolerance, a.worst, a.onlyOne, a16.differ, a16.onlyOne, aw.differ, aw.onlyOne,
+      ab.differ == 0 && ab.onlyOne == 0 ? "yes" : "NO");
 }
 
 Terrain fractal(int side, const char* name) {
@@ -327,8 +326,8 @@ int main(int argc, char** argv) {
   bool quick = false;
   for (int i = 1; i < argc; ++i) quick = quick || !std::strcmp(argv[i], "--quick");
   const std::size_t n = quick ? 100000 : 1000000;
-  std::printf("embree_bench: qota vs Embree %d.%d.%d, %zu queries per set, one thread\n",
-              RTC_VERSION_MAJOR, RTC_VERSION_MINOR, RTC_VERSION_PATCH, n);
+  std::printf("embree_bench: qota vs Embree %d.%d.%d, %zu queries per set, one thread\n", RTC_VERSION_MAJOR,
+              RTC_VERSION_MINOR, RTC_VERSION_PATCH, n);
   run(fractal(82, "fractal 13k"), n);
   if (quick) return 0;
   run(fractal(708, "fractal 1M"), n);

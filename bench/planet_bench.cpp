@@ -36,9 +36,7 @@
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double seconds(Clock::time_point a, Clock::time_point b) {
-  return std::chrono::duration<double>(b - a).count();
-}
+double seconds(Clock::time_point a, Clock::time_point b) { return std::chrono::duration<double>(b - a).count(); }
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
@@ -54,7 +52,10 @@ double nsPerQuery(const std::vector<Query>& points, F&& f, int& misses) {
   const auto t0 = Clock::now();
   for (const Query& q : points) {
     const std::optional<double> h = f(q.u, q.v);
-    if (h) sum += *h; else ++misses;
+    if (h)
+      sum += *h;
+    else
+      ++misses;
   }
   const double ns = seconds(t0, Clock::now()) * 1e9 / static_cast<double>(points.size());
   if (sum == 1.2345) std::printf(" ");
@@ -72,8 +73,7 @@ double nsPerBatch(const std::vector<Query>& points, Batch&& batch, One&& one, in
   const auto t0 = Clock::now();
   for (std::size_t i = 0; i < p.size(); i += kBatch) {
     const std::size_t k = std::min(kBatch, p.size() - i);
-    batch(std::span<const qota::Point2>(p.data() + i, k),
-          std::span<std::optional<double>>(out.data() + i, k));
+    batch(std::span<const qota::Point2>(p.data() + i, k), std::span<std::optional<double>>(out.data() + i, k));
   }
   const double ns = seconds(t0, Clock::now()) * 1e9 / static_cast<double>(p.size());
   for (std::size_t i = 0; i < p.size(); i += 97) disagreements += one(p[i].u, p[i].v) != out[i];
@@ -94,8 +94,8 @@ int checkCursor(const std::vector<Query>& track, WithCursor&& withCursor, Plain&
 
 // The line's top hit over every triangle: origin o, unit direction d toward increasing height,
 // the hit's height as the parameter along d plus `offset`. Moller-Trumbore, both windings.
-std::optional<double> bruteTop(const qota::Mesh& mesh, const Eigen::Vector3d& o,
-                               const Eigen::Vector3d& d, bool largest) {
+std::optional<double> bruteTop(const qota::Mesh& mesh, const Eigen::Vector3d& o, const Eigen::Vector3d& d,
+                               bool largest) {
   std::optional<double> best;
   const std::size_t n = mesh.polygonCount();
   for (std::size_t f = 0; f < n; ++f) {
@@ -127,18 +127,17 @@ struct Row {
 };
 
 void printRow(const Row& r) {
-  std::printf("%-11s %-22s %9zu %7.2f %8.0f %8.0f %8.0f %8.0f %10.0f %9.0fx %6d %6d/%d\n",
-              r.mapping.c_str(), r.terrain.c_str(), r.triangles, r.build, r.random, r.batch,
-              r.track, r.cursor, r.brute, r.brute / r.random, r.misses, r.disagreements,
-              r.bruteQueries);
+  std::printf("%-11s %-22s %9zu %7.2f %8.0f %8.0f %8.0f %8.0f %10.0f %9.0fx %6d %6d/%d\n", r.mapping.c_str(),
+              r.terrain.c_str(), r.triangles, r.build, r.random, r.batch, r.track, r.cursor, r.brute,
+              r.brute / r.random, r.misses, r.disagreements, r.bruteQueries);
 }
 
 // Times one curved index: random and track queries, brute force on the first `bruteCount`
 // random points (line from lineOf(u, v)), agreement within 1e-9 relative.
 template <class Index, class LineOf>
 Row measure(const std::string& mapping, const std::string& terrain, const qota::Mesh& mesh,
-            std::function<Index()> build, const std::vector<Query>& random,
-            const std::vector<Query>& track, int bruteCount, LineOf&& lineOf, bool largest) {
+            std::function<Index()> build, const std::vector<Query>& random, const std::vector<Query>& track,
+            int bruteCount, LineOf&& lineOf, bool largest) {
   Row row{mapping, terrain, mesh.polygonCount(), 0, 0, 0, 0, 0, 0, 0, 0, bruteCount};
   const auto t0 = Clock::now();
   const Index index = build();
@@ -147,23 +146,22 @@ Row measure(const std::string& mapping, const std::string& terrain, const qota::
   auto height = [&](double u, double v) { return index.height(u, v); };
   row.random = nsPerQuery(random, height, misses);
   row.misses = misses;
-  row.batch = nsPerBatch(random, [&](auto points, auto out) { index.heights(points, out); },
-                         [&](double u, double v) { return index.height(u, v); }, row.disagreements);
+  row.batch = nsPerBatch(
+      random, [&](auto points, auto out) { index.heights(points, out); },
+      [&](double u, double v) { return index.height(u, v); }, row.disagreements);
   row.track = nsPerQuery(track, height, misses);
   row.misses += misses;
   qota::Quadtree::Cursor cursor;
-  row.cursor = nsPerQuery(track, [&](double u, double v) { return index.height(cursor, u, v); },
-                          misses);
-  row.disagreements += checkCursor(track, [&](qota::Quadtree::Cursor& c, double u, double v) {
-    return index.height(c, u, v);
-  }, height);
+  row.cursor = nsPerQuery(
+      track, [&](double u, double v) { return index.height(cursor, u, v); }, misses);
+  row.disagreements += checkCursor(
+      track, [&](qota::Quadtree::Cursor& c, double u, double v) { return index.height(c, u, v); }, height);
   const auto b0 = Clock::now();
   for (int i = 0; i < bruteCount; ++i) {
     const auto [o, d, offset] = lineOf(random[i].u, random[i].v);
     const std::optional<double> t = bruteTop(mesh, o, d, largest);
     const std::optional<double> h = index.height(random[i].u, random[i].v);
-    if (t.has_value() != h.has_value() ||
-        (t && std::fabs(*t + offset - *h) > 1e-9 * std::fabs(*t + offset) + 1e-6)) {
+    if (t.has_value() != h.has_value() || (t && std::fabs(*t + offset - *h) > 1e-9 * std::fabs(*t + offset) + 1e-6)) {
       ++row.disagreements;
     }
   }
@@ -191,8 +189,8 @@ void treeFileRow(const char* name, Build&& build) {
   const auto t3 = Clock::now();
   const double mb = static_cast<double>(std::filesystem::file_size(path)) / 1e6;
   std::filesystem::remove(path);
-  std::printf("%-34s %8.3f %8.3f %8.3f %9.1fx %9.1f\n", name, seconds(t0, t1), seconds(t1, t2),
-              seconds(t2, t3), seconds(t0, t1) / seconds(t2, t3), mb);
+  std::printf("%-34s %8.3f %8.3f %8.3f %9.1fx %9.1f\n", name, seconds(t0, t1), seconds(t1, t2), seconds(t2, t3),
+              seconds(t0, t1) / seconds(t2, t3), mb);
 }
 
 int main(int argc, char** argv) {
@@ -204,13 +202,11 @@ int main(int argc, char** argv) {
   const int bruteCount = quick ? 20 : 200;
   std::mt19937_64 rng(1);
   std::uniform_real_distribution<double> unit(0, 1);
-  std::printf("planet_bench: %zu random and %zu track queries per terrain, brute force on %d\n\n", n,
-              n, bruteCount);
-  std::printf("%-11s %-22s %9s %7s %8s %8s %8s %8s %10s %10s %6s %9s\n", "mapping", "terrain",
-              "triangles", "build s", "random", "batch", "track", "+cursor", "brute", "brute/rnd",
-              "misses", "disagree");
-  std::printf("%-11s %-22s %9s %7s %8s %8s %8s %8s %10s\n", "", "", "", "", "ns/query",
-              "ns/query", "ns/query", "ns/query", "ns/query");
+  std::printf("planet_bench: %zu random and %zu track queries per terrain, brute force on %d\n\n", n, n, bruteCount);
+  std::printf("%-11s %-22s %9s %7s %8s %8s %8s %8s %10s %10s %6s %9s\n", "mapping", "terrain", "triangles", "build s",
+              "random", "batch", "track", "+cursor", "brute", "brute/rnd", "misses", "disagree");
+  std::printf("%-11s %-22s %9s %7s %8s %8s %8s %8s %10s\n", "", "", "", "", "ns/query", "ns/query", "ns/query",
+              "ns/query", "ns/query");
 
   // Spherical: the planet, uniform random points on the sphere and a great-circle track.
   {
@@ -224,13 +220,11 @@ int main(int argc, char** argv) {
     const double step = 100.0 / planet.radius;
     for (std::size_t i = 0; i < n; ++i) {
       const Eigen::Vector3d p = std::cos(i * step) * e1 + std::sin(i * step) * e2;
-      track[i] = {qota::longitudeOf(p.x(), p.y()),
-                  std::atan2(p.z(), std::hypot(p.x(), p.y())) * 180 / M_PI};
+      track[i] = {qota::longitudeOf(p.x(), p.y()), std::atan2(p.z(), std::hypot(p.x(), p.y())) * 180 / M_PI};
     }
     printRow(measure<qota::SphericalIndex>(
         "spherical", "etopo20 planet", planet.dem.mesh,
-        [&] { return qota::SphericalIndex(planet.dem.mesh, planet.mapping); }, random, track,
-        bruteCount,
+        [&] { return qota::SphericalIndex(planet.dem.mesh, planet.mapping); }, random, track, bruteCount,
         [](double u, double v) {
           return LineParts{Eigen::Vector3d::Zero(), qota::SphericalMapping::up(u, v), 0.0};
         },
@@ -251,23 +245,24 @@ int main(int argc, char** argv) {
     }
     // The same calls and the same work as the curved rows (measure): height, heights, a cursor.
     const qota::CartesianMapping mapping;
-    printRow(measure<qota::TerrainIndex>(
-        "cartesian", "fractal heightfield", mesh, [&] { return qota::TerrainIndex(mesh, mapping); }, random,
-        track, bruteCount,
-        [](double u, double v) { return LineParts{Eigen::Vector3d(u, v, -1e6), Eigen::Vector3d(0, 0, 1), -1e6}; },
+    printRow(measure<qota::CartesianIndex>(
+        "cartesian", "fractal heightfield", mesh, [&] { return qota::CartesianIndex(mesh, mapping); }, random, track,
+        bruteCount,
+        [](double u, double v) {
+          return LineParts{Eigen::Vector3d(u, v, -1e6), Eigen::Vector3d(0, 0, 1), -1e6};
+        },
         true));
   }
-  std::printf("\n%-34s %8s %8s %8s %10s %9s\n", "tree file (index only, terrain read)", "build s",
-              "write s", "load s", "build/load", "MB");
+  std::printf("\n%-34s %8s %8s %8s %10s %9s\n", "tree file (index only, terrain read)", "build s", "write s", "load s",
+              "build/load", "MB");
   {
     const qota::PlanetTerrain planet = qota::loadPlanet(QOTA_DATA_DIR "/etopo20.tif");
-    treeFileRow("spherical etopo20 planet",
-                [&] { return qota::SphericalIndex(planet.dem.mesh, planet.mapping); });
+    treeFileRow("spherical etopo20 planet", [&] { return qota::SphericalIndex(planet.dem.mesh, planet.mapping); });
   }
   if (quick) return 0;
   {
     const qota::DemTerrain dem = qota::loadDem(QOTA_DATA_DIR "/mt_rainier_90m.tif", {.lonLatAsCartesian = true});
-    treeFileRow("cartesian SRTM Rainier", [&] { return qota::TerrainIndex(dem.mesh, dem.mapping); });
+    treeFileRow("cartesian SRTM Rainier", [&] { return qota::CartesianIndex(dem.mesh, dem.mapping); });
   }
   std::printf("\n");
 
@@ -283,8 +278,8 @@ int main(int argc, char** argv) {
     }
     const qota::GeodeticMapping& m = t.mapping;
     printRow(measure<qota::GeodeticIndex>(
-        "geodetic", "SRTM Rainier, WGS84", t.dem.mesh,
-        [&] { return qota::GeodeticIndex(t.dem.mesh, m); }, random, track, bruteCount / 4,
+        "geodetic", "SRTM Rainier, WGS84", t.dem.mesh, [&] { return qota::GeodeticIndex(t.dem.mesh, m); }, random,
+        track, bruteCount / 4,
         [&](double u, double v) {
           const qota::MappedLine line = m.line(u, v);
           return LineParts{line.origin, -line.down, 0.0};
@@ -300,20 +295,20 @@ int main(int argc, char** argv) {
     for (auto& q : random) q = {-180 + 360 * unit(rng), -500 + 1000 * unit(rng)};
     for (std::size_t i = 0; i < n; ++i) {
       // 0.1 m steps around the hull (0.0229 degrees at 250 m), ring after ring.
-      track[i] = {std::fmod(0.0229 * static_cast<double>(i), 360.0) - 180,
-                  -400 + 0.5 * std::floor(0.0229 * i / 360)};
+      track[i] = {std::fmod(0.0229 * static_cast<double>(i), 360.0) - 180, -400 + 0.5 * std::floor(0.0229 * i / 360)};
     }
     const qota::CylindricalMapping m;
     printRow(measure<qota::CylindricalIndex>(
-        "cylindrical", "station 250 m, 1 km", mesh,
-        [&] { return qota::CylindricalIndex(mesh, m); }, random, track, bruteCount,
+        "cylindrical", "station 250 m, 1 km", mesh, [&] { return qota::CylindricalIndex(mesh, m); }, random, track,
+        bruteCount,
         [&](double u, double v) {
           const qota::MappedLine line = m.line(u, v);
           return LineParts{line.origin, line.down, 0.0};
         },
         false));
   }
-  std::printf("\nbrute: every triangle against the query line; disagree: brute and index heights "
-              "differ by more than 1e-9 relative\n");
+  std::printf(
+      "\nbrute: every triangle against the query line; disagree: brute and index heights "
+      "differ by more than 1e-9 relative\n");
   return 0;
 }

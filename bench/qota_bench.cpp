@@ -71,8 +71,8 @@ struct HeightfieldLookup {
 // which propagates, so a cell side touching nodata is a hole, as in the mesh.
 struct RasterLookup {
   int width = 0, height = 0;
-  std::vector<double> h;  // mapped height of every pixel centre, row-major, NaN for nodata
-  double u0 = 0, v0 = 0;  // mapped position of the centre of pixel (0, 0)
+  std::vector<double> h;                          // mapped height of every pixel centre, row-major, NaN for nodata
+  double u0 = 0, v0 = 0;                          // mapped position of the centre of pixel (0, 0)
   double colU = 0, colV = 0, rowU = 0, rowV = 0;  // inverse of the geotransform's 2x2 part
 
   std::optional<double> operator()(double u, double v) const {
@@ -85,8 +85,7 @@ struct RasterLookup {
     const std::size_t tl = static_cast<std::size_t>(r) * width + c;
     const double zTL = h[tl], zTR = h[tl + 1], zBL = h[tl + width], zBR = h[tl + width + 1];
     // Below the diagonal (fy > fx): triangle (TL, BL, BR); else (TL, BR, TR).
-    const double z = fy > fx ? zTL + fy * (zBL - zTL) + fx * (zBR - zBL)
-                             : zTL + fx * (zTR - zTL) + fy * (zBR - zTR);
+    const double z = fy > fx ? zTL + fy * (zBL - zTL) + fx * (zBR - zBL) : zTL + fx * (zTR - zTL) + fy * (zBR - zTR);
     if (std::isnan(z)) return std::nullopt;
     return z;
   }
@@ -99,8 +98,7 @@ struct MappedTriangle {
   double u[3], v[3], h[3];
 };
 
-std::vector<MappedTriangle> mapTriangles(const qota::Mesh& mesh,
-                                         const qota::CartesianMapping& mapping) {
+std::vector<MappedTriangle> mapTriangles(const qota::Mesh& mesh, const qota::CartesianMapping& mapping) {
   std::vector<MappedTriangle> out;
   out.reserve(mesh.polygonCount());
   for (std::size_t p = 0; p < mesh.polygonCount(); ++p) {
@@ -186,8 +184,7 @@ bool reflect(double& x, double lo, double hi) {
 
 // Steps of `step` with a heading that drifts slowly, bouncing off the box's sides: successive
 // queries land in the same or neighbouring leaves, the case caches and branch predictors like.
-std::vector<Point> walkPoints(const qota::Box2& box, double step, std::size_t n,
-                              std::mt19937_64& rng) {
+std::vector<Point> walkPoints(const qota::Box2& box, double step, std::size_t n, std::mt19937_64& rng) {
   std::uniform_real_distribution<double> start(0, 2 * std::numbers::pi);
   std::normal_distribution<double> turn(0, 0.05);
   Point p{(box.ulo + box.uhi) / 2, (box.vlo + box.vhi) / 2};
@@ -204,8 +201,7 @@ std::vector<Point> walkPoints(const qota::Box2& box, double step, std::size_t n,
   return out;
 }
 
-QuerySets makeQueries(const qota::Box2& domain, double cell, std::size_t brutePoints,
-                      std::uint64_t seed) {
+QuerySets makeQueries(const qota::Box2& domain, double cell, std::size_t brutePoints, std::uint64_t seed) {
   std::mt19937_64 rng(seed);
   QuerySets q;
   q.hit = uniformPoints(domain, kQueryCount, rng);
@@ -231,13 +227,13 @@ struct Terrain {
   Baseline baseline;
   QuerySets queries;
   std::vector<MappedTriangle> bruteTriangles;
-  std::unique_ptr<qota::TerrainIndex> index;
+  std::unique_ptr<qota::CartesianIndex> index;
   int buildIterations = 1;
   double checksum = 0;  // sum of every answer, so no query can be optimised away
 
   // Query benchmarks need an index even when the build benchmark was filtered out.
-  const qota::TerrainIndex& ensureIndex() {
-    if (!index) index = std::make_unique<qota::TerrainIndex>(mesh, mapping);
+  const qota::CartesianIndex& ensureIndex() {
+    if (!index) index = std::make_unique<qota::CartesianIndex>(mesh, mapping);
     return *index;
   }
 };
@@ -271,8 +267,8 @@ void finishTerrain(Terrain& t, std::size_t brutePoints, std::uint64_t seed) {
 }
 
 // nx x ny vertices, cell 1, relief about a fifth of the extent (hilly, not spiky).
-std::unique_ptr<Terrain> syntheticTerrain(const std::string& name, int nx, int ny,
-                                          std::uint64_t seed, std::size_t brutePoints) {
+std::unique_ptr<Terrain> syntheticTerrain(const std::string& name, int nx, int ny, std::uint64_t seed,
+                                          std::size_t brutePoints) {
   const double cell = 1.0;
   const double extent = (std::max(nx, ny) - 1) * cell;
   qota::Heightfield field = qota::fractalHeightfield(nx, ny, cell, 0.2 * extent, seed);
@@ -315,15 +311,14 @@ qota::Box2 rasterDomain(const qota::DemTerrain& dem) {
     for (double r : rows) {
       const auto w = dem.pixelCentre(c, r);
       const Eigen::Vector3d m = dem.mapping.toMapped({w[0], w[1], 0});
-      box = {std::min(box.ulo, m.x()), std::min(box.vlo, m.y()), std::max(box.uhi, m.x()),
-             std::max(box.vhi, m.y())};
+      box = {std::min(box.ulo, m.x()), std::min(box.vlo, m.y()), std::max(box.uhi, m.x()), std::max(box.vhi, m.y())};
     }
   }
   return box;
 }
 
-std::unique_ptr<Terrain> demTerrain(const std::string& name, const std::string& path,
-                                    std::uint64_t seed, std::size_t brutePoints) {
+std::unique_ptr<Terrain> demTerrain(const std::string& name, const std::string& path, std::uint64_t seed,
+                                    std::size_t brutePoints) {
   qota::DemTerrain dem = qota::loadDem(path, {.lonLatAsCartesian = true});  // heights only
   // The raster baseline works in the mapped frame as a pure translation of the world.
   if (!dem.mapping.vertical()) throw std::runtime_error(path + ": mapping is not vertical");
@@ -345,10 +340,8 @@ std::vector<Recipe> recipes(bool quick) {
   out.push_back({"synth13k", "grid", [] { return syntheticTerrain("synth13k", 83, 82, 13, 200); }});
   if (quick) return out;
   out.push_back({"synth1M", "grid", [] { return syntheticTerrain("synth1M", 709, 709, 1001, 20); }});
-  out.push_back({"rainier", "raster", [] {
-                   return demTerrain("rainier", std::string(QOTA_DATA_DIR) + "/mt_rainier_90m.tif",
-                                     4392, 20);
-                 }});
+  out.push_back({"rainier", "raster",
+                 [] { return demTerrain("rainier", std::string(QOTA_DATA_DIR) + "/mt_rainier_90m.tif", 4392, 20); }});
   return out;
 }
 
@@ -358,8 +351,7 @@ std::vector<Recipe> recipes(bool quick) {
 // One query per iteration, cycling through the points. Each query returns the number it adds to
 // the checksum, having passed its full result through DoNotOptimize.
 template <class Query>
-void runQueries(benchmark::State& state, const std::vector<Point>& points, Query query,
-                double& checksum) {
+void runQueries(benchmark::State& state, const std::vector<Point>& points, Query query, double& checksum) {
   const std::size_t n = points.size();
   std::size_t i = 0;
   double sum = 0;
@@ -379,7 +371,7 @@ double heightOrZero(std::optional<double> h) {
 
 void benchBuild(benchmark::State& state, Terrain& t) {
   for (auto _ : state) {
-    auto index = std::make_unique<qota::TerrainIndex>(t.mesh, t.mapping);
+    auto index = std::make_unique<qota::CartesianIndex>(t.mesh, t.mapping);
     state.PauseTiming();
     t.index = std::move(index);  // frees the previous build outside the timing
     state.ResumeTiming();
@@ -389,10 +381,9 @@ void benchBuild(benchmark::State& state, Terrain& t) {
 }
 
 void benchHeightBelow(benchmark::State& state, Terrain& t, const std::vector<Point>& points) {
-  const qota::TerrainIndex& index = t.ensureIndex();
-  runQueries(state, points,
-             [&index](double u, double v) { return heightOrZero(index.heightBelow(u, v, kInf)); },
-             t.checksum);
+  const qota::CartesianIndex& index = t.ensureIndex();
+  runQueries(
+      state, points, [&index](double u, double v) { return heightOrZero(index.heightBelow(u, v, kInf)); }, t.checksum);
 }
 
 // heightsBelow over blocks of points: one iteration is one point, and every kBatch-th iteration
@@ -406,7 +397,7 @@ std::vector<qota::Point2> toPoint2(const std::vector<Point>& points) {
 }
 
 void benchBatch(benchmark::State& state, Terrain& t, const std::vector<Point>& points) {
-  const qota::TerrainIndex& index = t.ensureIndex();
+  const qota::CartesianIndex& index = t.ensureIndex();
   const std::vector<qota::Point2> p2 = toPoint2(points);
   std::vector<std::optional<double>> out(kBatch);
   const std::size_t n = p2.size();  // a multiple of kBatch
@@ -425,30 +416,31 @@ void benchBatch(benchmark::State& state, Terrain& t, const std::vector<Point>& p
 }
 
 void benchTop(benchmark::State& state, Terrain& t, const std::vector<Point>& points) {
-  const qota::TerrainIndex& index = t.ensureIndex();
-  runQueries(state, points,
-             [&index](double u, double v) {
-               std::optional<qota::Hit> hit = index.top(u, v);
-               benchmark::DoNotOptimize(hit);
-               return hit ? hit->height + hit->normal.z() : 0.0;
-             },
-             t.checksum);
+  const qota::CartesianIndex& index = t.ensureIndex();
+  runQueries(
+      state, points,
+      [&index](double u, double v) {
+        std::optional<qota::Hit> hit = index.top(u, v);
+        benchmark::DoNotOptimize(hit);
+        return hit ? hit->height + hit->normal.z() : 0.0;
+      },
+      t.checksum);
 }
 
 void benchBaseline(benchmark::State& state, Terrain& t, const std::vector<Point>& points) {
   // Dispatch once, outside the timed loop, so the loop calls the lookup directly.
   std::visit(
       [&](const auto& lookup) {
-        runQueries(state, points, [&lookup](double u, double v) { return heightOrZero(lookup(u, v)); },
-                   t.checksum);
+        runQueries(
+            state, points, [&lookup](double u, double v) { return heightOrZero(lookup(u, v)); }, t.checksum);
       },
       t.baseline);
 }
 
 void benchBrute(benchmark::State& state, Terrain& t) {
   const auto& tris = t.bruteTriangles;
-  runQueries(state, t.queries.brute,
-             [&tris](double u, double v) { return heightOrZero(bruteTop(tris, u, v)); }, t.checksum);
+  runQueries(
+      state, t.queries.brute, [&tris](double u, double v) { return heightOrZero(bruteTop(tris, u, v)); }, t.checksum);
 }
 
 // Benchmark names are "<terrain>/<query set>/<method>", so --benchmark_filter can pick by any part.
@@ -479,14 +471,14 @@ void registerBenchmarks(Terrain& t) {
     RegisterBenchmark((prefix + "qota_batch").c_str(),
                       [&t, points](benchmark::State& s) { benchBatch(s, t, *points); });
     if (std::string(set) == "hit") {
-      RegisterBenchmark((prefix + "qota_top").c_str(),
-                        [&t, points](benchmark::State& s) { benchTop(s, t, *points); });
+      RegisterBenchmark((prefix + "qota_top").c_str(), [&t, points](benchmark::State& s) { benchTop(s, t, *points); });
     }
     RegisterBenchmark((prefix + t.baselineName).c_str(),
                       [&t, points](benchmark::State& s) { benchBaseline(s, t, *points); });
   }
-  RegisterBenchmark((n + "/hit/brute").c_str(), [&t](benchmark::State& s) { benchBrute(s, t); })
-      ->Unit(benchmark::kMicrosecond);
+  RegisterBenchmark((n + "/hit/brute").c_str(), [&t](benchmark::State& s) {
+    benchBrute(s, t);
+  })->Unit(benchmark::kMicrosecond);
 }
 
 // Whether Google Benchmark's filter would run any of these names (its rules: POSIX extended
@@ -552,7 +544,7 @@ class CollectingReporter : public benchmark::ConsoleReporter {
 
 // How two height functions agree over a point set.
 struct Agreement {
-  double maxAbs = 0;               // over points where both have terrain
+  double maxAbs = 0;                 // over points where both have terrain
   std::size_t presenceMismatch = 0;  // one has terrain and the other not
 };
 
@@ -572,10 +564,10 @@ Agreement compare(const std::vector<Point>& points, A a, B b) {
 
 // The same for answers already computed, one per point (the batch queries).
 template <class B>
-Agreement compareAnswers(const std::vector<Point>& points,
-                         const std::vector<std::optional<double>>& answers, B b) {
+Agreement compareAnswers(const std::vector<Point>& points, const std::vector<std::optional<double>>& answers, B b) {
   std::size_t i = 0;
-  return compare(points, [&](double, double) { return answers[i++]; }, b);
+  return compare(
+      points, [&](double, double) { return answers[i++]; }, b);
 }
 
 // One line of the final table: a query set timed with qota and with a baseline.
@@ -598,7 +590,7 @@ struct TerrainReport {
 
 // Checks qota against the baselines on the very points the benchmarks used (untimed).
 TerrainReport makeReport(Terrain& t) {
-  const qota::TerrainIndex& index = t.ensureIndex();
+  const qota::CartesianIndex& index = t.ensureIndex();
   const auto qotaHeight = [&index](double u, double v) { return index.heightBelow(u, v, kInf); };
   const auto qotaTopHeight = [&index](double u, double v) -> std::optional<double> {
     const auto hit = index.top(u, v);
@@ -626,18 +618,16 @@ TerrainReport makeReport(Terrain& t) {
   r.checksum = t.checksum;
   const std::string p = t.name + "/", b = t.baselineName;
   r.rows.push_back({"hit", p + "hit/qota", b, p + "hit/" + b, compare(t.queries.hit, qotaHeight, base)});
-  r.rows.push_back({"hit top()", p + "hit/qota_top", b, p + "hit/" + b,
-                    compare(t.queries.hit, qotaTopHeight, base)});
-  r.rows.push_back({"hit batch", p + "hit/qota_batch", b, p + "hit/" + b,
-                    compareAnswers(t.queries.hit, hitBatch, base)});
+  r.rows.push_back({"hit top()", p + "hit/qota_top", b, p + "hit/" + b, compare(t.queries.hit, qotaTopHeight, base)});
+  r.rows.push_back(
+      {"hit batch", p + "hit/qota_batch", b, p + "hit/" + b, compareAnswers(t.queries.hit, hitBatch, base)});
   r.rows.push_back({"miss", p + "miss/qota", b, p + "miss/" + b, compare(t.queries.miss, qotaHeight, base)});
-  r.rows.push_back({"miss batch", p + "miss/qota_batch", b, p + "miss/" + b,
-                    compareAnswers(t.queries.miss, missBatch, base)});
+  r.rows.push_back(
+      {"miss batch", p + "miss/qota_batch", b, p + "miss/" + b, compareAnswers(t.queries.miss, missBatch, base)});
   r.rows.push_back({"walk", p + "walk/qota", b, p + "walk/" + b, compare(t.queries.walk, qotaHeight, base)});
-  r.rows.push_back({"walk batch", p + "walk/qota_batch", b, p + "walk/" + b,
-                    compareAnswers(t.queries.walk, walkBatch, base)});
-  r.rows.push_back({"hit", p + "hit/qota", "brute", p + "hit/brute",
-                    compare(t.queries.brute, qotaHeight, brute)});
+  r.rows.push_back(
+      {"walk batch", p + "walk/qota_batch", b, p + "walk/" + b, compareAnswers(t.queries.walk, walkBatch, base)});
+  r.rows.push_back({"hit", p + "hit/qota", "brute", p + "hit/brute", compare(t.queries.brute, qotaHeight, brute)});
   return r;
 }
 
@@ -654,36 +644,34 @@ std::optional<double> scaled(std::optional<double> x, double factor) {
 }
 
 void printTerrainTable(const std::vector<TerrainReport>& reports, const CollectingReporter& times) {
-  std::printf("\n%-9s %10s %9s %7s %9s %9s %5s %9s\n", "terrain", "triangles", "build s", "B/tri",
-              "nodes", "leaves", "depth", "avg tests");
+  std::printf("\n%-9s %10s %9s %7s %9s %9s %5s %9s\n", "terrain", "triangles", "build s", "B/tri", "nodes", "leaves",
+              "depth", "avg tests");
   for (const TerrainReport& r : reports) {
     const auto& s = r.stats;
     std::printf("%-9s %10llu %9s %7.1f %9llu %9llu %5u %9.2f\n", r.name.c_str(),
-                static_cast<unsigned long long>(s.triangles),
-                formatOr(times.seconds(r.buildBench), "%.4f").c_str(),
+                static_cast<unsigned long long>(s.triangles), formatOr(times.seconds(r.buildBench), "%.4f").c_str(),
                 static_cast<double>(s.memoryBytes) / static_cast<double>(s.triangles),
-                static_cast<unsigned long long>(s.tree.nodes),
-                static_cast<unsigned long long>(s.tree.leaves), s.tree.depth, s.tree.averageTests);
+                static_cast<unsigned long long>(s.tree.nodes), static_cast<unsigned long long>(s.tree.leaves),
+                s.tree.depth, s.tree.averageTests);
   }
 }
 
 void printQueryTable(const std::vector<TerrainReport>& reports, const CollectingReporter& times) {
-  std::printf("\nns per query; speedup = baseline ns / qota ns (> 1: qota is faster);\n"
-              "max|dh| = largest |qota - baseline| height on the timed points; "
-              "1-sided = points where only one of them found terrain\n");
-  std::printf("%-9s %-10s %10s %-8s %12s %9s %9s %7s %9s %6s\n", "terrain", "query", "qota ns",
-              "baseline", "baseline ns", "speedup", "max|dh|", "1-sided", "build s", "B/tri");
+  std::printf(
+      "\nns per query; speedup = baseline ns / qota ns (> 1: qota is faster);\n"
+      "max|dh| = largest |qota - baseline| height on the timed points; "
+      "1-sided = points where only one of them found terrain\n");
+  std::printf("%-9s %-10s %10s %-8s %12s %9s %9s %7s %9s %6s\n", "terrain", "query", "qota ns", "baseline",
+              "baseline ns", "speedup", "max|dh|", "1-sided", "build s", "B/tri");
   for (const TerrainReport& r : reports) {
-    const double bytesPerTri =
-        static_cast<double>(r.stats.memoryBytes) / static_cast<double>(r.stats.triangles);
+    const double bytesPerTri = static_cast<double>(r.stats.memoryBytes) / static_cast<double>(r.stats.triangles);
     for (const Row& row : r.rows) {
       const auto q = scaled(times.seconds(row.qotaBench), 1e9);
       const auto b = scaled(times.seconds(row.baselineBench), 1e9);
       const std::optional<double> speedup = q && b ? std::optional(*b / *q) : std::nullopt;
-      std::printf("%-9s %-10s %10s %-8s %12s %9s %9.2e %7zu %9s %6.1f\n", r.name.c_str(),
-                  row.query.c_str(), formatOr(q, "%.1f").c_str(), row.baselineName.c_str(),
-                  formatOr(b, "%.1f").c_str(), formatOr(speedup, "%.2f").c_str(),
-                  row.agreement.maxAbs, row.agreement.presenceMismatch,
+      std::printf("%-9s %-10s %10s %-8s %12s %9s %9.2e %7zu %9s %6.1f\n", r.name.c_str(), row.query.c_str(),
+                  formatOr(q, "%.1f").c_str(), row.baselineName.c_str(), formatOr(b, "%.1f").c_str(),
+                  formatOr(speedup, "%.2f").c_str(), row.agreement.maxAbs, row.agreement.presenceMismatch,
                   formatOr(times.seconds(r.buildBench), "%.4f").c_str(), bytesPerTri);
     }
   }
@@ -697,10 +685,10 @@ bool printDisagreements(const std::vector<TerrainReport>& reports) {
       const Agreement& g = row.agreement;
       if (g.maxAbs <= kRelativeTolerance * r.relief && g.presenceMismatch == 0) continue;
       any = true;
-      std::printf("WARNING: %s %s: qota and %s disagree: max |dh| = %.3g (relief %.4g), "
-                  "%zu points with terrain in only one of them\n",
-                  r.name.c_str(), row.query.c_str(), row.baselineName.c_str(), g.maxAbs, r.relief,
-                  g.presenceMismatch);
+      std::printf(
+          "WARNING: %s %s: qota and %s disagree: max |dh| = %.3g (relief %.4g), "
+          "%zu points with terrain in only one of them\n",
+          r.name.c_str(), row.query.c_str(), row.baselineName.c_str(), g.maxAbs, r.relief, g.presenceMismatch);
     }
   }
   return any;
@@ -712,8 +700,7 @@ void printSummary(const std::vector<TerrainReport>& reports, const CollectingRep
   printQueryTable(reports, times);
   std::printf("\n");
   if (!printDisagreements(reports)) {
-    std::printf("qota heights agree with every baseline (within %.0e of the relief).\n",
-                kRelativeTolerance);
+    std::printf("qota heights agree with every baseline (within %.0e of the relief).\n", kRelativeTolerance);
   }
   for (const TerrainReport& r : reports) {
     std::printf("checksum %s: %.17g\n", r.name.c_str(), r.checksum);

@@ -102,21 +102,23 @@ bool oracleShadow(const qota::LocalFrame& f, std::size_t i, const Eigen::Vector3
 int main(int argc, char** argv) {
   int n = 2000, oracleCells = 60;
   for (int i = 1; i + 1 < argc; ++i) {
-    if (!std::strcmp(argv[i], "--size")) n = std::atoi(argv[++i]);
-    else if (!std::strcmp(argv[i], "--oracle-cells")) oracleCells = std::atoi(argv[++i]);
+    if (!std::strcmp(argv[i], "--size"))
+      n = std::atoi(argv[++i]);
+    else if (!std::strcmp(argv[i], "--oracle-cells"))
+      oracleCells = std::atoi(argv[++i]);
   }
   const qota::DemTerrain dem = syntheticDem(n);
   const qota::LocalFrame frame = qota::localFrame(dem, false, 10.0);
   std::vector<double> heights(frame.cellCount());
   for (std::size_t i = 0; i < heights.size(); ++i) heights[i] = frame.mesh.vertices[i].z();
   const double cells = static_cast<double>(n) * n;
-  std::printf("shadow_bench: %d x %d DEM (%.0f cells, %zu triangles), relief %.0f m, %u cores\n", n, n,
-              cells, dem.mesh.polygonCount(), frame.maxHeight - frame.minHeight,
-              std::thread::hardware_concurrency());
-  std::printf("%-6s %-22s %10s %14s %9s %10s %12s\n", "alt", "method", "seconds", "cells/s",
-              "vs march", "shadow %", "agree march");
-  std::printf("(vs march: the naive march's time over this method's; the march with the max-height\n"
-              " exit gives the same mask sooner and is the stricter baseline)\n");
+  std::printf("shadow_bench: %d x %d DEM (%.0f cells, %zu triangles), relief %.0f m, %u cores\n", n, n, cells,
+              dem.mesh.polygonCount(), frame.maxHeight - frame.minHeight, std::thread::hardware_concurrency());
+  std::printf("%-6s %-22s %10s %14s %9s %10s %12s\n", "alt", "method", "seconds", "cells/s", "vs march", "shadow %",
+              "agree march");
+  std::printf(
+      "(vs march: the naive march's time over this method's; the march with the max-height\n"
+      " exit gives the same mask sooner and is the stricter baseline)\n");
   for (double alt : {30.0, 10.0}) {
     // Not 135 exactly: then rays from pixel centres run along the triangle diagonals, a degenerate
     // case the floating-point oracle cannot decide (qota decides it exactly).
@@ -130,12 +132,12 @@ int main(int argc, char** argv) {
     t1 = Clock::now();
     const double marchS = seconds(t0, t1);
     if (capped != march) std::printf("warning: the two ray marches disagree\n");
-    std::printf("%-6.0f %-22s %10.3f %14.0f %9.2f %10s %12s\n", alt, "march, max-height exit", cappedS,
-                cells / cappedS, marchS / cappedS, "", "");
+    std::printf("%-6.0f %-22s %10.3f %14.0f %9.2f %10s %12s\n", alt, "march, max-height exit", cappedS, cells / cappedS,
+                marchS / cappedS, "", "");
     std::size_t marchShadow = 0;
     for (Light l : march) marchShadow += l == Light::Shadow;
-    std::printf("%-6.0f %-22s %10.3f %14.0f %9s %10.2f %12s\n", alt, "naive ray march (1 th)", marchS,
-                cells / marchS, "1.00", 100.0 * marchShadow / cells, "-");
+    std::printf("%-6.0f %-22s %10.3f %14.0f %9s %10.2f %12s\n", alt, "naive ray march (1 th)", marchS, cells / marchS,
+                "1.00", 100.0 * marchShadow / cells, "-");
     std::vector<Light> stripsMask;
     for (const auto search : {qota::ShadowSearch::Strips, qota::ShadowSearch::Quadtree}) {
       for (unsigned threads : {1u, 0u}) {
@@ -149,10 +151,10 @@ int main(int argc, char** argv) {
           agree += mask[i] == march[i];
         }
         const bool walk = search == qota::ShadowSearch::Strips;
-        const std::string name = std::string(walk ? "qota strips" : "qota quadtree") +
-                                 (threads == 1 ? " (1 thread)" : " (all cores)");
-        std::printf("%-6.0f %-22s %10.3f %14.0f %9.2f %10.2f %11.3f%%\n", alt, name.c_str(), s, cells / s,
-                    marchS / s, 100.0 * shadow / cells, 100.0 * agree / cells);
+        const std::string name =
+            std::string(walk ? "qota strips" : "qota quadtree") + (threads == 1 ? " (1 thread)" : " (all cores)");
+        std::printf("%-6.0f %-22s %10.3f %14.0f %9.2f %10.2f %11.3f%%\n", alt, name.c_str(), s, cells / s, marchS / s,
+                    100.0 * shadow / cells, 100.0 * agree / cells);
         if (walk && threads == 0) stripsMask = mask;
         if (!walk && threads == 0) {
           std::printf("%-6.0f strips and quadtree masks identical on every cell: %s\n", alt,
@@ -173,8 +175,7 @@ int main(int argc, char** argv) {
                       stripsMask[i] == Light::Shadow ? "shadow" : "lit");
         }
       }
-      std::printf("%-6.0f oracle check: %d of %d random cells identical to the brute force\n", alt, same,
-                  oracleCells);
+      std::printf("%-6.0f oracle check: %d of %d random cells identical to the brute force\n", alt, same, oracleCells);
     }
   }
   return 0;

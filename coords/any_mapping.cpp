@@ -64,9 +64,13 @@ AnyMapping parseAs(const std::string& name, MappingParameters& params) {
 std::string mappingNames() {
   std::string names;
   [&]<std::size_t... I>(std::index_sequence<I...>) {
-    ((names += (I == 0 ? "" : I + 1 == sizeof...(I) ? " or " : ", "),
-      names += std::variant_alternative_t<I, AnyMapping>::name()), ...);
-  }(std::make_index_sequence<std::variant_size_v<AnyMapping>>());
+    ((names += (I == 0                  ? ""
+                : I + 1 == sizeof...(I) ? " or "
+                                        : ", "),
+      names += std::variant_alternative_t<I, AnyMapping>::name()),
+     ...);
+  }
+  (std::make_index_sequence<std::variant_size_v<AnyMapping>>());
   return names;
 }
 

@@ -8,9 +8,7 @@
 namespace qota::axial {
 namespace {
 
-double latitudeOf(const Eigen::Vector3d& p) {
-  return GeographicLib::Math::atan2d(p.z(), std::hypot(p.x(), p.y()));
-}
+double latitudeOf(const Eigen::Vector3d& p) { return GeographicLib::Math::atan2d(p.z(), std::hypot(p.x(), p.y())); }
 
 }  // namespace
 

@@ -10,11 +10,9 @@ namespace qota {
 
 using detail::formatVector;
 
-CartesianMapping::CartesianMapping(const Eigen::Vector3d& gravity, const Eigen::Vector3d& origin)
-    : given_(gravity) {
+CartesianMapping::CartesianMapping(const Eigen::Vector3d& gravity, const Eigen::Vector3d& origin) : given_(gravity) {
   if (!gravity.allFinite() || gravity.squaredNorm() == 0.0) {
-    throw Error("cartesian mapping: gravity must be a nonzero finite vector, got (" +
-                formatVector(gravity) + ")");
+    throw Error("cartesian mapping: gravity must be a nonzero finite vector, got (" + formatVector(gravity) + ")");
   }
   if (!origin.allFinite()) {
     throw Error("cartesian mapping: origin must be finite, got (" + formatVector(origin) + ")");
@@ -28,9 +26,8 @@ CartesianMapping::CartesianMapping(const Eigen::Vector3d& gravity, const Eigen::
     gravity_ = gravity.normalized();
     // The minimal rotation taking gravity onto -Z; Eigen handles the antiparallel case (gravity
     // along +Z) by picking a rotation axis perpendicular to it.
-    frame_.rotation = Eigen::Quaterniond::FromTwoVectors(gravity_, Eigen::Vector3d(0, 0, -1))
-                    .normalized()
-                    .toRotationMatrix();
+    frame_.rotation =
+        Eigen::Quaterniond::FromTwoVectors(gravity_, Eigen::Vector3d(0, 0, -1)).normalized().toRotationMatrix();
   }
 }
 
@@ -40,8 +37,7 @@ CartesianMapping CartesianMapping::fromParameters(MappingParameters& p) {
 }
 
 std::string CartesianMapping::describe() const {
-  return std::string(name()) + " gravity=" + formatVector(given_) +
-         " origin=" + formatVector(frame_.origin);
+  return std::string(name()) + " gravity=" + formatVector(given_) + " origin=" + formatVector(frame_.origin);
 }
 
 }  // namespace qota

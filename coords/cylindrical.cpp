@@ -10,12 +10,10 @@
 
 namespace qota {
 
-CylindricalMapping::CylindricalMapping(const Eigen::Vector3d& axisPoint,
-                                       const Eigen::Vector3d& axisDirection)
+CylindricalMapping::CylindricalMapping(const Eigen::Vector3d& axisPoint, const Eigen::Vector3d& axisDirection)
     : point_(axisPoint), given_(axisDirection) {
   if (!axisPoint.allFinite()) {
-    throw Error("cylindrical mapping: axis point must be finite, got (" +
-                detail::formatVector(axisPoint) + ")");
+    throw Error("cylindrical mapping: axis point must be finite, got (" + detail::formatVector(axisPoint) + ")");
   }
   if (!axisDirection.allFinite() || axisDirection.squaredNorm() == 0.0) {
     throw Error("cylindrical mapping: axis direction must be a nonzero finite vector, got (" +
@@ -27,9 +25,7 @@ CylindricalMapping::CylindricalMapping(const Eigen::Vector3d& axisPoint,
     rotation_.setIdentity();
   } else {
     axis_ = axisDirection.normalized();
-    rotation_ = Eigen::Quaterniond::FromTwoVectors(axis_, Eigen::Vector3d(0, 0, 1))
-                    .normalized()
-                    .toRotationMatrix();
+    rotation_ = Eigen::Quaterniond::FromTwoVectors(axis_, Eigen::Vector3d(0, 0, 1)).normalized().toRotationMatrix();
   }
 }
 
@@ -72,8 +68,7 @@ CylindricalMapping CylindricalMapping::fromParameters(MappingParameters& p) {
 }
 
 std::string CylindricalMapping::describe() const {
-  return std::string(name()) + " point=" + detail::formatVector(point_) +
-         " axis=" + detail::formatVector(given_);
+  return std::string(name()) + " point=" + detail::formatVector(point_) + " axis=" + detail::formatVector(given_);
 }
 
 }  // namespace qota

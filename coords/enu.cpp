@@ -31,8 +31,8 @@ EnuMapping::EnuMapping(double lat0, double lon0, double h0, double a, double f)
   double sp, cp, sl, cl;
   GeographicLib::Math::sincosd(lat0, sp, cp);
   GeographicLib::Math::sincosd(lon0, sl, cl);
-  frame_.rotation << -sl, cl, 0.0,             //
-      -sp * cl, -sp * sl, cp,                  //
+  frame_.rotation << -sl, cl, 0.0,  //
+      -sp * cl, -sp * sl, cp,       //
       cp * cl, cp * sl, sp;
   frame_.origin = {x, y, z};
   frame_.identity = false;

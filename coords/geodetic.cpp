@@ -26,8 +26,7 @@ GeographicLib::Geocentric makeEarth(double a, double f) {
 GeodeticMapping::GeodeticMapping()
     : GeodeticMapping(GeographicLib::Constants::WGS84_a(), GeographicLib::Constants::WGS84_f()) {}
 
-GeodeticMapping::GeodeticMapping(double a, double f)
-    : a_(a), f_(f), e2_(f * (2.0 - f)), earth_(makeEarth(a, f)) {}
+GeodeticMapping::GeodeticMapping(double a, double f) : a_(a), f_(f), e2_(f * (2.0 - f)), earth_(makeEarth(a, f)) {}
 
 Eigen::Vector3d GeodeticMapping::toMapped(const Eigen::Vector3d& world) const {
   if (!world.allFinite()) {
@@ -72,8 +71,8 @@ double geodeticFromScaled(double chi, double k) {
 
 }  // namespace
 
-void GeodeticMapping::footprintV(const Eigen::Vector3d (&p)[3], const double (&h)[3], double,
-                                 double& lo, double& hi) const {
+void GeodeticMapping::footprintV(const Eigen::Vector3d (&p)[3], const double (&h)[3], double, double& lo,
+                                 double& hi) const {
   // On the scaled points (x, y, z / (1 - e^2)) the geocentric latitude chi of a surface point is
   // its geodetic latitude phi, and a straight edge stays straight, so the arc extrema bound chi
   // exactly. Off the surface, tan(chi) = k tan(phi) with k = 1 + e^2 h / ((1 - e^2)(N + h)),

@@ -16,8 +16,7 @@ double longitudeOf(double x, double y) {
 
 SphericalMapping::SphericalMapping(const Eigen::Vector3d& centre) : centre_(centre) {
   if (!centre.allFinite()) {
-    throw Error("spherical mapping: centre must be finite, got (" + detail::formatVector(centre) +
-                ")");
+    throw Error("spherical mapping: centre must be finite, got (" + detail::formatVector(centre) + ")");
   }
 }
 

@@ -18,10 +18,14 @@ namespace {
 
 const char* why(qota::MoveBlock b) {
   switch (b) {
-    case qota::MoveBlock::None: return "arrived";
-    case qota::MoveBlock::Hole: return "stopped: no ground ahead (a wall, a hole)";
-    case qota::MoveBlock::Step: return "stopped: a step higher than the avatar can climb";
-    case qota::MoveBlock::Impassable: return "stopped: impassable ground";
+    case qota::MoveBlock::None:
+      return "arrived";
+    case qota::MoveBlock::Hole:
+      return "stopped: no ground ahead (a wall, a hole)";
+    case qota::MoveBlock::Step:
+      return "stopped: a step higher than the avatar can climb";
+    case qota::MoveBlock::Impassable:
+      return "stopped: impassable ground";
   }
   return "?";
 }
@@ -34,9 +38,9 @@ int main(int argc, char** argv) {
     const qota::MeshFile city = qota::loadMeshFile(path);
     // Map coordinates in the hundreds of thousands: an origin at the model's centre keeps them
     // precise in the index.
-    const qota::TerrainIndex index(city.mesh, qota::CartesianMapping({0, 0, -1}, city.origin));
-    std::printf("%s: %zu polygons, %llu walls left out of the index\n", path.c_str(),
-                city.mesh.polygonCount(), static_cast<unsigned long long>(index.stats().leftOut));
+    const qota::CartesianIndex index(city.mesh, qota::CartesianMapping({0, 0, -1}, city.origin));
+    std::printf("%s: %zu polygons, %llu walls left out of the index\n", path.c_str(), city.mesh.polygonCount(),
+                static_cast<unsigned long long>(index.stats().leftOut));
     qota::MoveOptions walk;
     walk.wholePath = true;
     walk.step = 0.25;      // metres between samples
@@ -57,9 +61,8 @@ int main(int argc, char** argv) {
     for (const Walk& w : walks) {
       const qota::MoveResult r = qota::checkMove(index, w.from, w.to, walk);
       const double walked = r.fraction * (w.to - w.from).norm();
-      std::printf("%-24s %-44s after %5.2f m at (%.2f, %.2f, %.2f) on %s\n", w.name, why(r.block),
-                  walked, r.last.x(), r.last.y(), r.last.z(),
-                  r.ground ? city.materialOf(r.ground->polygon).c_str() : "nothing");
+      std::printf("%-24s %-44s after %5.2f m at (%.2f, %.2f, %.2f) on %s\n", w.name, why(r.block), walked, r.last.x(),
+                  r.last.y(), r.last.z(), r.ground ? city.materialOf(r.ground->polygon).c_str() : "nothing");
     }
     std::printf("walks done\n");
     return 0;

@@ -16,7 +16,7 @@ int main() {
   for (int j = 0; j < field.ny; ++j) {
     for (int i = 200; i < field.nx; ++i) field.z[static_cast<std::size_t>(j) * field.nx + i] += 30.0;
   }
-  const qota::TerrainIndex index(field.toMesh(), qota::CartesianMapping());
+  const qota::CartesianIndex index(field.toMesh(), qota::CartesianMapping());
 
   const Eigen::Vector3d heading(1, 0, 0), right(0, -1, 0);
   int placed = 0;

@@ -26,8 +26,7 @@ int main(int argc, char** argv) {
   try {
     const qota::PlanetTerrain planet = qota::loadPlanet(path);  // radius: from the raster's CRS
     const qota::SphericalIndex index(planet.dem.mesh, planet.mapping);
-    std::printf("%s: planet of radius %.1f m, %llu triangles, quadtree of %llu nodes\n",
-                path.c_str(), planet.radius,
+    std::printf("%s: planet of radius %.1f m, %llu triangles, quadtree of %llu nodes\n", path.c_str(), planet.radius,
                 static_cast<unsigned long long>(index.stats().triangles),
                 static_cast<unsigned long long>(index.stats().tree.nodes));
 
@@ -36,13 +35,12 @@ int main(int argc, char** argv) {
     // -> -180), where the last and first columns of the raster are joined.
     const double latLisbon = 38.7, lonLisbon = -9.1, latTokyo = 35.7, lonTokyo = 139.7;
     const GeographicLib::Geodesic sphere(planet.radius, 0);
-    const GeographicLib::GeodesicLine route =
-        sphere.InverseLine(latLisbon, lonLisbon, latTokyo, lonTokyo);
+    const GeographicLib::GeodesicLine route = sphere.InverseLine(latLisbon, lonLisbon, latTokyo, lonTokyo);
     const double length = route.Distance() + 1.2e7;  // metres along the route
     const int steps = 60;
 
-    std::printf("%4s %9s %8s %8s %22s %22s %6s\n", "step", "lon", "lat", "height",
-                "up (x y z)", "normal (x y z)", "slope");
+    std::printf("%4s %9s %8s %8s %22s %22s %6s\n", "step", "lon", "lat", "height", "up (x y z)", "normal (x y z)",
+                "slope");
     int misses = 0;
     double lastLon = lonLisbon;
     for (int i = 0; i <= steps; ++i) {
@@ -58,18 +56,17 @@ int main(int argc, char** argv) {
       }
       const Eigen::Vector3d up = qota::SphericalMapping::up(lon, lat);
       // The angle between the ground and the local horizontal, from the normal and the up.
-      const double slope =
-          std::acos(std::clamp(up.dot(hit->normal), -1.0, 1.0)) * 180.0 / std::numbers::pi;
-      std::printf("%4d %9.3f %8.3f %8.1f %7.4f %7.4f %7.4f %7.4f %7.4f %7.4f %6.2f\n", i, lon,
-                  lat, hit->height - planet.radius, up.x(), up.y(), up.z(), hit->normal.x(),
-                  hit->normal.y(), hit->normal.z(), slope);
+      const double slope = std::acos(std::clamp(up.dot(hit->normal), -1.0, 1.0)) * 180.0 / std::numbers::pi;
+      std::printf("%4d %9.3f %8.3f %8.1f %7.4f %7.4f %7.4f %7.4f %7.4f %7.4f %6.2f\n", i, lon, lat,
+                  hit->height - planet.radius, up.x(), up.y(), up.z(), hit->normal.x(), hit->normal.y(),
+                  hit->normal.z(), slope);
     }
 
     // The seam: lon +180 and -180 are the same meridian, so both must give the same ground.
     const auto east = index.top(180.0, -52.0), west = index.top(-180.0, -52.0);
     if (east && west) {
-      std::printf("seam at lat -52: lon +180 -> %.1f m, lon -180 -> %.1f m\n",
-                  east->height - planet.radius, west->height - planet.radius);
+      std::printf("seam at lat -52: lon +180 -> %.1f m, lon -180 -> %.1f m\n", east->height - planet.radius,
+                  west->height - planet.radius);
     } else {
       ++misses;
       std::printf("seam at lat -52: none\n");
@@ -78,9 +75,8 @@ int main(int argc, char** argv) {
     // Bonus: stand exactly on the north pole, where every longitude names the same line.
     const auto pole = index.top(0.0, 90.0);
     if (pole) {
-      std::printf("north pole: height %.1f m, world z %.1f m, normal %.4f %.4f %.4f\n",
-                  pole->height - planet.radius, pole->world.z(), pole->normal.x(),
-                  pole->normal.y(), pole->normal.z());
+      std::printf("north pole: height %.1f m, world z %.1f m, normal %.4f %.4f %.4f\n", pole->height - planet.radius,
+                  pole->world.z(), pole->normal.x(), pole->normal.y(), pole->normal.z());
     } else {
       ++misses;
       std::printf("north pole: none\n");

@@ -29,23 +29,21 @@ int main() {
     const qota::Mesh mesh = qota::stationMesh(relief, station);
     const qota::CylindricalMapping mapping;  // axis: world z through the origin
     const qota::CylindricalIndex index(mesh, mapping);
-    std::printf("station r=%.0f m, length %.0f m: %llu triangles, quadtree of %llu nodes\n",
-                station.radius, station.length,
-                static_cast<unsigned long long>(index.stats().triangles),
+    std::printf("station r=%.0f m, length %.0f m: %llu triangles, quadtree of %llu nodes\n", station.radius,
+                station.length, static_cast<unsigned long long>(index.stats().triangles),
                 static_cast<unsigned long long>(index.stats().tree.nodes));
 
     // Spin for 1 g at the zero level of the relief: omega^2 r = g.
     const double g0 = 9.81, omega = std::sqrt(g0 / station.radius);
-    std::printf("spin %.4f rad/s (one turn in %.1f s) for 1 g at r = %.0f m\n", omega,
-                2.0 * std::numbers::pi / omega, station.radius);
+    std::printf("spin %.4f rad/s (one turn in %.1f s) for 1 g at r = %.0f m\n", omega, 2.0 * std::numbers::pi / omega,
+                station.radius);
 
     const double v = 100.0;  // metres along the axis
-    const int steps = 40;  // 10 degrees a step, 0 to 400 degrees
-    std::printf("%6s %9s %8s %22s %22s %8s\n", "angle", "r_floor", "relief", "up (x y z)",
-                "normal (x y z)", "g");
+    const int steps = 40;    // 10 degrees a step, 0 to 400 degrees
+    std::printf("%6s %9s %8s %22s %22s %8s\n", "angle", "r_floor", "relief", "up (x y z)", "normal (x y z)", "g");
     int misses = 0;
     for (int i = 0; i <= steps; ++i) {
-      const double angle = 10.0 * i;  // any angle: the index wraps it to [-180, 180)
+      const double angle = 10.0 * i;         // any angle: the index wraps it to [-180, 180)
       const auto hit = index.top(angle, v);  // the floor surface nearest the axis
       if (!hit) {
         ++misses;
@@ -56,9 +54,9 @@ int main() {
       const Eigen::Vector3d up = -mapping.out(angle);
       // Spin gravity felt at this floor point: omega^2 times the distance from the axis.
       const double g = omega * omega * hit->height;
-      std::printf("%6.1f %9.3f %8.3f %7.4f %7.4f %7.4f %7.4f %7.4f %7.4f %8.4f\n", angle,
-                  hit->height, station.radius - hit->height, up.x(), up.y(), up.z(),
-                  hit->normal.x(), hit->normal.y(), hit->normal.z(), g);
+      std::printf("%6.1f %9.3f %8.3f %7.4f %7.4f %7.4f %7.4f %7.4f %7.4f %8.4f\n", angle, hit->height,
+                  station.radius - hit->height, up.x(), up.y(), up.z(), hit->normal.x(), hit->normal.y(),
+                  hit->normal.z(), g);
     }
     std::printf("walk done: %d steps, %d misses\n", steps + 1, misses);
     return misses == 0 ? 0 : 1;

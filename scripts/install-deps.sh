@@ -24,7 +24,7 @@ packages=(
                                 # the Python package (python/) and its tests
   python3-rasterio python3-xarray python3-rioxarray python3-affine
                                 # Python interop (rasterio datasets, DataArrays), optional at runtime
-  python3-dask python3-distributed python3-pandas python3-zarr
+  python3-dask python3-distributed python3-pandas python3-zarr python3-mypy
                                 # qota.dask: shadows and points over a Dask cluster (pandas for its
                                 # DataFrames, zarr for Zarr output), optional at runtime
 )

@@ -24,5 +24,8 @@ if [ -z "${QOTA_TOOL:-}" ] && [ ! -x "$root/build/tools/qota" ]; then
   cmake --build "$pybuild" --target qota_cli -j "${QOTA_JOBS:-2}" >/dev/null
   export QOTA_TOOL=$pybuild/tools/qota
 fi
+# The stubs (qota/__init__.pyi, qota/dask.pyi) and a typed example against them, under mypy --strict.
+(cd "$root/python" && MYPYPATH=. /usr/bin/python3 -m mypy --strict --no-error-summary \
+  qota/__init__.pyi qota/dask.pyi tests/typed_example.py)
 cd /
 QOTA_DATA_DIR="$root/data" "$venv/bin/python" -m pytest -q "$root/python/tests"

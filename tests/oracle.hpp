@@ -16,9 +16,9 @@
 namespace qota::test {
 
 struct OracleHit {
-  double height;         // along -gravity, measured from `origin` (the mapped h)
+  double height;  // along -gravity, measured from `origin` (the mapped h)
   std::uint32_t polygon;
-  double margin;         // > 0 inside, < 0 outside: signed distance-like value from the nearest edge
+  double margin;  // > 0 inside, < 0 outside: signed distance-like value from the nearest edge
 };
 
 struct OracleResult {
@@ -27,8 +27,8 @@ struct OracleResult {
 };
 
 // gravity: unit vector. origin: the mapping's origin (heights are -gravity . (X - origin)).
-inline OracleResult bruteForce(const Mesh& mesh, const Eigen::Vector3d& gravity,
-                               const Eigen::Vector3d& origin, const Eigen::Vector3d& p) {
+inline OracleResult bruteForce(const Mesh& mesh, const Eigen::Vector3d& gravity, const Eigen::Vector3d& origin,
+                               const Eigen::Vector3d& p) {
   OracleResult r;
   // A frame with gravity as its third axis, to measure in-plane distances.
   const Eigen::Vector3d e1 = gravity.unitOrthogonal(), e2 = gravity.cross(e1);
@@ -37,8 +37,7 @@ inline OracleResult bruteForce(const Mesh& mesh, const Eigen::Vector3d& gravity,
     bool hitThis = false;
     double bestMargin = -1e300, bestHeight = 0;
     for (std::size_t k = 1; k + 1 < idx.size(); ++k) {
-      const Eigen::Vector3d a = mesh.vertices[idx[0]], b = mesh.vertices[idx[k]],
-                            c = mesh.vertices[idx[k + 1]];
+      const Eigen::Vector3d a = mesh.vertices[idx[0]], b = mesh.vertices[idx[k]], c = mesh.vertices[idx[k + 1]];
       // Project corners and p onto the plane perpendicular to gravity (relative to p).
       auto proj = [&](const Eigen::Vector3d& x) {
         const Eigen::Vector3d d = x - p;

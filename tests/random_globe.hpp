@@ -20,16 +20,14 @@ inline Mesh unitIcosphere(int level, std::mt19937_64& rng, bool rotate) {
   const double t = (1.0 + std::sqrt(5.0)) / 2.0;
   Mesh m;
   for (const Eigen::Vector3d& v :
-       {Eigen::Vector3d(-1, t, 0), Eigen::Vector3d(1, t, 0), Eigen::Vector3d(-1, -t, 0),
-        Eigen::Vector3d(1, -t, 0), Eigen::Vector3d(0, -1, t), Eigen::Vector3d(0, 1, t),
-        Eigen::Vector3d(0, -1, -t), Eigen::Vector3d(0, 1, -t), Eigen::Vector3d(t, 0, -1),
-        Eigen::Vector3d(t, 0, 1), Eigen::Vector3d(-t, 0, -1), Eigen::Vector3d(-t, 0, 1)}) {
+       {Eigen::Vector3d(-1, t, 0), Eigen::Vector3d(1, t, 0), Eigen::Vector3d(-1, -t, 0), Eigen::Vector3d(1, -t, 0),
+        Eigen::Vector3d(0, -1, t), Eigen::Vector3d(0, 1, t), Eigen::Vector3d(0, -1, -t), Eigen::Vector3d(0, 1, -t),
+        Eigen::Vector3d(t, 0, -1), Eigen::Vector3d(t, 0, 1), Eigen::Vector3d(-t, 0, -1), Eigen::Vector3d(-t, 0, 1)}) {
     m.addVertex(v.normalized());
   }
-  const int faces[20][3] = {{0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11},
-                            {1, 5, 9},  {5, 11, 4}, {11, 10, 2}, {10, 7, 6}, {7, 1, 8},
-                            {3, 9, 4},  {3, 4, 2},  {3, 2, 6},   {3, 6, 8},  {3, 8, 9},
-                            {4, 9, 5},  {2, 4, 11}, {6, 2, 10},  {8, 6, 7},  {9, 8, 1}};
+  const int faces[20][3] = {{0, 11, 5},  {0, 5, 1},  {0, 1, 7},  {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
+                            {11, 10, 2}, {10, 7, 6}, {7, 1, 8},  {3, 9, 4},  {3, 4, 2},   {3, 2, 6}, {3, 6, 8},
+                            {3, 8, 9},   {4, 9, 5},  {2, 4, 11}, {6, 2, 10}, {8, 6, 7},   {9, 8, 1}};
   for (const auto& f : faces) m.addTriangle(f[0], f[1], f[2]);
   for (int l = 0; l < level; ++l) {
     std::map<std::pair<std::uint32_t, std::uint32_t>, std::uint32_t> mid;
@@ -57,8 +55,7 @@ inline Mesh unitIcosphere(int level, std::mt19937_64& rng, bool rotate) {
     for (auto& v : m.vertices) v = q * v;
   } else {
     // Vertex 5 is (0, 1, t)/|..|; rotate it onto +z, its opposite (vertex 6) lands on -z.
-    const Eigen::Quaterniond q =
-        Eigen::Quaterniond::FromTwoVectors(m.vertices[5], Eigen::Vector3d(0, 0, 1));
+    const Eigen::Quaterniond q = Eigen::Quaterniond::FromTwoVectors(m.vertices[5], Eigen::Vector3d(0, 0, 1));
     for (auto& v : m.vertices) v = q * v;
     m.vertices[5] = Eigen::Vector3d(0, 0, 1);
     m.vertices[6] = Eigen::Vector3d(0, 0, -1);
@@ -68,8 +65,7 @@ inline Mesh unitIcosphere(int level, std::mt19937_64& rng, bool rotate) {
 
 // A tube around the z axis: nx columns (angle wraps) by ny rings over [-length/2, length/2],
 // radius * (1 + bump * uniform(-1, 1)) per vertex, each cell split along a random diagonal.
-inline Mesh bumpyTube(int nx, int ny, double radius, double length, double bump,
-                      std::mt19937_64& rng) {
+inline Mesh bumpyTube(int nx, int ny, double radius, double length, double bump, std::mt19937_64& rng) {
   std::uniform_real_distribution<double> unit(-1, 1);
   Mesh m;
   for (int j = 0; j < ny; ++j) {

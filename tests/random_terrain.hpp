@@ -13,10 +13,10 @@
 namespace qota::test {
 
 struct RandomTerrainSpec {
-  int grid = 30;          // heightfield vertices per side
+  int grid = 30;  // heightfield vertices per side
   double cell = 1.0;
   double holeFraction = 0.1;
-  int plates = 60;        // floating convex polygons of 3 to 7 vertices
+  int plates = 60;  // floating convex polygons of 3 to 7 vertices
   int walls = 10;
   double offsetX = 0, offsetY = 0;  // shift, to test large coordinates
 };
@@ -24,8 +24,7 @@ struct RandomTerrainSpec {
 inline Mesh randomTerrain(const RandomTerrainSpec& spec, std::uint64_t seed) {
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> unit(0, 1);
-  Heightfield field = fractalHeightfield(spec.grid, spec.grid, spec.cell, 0.2 * spec.grid * spec.cell,
-                                         seed, 5);
+  Heightfield field = fractalHeightfield(spec.grid, spec.grid, spec.cell, 0.2 * spec.grid * spec.cell, seed, 5);
   field.x0 = spec.offsetX;
   field.y0 = spec.offsetY;
   Mesh full = field.toMesh();

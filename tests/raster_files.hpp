@@ -27,10 +27,10 @@ inline std::filesystem::path scratchPath(const std::string& name) {
 struct RasterSpec {
   int width = 0, height = 0;
   std::array<double, 6> geotransform{0, 1, 0, 0, 0, -1};
-  std::string crs;              // anything SetFromUserInput takes; "" for none
+  std::string crs;                         // anything SetFromUserInput takes; "" for none
   std::vector<std::vector<double>> bands;  // row-major values, one vector per band
   std::optional<double> nodata;
-  std::string unitType;         // band unit type ("ft", ...), "" for none
+  std::string unitType;  // band unit type ("ft", ...), "" for none
   GDALDataType type = GDT_Float64;
   std::string driver = "GTiff";
 };
@@ -39,8 +39,8 @@ inline void writeRaster(const std::filesystem::path& path, const RasterSpec& s) 
   ensureGdalRegistered();
   GDALDriver* drv = GetGDALDriverManager()->GetDriverByName(s.driver.c_str());
   if (!drv) throw std::runtime_error("no GDAL driver " + s.driver);
-  std::unique_ptr<GDALDataset> ds(drv->Create(path.c_str(), s.width, s.height, static_cast<int>(s.bands.size()),
-                                              s.type, nullptr));
+  std::unique_ptr<GDALDataset> ds(
+      drv->Create(path.c_str(), s.width, s.height, static_cast<int>(s.bands.size()), s.type, nullptr));
   if (!ds) throw std::runtime_error("cannot create " + path.string());
   double gt[6];
   std::copy(s.geotransform.begin(), s.geotransform.end(), gt);
@@ -54,8 +54,8 @@ inline void writeRaster(const std::filesystem::path& path, const RasterSpec& s) 
     GDALRasterBand* band = ds->GetRasterBand(static_cast<int>(b + 1));
     if (s.nodata) band->SetNoDataValue(*s.nodata);
     if (!s.unitType.empty()) band->SetUnitType(s.unitType.c_str());
-    if (band->RasterIO(GF_Write, 0, 0, s.width, s.height, const_cast<double*>(s.bands[b].data()), s.width,
-                       s.height, GDT_Float64, 0, 0) != CE_None) {
+    if (band->RasterIO(GF_Write, 0, 0, s.width, s.height, const_cast<double*>(s.bands[b].data()), s.width, s.height,
+                       GDT_Float64, 0, 0) != CE_None) {
       throw std::runtime_error("cannot write " + path.string());
     }
   }

@@ -37,7 +37,8 @@ ToolRun shadow(const qota::tools::ShadowOptions& o) {
 
 // A lon/lat grid of 1-degree pixels from west (its first pixel's west edge), width x height, with
 // the height at a pixel centre f(lon, lat) = 1000 + lon + 10 lat (so every answer is known).
-std::string lonLatGrid(const std::string& name, double west, int width, double north, int height, const std::string& crs) {
+std::string lonLatGrid(const std::string& name, double west, int width, double north, int height,
+                       const std::string& crs) {
   RasterSpec s;
   s.width = width, s.height = height;
   s.geotransform = {west, 1, 0, north, 0, -1};
@@ -191,7 +192,7 @@ TEST(Bodies, TheSunOverMars24sSubsolarPointIsMars24sSun) {
   const std::vector<double> b = maskOf(o.output);
   std::size_t differ = 0, dark = 0;
   for (std::size_t i = 0; i < a.size(); ++i) differ += a[i] != b[i], dark += a[i] == 0;
-  EXPECT_GT(dark, a.size() / 50);     // a low Sun: shadows
+  EXPECT_GT(dark, a.size() / 50);      // a low Sun: shadows
   EXPECT_LE(differ * 2000, a.size());  // (the published decimals: 1e-5 degree)
 }
 

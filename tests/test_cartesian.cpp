@@ -49,8 +49,7 @@ TEST(CartesianMapping, RoundTrip) {
   std::normal_distribution<double> n(0, 1);
   std::uniform_real_distribution<double> big(-1e7, 1e7);
   for (int i = 0; i < 100000; ++i) {
-    const CartesianMapping m(Eigen::Vector3d(n(rng), n(rng), n(rng)),
-                             Eigen::Vector3d(big(rng), big(rng), big(rng)));
+    const CartesianMapping m(Eigen::Vector3d(n(rng), n(rng), n(rng)), Eigen::Vector3d(big(rng), big(rng), big(rng)));
     const Eigen::Vector3d p = m.origin() + Eigen::Vector3d(n(rng), n(rng), n(rng)) * 1000.0;
     const Eigen::Vector3d back = m.toWorld(m.toMapped(p));
     ASSERT_LE((back - p).norm(), 1e-12 * (p.norm() + 1.0)) << i;
@@ -60,8 +59,7 @@ TEST(CartesianMapping, RoundTrip) {
 TEST(CartesianMapping, RejectsBadGravityAndOrigin) {
   EXPECT_THROW((void)CartesianMapping(Eigen::Vector3d::Zero()), qota::Error);
   EXPECT_THROW(CartesianMapping(Eigen::Vector3d(0, NAN, -1)), qota::Error);
-  EXPECT_THROW(CartesianMapping(Eigen::Vector3d(0, 0, -1), Eigen::Vector3d(INFINITY, 0, 0)),
-               qota::Error);
+  EXPECT_THROW(CartesianMapping(Eigen::Vector3d(0, 0, -1), Eigen::Vector3d(INFINITY, 0, 0)), qota::Error);
 }
 
 }  // namespace

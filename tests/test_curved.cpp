@@ -34,7 +34,7 @@ TEST(CurvedMappings, SphericalRoundTrip) {
                                       : Eigen::Vector3d(Eigen::Vector3d(g(rng), g(rng), g(rng)) * 1e3);
     Eigen::Vector3d dir(g(rng), g(rng), g(rng));
     if (i % 50 == 1) dir = Eigen::Vector3d(0, 0, i % 100 == 1 ? 1 : -1);  // poles
-    if (i % 50 == 3) dir = Eigen::Vector3d(-1, 0, g(rng));               // on the seam
+    if (i % 50 == 3) dir = Eigen::Vector3d(-1, 0, g(rng));                // on the seam
     const double r = std::pow(10.0, uniform(rng, centred ? -6 : 1, 9));
     const SphericalMapping m(c);
     const Eigen::Vector3d p = c + r * dir.normalized();
@@ -62,8 +62,8 @@ TEST(CurvedMappings, CylindricalRoundTrip) {
     const Eigen::Vector3d k = simple ? Eigen::Vector3d(0, 0, 1) : Eigen::Vector3d(g(rng), g(rng), g(rng));
     const CylindricalMapping m(c, k);
     const double scale = std::pow(10.0, uniform(rng, simple ? -6 : 1, 9));
-    const Eigen::Vector3d mapped(i % 50 == 3 ? 180.0 : uniform(rng, -180, 180),
-                                 uniform(rng, -1, 1) * scale, uniform(rng, 0.01, 1) * scale);
+    const Eigen::Vector3d mapped(i % 50 == 3 ? 180.0 : uniform(rng, -180, 180), uniform(rng, -1, 1) * scale,
+                                 uniform(rng, 0.01, 1) * scale);
     const Eigen::Vector3d p = m.toWorld(mapped);
     const Eigen::Vector3d q = m.toMapped(p);
     ASSERT_GE(q.x(), -180.0);
@@ -111,9 +111,8 @@ TEST(CurvedMappings, GeodeticRoundTrip) {
 }
 
 TEST(CurvedMappings, DescribeParsesBack) {
-  const AnyMapping all[] = {CartesianMapping({0.1, 0.2, -1}, {1e6, 2e6, 3}),
-                            SphericalMapping({1, 2, 3}), CylindricalMapping({0, 1, 2}, {1, 1, 0}),
-                            GeodeticMapping(3396190, 0.005)};
+  const AnyMapping all[] = {CartesianMapping({0.1, 0.2, -1}, {1e6, 2e6, 3}), SphericalMapping({1, 2, 3}),
+                            CylindricalMapping({0, 1, 2}, {1, 1, 0}), GeodeticMapping(3396190, 0.005)};
   for (const AnyMapping& m : all) {
     const std::string text = describe(m);
     EXPECT_EQ(describe(parseMapping(text)), text);
@@ -167,7 +166,7 @@ OracleHit oracleBelow(const Mesh& mesh, const M& mapping, double u, double v, do
     const int s0 = orient3dSign(a.data(), b.data(), dir.data());
     const int s1 = orient3dSign(b.data(), c.data(), dir.data());
     const int s2 = orient3dSign(c.data(), a.data(), dir.data());
-    const bool neg = s0 < 0 || s1 < 0 || s2 < 0, pos = s0 > 0 || s1 > 0 || s2 > 0;
+    const bool neg = s0 < 0 || s1 < 0 || s2<0, pos = s0> 0 || s1 > 0 || s2 > 0;
     if ((neg && pos) || (!neg && !pos)) continue;
     const Eigen::Vector3d n = (b - a).cross(c - a);
     const double t = n.dot(a) / n.dot(dir);
@@ -192,9 +191,8 @@ OracleHit oracleBelow(const Mesh& mesh, const M& mapping, double u, double v, do
 }
 
 template <class M>
-void expectMatchesOracle(const Mesh& mesh, const M& mapping, const CurvedIndex<M>& index,
-                         int queries, std::uint64_t seed, double vlo, double vhi,
-                         double absTolerance = 0) {
+void expectMatchesOracle(const Mesh& mesh, const M& mapping, const CurvedIndex<M>& index, int queries,
+                         std::uint64_t seed, double vlo, double vhi, double absTolerance = 0) {
   std::mt19937_64 rng(seed);
   int polygonMismatches = 0;
   for (int q = 0; q < queries; ++q) {
@@ -203,8 +201,7 @@ void expectMatchesOracle(const Mesh& mesh, const M& mapping, const CurvedIndex<M
     // Half the queries from far above (the top surface), half from a random level.
     const auto topOf = index.top(u, v);
     ASSERT_TRUE(topOf.has_value()) << "closed surface missed at " << u << " " << v;
-    const double hq = q % 2 ? (M::kHeightUp ? 1e300 : -1e300)
-                            : topOf->height * uniform(rng, 0.999, 1.001);
+    const double hq = q % 2 ? (M::kHeightUp ? 1e300 : -1e300) : topOf->height * uniform(rng, 0.999, 1.001);
     const OracleHit o = oracleBelow(mesh, mapping, u, v, hq);
     const auto hit = index.below(u, v, hq);
     ASSERT_EQ(hit.has_value(), o.found) << u << " " << v << " " << hq;
@@ -222,8 +219,7 @@ void expectMatchesOracle(const Mesh& mesh, const M& mapping, const CurvedIndex<M
 // Queries exactly at vertices (their mapped u, v), at edge midpoints, on the seam and at the
 // poles: a closed surface must always be hit. Returns the misses.
 template <class M>
-int missesAtFeatures(const Mesh& mesh, const M& mapping, const CurvedIndex<M>& index,
-                     std::uint64_t seed, bool poles) {
+int missesAtFeatures(const Mesh& mesh, const M& mapping, const CurvedIndex<M>& index, std::uint64_t seed, bool poles) {
   std::mt19937_64 rng(seed);
   int misses = 0;
   // An open surface (a tube) may round outside at its rims: those are not counted.
@@ -388,7 +384,7 @@ TEST(Globe, Etopo20IsAClosedPlanet) {
     ASSERT_NEAR(h(xy[0], xy[1]) + planet.radius, m.z(), 1e-6);
   }
   EXPECT_NEAR(h(-40.0 + 1 / 6.0, 75.0 - 1 / 6.0), 2895, 60);  // Greenland ice
-  EXPECT_LT(h(142.5, 11.3), -8000);                            // Mariana trench
+  EXPECT_LT(h(142.5, 11.3), -8000);                           // Mariana trench
   EXPECT_EQ(missesAtFeatures(planet.dem.mesh, planet.mapping, index, 52, true), 0);
 
   // The batched query gives the single query's answers, poles and seams included.
@@ -420,7 +416,7 @@ TEST(Globe, SrtmOnTheEllipsoid) {
   const auto summit = index.height(-121.7603, 46.8529);
   ASSERT_TRUE(summit);
   EXPECT_NEAR(*summit, 4367, 10);
-  EXPECT_FALSE(index.height(-123.5, 46.5).has_value());  // off the tile
+  EXPECT_FALSE(index.height(-123.5, 46.5).has_value());                     // off the tile
   EXPECT_THROW(loadOnEllipsoid(QOTA_DATA_DIR "/SainteHelens.dem"), Error);  // UTM, not lon/lat
 }
 

@@ -13,8 +13,8 @@
 
 namespace {
 
+using qota::CartesianIndex;
 using qota::DemTerrain;
-using qota::TerrainIndex;
 
 std::filesystem::path scratch(const std::string& name) {
   const auto dir = std::filesystem::temp_directory_path() / "qota_tests";
@@ -33,13 +33,12 @@ TEST(Dem, RainierPixelCentresAreRasterValues) {
   EXPECT_EQ(*dem.nodata, -32768);
   EXPECT_EQ(dem.nodataCells, 9033u);
   EXPECT_NE(dem.crsWkt.find("WGS 84"), std::string::npos);
-  const TerrainIndex index(dem.mesh, dem.mapping);
+  const CartesianIndex index(dem.mesh, dem.mapping);
 
   qota::ensureGdalRegistered();
   std::unique_ptr<GDALDataset> ds(GDALDataset::Open(QOTA_DATA_DIR "/mt_rainier_90m.tif", GDAL_OF_RASTER));
   std::vector<double> raster(1201 * 1201);
-  ASSERT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Read, 0, 0, 1201, 1201, raster.data(), 1201, 1201,
-                                           GDT_Float64, 0, 0),
+  ASSERT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Read, 0, 0, 1201, 1201, raster.data(), 1201, 1201, GDT_Float64, 0, 0),
             CE_None);
   std::uint64_t checked = 0, isolated = 0;
   for (int r = 0; r < 1201; ++r) {
@@ -69,7 +68,7 @@ TEST(Dem, BetweenCentresIsTheContainingTriangle) {
   EXPECT_EQ(dem.driver, "USGSDEM");
   EXPECT_EQ(dem.width, 327);
   EXPECT_EQ(dem.height, 468);
-  const TerrainIndex index(dem.mesh, dem.mapping);
+  const CartesianIndex index(dem.mesh, dem.mapping);
   // Halfway between the centres of cell (c, r) and (c + 1, r + 1): on the documented diagonal,
   // so the mean of the two diagonal corners.
   const auto z = [&](int c, int r) { return dem.mesh.vertices[static_cast<std::size_t>(r) * dem.width + c].z(); };
@@ -93,9 +92,8 @@ TEST(Dem, BetweenCentresIsTheContainingTriangle) {
 }
 
 // Writes a small raster with the given geotransform and values through GDAL.
-void writeRaster(const std::filesystem::path& path, const char* driver, int w, int h,
-                 const double gt[6], const std::vector<float>& values,
-                 std::optional<double> nodata = std::nullopt) {
+void writeRaster(const std::filesystem::path& path, const char* driver, int w, int h, const double gt[6],
+                 const std::vector<float>& values, std::optional<double> nodata = std::nullopt) {
   qota::ensureGdalRegistered();
   GDALDriver* drv = GetGDALDriverManager()->GetDriverByName(driver);
   ASSERT_NE(drv, nullptr);
@@ -103,9 +101,9 @@ void writeRaster(const std::filesystem::path& path, const char* driver, int w, i
   ASSERT_NE(ds, nullptr);
   ds->SetGeoTransform(const_cast<double*>(gt));
   if (nodata) ds->GetRasterBand(1)->SetNoDataValue(*nodata);
-  ASSERT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, w, h, const_cast<float*>(values.data()),
-                                           w, h, GDT_Float32, 0, 0),
-            CE_None);
+  ASSERT_EQ(
+      ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, w, h, const_cast<float*>(values.data()), w, h, GDT_Float32, 0, 0),
+      CE_None);
 }
 
 TEST(Dem, RotatedGeotransform) {
@@ -118,7 +116,7 @@ TEST(Dem, RotatedGeotransform) {
   const auto path = scratch("rotated.tif");
   writeRaster(path, "GTiff", w, h, gt, values);
   const DemTerrain dem = qota::loadDem(path.string());
-  const TerrainIndex index(dem.mesh, dem.mapping);
+  const CartesianIndex index(dem.mesh, dem.mapping);
   for (int r = 0; r < h; ++r) {
     for (int c = 0; c < w; ++c) {
       const auto xy = dem.pixelCentre(c, r);
@@ -139,7 +137,7 @@ TEST(Dem, NodataMakesHoles) {
   const DemTerrain dem = qota::loadDem(path.string());
   EXPECT_EQ(dem.nodataCells, 1u);
   EXPECT_EQ(dem.mesh.polygonCount(), 2u * 81 - 6);  // the 6 triangles around the void vertex
-  const TerrainIndex index(dem.mesh, dem.mapping);
+  const CartesianIndex index(dem.mesh, dem.mapping);
   const auto centre = dem.pixelCentre(4, 4);
   EXPECT_FALSE(index.topWorld({centre[0], centre[1], 0}));
   const auto near = dem.pixelCentre(4.4, 4.1);
@@ -162,7 +160,7 @@ TEST(Dem, SrtmHgtAndOtherDrivers) {
   EXPECT_EQ(hgt.driver, "SRTMHGT");
   const DemTerrain tif = qota::loadDem(QOTA_DATA_DIR "/mt_rainier_90m.tif", {.lonLatAsCartesian = true});
   EXPECT_EQ(hgt.mesh.polygonCount(), tif.mesh.polygonCount());
-  const TerrainIndex a(hgt.mesh, hgt.mapping), b(tif.mesh, tif.mapping);
+  const CartesianIndex a(hgt.mesh, hgt.mapping), b(tif.mesh, tif.mapping);
   std::mt19937_64 rng(3);
   std::uniform_real_distribution<double> lon(-122, -121), lat(46, 47);
   for (int i = 0; i < 1000; ++i) {
@@ -280,13 +278,13 @@ TEST(Dem, VerticalUnitsFromTheBandOrTheCrs) {
     double metres;
     bool known;
   };
-  for (const Case& c : {Case{"EPSG:32610", "", 1.0, false}, Case{"EPSG:32610", "m", 1.0, true},
-                        Case{"EPSG:32610", "metre", 1.0, true}, Case{"EPSG:32610", "ft", 0.3048, true},
-                        Case{"EPSG:32610", "Foot", 0.3048, true},
-                        Case{"EPSG:32610", "US survey foot", 1200.0 / 3937.0, true},
-                        Case{"EPSG:32610+5703", "", 1.0, true},               // NAVD88 height, metres
-                        Case{"EPSG:32610+6360", "", 1200.0 / 3937.0, true},  // NAVD88 height (ftUS)
-                        Case{"EPSG:32610+8228", "", 0.3048, true}}) {       // NAVD88 height (ft)
+  for (const Case& c :
+       {Case{"EPSG:32610", "", 1.0, false}, Case{"EPSG:32610", "m", 1.0, true}, Case{"EPSG:32610", "metre", 1.0, true},
+        Case{"EPSG:32610", "ft", 0.3048, true}, Case{"EPSG:32610", "Foot", 0.3048, true},
+        Case{"EPSG:32610", "US survey foot", 1200.0 / 3937.0, true},
+        Case{"EPSG:32610+5703", "", 1.0, true},              // NAVD88 height, metres
+        Case{"EPSG:32610+6360", "", 1200.0 / 3937.0, true},  // NAVD88 height (ftUS)
+        Case{"EPSG:32610+8228", "", 0.3048, true}}) {        // NAVD88 height (ft)
     const qota::DemTerrain d = qota::describeDem(writeSmall("units.tif", c.crs, c.unit));
     EXPECT_NEAR(d.verticalUnit.metresPerUnit, c.metres, 1e-15) << c.crs << " '" << c.unit << "'";
     EXPECT_EQ(d.verticalUnit.known(), c.known) << c.crs << " '" << c.unit << "'";

@@ -52,11 +52,11 @@ Mesh liveMesh(const std::vector<std::optional<Polygon>>& polygons, std::vector<s
 }
 
 // Compares the edited index with one built from scratch on the live polygons (in id order).
-void expectMatchesScratch(const TerrainIndex& edited, const std::vector<std::optional<Polygon>>& polygons,
+void expectMatchesScratch(const CartesianIndex& edited, const std::vector<std::optional<Polygon>>& polygons,
                           const CartesianMapping& mapping, std::mt19937_64& rng) {
   std::vector<std::uint32_t> idOf;  // scratch polygon -> edited id
   const Mesh mesh = liveMesh(polygons, idOf);
-  const TerrainIndex scratch(mesh, mapping);
+  const CartesianIndex scratch(mesh, mapping);
   EXPECT_EQ(edited.stats().triangles, scratch.stats().triangles);
   EXPECT_EQ(edited.stats().leftOut, scratch.stats().leftOut);
   const Box2 box = scratch.stats().domain;
@@ -79,8 +79,7 @@ void expectMatchesScratch(const TerrainIndex& edited, const std::vector<std::opt
     }
   };
   for (int i = 0; i < 3000; ++i) {
-    check(uniform(rng, box.ulo - 1, box.uhi + 1), uniform(rng, box.vlo - 1, box.vhi + 1),
-          uniform(rng, -10, 10), true);
+    check(uniform(rng, box.ulo - 1, box.uhi + 1), uniform(rng, box.vlo - 1, box.vhi + 1), uniform(rng, -10, 10), true);
   }
   // Exactly at corners (from just above them: a point exactly on the surface is below or above
   // it within rounding): shared edges and vertices must not fall through.
@@ -100,7 +99,7 @@ TEST(Edits, RandomSequencesMatchARebuild) {
     const Mesh base = test::randomTerrain(spec, seed);
     const CartesianMapping mapping(seed == 2 ? Eigen::Vector3d(0.2, -0.1, -1) : Eigen::Vector3d(0, 0, -1),
                                    Eigen::Vector3d(spec.offsetX, 0, 0));
-    TerrainIndex index(base, mapping, IndexOptions{{4, 12}});  // small leaves: many splits
+    CartesianIndex index(base, mapping, IndexOptions{{4, 12}});  // small leaves: many splits
     std::vector<std::optional<Polygon>> polygons;
     for (std::size_t p = 0; p < base.polygonCount(); ++p) {
       Polygon corners;
@@ -146,7 +145,7 @@ TEST(Edits, RandomSequencesMatchARebuild) {
 }
 
 TEST(Edits, InsertIntoAnEmptyIndex) {
-  TerrainIndex index(Mesh{}, CartesianMapping());
+  CartesianIndex index(Mesh{}, CartesianMapping());
   EXPECT_FALSE(index.top(0.5, 0.5));
   const std::uint32_t id = index.insertPolygon(Polygon{{0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}});
   EXPECT_EQ(id, 0u);
@@ -231,8 +230,8 @@ TEST(Edits, StationGrows) {
   CylindricalIndex index(base, CylindricalMapping());
   // A floor panel at radius 100 from angle 30 to 60, 55 to 65 m along the axis: past the end.
   auto at = [](double deg, double z) {
-    return Eigen::Vector3d(100 * std::cos(deg * std::numbers::pi / 180),
-                           100 * std::sin(deg * std::numbers::pi / 180), z);
+    return Eigen::Vector3d(100 * std::cos(deg * std::numbers::pi / 180), 100 * std::sin(deg * std::numbers::pi / 180),
+                           z);
   };
   EXPECT_FALSE(index.top(45, 60).has_value());
   const std::uint32_t id = index.insertPolygon(Polygon{at(30, 55), at(60, 55), at(60, 65), at(30, 65)});

@@ -65,7 +65,6 @@ TEST(EnuMapping, DescribeReadsBackAndBadValuesAreErrors) {
 
 }  // namespace
 
-
 // The mapping reached from the tool: a DEM placed on its ellipsoid and seen east-north-up.
 #include <proj.h>
 
@@ -103,7 +102,8 @@ TEST(EnuTool, PixelCentresInTheFrameAreLocalCartesians) {
   std::vector<double> want;
   for (int k = 0; k < 60; ++k) {
     const int c = 20 + (k * 37) % 160, r = 20 + (k * 53) % 160;
-    const double lon = s.geotransform[0] + (c + 0.5) * s.geotransform[1], lat = s.geotransform[3] + (r + 0.5) * s.geotransform[5];
+    const double lon = s.geotransform[0] + (c + 0.5) * s.geotransform[1],
+                 lat = s.geotransform[3] + (r + 0.5) * s.geotransform[5];
     const double h = s.bands[0][static_cast<std::size_t>(r) * 200 + c];
     if (h == -32768) continue;
     const double n = proj_trans(egm96, PJ_FWD, proj_coord(lon, lat, 0, 0)).xyz.z;

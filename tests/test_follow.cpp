@@ -26,8 +26,7 @@ double uniform(std::mt19937_64& rng, double lo, double hi) {
 // A coherent walk (small random steps, sometimes a jump) plus points exactly on the cursor's box
 // edges, where the boundary rule decides the leaf.
 template <class Query, class Plain>
-void expectCursorMatches(Box2 domain, Query&& withCursor, Plain&& plain, const Quadtree& tree,
-                         std::uint64_t seed) {
+void expectCursorMatches(Box2 domain, Query&& withCursor, Plain&& plain, const Quadtree& tree, std::uint64_t seed) {
   std::mt19937_64 rng(seed);
   Quadtree::Cursor cursor;
   double u = 0.5 * (domain.ulo + domain.uhi), v = 0.5 * (domain.vlo + domain.vhi);
@@ -63,7 +62,7 @@ TEST(Cursor, CartesianMatchesPlainQueries) {
   test::RandomTerrainSpec spec;
   spec.grid = 120;
   const Mesh mesh = test::randomTerrain(spec, 5);  // holes, overlapping plates, walls
-  const TerrainIndex index(mesh, CartesianMapping());
+  const CartesianIndex index(mesh, CartesianMapping());
   const Box2 d = index.stats().domain;
   expectCursorMatches(
       d, [&](Quadtree::Cursor& c, double u, double v) { return polygonOf(index.below(c, u, v, 5.0)); },
@@ -80,8 +79,7 @@ TEST(Cursor, CurvedMatchesPlainQueries) {
   const PlanetTerrain planet = loadPlanet(QOTA_DATA_DIR "/etopo20.tif");
   const SphericalIndex sphere(planet.dem.mesh, planet.mapping);
   expectCursorMatches(
-      sphere.stats().domain,
-      [&](Quadtree::Cursor& c, double u, double v) { return sphere.height(c, u, v); },
+      sphere.stats().domain, [&](Quadtree::Cursor& c, double u, double v) { return sphere.height(c, u, v); },
       [&](double u, double v) { return sphere.height(u, v); }, sphere.tree(), 4);
   const Mesh station = stationMesh(fractalHeightfield(200, 60, 1.0, 8.0, 3), {250, 1000});
   const CylindricalIndex tube(station, CylindricalMapping());
@@ -111,7 +109,7 @@ Mesh tiltedPlane(bool hole) {
 
 TEST(Pose, ThreeSamplesOnAPlane) {
   const Mesh mesh = tiltedPlane(false);
-  const TerrainIndex index(mesh, CartesianMapping());
+  const CartesianIndex index(mesh, CartesianMapping());
   const Eigen::Vector3d samples[3] = {{10, 10, 50}, {12, 10, 50}, {11, 12, 50}};
   const FootprintPose fp = poseFromFootprint(index, std::span(samples), Eigen::Vector3d(1, 0, 0));
   ASSERT_TRUE(fp.pose);
@@ -130,7 +128,7 @@ TEST(Pose, ThreeSamplesOnAPlane) {
 
 TEST(Pose, LeastSquaresAndMissingSamples) {
   const Mesh mesh = tiltedPlane(true);
-  const TerrainIndex index(mesh, CartesianMapping());
+  const CartesianIndex index(mesh, CartesianMapping());
   // Four wheels, one over the hole.
   const Eigen::Vector3d wheels[4] = {{3, 3, 99}, {6.5, 6.5, 99}, {3, 4, 99}, {4, 3, 99}};
   const FootprintPose fp = poseFromFootprint(index, std::span(wheels), Eigen::Vector3d(0, 1, 0));
@@ -145,7 +143,7 @@ TEST(Pose, LeastSquaresAndMissingSamples) {
   EXPECT_EQ(none.missing.size(), 2u);
   // Least squares over bumpy ground: the fitted normal equals an independent fit of the hits.
   const Mesh bumpy = fractalHeightfield(50, 50, 1.0, 5.0, 9).toMesh();
-  const TerrainIndex b(bumpy, CartesianMapping());
+  const CartesianIndex b(bumpy, CartesianMapping());
   std::vector<Eigen::Vector3d> feet;
   for (int i = 0; i < 8; ++i) feet.emplace_back(20 + 2 * std::cos(i), 20 + 2 * std::sin(i), 100);
   const FootprintPose lsq = poseFromFootprint(b, std::span(feet), Eigen::Vector3d(1, 0, 0));
@@ -167,8 +165,8 @@ TEST(Pose, OnAPlanetUpIsRadial) {
   // A 4 m car on the flat Pacific floor near 0 N 150 W: up is the radial direction.
   const Eigen::Vector3d centre = planet.mapping.toWorld({-150, 0.001, planet.radius});
   const Eigen::Vector3d east = SphericalMapping::up(-60, 0), north(0, 0, 1);
-  const Eigen::Vector3d wheels[4] = {centre + 2 * east + north, centre + 2 * east - north,
-                                     centre - 2 * east + north, centre - 2 * east - north};
+  const Eigen::Vector3d wheels[4] = {centre + 2 * east + north, centre + 2 * east - north, centre - 2 * east + north,
+                                     centre - 2 * east - north};
   const FootprintPose fp = poseFromFootprint(index, std::span(wheels), north);
   ASSERT_TRUE(fp.pose);
   EXPECT_GT(fp.up.dot(SphericalMapping::up(-150, 0)), 0.999);
@@ -177,9 +175,9 @@ TEST(Pose, OnAPlanetUpIsRadial) {
 
 TEST(Move, HolesStepsAndImpassableGround) {
   const Mesh mesh = tiltedPlane(true);
-  const TerrainIndex index(mesh, CartesianMapping());
+  const CartesianIndex index(mesh, CartesianMapping());
   const Eigen::Vector3d a(2.5, 6.5, 10), b(12.5, 6.5, 10);  // straight through the hole
-  EXPECT_TRUE(checkMove(index, a, b).allowed());              // endpoint only: b is on ground
+  EXPECT_TRUE(checkMove(index, a, b).allowed());            // endpoint only: b is on ground
   MoveOptions whole;
   whole.wholePath = true;
   whole.step = 0.1;
@@ -223,10 +221,10 @@ TEST(Locale, FloorAndCeiling) {
                d = m.addVertex({x0, 10, z});
     m.addPolygon({a, b, c, d});
   };
-  quad(0, 10, 0);    // polygon 0: floor
-  quad(0, 10, 3);    // polygon 1: ceiling
-  quad(0, 5, 3.5);   // polygon 2: upper floor
-  const TerrainIndex index(m, CartesianMapping());
+  quad(0, 10, 0);   // polygon 0: floor
+  quad(0, 10, 3);   // polygon 1: ceiling
+  quad(0, 5, 3.5);  // polygon 2: upper floor
+  const CartesianIndex index(m, CartesianMapping());
   const auto isFloor = [](std::uint32_t p) { return p != 1; };
   const auto isCeiling = [](std::uint32_t p) { return p == 1; };
   EXPECT_TRUE(inLocale(index, {5, 5, 1.5}, isFloor, isCeiling));
@@ -241,7 +239,7 @@ TEST(Locale, FloorAndCeiling) {
   std::swap(m, ceilMesh);
   quad(2, 8, 3);
   std::swap(m, ceilMesh);
-  const TerrainIndex floor(floorMesh, CartesianMapping()), ceiling(ceilMesh, CartesianMapping());
+  const CartesianIndex floor(floorMesh, CartesianMapping()), ceiling(ceilMesh, CartesianMapping());
   std::mt19937_64 rng(3);
   std::vector<Eigen::Vector3d> points(2000);
   for (auto& p : points) p = {uniform(rng, -1, 11), uniform(rng, -1, 11), uniform(rng, -1, 4)};
@@ -268,8 +266,7 @@ Mesh transformed(const Mesh& m, const Eigen::Isometry3d& t) {
   return out;
 }
 
-void expectSceneMatchesRebuild(const Scene& scene, const std::vector<const Mesh*>& meshes,
-                               std::uint64_t seed) {
+void expectSceneMatchesRebuild(const Scene& scene, const std::vector<const Mesh*>& meshes, std::uint64_t seed) {
   Mesh all;
   std::vector<std::size_t> partOf;
   for (std::size_t k = 0; k < meshes.size(); ++k) {
@@ -283,7 +280,7 @@ void expectSceneMatchesRebuild(const Scene& scene, const std::vector<const Mesh*
       partOf.push_back(k);
     }
   }
-  const TerrainIndex rebuilt(all, CartesianMapping());
+  const CartesianIndex rebuilt(all, CartesianMapping());
   std::mt19937_64 rng(seed);
   int hits = 0;
   for (int i = 0; i < 3000; ++i) {
@@ -306,9 +303,9 @@ void expectSceneMatchesRebuild(const Scene& scene, const std::vector<const Mesh*
 }
 
 TEST(Scene, MovingAndTiltingPartsMatchARebuild) {
-  const Mesh floor = fractalHeightfield(41, 41, 1.0, 3.0, 11).toMesh();   // sea floor, 40 m
-  const Mesh deck = fractalHeightfield(11, 21, 1.0, 0.2, 12).toMesh();    // a 10 x 20 m deck
-  const TerrainIndex floorIndex(floor, CartesianMapping()), deckIndex(deck, CartesianMapping());
+  const Mesh floor = fractalHeightfield(41, 41, 1.0, 3.0, 11).toMesh();  // sea floor, 40 m
+  const Mesh deck = fractalHeightfield(11, 21, 1.0, 0.2, 12).toMesh();   // a 10 x 20 m deck
+  const CartesianIndex floorIndex(floor, CartesianMapping()), deckIndex(deck, CartesianMapping());
   Scene scene;
   scene.add(floorIndex, Eigen::Isometry3d::Identity(), "floor");
   Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
@@ -352,7 +349,7 @@ namespace {
 // water stops a walker by its material.
 TEST(Move, CityBlockWallsAndWater) {
   const MeshFile city = loadMeshFile(QOTA_DATA_DIR "/testarea.obj");
-  const TerrainIndex index(city.mesh, CartesianMapping({0, 0, -1}, city.origin));
+  const CartesianIndex index(city.mesh, CartesianMapping({0, 0, -1}, city.origin));
   MoveOptions walk;
   walk.wholePath = true;
   walk.step = 0.25;
@@ -379,8 +376,7 @@ TEST(Move, CityBlockWallsAndWater) {
   EXPECT_TRUE(checkMove(index, {84937, 447480, 0.5}, {84952, 447480, 0.5}, walk).allowed());
   MoveOptions endpoint = walk;
   endpoint.wholePath = false;
-  EXPECT_EQ(checkMove(index, {84872, 447540, 0.5}, {84856, 447540, 0.5}, endpoint).block,
-            MoveBlock::Hole);
+  EXPECT_EQ(checkMove(index, {84872, 447540, 0.5}, {84856, 447540, 0.5}, endpoint).block, MoveBlock::Hole);
 }
 
 }  // namespace
@@ -427,7 +423,8 @@ TEST(Scene, CurvedWorldMatchesARebuild) {
     const auto north = planetMesh.addVertex({0, 0, 1000}), south = planetMesh.addVertex({0, 0, -1000});
     for (int j = 0; j + 1 < nlat; ++j) {
       for (int i = 0; i < nlon; ++i) {
-        const auto a = static_cast<std::uint32_t>(j * nlon + i), b = static_cast<std::uint32_t>(j * nlon + (i + 1) % nlon);
+        const auto a = static_cast<std::uint32_t>(j * nlon + i),
+                   b = static_cast<std::uint32_t>(j * nlon + (i + 1) % nlon);
         planetMesh.addTriangle(a, b, b + nlon);
         planetMesh.addTriangle(a, b + nlon, a + nlon);
       }
@@ -441,7 +438,7 @@ TEST(Scene, CurvedWorldMatchesARebuild) {
   const Mesh raftMesh = fractalHeightfield(11, 11, 2.0, 0.3, 4).toMesh();  // 20 x 20 m deck
   const SphericalMapping world;
   const SphericalIndex planet(planetMesh, world);
-  const TerrainIndex raft(raftMesh, CartesianMapping());
+  const CartesianIndex raft(raftMesh, CartesianMapping());
   Scene scene{AnyMapping(world)};
   const std::size_t spinning = scene.add(planet, Eigen::Isometry3d::Identity(), "planet");
   const std::size_t boat = scene.add(raft, Eigen::Isometry3d::Identity(), "raft");

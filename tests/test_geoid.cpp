@@ -69,8 +69,8 @@ TEST(Geoid, Egm96UndulationsAreProjs) {
   std::mt19937_64 rng(27);
   std::uniform_real_distribution<double> lon(-180, 180), lat(-90, 90);
   // Anywhere, across the antimeridian, at the poles and at grid nodes.
-  std::vector<std::array<double, 2>> points{{180, 0}, {-180, 0}, {179.99, 12}, {-179.99, 12}, {0, 90}, {0, -90},
-                                            {-121.75, 46.75}, {37.25, -61.5}, {-121.7603, 46.8529}};
+  std::vector<std::array<double, 2>> points{{180, 0}, {-180, 0},        {179.99, 12},   {-179.99, 12},       {0, 90},
+                                            {0, -90}, {-121.75, 46.75}, {37.25, -61.5}, {-121.7603, 46.8529}};
   for (int k = 0; k < 3000; ++k) points.push_back({lon(rng), lat(rng)});
   double worst = 0;
   for (const auto& [x, y] : points) {
@@ -119,7 +119,8 @@ TEST(Geoid, RainierOnTheEllipsoidIsOverEgm96) {
     const int c = col(rng), w = row(rng);
     const double h = r.at(c, w);
     if (h == -32768) continue;
-    const double x = r.geotransform[0] + (c + 0.5) * r.geotransform[1], y = r.geotransform[3] + (w + 0.5) * r.geotransform[5];
+    const double x = r.geotransform[0] + (c + 0.5) * r.geotransform[1],
+                 y = r.geotransform[3] + (w + 0.5) * r.geotransform[5];
     points.push_back({x, y, h});
     std::ostringstream line;
     line.precision(17);
@@ -166,7 +167,6 @@ TEST(Geoid, RainierOnTheEllipsoidIsOverEgm96) {
   const SampleRun below = sample(o, "-121.7603 46.8529 " + std::to_string(std::stod(overGeoid.out) + 0.5) + "\n");
   EXPECT_EQ(below.out, overGeoid.out);
 }
-
 
 TEST(Geoid, StatedReferencesAreHonouredAndUnknownOnesRefused) {
   qota::tools::SampleOptions o;

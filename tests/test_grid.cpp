@@ -32,7 +32,7 @@ IndexOptions quadtreeOnly() {
 }
 
 // Every query kind at the point, both ways.
-void expectSame(const TerrainIndex& fast, const TerrainIndex& slow, double u, double v, double z) {
+void expectSame(const CartesianIndex& fast, const CartesianIndex& slow, double u, double v, double z) {
   const auto a = fast.below(u, v, z), b = slow.below(u, v, z);
   ASSERT_EQ(a.has_value(), b.has_value()) << u << " " << v << " " << z;
   if (a) {
@@ -49,7 +49,7 @@ void expectSame(const TerrainIndex& fast, const TerrainIndex& slow, double u, do
 
 void expectGridMatchesQuadtree(const Mesh& mesh, const CartesianMapping& mapping, int randomQueries,
                                std::uint64_t seed) {
-  const TerrainIndex fast(mesh, mapping), slow(mesh, mapping, quadtreeOnly());
+  const CartesianIndex fast(mesh, mapping), slow(mesh, mapping, quadtreeOnly());
   ASSERT_TRUE(fast.gridFastPath());
   ASSERT_FALSE(slow.gridFastPath());
   // No triangle records until something needs the tree: under Embree's 80 bytes a triangle.
@@ -90,7 +90,7 @@ void expectGridMatchesQuadtree(const Mesh& mesh, const CartesianMapping& mapping
   }
   // Queries on the grid, single, batched or parallel, never build the tree (stats() does).
   // (A sample of the points: the sanitizer builds run this too.)
-  const TerrainIndex lean(mesh, mapping);
+  const CartesianIndex lean(mesh, mapping);
   const std::uint64_t before = lean.memoryBytesNow();
   const std::size_t m = std::min<std::size_t>(points.size(), 20000);
   const std::span<const Point2> some(points.data(), m);
@@ -108,7 +108,8 @@ void expectGridMatchesQuadtree(const Mesh& mesh, const CartesianMapping& mapping
 }
 
 TEST(GridFastPath, RainierMatchesTheQuadtree) {
-  const DemTerrain dem = loadDem(QOTA_DATA_DIR "/mt_rainier_90m.tif", {.lonLatAsCartesian = true});  // with nodata holes
+  const DemTerrain dem =
+      loadDem(QOTA_DATA_DIR "/mt_rainier_90m.tif", {.lonLatAsCartesian = true});  // with nodata holes
   expectGridMatchesQuadtree(dem.mesh, dem.mapping, 400000, 1);
 }
 
@@ -122,17 +123,17 @@ TEST(GridFastPath, RotatedAndSyntheticGrids) {
   for (auto& v : mesh.vertices) v = r * (v - Eigen::Vector3d(3e5, 5e6, 0));
   expectGridMatchesQuadtree(mesh, CartesianMapping(), 100000, 3);
   // Under a tilted gravity the heights shift the projected vertices off the grid: no fast path.
-  EXPECT_FALSE(TerrainIndex(mesh, CartesianMapping({0.05, 0.02, -1})).gridFastPath());
+  EXPECT_FALSE(CartesianIndex(mesh, CartesianMapping({0.05, 0.02, -1})).gridFastPath());
 }
 
 TEST(GridFastPath, OnlyForGridsAndUntilAnInsertion) {
   const Heightfield f = fractalHeightfield(30, 30, 1.0, 5.0, 5);
   Mesh mesh = f.toMesh();
-  TerrainIndex index(mesh, CartesianMapping());
+  CartesianIndex index(mesh, CartesianMapping());
   EXPECT_TRUE(index.gridFastPath());
   // Removing a triangle keeps the path (its cell falls back to the quadtree, which has none).
   ASSERT_TRUE(index.removePolygon(100));
-  TerrainIndex slow(mesh, CartesianMapping(), quadtreeOnly());
+  CartesianIndex slow(mesh, CartesianMapping(), quadtreeOnly());
   slow.removePolygon(100);
   std::mt19937_64 rng(6);
   for (int i = 0; i < 20000; ++i) {
@@ -144,11 +145,11 @@ TEST(GridFastPath, OnlyForGridsAndUntilAnInsertion) {
   EXPECT_EQ(index.top(8, 6)->height, 100);
   // A grid with an extra overlapping polygon is not a grid.
   mesh.addTriangle(0, 1, 31);
-  EXPECT_FALSE(TerrainIndex(mesh, CartesianMapping()).gridFastPath());
+  EXPECT_FALSE(CartesianIndex(mesh, CartesianMapping()).gridFastPath());
   // Nor is a warped one.
   Mesh warped = f.toMesh();
   warped.vertices[45].x() += 0.3;
-  EXPECT_FALSE(TerrainIndex(warped, CartesianMapping()).gridFastPath());
+  EXPECT_FALSE(CartesianIndex(warped, CartesianMapping()).gridFastPath());
 }
 
 }  // namespace
@@ -160,7 +161,7 @@ namespace {
 TEST(GridFastPath, CursorMemoAnswersAsPlainQueries) {
   const Heightfield f = fractalHeightfield(40, 40, 1.0, 8.0, 9);
   const Heightfield g = fractalHeightfield(40, 40, 1.0, 8.0, 10);
-  TerrainIndex a(f.toMesh(), CartesianMapping()), b(g.toMesh(), CartesianMapping());
+  CartesianIndex a(f.toMesh(), CartesianMapping()), b(g.toMesh(), CartesianMapping());
   ASSERT_TRUE(a.gridFastPath());
   Quadtree::Cursor cursor;
   std::mt19937_64 rng(11);
@@ -168,7 +169,7 @@ TEST(GridFastPath, CursorMemoAnswersAsPlainQueries) {
   for (int i = 0; i < 20000; ++i) {
     u = std::clamp(u + uniform(rng, -0.05, 0.07), 0.0, 39.0);
     v = std::clamp(v + uniform(rng, -0.05, 0.06), 0.0, 39.0);
-    const TerrainIndex& index = i % 1000 < 500 ? a : b;  // the cursor changes hands
+    const CartesianIndex& index = i % 1000 < 500 ? a : b;  // the cursor changes hands
     ASSERT_EQ(index.heightBelow(cursor, u, v, 1e300), index.heightBelow(u, v, 1e300)) << i;
     const auto hit = index.below(cursor, u, v, 1e300), plain = index.below(u, v, 1e300);
     ASSERT_EQ(hit.has_value(), plain.has_value());
@@ -189,7 +190,7 @@ TEST(GridFastPath, ConcurrentStatsQueriesAndDeferredBuild) {
   // thread alone, and no race (scripts/sanitize.sh runs this under ThreadSanitizer).
   const Heightfield f = fractalHeightfield(200, 160, 1.0, 20.0, 21);
   const Mesh mesh = f.toMesh();
-  const TerrainIndex index(mesh, CartesianMapping());
+  const CartesianIndex index(mesh, CartesianMapping());
   ASSERT_TRUE(index.gridFastPath());
   std::vector<std::optional<double>> expect(400);
   for (int i = 0; i < 400; ++i) expect[i] = index.heightBelow(0.37 * i, 0.29 * i, 1e9);
@@ -212,7 +213,6 @@ TEST(GridFastPath, ConcurrentStatsQueriesAndDeferredBuild) {
   EXPECT_GT(index.stats().tree.nodes, 0u);
 }
 
-
 // An index built from a GridMesh is the index of the Mesh it stands for (GridMesh::toMesh), bit
 // for bit: the same polygons, statistics and answers at random points, vertices and edges, with
 // holes, either turn, a sheared lattice, a lattice off the affine grid, the quadtree only, and
@@ -223,7 +223,7 @@ void expectGridMeshIsItsMesh(const GridMesh& grid, const CartesianMapping& mappi
                              std::uint64_t seed) {
   SCOPED_TRACE(seed);
   const Mesh mesh = grid.toMesh();
-  const TerrainIndex direct(grid, mapping, options), viaMesh(mesh, mapping, options);
+  const CartesianIndex direct(grid, mapping, options), viaMesh(mesh, mapping, options);
   ASSERT_EQ(direct.gridFastPath(), viaMesh.gridFastPath());
   ASSERT_EQ(direct.memoryBytesNow(), viaMesh.memoryBytesNow());
   const IndexStats a = direct.stats(), b = viaMesh.stats();
@@ -363,7 +363,7 @@ TEST(GridMesh, IndexIsItsMeshsIndex) {
   // Off the affine grid (a vertex moved by a thousandth of a cell): the general path, alike.
   auto v3 = v1;
   v3[200].x() += 0.03;
-  const TerrainIndex moved(GridMesh{.width = 47, .height = 31, .vertices = v3}, centred);
+  const CartesianIndex moved(GridMesh{.width = 47, .height = 31, .vertices = v3}, centred);
   EXPECT_FALSE(moved.gridFastPath());
   expectGridMeshIsItsMesh({.width = 47, .height = 31, .vertices = v3}, centred, {}, 5);
   // Under a tilted gravity the heights move the projected vertices off the grid.
@@ -385,18 +385,18 @@ TEST(GridMesh, RefusesAsItsMesh) {
   const GridMesh grid{.width = 4, .height = 3, .vertices = v};
   std::string direct, viaMesh;
   try {
-    TerrainIndex index(grid, CartesianMapping());
+    CartesianIndex index(grid, CartesianMapping());
   } catch (const Error& e) {
     direct = e.what();
   }
   try {
-    TerrainIndex index(grid.toMesh(), CartesianMapping());
+    CartesianIndex index(grid.toMesh(), CartesianMapping());
   } catch (const Error& e) {
     viaMesh = e.what();
   }
   EXPECT_FALSE(direct.empty());
   EXPECT_EQ(direct, viaMesh);
-  EXPECT_THROW(TerrainIndex(GridMesh{.width = 5, .height = 3, .vertices = v}, CartesianMapping()), Error);
+  EXPECT_THROW(CartesianIndex(GridMesh{.width = 5, .height = 3, .vertices = v}, CartesianMapping()), Error);
 }
 
 }  // namespace

@@ -90,7 +90,7 @@ void addPlate(Mesh& m, const Eigen::Vector3d& centre, const Eigen::Vector3d& nor
 //   singular(mapping)       world points the mapping cannot map (no terrain there, no error)
 
 struct Planar {
-  using Index = TerrainIndex;
+  using Index = CartesianIndex;
   using Mapping = CartesianMapping;
   static constexpr bool kParallelLines = true;
   static constexpr bool kClosed = false;
@@ -409,14 +409,14 @@ struct World {
   Mesh mesh = T::mesh();
   typename T::Mapping mapping = T::mapping();
   Index index{mesh, mapping, T::options()};
-  double scale = scaleOf(mesh);               // bounds the world coordinates
-  double ambiguous = 1e-10 * scale;           // nearer an outline than this: either answer
-  double tolerance = 1e-10 * scale;           // heights, points, line parameters
+  double scale = scaleOf(mesh);      // bounds the world coordinates
+  double ambiguous = 1e-10 * scale;  // nearer an outline than this: either answer
+  double tolerance = 1e-10 * scale;  // heights, points, line parameters
   Oracle oracle{mesh, ambiguous};
   MappedDomain domain = mapping.domain();
-  Box2 box;                                   // the mapped vertices' (u, v)
-  double hlo = kInf, hhi = -kInf;             // and h
-  std::vector<std::uint8_t> leftOut;          // per polygon, as the index must leave it out
+  Box2 box;                           // the mapped vertices' (u, v)
+  double hlo = kInf, hhi = -kInf;     // and h
+  std::vector<std::uint8_t> leftOut;  // per polygon, as the index must leave it out
   std::uint64_t expectTriangles = 0, expectLeftOut = 0;
 
   World() {
@@ -526,7 +526,8 @@ bool sameHit(const std::optional<Hit>& a, const std::optional<Hit>& b) {
   return a.has_value() == b.has_value() && (!a || sameHit(*a, *b));
 }
 bool sameHits(const std::vector<Hit>& a, const std::vector<Hit>& b) {
-  return a.size() == b.size() && std::equal(a.begin(), a.end(), b.begin(), [](const Hit& x, const Hit& y) { return sameHit(x, y); });
+  return a.size() == b.size() &&
+         std::equal(a.begin(), a.end(), b.begin(), [](const Hit& x, const Hit& y) { return sameHit(x, y); });
 }
 
 // The oracle's crossings of the line of (u, v), on the part of it that is (u, v)'s.
@@ -545,7 +546,8 @@ std::vector<LineCrossing> oracleAt(const World<T>& w, double u, double v) {
     // h grows against down when kHeightUp, along it otherwise; the origin has h = 0.
     const double h = static_cast<double>(T::Mapping::kHeightUp ? -c.t : c.t);
     if (!T::onLine(w.mapping, v, h)) continue;
-    out.push_back({c.polygon, h, c.margin > w.ambiguous, c.normal.dot(line.down) > 0 ? Eigen::Vector3d(-c.normal) : c.normal});
+    out.push_back(
+        {c.polygon, h, c.margin > w.ambiguous, c.normal.dot(line.down) > 0 ? Eigen::Vector3d(-c.normal) : c.normal});
   }
   return out;
 }
@@ -572,8 +574,8 @@ void checkGeometry(const World<T>& w, const Hit& got, const LineCrossing& x, dou
   ASSERT_NEAR(got.normal.norm(), 1.0, 1e-12) << what << at;
   const Eigen::Vector3d down = w.mapping.line(u, v).down;
   if (std::fabs(x.up.dot(down)) > 1e-6) {
-    ASSERT_LE((got.normal - x.up).norm(), 1e-6) << what << ": normal " << got.normal.transpose() << ", want "
-                                                << x.up.transpose() << at;
+    ASSERT_LE((got.normal - x.up).norm(), 1e-6)
+        << what << ": normal " << got.normal.transpose() << ", want " << x.up.transpose() << at;
   }
 }
 
@@ -623,7 +625,8 @@ template <class T>
 void checkAll(const World<T>& w, const char* what, const std::vector<Hit>& got, const std::vector<LineCrossing>& xs,
               double u, double v, const At& at, bool open) {
   for (std::size_t i = 0; i < got.size(); ++i) {
-    const auto x = std::find_if(xs.begin(), xs.end(), [&](const LineCrossing& c) { return c.polygon == got[i].polygon; });
+    const auto x =
+        std::find_if(xs.begin(), xs.end(), [&](const LineCrossing& c) { return c.polygon == got[i].polygon; });
     ASSERT_NE(x, xs.end()) << what << ": polygon " << got[i].polygon << " is not on the line" << at;
     ASSERT_NEAR(got[i].height, x->h, w.tolerance) << what << ": polygon " << got[i].polygon << at;
     checkGeometry(w, got[i], *x, u, v, at, what);
@@ -725,8 +728,8 @@ class IndexFace : public ::testing::Test {
   static void TearDownTestSuite() { world_.reset(); }
   static const World<T>& world() { return *world_; }
   static void report(const char* what, const Counts& n) {
-    std::printf("[   counts ] %s %s: %d queries, %d with a clear answer, %d that must hit\n", T::kName, what,
-                n.queries, n.clear, n.mustHit);
+    std::printf("[   counts ] %s %s: %d queries, %d with a clear answer, %d that must hit\n", T::kName, what, n.queries,
+                n.clear, n.mustHit);
   }
 
  private:
@@ -836,7 +839,8 @@ TYPED_TEST(IndexFace, SeamAndPolesAreOneLine) {
     ASSERT_TRUE(sameHit(index.below(u0, v, h), index.below(u1, v, h))) << "below, and u = " << u1 << at;
     ASSERT_TRUE(sameHit(index.above(u0, v, h), index.above(u1, v, h))) << "above, and u = " << u1 << at;
     ASSERT_TRUE(sameHits(index.all(u0, v), index.all(u1, v))) << "all, and u = " << u1 << at;
-    ASSERT_TRUE(sameBits(index.heightBelow(u0, v, h), index.heightBelow(u1, v, h))) << "heightBelow, and u = " << u1 << at;
+    ASSERT_TRUE(sameBits(index.heightBelow(u0, v, h), index.heightBelow(u1, v, h)))
+        << "heightBelow, and u = " << u1 << at;
   };
   for (int i = 0; i < 300; ++i) {
     const double v = w.drawUV(rng).v, h = w.drawH(rng);
@@ -855,7 +859,9 @@ TYPED_TEST(IndexFace, SeamAndPolesAreOneLine) {
   if (w.latitudes()) {
     for (const double pole : {w.domain.vlo, w.domain.vhi}) {
       for (int i = 0; i < 100; ++i) {
-        const double u = i == 0 ? 0.0 : i < 50 ? uniform(rng, -540, 540) : 0.25 * static_cast<double>(rng() % 1441) - 180;
+        const double u = i == 0   ? 0.0
+                         : i < 50 ? uniform(rng, -540, 540)
+                                  : 0.25 * static_cast<double>(rng() % 1441) - 180;
         const double h = w.drawH(rng);
         expectOneLine(0.0, u, pole, h);
         checkPoint(w, u, pole, h, true, true, n);
@@ -889,12 +895,14 @@ TYPED_TEST(IndexFace, FarOutsideIsNoTerrain) {
     const Point2 p = w.drawUV(rng);
     const double h = w.drawH(rng);
     if (!std::isfinite(w.domain.uhi)) {
-      for (const double u : {w.box.uhi + uniform(rng, 0.01, 10) * du, w.box.ulo - uniform(rng, 0.01, 1e6) * du, 1e300, -1e300}) {
+      for (const double u :
+           {w.box.uhi + uniform(rng, 0.01, 10) * du, w.box.ulo - uniform(rng, 0.01, 1e6) * du, 1e300, -1e300}) {
         expectNone(u, p.v, h);
       }
     }
     if (!std::isfinite(w.domain.vhi)) {
-      for (const double v : {w.box.vhi + uniform(rng, 0.01, 10) * dv, w.box.vlo - uniform(rng, 0.01, 1e6) * dv, 1e300, -1e300}) {
+      for (const double v :
+           {w.box.vhi + uniform(rng, 0.01, 10) * dv, w.box.vlo - uniform(rng, 0.01, 1e6) * dv, 1e300, -1e300}) {
         expectNone(p.u, v, h);
       }
     }
@@ -929,7 +937,8 @@ TYPED_TEST(IndexFace, InvalidInputIsNoTerrainNotAnError) {
   std::size_t p0 = 0;
   while (w.leftOut[p0]) ++p0;
   Eigen::Vector3d centre = Eigen::Vector3d::Zero();
-  for (std::uint32_t i : w.mesh.polygon(p0)) centre += w.mesh.vertices[i] / static_cast<double>(w.mesh.polygon(p0).size());
+  for (std::uint32_t i : w.mesh.polygon(p0))
+    centre += w.mesh.vertices[i] / static_cast<double>(w.mesh.polygon(p0).size());
   const Eigen::Vector3d m0 = w.mapping.toMapped(centre);
   const double u0 = m0.x(), v0 = m0.y(), h0 = m0.z();
   ASSERT_TRUE(index.top(u0, v0));
@@ -981,7 +990,8 @@ TYPED_TEST(IndexFace, InvalidInputIsNoTerrainNotAnError) {
   EXPECT_EQ(lowest->polygon, all.back().polygon);
 
   // World points that are not finite, or where the mapping has no (u, v).
-  std::vector<Eigen::Vector3d> badWorld = {{kNaN, 0, 0}, {0, kNaN, 0}, {0, 0, kNaN}, {kInf, 0, 0}, {0, -kInf, 0}, {0, 0, kInf}};
+  std::vector<Eigen::Vector3d> badWorld = {{kNaN, 0, 0}, {0, kNaN, 0},  {0, 0, kNaN},
+                                           {kInf, 0, 0}, {0, -kInf, 0}, {0, 0, kInf}};
   for (const Eigen::Vector3d& p : TypeParam::singular(w.mapping)) badWorld.push_back(p);
   for (const Eigen::Vector3d& p : badWorld) {
     EXPECT_NO_THROW({
@@ -1044,7 +1054,7 @@ TYPED_TEST(IndexFace, CursorWalksAnswerAsPlainQueries) {
   Point2 p = w.drawUV(rng);
   int queries = 0;
   for (int i = 0; i < 8000; ++i) {
-    if (i % 1000 == 999) p = w.drawUV(rng);  // a jump
+    if (i % 1000 == 999) p = w.drawUV(rng);    // a jump
     p.u += uniform(rng, -stepU, 1.5 * stepU);  // drifts across the seam without wrapping
     p.v += uniform(rng, -stepV, stepV);
     if (w.latitudes()) p.v = std::clamp(p.v, w.domain.vlo, w.domain.vhi);  // onto the poles exactly
@@ -1111,7 +1121,8 @@ TYPED_TEST(IndexFace, BatchesAnswerAsSingleQueriesBitForBit) {
   for (const double zz : {kInf, -kInf, kNaN}) {
     fresh.heightsBelow(points, zz, out);
     for (std::size_t i = 0; i < n; ++i) {
-      ASSERT_TRUE(sameBits(out[i], w.index.heightBelow(points[i].u, points[i].v, zz))) << At{points[i].u, points[i].v, zz};
+      ASSERT_TRUE(sameBits(out[i], w.index.heightBelow(points[i].u, points[i].v, zz)))
+          << At{points[i].u, points[i].v, zz};
     }
   }
   for (const unsigned threads : {1u, 2u, 0u}) {
@@ -1266,12 +1277,12 @@ TYPED_TEST(IndexFace, StatsAndMemoryAddUp) {
     const Point2 p = w.drawUV(rng);
     ASSERT_GE(index.testsAt(p.u, p.v), index.all(p.u, p.v).size()) << At{p.u, p.v, 0};
   }
-  std::printf("[   counts ] %s: %llu polygons, %llu triangles, %llu left out, %llu nodes, %.2f tests a query, "
-              "%llu bytes (%llu before the deferred build)\n",
-              T::kName, static_cast<unsigned long long>(s.polygons), static_cast<unsigned long long>(s.triangles),
-              static_cast<unsigned long long>(s.leftOut), static_cast<unsigned long long>(s.tree.nodes),
-              s.tree.averageTests, static_cast<unsigned long long>(s.memoryBytes),
-              static_cast<unsigned long long>(before));
+  std::printf(
+      "[   counts ] %s: %llu polygons, %llu triangles, %llu left out, %llu nodes, %.2f tests a query, "
+      "%llu bytes (%llu before the deferred build)\n",
+      T::kName, static_cast<unsigned long long>(s.polygons), static_cast<unsigned long long>(s.triangles),
+      static_cast<unsigned long long>(s.leftOut), static_cast<unsigned long long>(s.tree.nodes), s.tree.averageTests,
+      static_cast<unsigned long long>(s.memoryBytes), static_cast<unsigned long long>(before));
 }
 
 }  // namespace

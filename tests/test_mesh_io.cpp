@@ -31,16 +31,15 @@
 
 namespace {
 
+using qota::CartesianIndex;
 using qota::MeshFile;
 using qota::MeshFileOptions;
-using qota::TerrainIndex;
 
 const std::string kTestArea = QOTA_DATA_DIR "/testarea.obj";
 
 // A directory of this process's own (tests may run in parallel processes), removed at the end.
 std::filesystem::path scratchDir() {
-  return std::filesystem::temp_directory_path() /
-         ("qota_mesh_io_" + std::to_string(static_cast<long>(::getpid())));
+  return std::filesystem::temp_directory_path() / ("qota_mesh_io_" + std::to_string(static_cast<long>(::getpid())));
 }
 
 std::filesystem::path scratch(const std::string& name) {
@@ -55,8 +54,7 @@ class RemoveScratch : public ::testing::Environment {
     std::filesystem::remove_all(scratchDir(), ec);
   }
 };
-[[maybe_unused]] const auto* const kRemoveScratch =
-    ::testing::AddGlobalTestEnvironment(new RemoveScratch);
+[[maybe_unused]] const auto* const kRemoveScratch = ::testing::AddGlobalTestEnvironment(new RemoveScratch);
 
 std::string writeText(const std::string& name, const std::string& text) {
   const auto path = scratch(name);
@@ -80,9 +78,9 @@ const MeshFile& testArea() {
   return file;
 }
 
-const TerrainIndex& testAreaIndex() {
-  static const TerrainIndex index(
-      testArea().mesh, qota::CartesianMapping(Eigen::Vector3d(0, 0, -1), testArea().origin));
+const CartesianIndex& testAreaIndex() {
+  static const CartesianIndex index(testArea().mesh,
+                                    qota::CartesianMapping(Eigen::Vector3d(0, 0, -1), testArea().origin));
   return index;
 }
 
@@ -144,8 +142,8 @@ TEST(MeshIo, TestAreaCountsNamesAndSources) {
 
   // All 14 classes of the file, in order of first use; no unnamed material.
   EXPECT_EQ(f.materials.size(), 14u);
-  for (const char* m : {"Building", "BuildingWall", "Terrain", "TerrainWall", "Water", "WaterWall",
-                        "Road", "RoadWall", "Forest", "Bridge", "Separation"}) {
+  for (const char* m : {"Building", "BuildingWall", "Terrain", "TerrainWall", "Water", "WaterWall", "Road", "RoadWall",
+                        "Forest", "Bridge", "Separation"}) {
     EXPECT_GE(f.materialIndex(m), 0) << m;
   }
   EXPECT_EQ(f.materialIndex(""), -1);
@@ -208,19 +206,16 @@ TEST(MeshIo, TestAreaSharesVertices) {
 
 TEST(MeshIo, TestAreaWallsAreVerticalAndLeftOutOfTheIndex) {
   const MeshFile& f = testArea();
-  const TerrainIndex& index = testAreaIndex();
+  const CartesianIndex& index = testAreaIndex();
   std::size_t walls = 0, buildingWalls = 0;
   for (std::size_t p = 0; p < f.mesh.polygonCount(); ++p) {
     const std::string& m = f.materialOf(p);
     if (m.size() < 4 || m.compare(m.size() - 4, 4, "Wall") != 0) continue;
     ++walls;
     const auto idx = f.mesh.polygon(p);
-    const auto xy = [&](std::uint32_t i) {
-      return qota::Point2{f.mesh.vertices[i].x(), f.mesh.vertices[i].y()};
-    };
+    const auto xy = [&](std::uint32_t i) { return qota::Point2{f.mesh.vertices[i].x(), f.mesh.vertices[i].y()}; };
     // Vertical: the shadow on the ground has no area, exactly.
-    EXPECT_EQ(qota::orient2dSign(xy(idx[0]), xy(idx[1]), xy(idx[2])), 0)
-        << "line " << f.polygonSource[p];
+    EXPECT_EQ(qota::orient2dSign(xy(idx[0]), xy(idx[1]), xy(idx[2])), 0) << "line " << f.polygonSource[p];
     buildingWalls += m == "BuildingWall";
   }
   EXPECT_EQ(buildingWalls, 3066u);
@@ -233,8 +228,7 @@ TEST(MeshIo, TestAreaWallsAreVerticalAndLeftOutOfTheIndex) {
 // A level polygon of `material` (area over 2 m^2) whose centroid the oracle sees unambiguously
 // (well inside it, nothing else near) with this polygon on top, and (when `alone`) no other
 // polygon below it: the highest such one when `highest`, else the first in the file.
-std::size_t findProbe(const MeshFile& f, const std::string& material, bool alone, bool highest,
-                      Eigen::Vector3d& at) {
+std::size_t findProbe(const MeshFile& f, const std::string& material, bool alone, bool highest, Eigen::Vector3d& at) {
   std::vector<std::pair<std::size_t, Eigen::Vector3d>> candidates;
   for (std::size_t p = 0; p < f.mesh.polygonCount(); ++p) {
     if (f.materialOf(p) != material) continue;
@@ -250,9 +244,8 @@ std::size_t findProbe(const MeshFile& f, const std::string& material, bool alone
   for (const auto& [p, centroid] : candidates) {
     const auto r = qota::test::bruteForce(f.mesh, Eigen::Vector3d(0, 0, -1), f.origin, centroid);
     if (r.nearestEdge < 0.05 || (alone && r.hits.size() != 1)) continue;
-    const auto top =
-        std::max_element(r.hits.begin(), r.hits.end(),
-                         [](const auto& x, const auto& y) { return x.height < y.height; });
+    const auto top = std::max_element(r.hits.begin(), r.hits.end(),
+                                      [](const auto& x, const auto& y) { return x.height < y.height; });
     if (top == r.hits.end() || top->polygon != p) continue;
     at = centroid;
     return p;
@@ -262,7 +255,7 @@ std::size_t findProbe(const MeshFile& f, const std::string& material, bool alone
 
 TEST(MeshIo, TestAreaRoofAndGroundHeights) {
   const MeshFile& f = testArea();
-  const TerrainIndex& index = testAreaIndex();
+  const CartesianIndex& index = testAreaIndex();
 
   Eigen::Vector3d roof;
   const std::size_t roofPolygon = findProbe(f, "Building", false, true, roof);
@@ -292,7 +285,7 @@ TEST(MeshIo, TestAreaRoofAndGroundHeights) {
 
 TEST(MeshIo, TestAreaTopMatchesBruteForce) {
   const MeshFile& f = testArea();
-  const TerrainIndex& index = testAreaIndex();
+  const CartesianIndex& index = testAreaIndex();
   const unsigned seed = 20240611;
   std::mt19937 rng(seed);
   // The model's footprint and a margin around it, where there is no terrain.
@@ -323,7 +316,7 @@ TEST(MeshIo, KeepDegenerateKeepsThemAsWalls) {
   const MeshFile f = qota::loadMeshFile(kTestArea, options);
   EXPECT_EQ(f.degenerate, 2u);
   EXPECT_EQ(f.mesh.polygonCount(), 28619u);
-  const TerrainIndex index(f.mesh, qota::CartesianMapping(Eigen::Vector3d(0, 0, -1), f.origin));
+  const CartesianIndex index(f.mesh, qota::CartesianMapping(Eigen::Vector3d(0, 0, -1), f.origin));
   EXPECT_EQ(index.stats().leftOut, 3974u + 2u);
 }
 
@@ -347,7 +340,7 @@ TEST(MeshIo, ObjSyntax) {
                                      "f -3 -1 -2\n"
                                      "g third\n"
                                      "v 3 0 5\nv 5 0 5\nv 5 2 5\nv 4 1 5\nv 3 2 5\n"  // a dart
-                                     "f 7 8 \\\n 9 10 11\n"  // continued over two lines
+                                     "f 7 8 \\\n 9 10 11\n"                           // continued over two lines
                                      "l 1 2\n"
                                      "s off\n");
   const MeshFile f = qota::loadMeshFile(path);
@@ -369,8 +362,7 @@ TEST(MeshIo, ObjSyntax) {
   // The dart's triangles cover it exactly: area 2 + 2 - 1 - ... = its shoelace area, 3.
   double area = 0;
   for (std::size_t p = 2; p < 5; ++p) {
-    area +=
-        0.5 * (corner(f, p, 1) - corner(f, p, 0)).cross(corner(f, p, 2) - corner(f, p, 0)).norm();
+    area += 0.5 * (corner(f, p, 1) - corner(f, p, 0)).cross(corner(f, p, 2) - corner(f, p, 0)).norm();
   }
   EXPECT_DOUBLE_EQ(area, 3.0);
 }
@@ -393,8 +385,7 @@ TEST(MeshIo, ObjErrorsNameFileAndLine) {
       {"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3 2 1 3\n", ""},  // a bow tie of repeats: see below
       {"v 0 0 0\n", "bad.obj: no polygons"},
       {"v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n", "bad.obj: no polygons (all 1 faces are degenerate"},
-      {"v 0 0 0\nv 2 0 0\nv 2 2 0\nv 0 2 0\nf 1 3 2 4\n",
-       "bad.obj:5: cannot cut the 4-corner polygon"},
+      {"v 0 0 0\nv 2 0 0\nv 2 2 0\nv 0 2 0\nf 1 3 2 4\n", "bad.obj:5: cannot cut the 4-corner polygon"},
   };
   for (const auto& c : cases) {
     const std::string path = writeText("bad.obj", c.text);
@@ -408,8 +399,7 @@ TEST(MeshIo, ObjErrorsNameFileAndLine) {
 TEST(MeshIo, MissingAndUnknownFiles) {
   const std::string missing = errorOf([] { qota::loadMeshFile("/no/such/terrain.obj"); });
   EXPECT_NE(missing.find("/no/such/terrain.obj: no such file"), std::string::npos) << missing;
-  EXPECT_NE(errorOf([] { qota::loadMeshFile("/no/such/terrain.gpkg"); }).find("no such file"),
-            std::string::npos);
+  EXPECT_NE(errorOf([] { qota::loadMeshFile("/no/such/terrain.gpkg"); }).find("no such file"), std::string::npos);
   const std::string path = writeText("notes.qqq", "nothing to see\n");
   const std::string unknown = errorOf([&] { qota::loadMeshFile(path); });
   EXPECT_NE(unknown.find(path + ": unknown format"), std::string::npos) << unknown;
@@ -441,8 +431,8 @@ TEST(MeshIo, AssimpStlJoinsRepeatedCorners) {
 TEST(MeshIo, AssimpOffKeepsConvexPolygons) {
   const std::string path = writeText("shapes.off",
                                      "OFF\n12 3 0\n"
-                                     "0 0 0\n2 0 0\n2 2 0\n0 2 0\n"  // a square
-                                     "2 0 0\n3 0 1\n2 2 0\n"         // a triangle on its edge
+                                     "0 0 0\n2 0 0\n2 2 0\n0 2 0\n"         // a square
+                                     "2 0 0\n3 0 1\n2 2 0\n"                // a triangle on its edge
                                      "5 0 0\n7 0 0\n7 2 0\n6 1 0\n5 2 0\n"  // a dart
                                      "4 0 1 2 3\n3 4 5 6\n5 7 8 9 10 11\n");
   const MeshFile f = qota::loadMeshFile(path);
@@ -458,8 +448,8 @@ std::string base64(const std::vector<unsigned char>& bytes) {
   static const char* digits = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
   std::string out;
   for (std::size_t i = 0; i < bytes.size(); i += 3) {
-    const unsigned n = (bytes[i] << 16) | ((i + 1 < bytes.size() ? bytes[i + 1] : 0) << 8) |
-                       (i + 2 < bytes.size() ? bytes[i + 2] : 0);
+    const unsigned n =
+        (bytes[i] << 16) | ((i + 1 < bytes.size() ? bytes[i + 1] : 0) << 8) | (i + 2 < bytes.size() ? bytes[i + 2] : 0);
     out += digits[(n >> 18) & 63];
     out += digits[(n >> 12) & 63];
     out += i + 1 < bytes.size() ? digits[(n >> 6) & 63] : '=';
@@ -475,19 +465,18 @@ TEST(MeshIo, AssimpGltfMaterialsNodesAndTransforms) {
   std::vector<unsigned char> buffer(sizeof positions + sizeof indices);
   std::memcpy(buffer.data(), positions, sizeof positions);
   std::memcpy(buffer.data() + sizeof positions, indices, sizeof indices);
-  const std::string gltf =
-      R"({"asset":{"version":"2.0"},"scene":0,"scenes":[{"nodes":[0]}],)"
-      R"("nodes":[{"name":"house","mesh":0,"translation":[1000,2000,10],"scale":[2,2,2]}],)"
-      R"("meshes":[{"name":"roofmesh","primitives":[)"
-      R"({"attributes":{"POSITION":0},"indices":1,"material":0}]}],)"
-      R"("materials":[{"name":"Roof"}],)"
-      R"("buffers":[{"byteLength":44,"uri":"data:application/octet-stream;base64,)" +
-      base64(buffer) +
-      R"("}],"bufferViews":[{"buffer":0,"byteOffset":0,"byteLength":36},)"
-      R"({"buffer":0,"byteOffset":36,"byteLength":6}],)"
-      R"("accessors":[{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3",)"
-      R"("min":[0,0,0],"max":[1,1,0.5]},)"
-      R"({"bufferView":1,"componentType":5123,"count":3,"type":"SCALAR"}]})";
+  const std::string gltf = R"({"asset":{"version":"2.0"},"scene":0,"scenes":[{"nodes":[0]}],)"
+                           R"("nodes":[{"name":"house","mesh":0,"translation":[1000,2000,10],"scale":[2,2,2]}],)"
+                           R"("meshes":[{"name":"roofmesh","primitives":[)"
+                           R"({"attributes":{"POSITION":0},"indices":1,"material":0}]}],)"
+                           R"("materials":[{"name":"Roof"}],)"
+                           R"("buffers":[{"byteLength":44,"uri":"data:application/octet-stream;base64,)" +
+                           base64(buffer) +
+                           R"("}],"bufferViews":[{"buffer":0,"byteOffset":0,"byteLength":36},)"
+                           R"({"buffer":0,"byteOffset":36,"byteLength":6}],)"
+                           R"("accessors":[{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3",)"
+                           R"("min":[0,0,0],"max":[1,1,0.5]},)"
+                           R"({"bufferView":1,"componentType":5123,"count":3,"type":"SCALAR"}]})";
   const MeshFile f = qota::loadMeshFile(writeText("roof.gltf", gltf));
   EXPECT_EQ(f.format, "assimp:gltf");
   ASSERT_EQ(f.mesh.polygonCount(), 1u);
@@ -498,8 +487,7 @@ TEST(MeshIo, AssimpGltfMaterialsNodesAndTransforms) {
     for (const auto& v : f.mesh.vertices) s.insert({v.x(), v.y(), v.z()});
     return s;
   }();
-  EXPECT_EQ(
-      got, (std::set<std::array<double, 3>>{{1000, 2000, 10}, {1002, 2000, 10}, {1000, 2002, 11}}));
+  EXPECT_EQ(got, (std::set<std::array<double, 3>>{{1000, 2000, 10}, {1002, 2000, 10}, {1000, 2002, 11}}));
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -552,9 +540,8 @@ std::string makeGeoPackage() {
   };
   bool ok = true;
   // Feature 1: two planar patches sharing the edge B-C (z = Z0 + (dx + dy) / 40).
-  const std::array<double, 3> A{X0, Y0, Z0}, B{X0 + 10, Y0, Z0 + 0.25},
-      C{X0 + 10, Y0 + 10, Z0 + 0.5}, D{X0, Y0 + 10, Z0 + 0.25}, E{X0 + 20, Y0, Z0 + 0.5},
-      F{X0 + 20, Y0 + 10, Z0 + 0.75};
+  const std::array<double, 3> A{X0, Y0, Z0}, B{X0 + 10, Y0, Z0 + 0.25}, C{X0 + 10, Y0 + 10, Z0 + 0.5},
+      D{X0, Y0 + 10, Z0 + 0.25}, E{X0 + 20, Y0, Z0 + 0.5}, F{X0 + 20, Y0 + 10, Z0 + 0.75};
   OGRPolyhedralSurface surface;
   const OGRPolygon patch1 = polygon({ring({A, B, C, D})}), patch2 = polygon({ring({B, E, F, C})});
   surface.addGeometry(&patch1);
@@ -565,14 +552,11 @@ std::string makeGeoPackage() {
   ok &= add(roofs, polygon({ring({E, G, H, F})}), "terrace");
   // Feature 3: a level yard with a square hole in it.
   const double x3 = X0 + 40, z3 = Z0 - 1;
-  ok &= add(
-      roofs,
-      polygon({ring({{x3, Y0, z3}, {x3 + 20, Y0, z3}, {x3 + 20, Y0 + 20, z3}, {x3, Y0 + 20, z3}}),
-               ring({{x3 + 5, Y0 + 5, z3},
-                     {x3 + 5, Y0 + 15, z3},
-                     {x3 + 15, Y0 + 15, z3},
-                     {x3 + 15, Y0 + 5, z3}})}),
-      "yard");
+  ok &=
+      add(roofs,
+          polygon({ring({{x3, Y0, z3}, {x3 + 20, Y0, z3}, {x3 + 20, Y0 + 20, z3}, {x3, Y0 + 20, z3}}),
+                   ring({{x3 + 5, Y0 + 5, z3}, {x3 + 5, Y0 + 15, z3}, {x3 + 15, Y0 + 15, z3}, {x3 + 15, Y0 + 5, z3}})}),
+          "yard");
   // Feature 4: an L-shaped (non-convex) yard.
   const double x4 = X0 + 70;
   ok &= add(roofs,
@@ -586,8 +570,7 @@ std::string makeGeoPackage() {
   // The TIN layer: two triangles sharing an edge, away from the rest.
   const double x5 = X0 + 100;
   OGRTriangulatedSurface triangles;
-  OGRPoint p0(x5, Y0, Z0), p1(x5 + 10, Y0, Z0 + 1), p2(x5 + 10, Y0 + 10, Z0 + 2),
-      p3(x5, Y0 + 10, Z0 + 1);
+  OGRPoint p0(x5, Y0, Z0), p1(x5 + 10, Y0, Z0 + 1), p2(x5 + 10, Y0 + 10, Z0 + 2), p3(x5, Y0 + 10, Z0 + 1);
   triangles.addGeometryDirectly(new OGRTriangle(p0, p1, p2));
   triangles.addGeometryDirectly(new OGRTriangle(p0, p2, p3));
   ok &= add(tin, triangles, nullptr);
@@ -606,8 +589,7 @@ TEST(MeshIo, GeoPackageEveryLayer) {
   EXPECT_FALSE(f.singlePrecision);
   // Materials are the layer names; objects the features.
   EXPECT_EQ(f.materials, (std::vector<std::string>{"roofs", "tin"}));
-  EXPECT_EQ(f.objects,
-            (std::vector<std::string>{"roofs:1", "roofs:2", "roofs:3", "roofs:4", "tin:1"}));
+  EXPECT_EQ(f.objects, (std::vector<std::string>{"roofs:1", "roofs:2", "roofs:3", "roofs:4", "tin:1"}));
   // 2 patches + 1 polygon + 8 triangles around the hole + 4 for the L + 2 TIN triangles.
   ASSERT_EQ(f.mesh.polygonCount(), 17u);
   EXPECT_EQ(f.triangulated, 2u);
@@ -635,7 +617,7 @@ TEST(MeshIo, GeoPackageEveryLayer) {
 TEST(MeshIo, GeoPackageQueries) {
   ASSERT_FALSE(geoPackage().empty());
   const MeshFile f = qota::loadMeshFile(geoPackage());
-  const TerrainIndex index(f.mesh, qota::CartesianMapping(Eigen::Vector3d(0, 0, -1), f.origin));
+  const CartesianIndex index(f.mesh, qota::CartesianMapping(Eigen::Vector3d(0, 0, -1), f.origin));
   const Eigen::Vector3d& o = f.origin;
   auto topAt = [&](double x, double y) { return index.top(x - o.x(), y - o.y()); };
   // Inside the first patch: its plane.
@@ -677,54 +659,46 @@ TEST(MeshIo, GeoPackageOneLayerAndMaterialField) {
   EXPECT_EQ(roofs.materialOf(roofs.mesh.polygonCount() - 1), "yard");
 
   options.layer = "nope";
-  EXPECT_NE(errorOf([&] {
-              qota::loadMeshFile(geoPackage(), options);
-            }).find("no layer 'nope' (layers: roofs, tin)"),
+  EXPECT_NE(errorOf([&] { qota::loadMeshFile(geoPackage(), options); }).find("no layer 'nope' (layers: roofs, tin)"),
             std::string::npos);
   options.layer = "tin";  // has no "class" field
-  EXPECT_NE(errorOf([&] {
-              qota::loadMeshFile(geoPackage(), options);
-            }).find("layer 'tin' has no field 'class'"),
+  EXPECT_NE(errorOf([&] { qota::loadMeshFile(geoPackage(), options); }).find("layer 'tin' has no field 'class'"),
             std::string::npos);
 }
 
 TEST(MeshIo, OgrRejectsFlatAndNonSurfaceGeometry) {
-  const std::string flat = writeText(
-      "flat.geojson",
-      R"({"type":"FeatureCollection","features":[{"type":"Feature","id":7,"properties":{},)"
-      R"("geometry":{"type":"Polygon","coordinates":[[[0,0],[1,0],[1,1],[0,0]]]}}]})");
+  const std::string flat =
+      writeText("flat.geojson", R"({"type":"FeatureCollection","features":[{"type":"Feature","id":7,"properties":{},)"
+                                R"("geometry":{"type":"Polygon","coordinates":[[[0,0],[1,0],[1,1],[0,0]]]}}]})");
   const std::string m1 = errorOf([&] { qota::loadMeshFile(flat); });
   EXPECT_NE(m1.find("feature 7: Polygon has no Z coordinates"), std::string::npos) << m1;
-  const std::string line = writeText(
-      "line.geojson",
-      R"({"type":"FeatureCollection","features":[{"type":"Feature","id":3,"properties":{},)"
-      R"("geometry":{"type":"GeometryCollection","geometries":[)"
-      R"({"type":"LineString","coordinates":[[0,0,1],[1,0,1]]}]}}]})");
+  const std::string line =
+      writeText("line.geojson", R"({"type":"FeatureCollection","features":[{"type":"Feature","id":3,"properties":{},)"
+                                R"("geometry":{"type":"GeometryCollection","geometries":[)"
+                                R"({"type":"LineString","coordinates":[[0,0,1],[1,0,1]]}]}}]})");
   const std::string m2 = errorOf([&] { qota::loadMeshFile(line); });
   EXPECT_NE(m2.find("feature 3: 3D Line String is not a surface"), std::string::npos) << m2;
 }
 
 TEST(MeshIo, OgrVerticalWallWithWindow) {
   // A wall in the x-z plane with a window: cut in its own plane, it is all walls for the index.
-  const std::string path = writeText(
-      "wall.geojson",
-      R"({"type":"FeatureCollection","features":[{"type":"Feature","id":1,"properties":{},)"
-      R"("geometry":{"type":"Polygon","coordinates":[)"
-      R"([[0,5,0],[10,5,0],[10,5,6],[0,5,6],[0,5,0]],)"
-      R"([[2,5,2],[2,5,4],[5,5,4],[5,5,2],[2,5,2]]]}}]})");
+  const std::string path =
+      writeText("wall.geojson", R"({"type":"FeatureCollection","features":[{"type":"Feature","id":1,"properties":{},)"
+                                R"("geometry":{"type":"Polygon","coordinates":[)"
+                                R"([[0,5,0],[10,5,0],[10,5,6],[0,5,6],[0,5,0]],)"
+                                R"([[2,5,2],[2,5,4],[5,5,4],[5,5,2],[2,5,2]]]}}]})");
   const MeshFile f = qota::loadMeshFile(path);
   ASSERT_EQ(f.mesh.polygonCount(), 8u);
   EXPECT_EQ(f.triangulated, 1u);
   double area = 0;
   for (std::size_t p = 0; p < 8; ++p) {
-    area +=
-        0.5 * (corner(f, p, 1) - corner(f, p, 0)).cross(corner(f, p, 2) - corner(f, p, 0)).norm();
+    area += 0.5 * (corner(f, p, 1) - corner(f, p, 0)).cross(corner(f, p, 2) - corner(f, p, 0)).norm();
   }
   EXPECT_DOUBLE_EQ(area, 60.0 - 6.0);
-  const TerrainIndex index(f.mesh, qota::CartesianMapping(Eigen::Vector3d(0, 0, -1), f.origin));
+  const CartesianIndex index(f.mesh, qota::CartesianMapping(Eigen::Vector3d(0, 0, -1), f.origin));
   EXPECT_EQ(index.stats().leftOut, 8u);
   // Seen from the side (gravity along +y), the window is a hole.
-  const TerrainIndex side(f.mesh, qota::CartesianMapping(Eigen::Vector3d(0, 1, 0), f.origin));
+  const CartesianIndex side(f.mesh, qota::CartesianMapping(Eigen::Vector3d(0, 1, 0), f.origin));
   EXPECT_EQ(side.stats().leftOut, 0u);
   EXPECT_TRUE(side.topWorld(Eigen::Vector3d(1, 0, 1)));
   EXPECT_FALSE(side.topWorld(Eigen::Vector3d(3.5, 0, 3)));
@@ -750,8 +724,7 @@ Ring2 star(std::mt19937& rng, double cx, double cy, double rmin, double rmax, in
 bool insideRing(const Ring2& r, double x, double y) {  // even-odd rule
   bool in = false;
   for (std::size_t i = 0, j = r.size() - 1; i < r.size(); j = i++) {
-    if ((r[i][1] > y) != (r[j][1] > y) &&
-        x < (r[j][0] - r[i][0]) * (y - r[i][1]) / (r[j][1] - r[i][1]) + r[i][0]) {
+    if ((r[i][1] > y) != (r[j][1] > y) && x < (r[j][0] - r[i][0]) * (y - r[i][1]) / (r[j][1] - r[i][1]) + r[i][0]) {
       in = !in;
     }
   }
@@ -762,8 +735,7 @@ double distanceToRing(const Ring2& r, double x, double y) {
   double best = 1e300;
   for (std::size_t i = 0, j = r.size() - 1; i < r.size(); j = i++) {
     const double ex = r[i][0] - r[j][0], ey = r[i][1] - r[j][1];
-    const double t =
-        std::clamp(((x - r[j][0]) * ex + (y - r[j][1]) * ey) / (ex * ex + ey * ey), 0.0, 1.0);
+    const double t = std::clamp(((x - r[j][0]) * ex + (y - r[j][1]) * ey) / (ex * ex + ey * ey), 0.0, 1.0);
     best = std::min(best, std::hypot(x - r[j][0] - t * ex, y - r[j][1] - t * ey));
   }
   return best;
@@ -824,25 +796,21 @@ TEST(MeshIo, RandomPolygonsWithHolesAreCutExactly) {
   for (std::size_t p = 0; p < f.mesh.polygonCount(); ++p) {
     const auto idx = f.mesh.polygon(p);
     for (std::size_t i = 1; i + 1 < idx.size(); ++i) {
-      const Eigen::Vector3d a = f.mesh.vertices[idx[0]], b = f.mesh.vertices[idx[i]],
-                            c = f.mesh.vertices[idx[i + 1]];
-      cut[f.polygonSource[p]] +=
-          std::fabs((b - a).x() * (c - a).y() - (b - a).y() * (c - a).x()) / 2;
+      const Eigen::Vector3d a = f.mesh.vertices[idx[0]], b = f.mesh.vertices[idx[i]], c = f.mesh.vertices[idx[i + 1]];
+      cut[f.polygonSource[p]] += std::fabs((b - a).x() * (c - a).y() - (b - a).y() * (c - a).x()) / 2;
     }
   }
   for (std::size_t k = 0; k < shapes.size(); ++k) {
-    EXPECT_NEAR(cut[k + 1], shapes[k].area, 1e-6 * shapes[k].area)
-        << "seed " << seed << " polygon " << k + 1;
+    EXPECT_NEAR(cut[k + 1], shapes[k].area, 1e-6 * shapes[k].area) << "seed " << seed << " polygon " << k + 1;
   }
 
-  const TerrainIndex index(f.mesh, qota::CartesianMapping(Eigen::Vector3d(0, 0, -1), f.origin));
+  const CartesianIndex index(f.mesh, qota::CartesianMapping(Eigen::Vector3d(0, 0, -1), f.origin));
   std::uniform_real_distribution<double> offset(-12.0, 12.0);
   int checked = 0;
   for (std::size_t k = 0; k < shapes.size(); ++k) {
     const double cx = X0 + 30.0 * (k % 10), cy = Y0 + 30.0 * (k / 10);
     for (int i = 0; i < 40; ++i) {
-      const double x = cx + (i % 2 ? offset(rng) : offset(rng) / 4),
-                   y = cy + offset(rng) / (i % 2 ? 1 : 4);
+      const double x = cx + (i % 2 ? offset(rng) : offset(rng) / 4), y = cy + offset(rng) / (i % 2 ? 1 : 4);
       bool in = insideRing(shapes[k].rings[0], x, y);
       double near = distanceToRing(shapes[k].rings[0], x, y);
       for (std::size_t h = 1; h < shapes[k].rings.size(); ++h) {
@@ -873,7 +841,8 @@ TEST(MeshFileSafety, AssimpLoopingOnAFileIsAnError) {
   std::filesystem::create_directories(path.parent_path());
   std::ofstream(path, std::ios::binary)
       << "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
-         "element face 2\nproperty list uchar int vertex_indices\ne\xbd" "d_header\n0 0 1\n10 0 1\n10 10 2\n0 10 2\n4 0 1 2 3\n";
+         "element face 2\nproperty list uchar int vertex_indices\ne\xbd"
+         "d_header\n0 0 1\n10 0 1\n10 10 2\n0 10 2\n4 0 1 2 3\n";
   qota::MeshFileOptions options;
   options.readerSeconds = 1;
   const auto start = std::chrono::steady_clock::now();

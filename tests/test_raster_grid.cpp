@@ -140,9 +140,9 @@ TEST(RasterGrid, InnerTriangleWithIsTheRuleBackwards) {
     const auto k = g.triangle(t);
     EXPECT_FALSE(g.innerTriangleWith(k[0], k[1], k[2]).has_value()) << "closure triangle " << t;
   }
-  EXPECT_FALSE(g.innerTriangleWith(1, 5, 6).has_value());   // (TR, BL, BR): the other diagonal
-  EXPECT_FALSE(g.innerTriangleWith(4, 9, 10).has_value());  // from the last column across the row's end
-  EXPECT_FALSE(g.innerTriangleWith(15, 16, 21).has_value()); // below the last row
+  EXPECT_FALSE(g.innerTriangleWith(1, 5, 6).has_value());     // (TR, BL, BR): the other diagonal
+  EXPECT_FALSE(g.innerTriangleWith(4, 9, 10).has_value());    // from the last column across the row's end
+  EXPECT_FALSE(g.innerTriangleWith(15, 16, 21).has_value());  // below the last row
   EXPECT_FALSE(g.innerTriangleWith(0, 0, 6).has_value());
 }
 

@@ -1,5 +1,5 @@
 // RasterSampler (tile by tile) against the surface dem.hpp documents, computed here from GDAL's
-// read of the pixels, and against the whole terrain (loadDem + TerrainIndex, the path qota
+// read of the pixels, and against the whole terrain (loadDem + CartesianIndex, the path qota
 // sample took before): the same height as the whole terrain, bit for bit,
 // at random points, pixel centres, cell sides, tile sides, beside and inside holes, with tiles
 // small enough that boundaries are everywhere and a cache small enough to evict.
@@ -26,7 +26,7 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 // The whole terrain's answer at world (x, y) (already on the surface): the top, or the nearest
 // at or below z, as the world point's z.
-std::optional<double> wholeAnswer(const qota::TerrainIndex& index, double x, double y, const double* z) {
+std::optional<double> wholeAnswer(const qota::CartesianIndex& index, double x, double y, const double* z) {
   const Eigen::Vector3d m = index.mapping().toMapped(Eigen::Vector3d(x, y, z ? *z : 0.0));
   const auto hit = z ? index.below(m.x(), m.y(), m.z()) : index.top(m.x(), m.y());
   if (!hit) return std::nullopt;
@@ -73,11 +73,11 @@ void makePoints(const DemTerrain& dem, std::uint64_t seed, std::vector<double>& 
   for (int i = 0; i < random; ++i) pix.push_back({uc(rng), ur(rng)});
   for (int r = 0; r < dem.height; r += std::max(1, dem.height / 7)) {
     for (int c = 0; c < dem.width; ++c) {
-      pix.push_back({c + 0.5, r + 0.5});                // a centre
-      pix.push_back({c + 1.0, r + 0.5});                // a row's side
-      pix.push_back({c + 0.5, r + 1.0});                // a column's side
-      pix.push_back({c + 1.0, r + 1.0});                // a diagonal's midpoint
-      pix.push_back({c + 0.75, r + 0.75 + 1e-12});      // beside the diagonal
+      pix.push_back({c + 0.5, r + 0.5});            // a centre
+      pix.push_back({c + 1.0, r + 0.5});            // a row's side
+      pix.push_back({c + 0.5, r + 1.0});            // a column's side
+      pix.push_back({c + 1.0, r + 1.0});            // a diagonal's midpoint
+      pix.push_back({c + 0.75, r + 0.75 + 1e-12});  // beside the diagonal
     }
   }
   for (int c = 0; c < dem.width; c += std::max(1, dem.width / 7)) {
@@ -98,7 +98,7 @@ void makePoints(const DemTerrain& dem, std::uint64_t seed, std::vector<double>& 
 void expectSameAsWhole(const std::string& path, int band, int tileSize, std::uint64_t cacheBytes, std::uint64_t seed,
                        double scale = 1, double offset = 0, int random = 20000, std::uint64_t* leanTiles = nullptr) {
   const DemTerrain dem = qota::loadDem(path, {.band = band, .lonLatAsCartesian = true});
-  const qota::TerrainIndex whole(dem.mesh, dem.mapping);
+  const qota::CartesianIndex whole(dem.mesh, dem.mapping);
   RasterSampler sampler(path, {.band = band, .cacheBytes = cacheBytes, .tileSize = tileSize});
   std::vector<double> xs, ys;
   makePoints(dem, seed, xs, ys, random);
@@ -203,8 +203,9 @@ TEST(RasterSampler, LeanTilesAnswerAsTheWholeTerrain) {
     for (int c = 0; c < w; ++c) {
       const bool hole = (c - 30) * (c - 30) + (r - 40) * (r - 40) < 40 || (c == 61 && r > 12) ||
                         std::uniform_real_distribution<double>(0, 1)(rng) < 0.005;
-      v[static_cast<std::size_t>(r) * w + c] =
-          hole ? -9999 : 500 + 80 * std::sin(0.2 * c) * std::cos(0.15 * r) + std::uniform_real_distribution<double>(0, 1e-3)(rng);
+      v[static_cast<std::size_t>(r) * w + c] = hole ? -9999
+                                                    : 500 + 80 * std::sin(0.2 * c) * std::cos(0.15 * r) +
+                                                          std::uniform_real_distribution<double>(0, 1e-3)(rng);
     }
   }
   const auto path = writeSheared("sampler_lean.tif", w, h, v, GDT_Float64);

@@ -41,8 +41,8 @@ Image readPng(const std::filesystem::path& path) {
   EXPECT_STREQ(ds->GetDriver()->GetDescription(), "PNG");
   im.width = ds->GetRasterXSize(), im.height = ds->GetRasterYSize(), im.bands = ds->GetRasterCount();
   im.grey.resize(static_cast<std::size_t>(im.width) * im.height);
-  EXPECT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Read, 0, 0, im.width, im.height, im.grey.data(), im.width,
-                                           im.height, GDT_Byte, 0, 0),
+  EXPECT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Read, 0, 0, im.width, im.height, im.grey.data(), im.width, im.height,
+                                           GDT_Byte, 0, 0),
             CE_None);
   return im;
 }
@@ -60,10 +60,10 @@ ToolRun render(const RenderTreeOptions& o) {
 
 RenderTreeOptions helens(const std::string& name, int size, std::uint32_t maxPoly) {
   RenderTreeOptions o;
-  o.source = kHelens;
+  o.source.source = kHelens;
   o.output = scratch(name).string();
   o.size = size;
-  o.terrain.tree.maxPoly = maxPoly;
+  o.source.terrain.tree.maxPoly = maxPoly;
   o.quiet = true;
   std::filesystem::remove(o.output);
   return o;
@@ -92,7 +92,8 @@ void collectLeaves(const qota::Quadtree& tree, std::uint32_t node, const qota::B
   const qota::Box2& root = tree.box();
   const double mu = b.ulo + std::ldexp(root.uhi - root.ulo, -depth - 1);
   const double mv = b.vlo + std::ldexp(root.vhi - root.vlo, -depth - 1);
-  const qota::Box2 child[4] = {{b.ulo, b.vlo, mu, mv}, {mu, b.vlo, b.uhi, mv}, {b.ulo, mv, mu, b.vhi}, {mu, mv, b.uhi, b.vhi}};
+  const qota::Box2 child[4] = {
+      {b.ulo, b.vlo, mu, mv}, {mu, b.vlo, b.uhi, mv}, {b.ulo, mv, mu, b.vhi}, {mu, mv, b.uhi, b.vhi}};
   for (int c = 0; c < 4; ++c) collectLeaves(tree, n.first + c, child[c], depth + 1, leaves);
 }
 
@@ -130,7 +131,7 @@ TEST(RenderTree, EmptyLeavesAreWhiteAndFullLeavesGrey) {
   ASSERT_GT(im.width, 0);
 
   const qota::DemTerrain dem = qota::loadDem(kHelens);
-  const qota::TerrainIndex index(dem.mesh, dem.mapping, o.terrain);
+  const qota::CartesianIndex index(dem.mesh, dem.mapping, o.source.terrain);
   std::vector<Leaf> leaves;
   collectLeaves(index.tree(), 0, index.tree().box(), 0, leaves);
   // The image pixel at a leaf's centre, when the leaf is at least 5 pixels wide and high.
@@ -152,7 +153,7 @@ TEST(RenderTree, EmptyLeavesAreWhiteAndFullLeavesGrey) {
     if (l.polygons == 0) {
       emptyGrey = std::max(emptyGrey, im.at(i, j)), ++empties;
       EXPECT_GT(im.at(i, j), 160) << "empty leaf at pixel " << i << ", " << j;
-    } else if (l.polygons >= o.terrain.tree.maxPoly) {
+    } else if (l.polygons >= o.source.terrain.tree.maxPoly) {
       fullGrey = std::min(fullGrey, im.at(i, j)), ++fulls;
       EXPECT_LE(im.at(i, j), 160) << "full leaf at pixel " << i << ", " << j;
       EXPECT_GE(im.at(i, j), 80) << "full leaf at pixel " << i << ", " << j;
@@ -191,7 +192,7 @@ TEST(RenderTree, ErrorsExitTwoAndLeaveNoFile) {
   EXPECT_FALSE(std::filesystem::exists(o.output));
 
   o = helens("error.png", 300, 256);
-  o.source = "/no/such/dem.tif";
+  o.source.source = "/no/such/dem.tif";
   r = render(o);
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("/no/such/dem.tif"), std::string::npos) << r.err;

@@ -170,8 +170,8 @@ TEST(SampleTool, FlatSquareAt100OnEveryLoader) {
     EXPECT_EQ(r.out, "100\n100\n100 150\nnone\n") << file << "\n" << r.err;
     // With --query-z: the terrain at or below z.
     o.queryZ = true;
-    std::snprintf(in, sizeof in, "%.3f %.3f 99\n%.3f %.3f 100\n%.3f %.3f 1e6\n", x0 + 5, y0 + 5, x0 + 5, y0 + 5,
-                  x0 + 5, y0 + 5);
+    std::snprintf(in, sizeof in, "%.3f %.3f 99\n%.3f %.3f 100\n%.3f %.3f 1e6\n", x0 + 5, y0 + 5, x0 + 5, y0 + 5, x0 + 5,
+                  y0 + 5);
     EXPECT_EQ(sample(o, in).out, "none\n100\n100\n") << file;
   }
 }
@@ -192,7 +192,8 @@ TEST(SampleTool, QueryLinesPassFieldsThrough) {
   o.queryZ = false;
   r = sample(o, "lon,lat,site\n-121.5,46.5,centre\n");
   EXPECT_EQ(r.out, "error\n1849,centre\n");
-  EXPECT_NE(r.err.find("stdin:1: 'lon' is not a number (a header line? --header skips it)"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("stdin:1: 'lon' is not a number (a header line? --header skips it)"), std::string::npos)
+      << r.err;
   o.header = true;
   o.printWorld = true;
   r = sample(o, "lon,lat,site\n-121.5,46.5,centre\n");
@@ -343,14 +344,16 @@ TEST(SampleTool, SphericalIsTheRayTriangleBruteForce) {
       for (int dc = -1; dc <= 1; ++dc) {
         const int rr = r + dr, cc = c + dc;
         if (rr < 0 || rr + 1 >= e.height) continue;
-        const Eigen::Vector3d tl = vertex(cc, rr), tr = vertex(cc + 1, rr), bl = vertex(cc, rr + 1), br = vertex(cc + 1, rr + 1);
+        const Eigen::Vector3d tl = vertex(cc, rr), tr = vertex(cc + 1, rr), bl = vertex(cc, rr + 1),
+                              br = vertex(cc + 1, rr + 1);
         if (auto t = rayTriangle(Eigen::Vector3d::Zero(), d, tl, bl, br)) return t;
         if (auto t = rayTriangle(Eigen::Vector3d::Zero(), d, tl, br, tr)) return t;
       }
     }
     return std::nullopt;
   };
-  std::vector<std::pair<double, double>> points = {{180, -52}, {-180, -52}, {179.9, 10.1}, {0.1, 0.1}, {86.925, 27.988}};
+  std::vector<std::pair<double, double>> points = {
+      {180, -52}, {-180, -52}, {179.9, 10.1}, {0.1, 0.1}, {86.925, 27.988}};
   std::mt19937_64 rng(90);
   std::uniform_real_distribution<double> lon(-180, 180), lat(-89.5, 89.5);
   for (int i = 0; i < 200; ++i) points.push_back({lon(rng), lat(rng)});
@@ -412,7 +415,8 @@ TEST(SampleTool, CylindricalIsTheRayTriangleBruteForce) {
       for (int di = -1; di <= 1 && !t; ++di) {
         const int i = static_cast<int>(fi) + di, j = static_cast<int>(fj) + dj;
         if (j < 0 || j + 1 >= e.height) continue;
-        const Eigen::Vector3d p00 = vertex(i, j), p10 = vertex(i + 1, j), p01 = vertex(i, j + 1), p11 = vertex(i + 1, j + 1);
+        const Eigen::Vector3d p00 = vertex(i, j), p10 = vertex(i + 1, j), p01 = vertex(i, j + 1),
+                              p11 = vertex(i + 1, j + 1);
         if (p00.allFinite() && p01.allFinite() && p11.allFinite()) t = rayTriangle(origin, dir, p00, p01, p11);
         if (!t && p00.allFinite() && p11.allFinite() && p10.allFinite()) t = rayTriangle(origin, dir, p00, p11, p10);
       }
@@ -447,7 +451,8 @@ TEST(SampleTool, ARasterFarLargerThanMemoryIsSampledByTiles) {
       << "<VRTRasterBand dataType=\"Int16\" band=\"1\">\n";
     for (int r = 0; r < n; ++r) {
       for (int c = 0; c < n; ++c) {
-        f << "<SimpleSource><SourceFilename relativeToVRT=\"0\">" << dem << "</SourceFilename><SourceBand>1</SourceBand>"
+        f << "<SimpleSource><SourceFilename relativeToVRT=\"0\">" << dem
+          << "</SourceFilename><SourceBand>1</SourceBand>"
           << "<SrcRect xOff=\"0\" yOff=\"0\" xSize=\"" << size << "\" ySize=\"" << size << "\"/><DstRect xOff=\""
           << c * size << "\" yOff=\"" << r * size << "\" xSize=\"" << size << "\" ySize=\"" << size
           << "\"/></SimpleSource>\n";

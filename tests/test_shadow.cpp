@@ -104,8 +104,8 @@ TEST(Shadow, IdenticalToBruteForceOnSmallDems) {
     const auto fast = qota::shadowMask(f, light, {{k % 2 ? 3u : 8u, 16}});
     const auto slow = bruteForceMask(f, light);
     for (std::size_t i = 0; i < fast.size(); ++i) {
-      ASSERT_EQ(fast[i], slow[i]) << "case " << k << " cell " << i << " (col " << i % 28 << ", row "
-                                  << i / 28 << ") light " << light.transpose();
+      ASSERT_EQ(fast[i], slow[i]) << "case " << k << " cell " << i << " (col " << i % 28 << ", row " << i / 28
+                                  << ") light " << light.transpose();
     }
     EXPECT_GT(count(fast, Light::Shadow), 0u);
   }
@@ -148,8 +148,8 @@ TEST(Shadow, AxisAndDiagonalSunsAgreeWithTheOracle) {
 TEST(Shadow, StripWalkIdenticalToQuadtree) {
   std::mt19937_64 rng(77);
   std::uniform_real_distribution<double> az(0, 360), alt(1, 80);
-  std::vector<qota::SunPosition> suns = {{0, 10}, {90, 10}, {180, 25}, {270, 3}, {45, 15}, {135, 30},
-                                         {225, 0.5}, {315, 60}, {137.3, 10}, {10, 89}};
+  std::vector<qota::SunPosition> suns = {{0, 10},   {90, 10},   {180, 25}, {270, 3},    {45, 15},
+                                         {135, 30}, {225, 0.5}, {315, 60}, {137.3, 10}, {10, 89}};
   for (int k = 0; k < 10; ++k) suns.push_back({az(rng), alt(rng)});
   std::size_t shadowed = 0, cells = 0;
   for (int k = 0; k < static_cast<int>(suns.size()); ++k) {
@@ -219,7 +219,7 @@ TEST(Shadow, MappedTriangleTestIsTheIndexs) {
   for (int sun = 0; sun < 4; ++sun) {
     const Eigen::Vector3d light = f.towardSun({az(rng), alt(rng)});
     const qota::CartesianMapping mapping(-light);
-    const qota::TerrainIndex index(f.mesh, mapping);
+    const qota::CartesianIndex index(f.mesh, mapping);
     std::vector<Eigen::Vector3d> m(f.mesh.vertices.size());
     for (std::size_t i = 0; i < m.size(); ++i) m[i] = mapping.toMapped(f.mesh.vertices[i]);
     const auto anyTriangle = [&](double u, double v, double h, std::uint32_t vertex) {
@@ -249,7 +249,8 @@ TEST(Shadow, MappedTriangleTestIsTheIndexs) {
     }
     for (int k = 0; k < 300; ++k) {
       const Eigen::Vector3d& a = m[static_cast<std::size_t>(unit(rng) * (m.size() - 1))];
-      check(a.x() + 20 * (unit(rng) - 0.5), a.y() + 20 * (unit(rng) - 0.5), a.z() + 30 * (unit(rng) - 0.5), 0xffffffffu);
+      check(a.x() + 20 * (unit(rng) - 0.5), a.y() + 20 * (unit(rng) - 0.5), a.z() + 30 * (unit(rng) - 0.5),
+            0xffffffffu);
     }
     EXPECT_GT(above, checked / 20);
     EXPECT_LT(above, checked);
@@ -316,9 +317,10 @@ TEST(Shadow, AgreesWithRayMarchOnTheRealDem) {
       }
     }
     RecordProperty("compared", static_cast<int>(compared));
-    std::printf("sun %g/%g: %zu cells compared, %zu differ (%.4f %%), %zu of them shadows the "
-                "march missed\n", sun.azimuth, sun.altitude, compared, differ,
-                100.0 * differ / compared, marchMissed);
+    std::printf(
+        "sun %g/%g: %zu cells compared, %zu differ (%.4f %%), %zu of them shadows the "
+        "march missed\n",
+        sun.azimuth, sun.altitude, compared, differ, 100.0 * differ / compared, marchMissed);
     EXPECT_GT(compared, 200000u);
     EXPECT_LE(differ * 1000, compared);  // at least 99.9 % agree
   }

@@ -43,10 +43,10 @@ std::string rainierPart(const std::string& name, const std::string& crs, std::ar
   for (int r = 0; r < h; ++r) {
     for (int c = 0; c < w; ++c) {
       double v = all.at(c0 + c, r0 + r);
-      if (v < -1000) v = kNodata;  // the DEM's own voids
-      if (std::hypot(c - 64, r - 48) < 7) v = kNodata;          // round void on tile corners
-      if (r == 75 && c > 20 && c < 140) v = kNodata;            // a thin one along a row
-      if ((c * 7919 + r * 104729) % 97 == 0) v = kNodata;       // scattered cells
+      if (v < -1000) v = kNodata;                          // the DEM's own voids
+      if (std::hypot(c - 64, r - 48) < 7) v = kNodata;     // round void on tile corners
+      if (r == 75 && c > 20 && c < 140) v = kNodata;       // a thin one along a row
+      if ((c * 7919 + r * 104729) % 97 == 0) v = kNodata;  // scattered cells
       z[static_cast<std::size_t>(r) * w + c] = v;
     }
   }
@@ -279,7 +279,8 @@ TEST(ShadowTiles, BlocksWithTheirOverlapFromARestoredState) {
   const std::string path = rainierPart("tiles_blocks.tif", "EPSG:4326");
   const qota::DemTerrain dem = qota::loadDem(path, {.lonLatAsCartesian = true});
   const qota::LocalFrame whole = qota::localFrame(dem, qota::FrameOptions{});
-  const qota::ShadowTiles restored = qota::ShadowTiles::restore(qota::ShadowTiles(path, {.lonLatAsCartesian = true}, {}).state());
+  const qota::ShadowTiles restored =
+      qota::ShadowTiles::restore(qota::ShadowTiles(path, {.lonLatAsCartesian = true}, {}).state());
   EXPECT_EQ(restored.frame().body.lowest, whole.body.lowest);
   test::RasterValues raw = test::readRaster(path);
   for (double& v : raw.values) v = v == kNodata ? NAN : v;
@@ -300,10 +301,10 @@ TEST(ShadowTiles, BlocksWithTheirOverlapFromARestoredState) {
     for (int row = 0; row < dem.height; row += side) {
       for (int col = 0; col < dem.width; col += side) {
         const CellWindow tile{col, row, std::min(side, dem.width - col), std::min(side, dem.height - row)};
-        const CellWindow block = restored.checkableWindow(
-            {std::max(0, col - overlap), std::max(0, row - overlap),
-             std::min(dem.width, col + tile.width + overlap) - std::max(0, col - overlap),
-             std::min(dem.height, row + tile.height + overlap) - std::max(0, row - overlap)});
+        const CellWindow block =
+            restored.checkableWindow({std::max(0, col - overlap), std::max(0, row - overlap),
+                                      std::min(dem.width, col + tile.width + overlap) - std::max(0, col - overlap),
+                                      std::min(dem.height, row + tile.height + overlap) - std::max(0, row - overlap)});
         const std::vector<Light> got = restored.maskFromHeights(block, heightsOf(block), tile, light);
         for (int r = 0; r < tile.height; ++r) {
           for (int c = 0; c < tile.width; ++c) {

@@ -94,7 +94,8 @@ void checkAgainstSolarFormula(const std::string& mask, double julianDayUT, doubl
       lit += v == 255, dark += v == 0;
       if (alt < -dip) {
         ++night;
-        EXPECT_EQ(v, 0) << what << ": lit at " << lon << ", " << lat << " with the sun " << -alt << " deg below the horizon";
+        EXPECT_EQ(v, 0) << what << ": lit at " << lon << ", " << lat << " with the sun " << -alt
+                        << " deg below the horizon";
       }
       if (alt > 20) {
         ++day;
@@ -148,9 +149,9 @@ TEST(ShadowTool, ContinentalCropsAndOtherInstants) {
   // 150 W to 150 E, 80 S to 88 N; and 20 W to 170 E, 10 S to 75 N.
   const std::string wide = crop(e, "EPSG:4326", 90, 990, 6, 510, "wide.tif");
   const std::string eurasia = crop(e, "EPSG:4326", 480, 1050, 45, 300, "eurasia.tif");
-  for (const auto& [source, when, jd] : {std::tuple{wide, "2024-06-21T12:00Z", 2460483.0},
-                                         std::tuple{wide, "2024-12-21T06:30Z", 2460665.7708333335},
-                                         std::tuple{eurasia, "2024-03-20T06:00Z", 2460389.75}}) {
+  for (const auto& [source, when, jd] :
+       {std::tuple{wide, "2024-06-21T12:00Z", 2460483.0}, std::tuple{wide, "2024-12-21T06:30Z", 2460665.7708333335},
+        std::tuple{eurasia, "2024-03-20T06:00Z", 2460389.75}}) {
     ShadowOptions o = options(source, "crop.tif");
     o.time = when;
     const ShadowRun run = shadow(o);
@@ -165,8 +166,9 @@ TEST(ShadowTool, ProjectedContinentIsPutOnTheEllipsoid) {
   if (std::system("gdalwarp --version > /dev/null 2>&1") != 0) GTEST_SKIP() << "no gdalwarp";
   const auto merc = scratchPath("mercator.tif");
   std::filesystem::remove(merc);
-  const std::string cmd = "gdalwarp -q -overwrite -t_srs EPSG:3857 -te -20037508 -15538711 20037508 15538711 -ts 720 558 " +
-                          std::string(QOTA_DATA_DIR "/etopo20.tif ") + merc.string();
+  const std::string cmd =
+      "gdalwarp -q -overwrite -t_srs EPSG:3857 -te -20037508 -15538711 20037508 15538711 -ts 720 558 " +
+      std::string(QOTA_DATA_DIR "/etopo20.tif ") + merc.string();
   ASSERT_EQ(std::system(cmd.c_str()), 0);
   ShadowOptions o = options(merc.string(), "mercator_mask.tif");
   o.time = "2024-06-21T12:00Z";
@@ -239,10 +241,11 @@ TEST(ShadowTool, HeightsInFeetCastTheShadowsOfMetres) {
   // The same terrain in metres and in feet (band unit type, or a vertical CRS in US survey feet,
   // or no unit and -z): the same mask, cell for cell, at a low sun. Heights are whole feet, so
   // the metres are exactly the feet times the foot.
-  for (const auto& [foot, unit, crs] : {std::tuple{0.3048, std::string("ft"), std::string("EPSG:4326")},
-                                        std::tuple{0.3048, std::string("foot"), std::string("EPSG:4326")},
-                                        std::tuple{1200.0 / 3937.0, std::string("US survey foot"), std::string("EPSG:4326")},
-                                        std::tuple{1200.0 / 3937.0, std::string(""), std::string("EPSG:4326+6360")}}) {
+  for (const auto& [foot, unit, crs] :
+       {std::tuple{0.3048, std::string("ft"), std::string("EPSG:4326")},
+        std::tuple{0.3048, std::string("foot"), std::string("EPSG:4326")},
+        std::tuple{1200.0 / 3937.0, std::string("US survey foot"), std::string("EPSG:4326")},
+        std::tuple{1200.0 / 3937.0, std::string(""), std::string("EPSG:4326+6360")}}) {
     const FeetDem d = feetDem(foot);
     const std::string metres = writeHeights(d, "metres.tif", "EPSG:4326", foot, "m");
     const std::string feet = writeHeights(d, "feet.tif", crs, 1, unit);
@@ -260,7 +263,8 @@ TEST(ShadowTool, HeightsInFeetCastTheShadowsOfMetres) {
     // the raster's value in feet.
     qota::tools::SampleOptions so;
     so.source = feet;
-    const double x = d.r.geotransform[0] + 150.5 * d.r.geotransform[1], y = d.r.geotransform[3] + 120.5 * d.r.geotransform[5];
+    const double x = d.r.geotransform[0] + 150.5 * d.r.geotransform[1],
+                 y = d.r.geotransform[3] + 120.5 * d.r.geotransform[5];
     std::istringstream in(qota::tools::formatNumber(x) + " " + qota::tools::formatNumber(y) + "\n");
     std::ostringstream out, err;
     qota::tools::sample(so, in, out, err);
@@ -374,9 +378,9 @@ TEST(ShadowTool, HoursCountTheDay) {
   day /= 600;
   for (double v : h.values) EXPECT_NEAR(v, day, 0.15);
   // Steps that mean nothing are refused.
-  for (const auto& hours : {std::array<double, 3>{4, 22, 1e-12}, std::array<double, 3>{4, 22, 30},
-                            std::array<double, 3>{22, 4, 1}, std::array<double, 3>{0, 49, 1},
-                            std::array<double, 3>{4, 22, NAN}}) {
+  for (const auto& hours :
+       {std::array<double, 3>{4, 22, 1e-12}, std::array<double, 3>{4, 22, 30}, std::array<double, 3>{22, 4, 1},
+        std::array<double, 3>{0, 49, 1}, std::array<double, 3>{4, 22, NAN}}) {
     o.hours = hours;
     const ShadowRun run = shadow(o);
     EXPECT_EQ(run.code, 2) << hours[0] << " " << hours[1] << " " << hours[2];
@@ -401,7 +405,8 @@ TEST(ShadowTool, RefusesWhatWouldLoseData) {
   EXPECT_FALSE(std::filesystem::exists(o.output));
   // The output must not be the input; the input stays as it was.
   const auto copy = scratchPath("input.tif");
-  std::filesystem::copy_file(QOTA_DATA_DIR "/mt_rainier_90m.tif", copy, std::filesystem::copy_options::overwrite_existing);
+  std::filesystem::copy_file(QOTA_DATA_DIR "/mt_rainier_90m.tif", copy,
+                             std::filesystem::copy_options::overwrite_existing);
   const auto before = std::filesystem::file_size(copy);
   o = options(copy.string(), "input.tif");
   run = shadow(o);
@@ -579,7 +584,8 @@ TEST(ShadowTool, MemoryLimitsAndTileOptionsAreChecked) {
   EXPECT_EQ(qota::tools::parseByteSize("1.5GiB"), 3ull << 29);
   EXPECT_EQ(qota::tools::parseByteSize("2g"), 2ull << 30);
   EXPECT_EQ(qota::tools::parseByteSize("300000"), 300000u);
-  for (const char* bad : {"", "2X", "-1G", "G", "nan", "1e30T"}) EXPECT_THROW(qota::tools::parseByteSize(bad), qota::Error) << bad;
+  for (const char* bad : {"", "2X", "-1G", "G", "nan", "1e30T"})
+    EXPECT_THROW(qota::tools::parseByteSize(bad), qota::Error) << bad;
 }
 
 }  // namespace

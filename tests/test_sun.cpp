@@ -26,8 +26,8 @@ TEST(Sun, EquinoxesAndSolsticesOf2024) {
     const char* when;
     double declination;
   };
-  for (const Ref& r : {Ref{"2024-03-20T03:06Z", 0.0}, Ref{"2024-06-20T20:51Z", 23.4386},
-                       Ref{"2024-09-22T12:44Z", 0.0}, Ref{"2024-12-21T09:21Z", -23.4386}}) {
+  for (const Ref& r : {Ref{"2024-03-20T03:06Z", 0.0}, Ref{"2024-06-20T20:51Z", 23.4386}, Ref{"2024-09-22T12:44Z", 0.0},
+                       Ref{"2024-12-21T09:21Z", -23.4386}}) {
     EXPECT_NEAR(qota::sunDeclination(jd(r.when)), r.declination, 0.01) << r.when;
   }
 }

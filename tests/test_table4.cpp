@@ -20,15 +20,14 @@ TEST(Table4, AverageTestsFallWithMaxpoly) {
     std::uint32_t maxPoly, maxDepth;
   };
   const Row rows[] = {{400, 5}, {16, 12}, {12, 12}, {8, 14}};
-  std::printf("%-8s %-8s %10s %10s %10s %14s\n", "Maxpoly", "Maxdepth", "triangles", "nodes", "MB",
-              "average tests");
+  std::printf("%-8s %-8s %10s %10s %10s %14s\n", "Maxpoly", "Maxdepth", "triangles", "nodes", "MB", "average tests");
   double previous = 1e300;
   for (const Row& r : rows) {
-    const qota::TerrainIndex index(mesh, qota::CartesianMapping(), {{r.maxPoly, r.maxDepth}});
+    const qota::CartesianIndex index(mesh, qota::CartesianMapping(), {{r.maxPoly, r.maxDepth}});
     const auto& s = index.stats();
     std::printf("%-8u %-8u %10llu %10llu %10.3f %14.2f\n", r.maxPoly, r.maxDepth,
-                static_cast<unsigned long long>(s.triangles),
-                static_cast<unsigned long long>(s.tree.nodes), s.memoryBytes / 1e6, s.tree.averageTests);
+                static_cast<unsigned long long>(s.triangles), static_cast<unsigned long long>(s.tree.nodes),
+                s.memoryBytes / 1e6, s.tree.averageTests);
     EXPECT_LT(s.tree.averageTests, previous);
     EXPECT_LE(s.tree.maxLeafItems, std::max<std::uint32_t>(r.maxPoly, 6));
     previous = s.tree.averageTests;
@@ -47,7 +46,7 @@ TEST(Table4, CostModelCutsAnswerAsMidpointCuts) {
     qota::IndexOptions mid, cost;
     mid.gridFastPath = cost.gridFastPath = false;
     cost.tree.cuts = qota::QuadtreeOptions::Cuts::CostModel;
-    const qota::TerrainIndex a(*mesh, mapping, mid), b(*mesh, mapping, cost);
+    const qota::CartesianIndex a(*mesh, mapping, mid), b(*mesh, mapping, cost);
     ASSERT_FALSE(a.tree().storedCuts());
     ASSERT_TRUE(b.tree().storedCuts());
     std::printf("midpoint: %llu nodes, %.2f tests; cost model: %llu nodes, %.2f tests\n",
@@ -92,7 +91,7 @@ TEST(Table4, CostModelCutsAnswerAsMidpointCuts) {
     const std::string path = ::testing::TempDir() + "/cost_model_cuts.qota";
     qota::saveTree(path, b);
     const qota::TreeFile file = qota::loadTree(path);
-    const auto& c = std::get<qota::TerrainIndex>(file.index);
+    const auto& c = std::get<qota::CartesianIndex>(file.index);
     ASSERT_TRUE(c.tree().storedCuts());
     for (std::size_t i = 0; i < points.size(); i += 7) {
       ASSERT_EQ(c.heightBelow(points[i].u, points[i].v, 1e300), b.heightBelow(points[i].u, points[i].v, 1e300));

@@ -1,4 +1,4 @@
-// TerrainIndex against the brute-force oracle, and its query semantics and input rules.
+// CartesianIndex against the brute-force oracle, and its query semantics and input rules.
 #include <gtest/gtest.h>
 
 #include <random>
@@ -12,10 +12,10 @@
 
 namespace {
 
+using qota::CartesianIndex;
 using qota::CartesianMapping;
 using qota::Hit;
 using qota::Mesh;
-using qota::TerrainIndex;
 using qota::test::bruteForce;
 
 // Compares every query kind at random world points with the oracle. Points within `ambiguous` of
@@ -26,10 +26,9 @@ struct OracleStats {
 };
 
 // Void (gtest's ASSERT needs it); the counts go to `st`.
-void compareWithOracle(const Mesh& mesh, const CartesianMapping& mapping,
-                       const qota::IndexOptions& options, int queries, std::uint64_t seed,
-                       OracleStats& st) {
-  const TerrainIndex index(mesh, mapping, options);
+void compareWithOracle(const Mesh& mesh, const CartesianMapping& mapping, const qota::IndexOptions& options,
+                       int queries, std::uint64_t seed, OracleStats& st) {
+  const CartesianIndex index(mesh, mapping, options);
   Eigen::Vector3d lo = mesh.vertices[0], hi = mesh.vertices[0];
   for (const auto& v : mesh.vertices) lo = lo.cwiseMin(v), hi = hi.cwiseMax(v);
   const double size = (hi - lo).norm();
@@ -37,8 +36,7 @@ void compareWithOracle(const Mesh& mesh, const CartesianMapping& mapping,
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> unit(-0.1, 1.1);
   for (int q = 0; q < queries; ++q) {
-    const Eigen::Vector3d p = lo + (hi - lo).cwiseProduct(
-                                       Eigen::Vector3d(unit(rng), unit(rng), unit(rng)));
+    const Eigen::Vector3d p = lo + (hi - lo).cwiseProduct(Eigen::Vector3d(unit(rng), unit(rng), unit(rng)));
     const auto oracle = bruteForce(mesh, mapping.gravity(), mapping.origin(), p);
     ++st.queries;
     if (oracle.nearestEdge < ambiguous) {
@@ -69,8 +67,7 @@ void compareWithOracle(const Mesh& mesh, const CartesianMapping& mapping,
       ++st.ambiguous;
       continue;
     }
-    auto check = [&](const std::optional<Hit>& got, const qota::test::OracleHit* want,
-                     const char* what) {
+    auto check = [&](const std::optional<Hit>& got, const qota::test::OracleHit* want, const char* what) {
       ASSERT_EQ(got.has_value(), want != nullptr) << what << " at query " << q;
       if (!want) return;
       ASSERT_EQ(got->polygon, want->polygon) << what << " at query " << q;
@@ -100,8 +97,8 @@ void compareWithOracle(const Mesh& mesh, const CartesianMapping& mapping,
   }
 }
 
-OracleStats compareWithOracle(const Mesh& mesh, const CartesianMapping& mapping,
-                              const qota::IndexOptions& options, int queries, std::uint64_t seed) {
+OracleStats compareWithOracle(const Mesh& mesh, const CartesianMapping& mapping, const qota::IndexOptions& options,
+                              int queries, std::uint64_t seed) {
   OracleStats st;
   compareWithOracle(mesh, mapping, options, queries, seed, st);
   return st;
@@ -144,10 +141,10 @@ TEST(TerrainOracle, LargeCoordinates) {
   spec.offsetY = 5122005;
   spec.cell = 30;
   const Mesh mesh = qota::test::randomTerrain(spec, 5);
-  compareWithOracle(mesh, CartesianMapping(Eigen::Vector3d(0, 0, -1), Eigen::Vector3d(558000, 5122400, 0)),
-                    {}, 3000, 5);
-  compareWithOracle(mesh, CartesianMapping(Eigen::Vector3d(0.1, 0, -1), Eigen::Vector3d(558000, 5122400, 0)),
-                    {}, 3000, 6);
+  compareWithOracle(mesh, CartesianMapping(Eigen::Vector3d(0, 0, -1), Eigen::Vector3d(558000, 5122400, 0)), {}, 3000,
+                    5);
+  compareWithOracle(mesh, CartesianMapping(Eigen::Vector3d(0.1, 0, -1), Eigen::Vector3d(558000, 5122400, 0)), {}, 3000,
+                    6);
 }
 
 // --- Semantics -------------------------------------------------------------------------------
@@ -168,7 +165,7 @@ Mesh twoFloors() {
 }
 
 TEST(TerrainQueries, FloorAndCeiling) {
-  const TerrainIndex index(twoFloors(), CartesianMapping());
+  const CartesianIndex index(twoFloors(), CartesianMapping());
   const auto b = index.bracket(0.3, 0.6, 1.0);
   ASSERT_TRUE(b.below && b.above);
   EXPECT_EQ(b.below->height, 0.0);
@@ -200,7 +197,7 @@ TEST(TerrainQueries, NormalAndWorldPoint) {
   m.addVertex({2, 0, 1});
   m.addVertex({0, 2, 0});
   m.addTriangle(0, 1, 2);
-  const TerrainIndex index(m, CartesianMapping());
+  const CartesianIndex index(m, CartesianMapping());
   const auto h = index.top(0.5, 0.5);
   ASSERT_TRUE(h);
   EXPECT_DOUBLE_EQ(h->height, 0.25);
@@ -209,7 +206,7 @@ TEST(TerrainQueries, NormalAndWorldPoint) {
 }
 
 TEST(TerrainQueries, EmptyTerrain) {
-  const TerrainIndex index(Mesh{}, CartesianMapping());
+  const CartesianIndex index(Mesh{}, CartesianMapping());
   EXPECT_FALSE(index.top(0, 0));
   EXPECT_EQ(index.stats().triangles, 0u);
   EXPECT_EQ(index.stats().tree.nodes, 1u);
@@ -226,7 +223,7 @@ TEST(TerrainQueries, FanAroundAVertexDeeperThanMaxPoly) {
     m.addVertex({0.3 + std::cos(a), 0.2 + std::sin(a), 0});
   }
   for (int i = 0; i < n; ++i) m.addTriangle(c, 1 + i, 1 + (i + 1) % n);
-  const TerrainIndex index(m, CartesianMapping(), {{4, 10}});
+  const CartesianIndex index(m, CartesianMapping(), {{4, 10}});
   EXPECT_LE(index.stats().tree.depth, 10u);
   EXPECT_GE(index.stats().tree.depth, 1u);
   const auto h = index.top(0.3, 0.2);
@@ -235,7 +232,7 @@ TEST(TerrainQueries, FanAroundAVertexDeeperThanMaxPoly) {
   EXPECT_EQ(h->polygon, 0u);
   // A fan centred on the root's centre meets all four children: nothing to split.
   for (auto& v : m.vertices) v -= Eigen::Vector3d(0.3, 0.2, 0);
-  const TerrainIndex centred(m, CartesianMapping(), {{4, 10}});
+  const CartesianIndex centred(m, CartesianMapping(), {{4, 10}});
   EXPECT_EQ(centred.stats().tree.depth, 0u);
   EXPECT_EQ(centred.top(0, 0)->height, 1.0);
 }
@@ -266,7 +263,7 @@ TEST(TerrainQueries, SliversFarThinnerThanTheirNodeStayALeaf) {
   // answers are still the oracle's.
   const Mesh m = lattice(16, 16, 1e-6, 1, [](int i, int j) { return double((i * 5 + j * 3) % 7); });
   const qota::IndexOptions options{.tree = {8, 16}, .gridFastPath = false};
-  const TerrainIndex index(m, CartesianMapping(), options);
+  const CartesianIndex index(m, CartesianMapping(), options);
   EXPECT_LT(index.stats().tree.references, 32u * index.stats().triangles);
   EXPECT_LT(index.stats().tree.nodes, 8u * index.stats().triangles);
   const auto st = compareWithOracle(m, CartesianMapping(), options, 3000, 9);
@@ -280,11 +277,11 @@ TEST(TerrainQueries, ATreeOutgrowingTheMemoryLeftStopsWithAnError) {
   // with an error instead of meeting the OOM killer.
   const Mesh m = lattice(2600, 13, 360.0 / 2600, 180.0 / 13, [](int i, int j) { return double((i * 7 + j * 3) % 11); });
   const qota::IndexOptions options{.tree = {8, 16}, .gridFastPath = false};
-  const TerrainIndex unlimited(m, CartesianMapping(), options);
+  const CartesianIndex unlimited(m, CartesianMapping(), options);
   ASSERT_GT(unlimited.stats().tree.nodes, 1u << 20);  // the tree the check must see
   qota::memory::setLimit(qota::memory::peakBytes() + (48ull << 20));
   try {
-    const TerrainIndex limited(m, CartesianMapping(), options);
+    const CartesianIndex limited(m, CartesianMapping(), options);
     qota::memory::setLimit(0);
     FAIL() << "built " << limited.stats().tree.nodes << " nodes";
   } catch (const qota::Error& e) {
@@ -303,7 +300,7 @@ TEST(TerrainInput, WallsAreLeftOutAndCounted) {
              d = m.addVertex({0, 0, 2});
   m.addPolygon({a, b, c, d});
   m.addTriangle(a, a, b);  // degenerate
-  const TerrainIndex index(m, CartesianMapping());
+  const CartesianIndex index(m, CartesianMapping());
   EXPECT_EQ(index.stats().leftOut, 2u);
   EXPECT_EQ(index.stats().polygons, 5u);
   EXPECT_EQ(index.stats().triangles, 4u);
@@ -312,7 +309,7 @@ TEST(TerrainInput, WallsAreLeftOutAndCounted) {
 TEST(TerrainInput, ErrorsNameThePolygon) {
   auto expectError = [](const Mesh& m, const std::string& needle) {
     try {
-      TerrainIndex index(m, CartesianMapping());
+      CartesianIndex index(m, CartesianMapping());
       FAIL() << "no error, expected one mentioning '" << needle << "'";
     } catch (const qota::Error& e) {
       EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();

@@ -22,7 +22,7 @@ TEST(TerrainFace, AnswersInTheSourcesOwnCoordinates) {
   // The index loadDem builds works around the raster's centre: the map coordinates are no point
   // of its own (the face is what a newcomer reaches for).
   const qota::DemTerrain loaded = qota::loadDem(path);
-  const qota::TerrainIndex index(loaded.mesh, loaded.mapping);
+  const qota::CartesianIndex index(loaded.mesh, loaded.mapping);
   EXPECT_FALSE(index.height(562500, 5114500).has_value());
   std::mt19937_64 rng(5);
   std::uniform_int_distribution<int> col(1, r.width - 2), row(1, r.height - 2);
@@ -60,7 +60,8 @@ TEST(TerrainFace, LonLatOnTheEllipsoidOverItsGeoid) {
   const qota::Terrain rainier = qota::Terrain::open(o);
   EXPECT_NE(rainier.heightRef().find("EGM96"), std::string::npos) << rainier.heightRef();
   const int c = 600, w = 600;
-  const double x = r.geotransform[0] + (c + 0.5) * r.geotransform[1], y = r.geotransform[3] + (w + 0.5) * r.geotransform[5];
+  const double x = r.geotransform[0] + (c + 0.5) * r.geotransform[1],
+               y = r.geotransform[3] + (w + 0.5) * r.geotransform[5];
   ASSERT_TRUE(rainier.height(x, y));
   EXPECT_NEAR(*rainier.height(x, y), r.at(c, w), 1e-6);
   EXPECT_EQ(rainier.height(x + 360, y), rainier.height(x, y));

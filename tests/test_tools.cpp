@@ -49,7 +49,7 @@ TEST(SampleTool, GoodBadAndOffRasterLinesStayAligned) {
   EXPECT_EQ(out[2], "1849");
   EXPECT_EQ(out[3], "error");
   EXPECT_EQ(out[4], "none");
-  EXPECT_EQ(out[5], "none");  // no terrain at or below 100 m
+  EXPECT_EQ(out[5], "none");    // no terrain at or below 100 m
   EXPECT_EQ(out[6], "none 4");  // off the raster; the fourth field passed through
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("stdin:4: 'foo' is not a number"), std::string::npos) << r.err;
@@ -186,8 +186,8 @@ TEST(SampleTool, LinesAcrossReadBlocksAndBatchesStayAligned) {
     EXPECT_NE(run.err.find("stdin:" + std::to_string(line) + ": 'foo' is not a number"), std::string::npos) << line;
   }
   EXPECT_EQ(run.err.find("stdin:" + std::to_string(badLines[20]) + ":"), std::string::npos);
-  EXPECT_NE(run.err.find(std::to_string(badLines.size() - 20) + " more failed lines (" + std::to_string(badLines.size()) +
-                         " in all"),
+  EXPECT_NE(run.err.find(std::to_string(badLines.size() - 20) + " more failed lines (" +
+                         std::to_string(badLines.size()) + " in all"),
             std::string::npos)
       << run.err.substr(run.err.size() > 300 ? run.err.size() - 300 : 0);
 }
@@ -227,17 +227,17 @@ TEST(SampleTool, MissingFilesAndAtomicOutput) {
 
 TEST(InfoTool, PrintsTable4Statistics) {
   qota::tools::InfoOptions o;
-  o.source = QOTA_DATA_DIR "/SainteHelens.dem";
-  o.terrain.tree.maxPoly = 12;
+  o.source.source = QOTA_DATA_DIR "/SainteHelens.dem";
+  o.source.terrain.tree.maxPoly = 12;
   std::ostringstream out, err;
   ASSERT_EQ(qota::tools::info(o, out, err), 0) << err.str();
   const std::string s = out.str();
-  for (const char* key : {"size: 327 x 468", "triangles: 296197", "nodes: ", "memory (MB): ",
-                          "average tests per query: ", "depth: ", "leaves: ", "max poly: 12",
-                          "max polygons per leaf: ", "leaf references: ", "crs: "}) {
+  for (const char* key :
+       {"size: 327 x 468", "triangles: 296197", "nodes: ", "memory (MB): ", "average tests per query: ", "depth: ",
+        "leaves: ", "max poly: 12", "max polygons per leaf: ", "leaf references: ", "crs: "}) {
     EXPECT_NE(s.find(key), std::string::npos) << key << "\n" << s;
   }
-  o.source = "/no/such.dem";
+  o.source.source = "/no/such.dem";
   EXPECT_EQ(qota::tools::info(o, out, err), 2);
 }
 

@@ -66,7 +66,7 @@ TEST(TreeFile, EveryKindRoundTrips) {
   spec.offsetX = 5e5, spec.offsetY = 5e6;  // map coordinates
   const Mesh mesh = test::randomTerrain(spec, 3);
   const CartesianMapping cart(Eigen::Vector3d(0.1, 0, -1), Eigen::Vector3d(5e5, 5e6, 0));
-  const TerrainIndex flat(mesh, cart);
+  const CartesianIndex flat(mesh, cart);
   expectRoundTrip(flat, "flat.qota", [](const auto& a, const auto& b, std::mt19937_64& rng) {
     const double u = uniform(rng, -40, 40), v = uniform(rng, -40, 40), h = uniform(rng, -20, 20);
     return std::pair(a.below(u, v, h), b.below(u, v, h));
@@ -98,7 +98,7 @@ TEST(TreeFile, EveryKindRoundTrips) {
 
 TEST(TreeFile, DamagedFilesAreClearErrors) {
   const Mesh mesh = fractalHeightfield(40, 40, 1.0, 5.0, 4).toMesh();
-  const TerrainIndex index(mesh, CartesianMapping());
+  const CartesianIndex index(mesh, CartesianMapping());
   const fs::path good = tempPath("good.qota"), bad = tempPath("bad.qota");
   saveTree(good.string(), index);
   ASSERT_TRUE(isTreeFile(good.string()));
@@ -114,10 +114,11 @@ TEST(TreeFile, DamagedFilesAreClearErrors) {
     }
   };
   // Truncated anywhere.
-  for (std::size_t n : {std::size_t{0}, std::size_t{5}, std::size_t{20}, std::size_t{40},
-                        bytes.size() / 2, bytes.size() - 1}) {
-    expectError(std::vector<char>(bytes.begin(), bytes.begin() + n),
-                n < 8 ? "not a qota tree file" : n < 32 ? "truncated" : "truncated");
+  for (std::size_t n :
+       {std::size_t{0}, std::size_t{5}, std::size_t{20}, std::size_t{40}, bytes.size() / 2, bytes.size() - 1}) {
+    expectError(std::vector<char>(bytes.begin(), bytes.begin() + n), n < 8    ? "not a qota tree file"
+                                                                     : n < 32 ? "truncated"
+                                                                              : "truncated");
   }
   // One byte changed anywhere in the payload: the checksum (or an earlier structural check).
   std::mt19937_64 rng(5);

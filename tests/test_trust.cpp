@@ -149,9 +149,13 @@ TEST(TrustState, EditedOrImpossibleStatesAreRefused) {
   o.tilesState = bad;
   o.output = scratchPath("trust/bad.tif").string();
   // Any edit: the checksum no longer holds.
-  for (const auto& [field, value] : std::vector<std::pair<std::string, std::string>>{
-           {"maxHeight", "1.5p+9"}, {"maxHeight", "nan"}, {"maxHeight", "inf"}, {"winding", "1p+40"},
-           {"winding", "-1p+0"}, {"pixelSizeY", "-1p+4"}, {"width", "inf"}}) {
+  for (const auto& [field, value] : std::vector<std::pair<std::string, std::string>>{{"maxHeight", "1.5p+9"},
+                                                                                     {"maxHeight", "nan"},
+                                                                                     {"maxHeight", "inf"},
+                                                                                     {"winding", "1p+40"},
+                                                                                     {"winding", "-1p+0"},
+                                                                                     {"pixelSizeY", "-1p+4"},
+                                                                                     {"width", "inf"}}) {
     writeFile(bad, std::regex_replace(state, std::regex("\n" + field + " [^\n]*"), "\n" + field + " " + value));
     fs::remove(o.output);
     expectRefused(shadow(o), "edited or damaged", o.output);
@@ -159,14 +163,15 @@ TEST(TrustState, EditedOrImpossibleStatesAreRefused) {
   writeFile(bad, state.substr(0, state.size() / 2));  // cut short
   expectRefused(shadow(o), "edited, damaged or cut short", o.output);
   // Values no raster gives are refused even under a checksum that holds.
-  for (const auto& [field, value, why] : std::vector<std::array<std::string, 3>>{
-           {"width", "inf", "'width'"},
-           {"pixelSizeY", "-1p+4", "'pixelSizeY'"},
-           {"maxHeight", "nan", "height range"},
-           {"winding", "0p+0", "height range or winding"},
-           {"winding", "1p+1", "'winding'"},
-           {"validCells", "1p+60", "'validCells'"}}) {
-    writeFile(bad, resealed(std::regex_replace(state, std::regex("\n" + field + " [^\n]*"), "\n" + field + " " + value)));
+  for (const auto& [field, value, why] :
+       std::vector<std::array<std::string, 3>>{{"width", "inf", "'width'"},
+                                               {"pixelSizeY", "-1p+4", "'pixelSizeY'"},
+                                               {"maxHeight", "nan", "height range"},
+                                               {"winding", "0p+0", "height range or winding"},
+                                               {"winding", "1p+1", "'winding'"},
+                                               {"validCells", "1p+60", "'validCells'"}}) {
+    writeFile(bad,
+              resealed(std::regex_replace(state, std::regex("\n" + field + " [^\n]*"), "\n" + field + " " + value)));
     fs::remove(o.output);
     expectRefused(shadow(o), why, o.output);
   }
@@ -287,7 +292,8 @@ TEST(TrustAssemble, ForgedGridsAreAnErrorAtOnce) {
   for (int r = 0; r < 3; ++r) {
     for (int c = 0; c < 2; ++c) full.push_back(tiles[static_cast<std::size_t>(r * 3 + c)]);
   }
-  expectRefused(assemble(full, out), "61035156249994 of the run's 61035156250000 tiles are missing (--tile 2,0 3,0", out);
+  expectRefused(assemble(full, out), "61035156249994 of the run's 61035156250000 tiles are missing (--tile 2,0 3,0",
+                out);
 }
 
 TEST(TrustAssemble, DamagedTilesAreNamedSo) {
@@ -359,9 +365,12 @@ ToolRun sampleLines(const std::string& source, const std::string& input) {
 
 TEST(TrustOutputs, CreationOptionsThatChangeTheValuesAreRefused) {
   const HelensFiles& f = helens();
-  for (const std::vector<std::string>& co : std::vector<std::vector<std::string>>{
-           {"NBITS=1"}, {"COMPRESS=JPEG"}, {"COMPRESS=WEBP"}, {"COMPRESS=LERC_DEFLATE", "MAX_Z_ERROR=0.5"},
-           {"PIXELTYPE=SIGNEDBYTE"}}) {
+  for (const std::vector<std::string>& co :
+       std::vector<std::vector<std::string>>{{"NBITS=1"},
+                                             {"COMPRESS=JPEG"},
+                                             {"COMPRESS=WEBP"},
+                                             {"COMPRESS=LERC_DEFLATE", "MAX_Z_ERROR=0.5"},
+                                             {"PIXELTYPE=SIGNEDBYTE"}}) {
     ShadowOptions o = at(f.dem, "trust/co.tif");
     o.creationOptions = co;
     expectRefused(shadow(o), "the values written would not be the ones computed", o.output);
@@ -378,7 +387,8 @@ TEST(TrustOutputs, CreationOptionsThatChangeTheValuesAreRefused) {
   o.creationOptions = {"COMPRESS=ZSTD", "NBITS=8", "NO_SUCH_OPTION=1"};
   const ToolRun run = shadow(o);
   EXPECT_EQ(run.code, 0) << run.err;
-  EXPECT_NE(run.err.find("warning: GDAL: driver GTiff does not support creation option NO_SUCH_OPTION"), std::string::npos)
+  EXPECT_NE(run.err.find("warning: GDAL: driver GTiff does not support creation option NO_SUCH_OPTION"),
+            std::string::npos)
       << run.err;
 }
 
@@ -401,14 +411,18 @@ TEST(TrustInput, AByteOrderMarkAndCarriageReturnLinesAreRead) {
   // answer from a plain line.
   const ToolRun plain = sampleLines(QOTA_DATA_DIR "/SainteHelens.dem", "562500 5114500\n562501 5114500\n");
   ASSERT_EQ(plain.code, 0) << plain.err;
-  const ToolRun bom = sampleLines(QOTA_DATA_DIR "/SainteHelens.dem", "\xEF\xBB\xBF" "562500 5114500\n562501 5114500\n");
+  const ToolRun bom = sampleLines(QOTA_DATA_DIR "/SainteHelens.dem",
+                                  "\xEF\xBB\xBF"
+                                  "562500 5114500\n562501 5114500\n");
   EXPECT_EQ(bom.code, 0) << bom.err;
   EXPECT_EQ(bom.out, plain.out);
   const ToolRun cr = sampleLines(QOTA_DATA_DIR "/SainteHelens.dem", "562500 5114500\r562501 5114500\r");
   EXPECT_EQ(cr.code, 0) << cr.err;
   EXPECT_EQ(cr.out, plain.out);
   // What a terminal would not show is written as escapes in a message.
-  const ToolRun bad = sampleLines(QOTA_DATA_DIR "/SainteHelens.dem", "5625\x01" "00 5114500\n");
+  const ToolRun bad = sampleLines(QOTA_DATA_DIR "/SainteHelens.dem",
+                                  "5625\x01"
+                                  "00 5114500\n");
   EXPECT_NE(bad.err.find("'5625\\x0100' is not a number"), std::string::npos) << bad.err;
 }
 
@@ -424,7 +438,8 @@ TEST(TrustWork, AHugeRasterIsRefusedAtOnceWithItsEstimate) {
   (void)helens();
   ShadowOptions o = at(vrt, "trust/huge.tif");
   o.pixelSize = 30;
-  expectRefused(shadow(o), "more than --max-cells 4294967296 allows: at the measured rates, reading its heights takes about",
+  expectRefused(shadow(o),
+                "more than --max-cells 4294967296 allows: at the measured rates, reading its heights takes about",
                 o.output);
   // --max-memory below a byte is no budget (it ran whole with the default before).
   EXPECT_THROW(qota::tools::parseByteSize("0.5"), qota::Error);

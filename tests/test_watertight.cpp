@@ -13,9 +13,9 @@
 
 namespace {
 
+using qota::CartesianIndex;
 using qota::CartesianMapping;
 using qota::Mesh;
-using qota::TerrainIndex;
 
 // Queries at corners and on edges of random triangles of the mesh, in the mapped frame:
 // - exactly on the geometry: at a corner, or anywhere on an axis-aligned edge. Such a point lies in
@@ -30,8 +30,8 @@ struct EdgeKey {
   bool operator==(const EdgeKey&) const = default;
 };
 
-std::uint64_t missesOnEdges(const Mesh& mesh, const TerrainIndex& index, std::uint64_t queries,
-                            std::uint64_t seed, std::uint64_t* exactQueries = nullptr) {
+std::uint64_t missesOnEdges(const Mesh& mesh, const CartesianIndex& index, std::uint64_t queries, std::uint64_t seed,
+                            std::uint64_t* exactQueries = nullptr) {
   // For every edge, the side (+1/-1) of each triangle's third corner; interior edges have both.
   std::unordered_map<std::uint64_t, int> sides;
   auto mapped2 = [&](std::uint32_t i) {
@@ -78,7 +78,7 @@ std::uint64_t missesOnEdges(const Mesh& mesh, const TerrainIndex& index, std::ui
 
 TEST(Watertight, RealDemMillionQueries) {
   const qota::DemTerrain dem = qota::loadDem(QOTA_DATA_DIR "/mt_rainier_90m.tif", {.lonLatAsCartesian = true});
-  const TerrainIndex index(dem.mesh, dem.mapping);
+  const CartesianIndex index(dem.mesh, dem.mapping);
   std::uint64_t exact = 0;
   EXPECT_EQ(missesOnEdges(dem.mesh, index, 1000000, 1, &exact), 0u);
   EXPECT_GT(exact, 600000u);  // vertices and the grid's axis-aligned edges
@@ -89,10 +89,11 @@ TEST(Watertight, TiltedGravityAndCoarseTree) {
   f.x0 = 1000.25;
   f.y0 = -77.5;
   const Mesh mesh = f.toMesh();
-  for (const Eigen::Vector3d& g : {Eigen::Vector3d(0, 0, -1), Eigen::Vector3d(0.3, -0.2, -1),
-                                  Eigen::Vector3d(-0.05, 0.01, -1)}) {
-    for (const qota::QuadtreeOptions tree : {qota::QuadtreeOptions{}, qota::QuadtreeOptions{3, 12}, qota::QuadtreeOptions{50, 4}}) {
-      const TerrainIndex index(mesh, CartesianMapping(g, Eigen::Vector3d(1100, 20, 0)), {tree});
+  for (const Eigen::Vector3d& g :
+       {Eigen::Vector3d(0, 0, -1), Eigen::Vector3d(0.3, -0.2, -1), Eigen::Vector3d(-0.05, 0.01, -1)}) {
+    for (const qota::QuadtreeOptions tree :
+         {qota::QuadtreeOptions{}, qota::QuadtreeOptions{3, 12}, qota::QuadtreeOptions{50, 4}}) {
+      const CartesianIndex index(mesh, CartesianMapping(g, Eigen::Vector3d(1100, 20, 0)), {tree});
       EXPECT_EQ(missesOnEdges(mesh, index, 100000, 7), 0u);
     }
   }
@@ -103,7 +104,7 @@ TEST(Watertight, PointsOnQuadtreeCutLines) {
   // (ties go to the high side, boxes are closed in the build) must keep every point found.
   qota::Heightfield f = qota::fractalHeightfield(65, 65, 1.0, 5.0, 11);
   const Mesh mesh = f.toMesh();
-  const TerrainIndex index(mesh, CartesianMapping(), {{2, 20}});
+  const CartesianIndex index(mesh, CartesianMapping(), {{2, 20}});
   std::uint64_t misses = 0;
   for (int i = 0; i <= 64 * 8; ++i) {
     for (int j = 0; j <= 64; ++j) {
@@ -135,7 +136,7 @@ TEST(Watertight, HolesNeverHit) {
       m.addTriangle(a, a + n + 2, a + n + 1);
     }
   }
-  const TerrainIndex index(m, CartesianMapping());
+  const CartesianIndex index(m, CartesianMapping());
   std::mt19937_64 rng(5);
   std::uniform_real_distribution<double> t(0.0, 1.0);
   for (int q = 0; q < 20000; ++q) {
@@ -158,7 +159,7 @@ TEST(Quadtree, TooSmallMaxpolyStaysBounded) {
   // triangle) and the split gain check keep the tree small, and the answers stay right.
   const qota::Heightfield f = qota::fractalHeightfield(50, 50, 1.0, 5.0, 1);
   const Mesh mesh = f.toMesh();
-  const TerrainIndex index(mesh, CartesianMapping(), {{1, 24}});
+  const CartesianIndex index(mesh, CartesianMapping(), {{1, 24}});
   const auto& s = index.stats();
   EXPECT_LT(s.tree.references, 16 * s.triangles);
   EXPECT_LE(s.tree.depth, 8u);

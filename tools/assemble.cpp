@@ -30,7 +30,7 @@ struct Tile {
   GDALDataType type = GDT_Unknown;
   std::optional<double> nodata;
   std::map<std::string, std::string> qota;  // its QOTA_* metadata, sealed (tile_metadata.hpp)
-  long long col = 0, row = 0;                // its place on the first tile's grid
+  long long col = 0, row = 0;               // its place on the first tile's grid
 };
 
 Tile describe(const std::string& path) {
@@ -72,7 +72,8 @@ Tile describe(const std::string& path) {
     throw Error(path + ": " + e.what());
   }
   if (!items.empty() && !sealHolds(items, tileGridOf(*ds))) {
-    throw Error(path + ": damaged or edited: its qota metadata, size, geotransform, data type or nodata value are "
+    throw Error(path +
+                ": damaged or edited: its qota metadata, size, geotransform, data type or nodata value are "
                 "not those it was written with (QOTA_CHECKSUM); compute the tile again");
   }
   for (auto& [name, value] : items) t.qota[name] = value;
@@ -103,7 +104,8 @@ void place(std::vector<Tile>& tiles) {
     // The origin's offset in the first tile's pixels: whole numbers on one grid.
     const double dx = t.gt[0] - g[0], dy = t.gt[3] - g[3];
     const double c = (g[5] * dx - g[2] * dy) / det, r = (-g[4] * dx + g[1] * dy) / det;
-    if (!(std::fabs(c) < 4e18 && std::fabs(r) < 4e18)) throw Error(t.path + ": too far from " + first.path + " to share its grid");
+    if (!(std::fabs(c) < 4e18 && std::fabs(r) < 4e18))
+      throw Error(t.path + ": too far from " + first.path + " to share its grid");
     t.col = std::llround(c), t.row = std::llround(r);
     if (std::fabs(c - t.col) > 1e-6 || std::fabs(r - t.row) > 1e-6) {
       throw Error(t.path + ": not on " + first.path + "'s grid (it is " + formatNumber(c) + ", " + formatNumber(r) +
@@ -115,10 +117,10 @@ void place(std::vector<Tile>& tiles) {
 // What a field of the fingerprint is, for messages.
 std::string fieldName(const std::string& field) {
   static const std::map<std::string, std::string> names{
-      {"QOTA_VERSION", "qota version"},  {"QOTA_SOURCE", "source file name"},
+      {"QOTA_VERSION", "qota version"},   {"QOTA_SOURCE", "source file name"},
       {"QOTA_HEIGHTS", "source heights"}, {"QOTA_RASTER_SIZE", "raster size"},
-      {"QOTA_TILE_SIZE", "tile size"},   {"QOTA_TILES", "tile grid"},
-      {"QOTA_FRAME", "frame options"},   {"QOTA_LIGHT", "light"},
+      {"QOTA_TILE_SIZE", "tile size"},    {"QOTA_TILES", "tile grid"},
+      {"QOTA_FRAME", "frame options"},    {"QOTA_LIGHT", "light"},
       {"QOTA_VALUES", "output values"}};
   const auto n = names.find(field);
   return (n == names.end() ? field : n->second) + " (" + field + ")";
@@ -171,7 +173,8 @@ void checkRun(const std::vector<Tile>& tiles) {
   if (!size || !grid || !side) throw Error(first.path + ": its qota metadata does not give a tile grid (damaged)");
   const long long w = (*size)[0], h = (*size)[1], s = (*side)[0], across = (*grid)[0], down = (*grid)[1];
   if (across != (w + s - 1) / s || down != (h + s - 1) / s) {
-    throw Error(first.path + ": its QOTA_TILES (" + need("QOTA_TILES") + ") is not the grid of its QOTA_RASTER_SIZE and "
+    throw Error(first.path + ": its QOTA_TILES (" + need("QOTA_TILES") +
+                ") is not the grid of its QOTA_RASTER_SIZE and "
                 "QOTA_TILE_SIZE (damaged)");
   }
   std::set<long long> present;  // row-major tile numbers
@@ -200,8 +203,9 @@ void checkRun(const std::vector<Tile>& tiles) {
       missing += (missing.empty() ? "" : " ") + std::to_string(k % across) + "," + std::to_string(k / across);
       ++named;
     }
-    throw Error(std::to_string(missingCount) + " of the run's " + std::to_string(total) + " tiles are missing (--tile " +
-                missing + (missingCount > 10 ? " ..." : "") + "); compute them, or nothing is assembled");
+    throw Error(std::to_string(missingCount) + " of the run's " + std::to_string(total) +
+                " tiles are missing (--tile " + missing + (missingCount > 10 ? " ..." : "") +
+                "); compute them, or nothing is assembled");
   }
 }
 
@@ -272,8 +276,8 @@ int assemble(const AssembleOptions& o, std::ostream& out, std::ostream& err) {
     OutputStage stage;
     if (format == "VRT" && (g[2] != 0 || g[4] != 0 || g[5] > 0)) {
       throw Error(o.output + ": a VRT mosaic holds north-up tiles only, and these are " +
-                  (g[2] != 0 || g[4] != 0 ? "rotated" : "south-up") + " (their geotransform " + formatNumber(g[1]) + "," +
-                  formatNumber(g[2]) + "," + formatNumber(g[4]) + "," + formatNumber(g[5]) +
+                  (g[2] != 0 || g[4] != 0 ? "rotated" : "south-up") + " (their geotransform " + formatNumber(g[1]) +
+                  "," + formatNumber(g[2]) + "," + formatNumber(g[4]) + "," + formatNumber(g[5]) +
                   "); assemble them into a GeoTIFF (-o OUT.tif)");
     }
     if (format == "VRT") {
@@ -284,7 +288,8 @@ int assemble(const AssembleOptions& o, std::ostream& out, std::ostream& err) {
       const std::filesystem::path staged = stage.stage(o.output);
       detail::GdalErrorLog errors;
       int usageError = 0;
-      GDALDatasetH vrt = GDALBuildVRT(staged.c_str(), static_cast<int>(names.size()), nullptr, names.data(), nullptr, &usageError);
+      GDALDatasetH vrt =
+          GDALBuildVRT(staged.c_str(), static_cast<int>(names.size()), nullptr, names.data(), nullptr, &usageError);
       if (!vrt || usageError) throw Error(o.output + ": cannot build the VRT (" + errors.reason() + ")");
       GDALClose(vrt);
       if (errors.failed()) throw Error(o.output + ": cannot write the VRT (" + errors.message() + ")");
@@ -321,7 +326,8 @@ int assemble(const AssembleOptions& o, std::ostream& out, std::ostream& err) {
         for (int r = 0; r < t.height; r += block) {
           const int n = std::min(block, t.height - r);
           rows.resize(static_cast<std::size_t>(t.width) * n);
-          if (ds->GetRasterBand(1)->RasterIO(GF_Read, 0, r, t.width, n, rows.data(), t.width, n, GDT_Float64, 0, 0) != CE_None ||
+          if (ds->GetRasterBand(1)->RasterIO(GF_Read, 0, r, t.width, n, rows.data(), t.width, n, GDT_Float64, 0, 0) !=
+                  CE_None ||
               errors.failed()) {
             throw Error(t.path + ": damaged: cannot read rows " + std::to_string(r) + ".." + std::to_string(r + n - 1) +
                         " (" + errors.reason() + ")");
@@ -364,8 +370,8 @@ std::uint64_t parseByteSize(const std::string& text) {
   std::transform(unit.begin(), unit.end(), unit.begin(), [](unsigned char c) { return std::toupper(c); });
   if (unit.size() > 1 && unit.back() == 'B') unit.pop_back();
   if (unit.size() > 1 && unit.back() == 'I') unit.pop_back();
-  const std::map<std::string, double> scale{{"", 1}, {"B", 1}, {"K", 1024.0}, {"M", 1048576.0}, {"G", 1073741824.0},
-                                            {"T", 1099511627776.0}};
+  const std::map<std::string, double> scale{
+      {"", 1}, {"B", 1}, {"K", 1024.0}, {"M", 1048576.0}, {"G", 1073741824.0}, {"T", 1099511627776.0}};
   const auto s = scale.find(unit);
   if (used == 0 || s == scale.end() || !(number > 0) || !(number * s->second < 1.8e19)) {
     throw Error("'" + text + "' is not a size; give bytes, or a number with K, M, G or T (64M, 2G, 1.5GiB)");

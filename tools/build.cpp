@@ -18,7 +18,8 @@ int build(const BuildOptions& options, std::ostream& out, std::ostream& err) {
     const TreeFile tree = openIndex(options.source);
     const std::uint64_t triangles = std::visit([](const auto& index) { return index.stats().triangles; }, tree.index);
     if (triangles == 0) {
-      throw Error(options.source.source + ": no terrain to index (every pixel is nodata, or no polygon has an "
+      throw Error(options.source.source +
+                  ": no terrain to index (every pixel is nodata, or no polygon has an "
                   "area seen along the mapping's lines); nothing was written");
     }
     const auto t1 = std::chrono::steady_clock::now();
@@ -28,11 +29,11 @@ int build(const BuildOptions& options, std::ostream& out, std::ostream& err) {
       const auto secs = [](auto a, auto b) { return std::chrono::duration<double>(b - a).count(); };
       std::visit(
           [&](const auto& index) {
-            out << options.output << ": " << mappingNameOf(tree.index) << " tree of "
-                << index.stats().triangles << " triangles, " << index.stats().tree.nodes
-                << " nodes, " << std::filesystem::file_size(options.output) << " bytes\n"
-                << "built in " << formatNumber(secs(t0, t1), 3) << " s, written in "
-                << formatNumber(secs(t1, t2), 3) << " s\n"
+            out << options.output << ": " << mappingNameOf(tree.index) << " tree of " << index.stats().triangles
+                << " triangles, " << index.stats().tree.nodes << " nodes, "
+                << std::filesystem::file_size(options.output) << " bytes\n"
+                << "built in " << formatNumber(secs(t0, t1), 3) << " s, written in " << formatNumber(secs(t1, t2), 3)
+                << " s\n"
                 << "memory: peak " << memory::peakBytes() / (1 << 20) << " MiB (estimated "
                 << estimatedPeakBytes(tree, options.source) / (1 << 20) << " MiB)\n";
           },

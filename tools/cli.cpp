@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "qota/mapping_registry.hpp"
 #include "qota_tools.hpp"
 #include "text_output.hpp"
 
@@ -14,13 +15,41 @@ namespace qota::tools {
 namespace {
 
 void addTreeOptions(CLI::App* app, qota::IndexOptions& terrain) {
-  app->add_option("--max-poly", terrain.tree.maxPoly,
-                  "Maxpoly: split a quadtree node holding more polygons than this")
+  app->add_option("--max-poly", terrain.tree.maxPoly, "Maxpoly: split a quadtree node holding more polygons than this")
       ->capture_default_str()
       ->check(CLI::Range(1u, 1u << 20));
   app->add_option("--max-depth", terrain.tree.maxDepth, "Maxdepth: deepest quadtree level")
       ->capture_default_str()
       ->check(CLI::Range(0u, 30u));
+}
+
+// What every tool that reads a source takes, with one meaning (qota::SourceOptions): the band,
+// the mapping (choices and help from the registry) and its parameters, the quadtree's.
+void addSourceOptions(CLI::App* app, qota::SourceOptions& source) {
+  app->add_option("-b,--band", source.band, "Raster band holding the heights (needed when the raster has several)")
+      ->check(CLI::Range(1, 1 << 30));
+  app->add_option("--mapping", source.mapping,
+                  "Frame: " + qota::mappingHelp() + "; default: a tree file's own, else cartesian")
+      ->check(CLI::IsMember(qota::mappingNameList()));
+  app->add_option("--radius", source.radius,
+                  "spherical: the planet's reference radius in metres (default: from the raster's CRS); "
+                  "cylindrical: the station's radius (default 250)")
+      ->check(CLI::PositiveNumber);
+  app->add_option("--length", source.length, "cylindrical: the station's length (default 1000)")
+      ->check(CLI::PositiveNumber);
+  app->add_option_function<std::vector<double>>(
+         "--origin",
+         [&source](const std::vector<double>& v) {
+           source.origin = std::array<double, 3>{v[0], v[1], v.size() > 2 ? v[2] : 0.0};
+         },
+         "enu: the frame's origin LAT,LON[,H] (H metres over the ellipsoid); default: the raster's centre at "
+         "height 0")
+      ->delimiter(',')
+      ->expected(2, 3);
+  app->add_option("--height-ref", source.heightRef,
+                  "geodetic, enu: what the raster's heights are over: ellipsoid, egm96, egm2008, crs, radius:R or "
+                  "a geoid grid's path (see sample)");
+  addTreeOptions(app, source.terrain);
 }
 
 // GDAL's tools spell some options with one dash and several letters (-az, -alt, -of, -co);
@@ -36,120 +65,116 @@ std::vector<std::string> gdalStyleArguments(int argc, const char* const* argv) {
 }
 
 int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostream& out, std::ostream& err) {
-  CLI::App app{
-      "qota: terrain following with the Quick Oriented Terrain Algorithm (MERL TR-96-17, 1996)"};
+  CLI::App app{"qota: terrain following with the Quick Oriented Terrain Algorithm (MERL TR-96-17, 1996)"};
   app.require_subcommand(1);
   app.set_version_flag("--version", versionText, "Print qota's version and its libraries' and exit");
 
   SampleOptions sample;
-  CLI::App* sampleCmd = app.add_subcommand(
-      "sample",
-      "Terrain height under points. Reads 'x y [fields...]' lines (or 'x y z [fields...]' with "
-      "--query-z: the nearest terrain at or below z) from stdin or --input-file and prints one "
-      "line per input line: the height in the raster's own vertical unit (as gdallocationinfo "
-      "prints it; a mesh's z), 'none' where there is no terrain, 'error' for a malformed line, "
-      "followed by the line's other fields unchanged. Between the outermost pixel centres and "
-      "the raster's edge, the height of the nearest point on the outermost centres' lines. Exit "
-      "code 1 when a line was malformed or off the raster, 2 when the source cannot be read.");
-  sampleCmd->add_option("source", sample.source,
-                        "Elevation raster (any GDAL format), tree file (qota build) or mesh file")
+  CLI::App* sampleCmd =
+      app.add_subcommand("sample",
+                         "Terrain height under points. Reads 'x y [fields...]' lines (or 'x y z [fields...]' with "
+                         "--query-z: the nearest terrain at or below z) from stdin or --input-file and prints one "
+                         "line per input line: the height in the raster's own vertical unit (as gdallocationinfo "
+                         "prints it; a mesh's z), 'none' where there is no terrain, 'error' for a malformed line, "
+                         "followed by the line's other fields unchanged. Between the outermost pixel centres and "
+                         "the raster's edge, the height of the nearest point on the outermost centres' lines. Exit "
+                         "code 1 when a line was malformed or off the raster, 2 when the source cannot be read.");
+  sampleCmd
+      ->add_option("source", sample.source, "Elevation raster (any GDAL format), tree file (qota build) or mesh file")
       ->required();
   sampleCmd->add_option("-i,--input-file", sample.inputFile, "Read points from this file");
-  sampleCmd->add_option("-o,--output-file", sample.outputFile,
+  sampleCmd->add_option("-o,--output,--output-file", sample.outputFile,
                         "Write results to this file (replaced only when complete)");
+  sampleCmd->add_flag("-q,--quiet", sample.quiet, "No notes on stderr (a point's problem is still reported)");
   sampleCmd->add_option("--srs", sample.srs,
                         "CRS of the input points (EPSG:4326, WKT, PROJ...); default: the raster's");
-  sampleCmd->add_option("-p,--precision", sample.precision,
-                        "Decimals to print (0 to 100); default: the shortest that round-trips")
+  sampleCmd
+      ->add_option("-p,--precision", sample.precision,
+                   "Decimals to print (0 to 100); default: the shortest that round-trips")
       ->check(CLI::Range(0, kMaxPrecision));
   sampleCmd->add_flag("--query-z", sample.queryZ,
                       "The third field of a line is the query height: answer the nearest terrain "
                       "at or below it (else it is passed through like any other field)");
-  sampleCmd->add_flag("--header", sample.header,
-                      "The first line is a header: print 'height' and its other names");
-  sampleCmd->add_option("-b,--band", sample.band,
-                        "Raster band holding the heights (needed when the raster has several)")
+  sampleCmd->add_flag("--header", sample.header, "The first line is a header: print 'height' and its other names");
+  sampleCmd
+      ->add_option("-b,--band", sample.band, "Raster band holding the heights (needed when the raster has several)")
       ->check(CLI::Range(1, 1 << 30));
   sampleCmd->add_flag("--world", sample.printWorld, "Also print the world point x y z of the hit");
-  sampleCmd->add_option("--mapping", sample.mapping,
-                        "Frame: cartesian (the raster as a map), spherical (a lon/lat raster as a "
-                        "closed planet; lines 'lon lat [r]', prints the surface radius), geodetic "
-                        "(a lon/lat raster on its ellipsoid; lines 'lon lat [h]', prints the "
-                        "height along the normal), cylindrical (the raster as a station's relief; "
-                        "lines 'angle axial [h]', prints the distance from the axis), enu (the "
-                        "raster on its ellipsoid in the east-north-up frame at --origin; lines "
-                        "'east north [up]' in metres, prints the up); default: a tree file's own, "
-                        "else cartesian")
-      ->check(CLI::IsMember({"cartesian", "spherical", "geodetic", "cylindrical", "enu"}));
-  sampleCmd->add_option("--radius", sample.radius,
-                        "spherical: the planet's reference radius in metres (default: from the "
-                        "raster's CRS, 6371008.8 for WGS84); cylindrical: the station's radius "
-                        "(default 250)")
+  sampleCmd
+      ->add_option("--mapping", sample.mapping,
+                   "Frame: " + qota::mappingHelp() + "; default: a tree file's own, else cartesian")
+      ->check(CLI::IsMember(qota::mappingNameList()));
+  sampleCmd
+      ->add_option("--radius", sample.radius,
+                   "spherical: the planet's reference radius in metres (default: from the "
+                   "raster's CRS, 6371008.8 for WGS84); cylindrical: the station's radius "
+                   "(default 250)")
       ->check(CLI::PositiveNumber);
   sampleCmd->add_option("--length", sample.length, "cylindrical: the station's length (default 1000)")
       ->check(CLI::PositiveNumber);
-  sampleCmd->add_flag("-w,--lat-lon", sample.swapXY,
-                      "Input lines are 'lat lon' (or 'y x') instead of 'lon lat'");
+  sampleCmd->add_flag("-w,--lat-lon", sample.swapXY, "Input lines are 'lat lon' (or 'y x') instead of 'lon lat'");
   std::vector<double> sampleOrigin;
-  sampleCmd->add_option("--origin", sampleOrigin,
-                        "enu: the frame's origin LAT,LON[,H] (H metres over the ellipsoid); default: the "
-                        "raster's centre at height 0")
+  sampleCmd
+      ->add_option("--origin", sampleOrigin,
+                   "enu: the frame's origin LAT,LON[,H] (H metres over the ellipsoid); default: the "
+                   "raster's centre at height 0")
       ->delimiter(',')
       ->expected(2, 3);
   sampleCmd->add_option("--height-ref", sample.heightRef,
                         "geodetic: what the raster's heights are over: ellipsoid, egm96, egm2008, crs (its "
                         "vertical CRS) or a geoid grid's path; default: its vertical CRS, else EGM96 on "
                         "the Earth and the ellipsoid elsewhere (said once)");
-  sampleCmd->add_option("--output-height-ref", sample.outputHeightRef,
-                        "geodetic: print heights over the ellipsoid (ellipsoid) instead of the source's own "
-                        "reference")
+  sampleCmd
+      ->add_option("--output-height-ref", sample.outputHeightRef,
+                   "geodetic: print heights over the ellipsoid (ellipsoid) instead of the source's own "
+                   "reference")
       ->check(CLI::IsMember({"ellipsoid"}));
   addTreeOptions(sampleCmd, sample.terrain);
 
   InfoOptions info;
-  CLI::App* infoCmd =
-      app.add_subcommand("info", "Raster, terrain and quadtree statistics (the paper's Table 4)");
-  infoCmd->add_option("source", info.source, "Elevation raster (any GDAL format) or tree file (qota build)")
+  CLI::App* infoCmd = app.add_subcommand("info", "Raster, terrain and quadtree statistics (the paper's Table 4)");
+  infoCmd
+      ->add_option("source", info.source.source,
+                   "Elevation raster (any GDAL format), tree file (qota build) or mesh file")
       ->required();
-  infoCmd->add_option("-b,--band", info.band, "Raster band holding the heights")->check(CLI::Range(1, 1 << 30));
-  addTreeOptions(infoCmd, info.terrain);
+  infoCmd->add_flag("-q,--quiet", info.quiet, "No notes (info prints none today)");
+  addSourceOptions(infoCmd, info.source);
 
   ShadowOptions shadow;
-  CLI::App* shadowCmd = app.add_subcommand(
-      "shadow",
-      "Shadows of the sun (or any directional light) on a DEM. "
-      "Output: a raster on the DEM's grid, lit = 255, shadow = 0, nodata = 128 (Byte), or hours of "
-      "direct sunlight (Float32, nodata -1) with --hours. Terrain outside the raster is not seen: "
-      "shadows cast from beyond the edge are missing, up to the 'shadow reach' the tool prints "
-      "(relief / tan(altitude)); pad tiles by that much. A DEM with a CRS is placed on its "
-      "ellipsoid (curvature included, the sun's direction right at every cell) unless --flat. "
-      "Heights are converted to metres from the raster's vertical unit (-z and -s as gdaldem's).");
+  CLI::App* shadowCmd =
+      app.add_subcommand("shadow",
+                         "Shadows of the sun (or any directional light) on a DEM. "
+                         "Output: a raster on the DEM's grid, lit = 255, shadow = 0, nodata = 128 (Byte), or hours of "
+                         "direct sunlight (Float32, nodata -1) with --hours. Terrain outside the raster is not seen: "
+                         "shadows cast from beyond the edge are missing, up to the 'shadow reach' the tool prints "
+                         "(relief / tan(altitude)); pad tiles by that much. A DEM with a CRS is placed on its "
+                         "ellipsoid (curvature included, the sun's direction right at every cell) unless --flat. "
+                         "Heights are converted to metres from the raster's vertical unit (-z and -s as gdaldem's).");
   shadowCmd->add_option("source", shadow.source, "Elevation raster (any GDAL format)")->required();
   shadowCmd->add_option("-o,--output", shadow.output, "Output raster")->required();
   shadowCmd->add_option("--of", shadow.format, "GDAL format (-of); default: from the extension");
   shadowCmd->add_option("--co", shadow.creationOptions, "Creation option NAME=VALUE (-co), repeatable");
   shadowCmd->add_flag("-q,--quiet", shadow.quiet, "No progress or summary");
-  shadowCmd->add_option("--az", shadow.azimuth,
-                        "Sun azimuth (-az), degrees clockwise from north (default 315)");
-  shadowCmd->add_option("--alt", shadow.altitude,
-                        "Sun altitude (-alt), degrees above the horizon (default 45)");
+  shadowCmd->add_option("--az", shadow.azimuth, "Sun azimuth (-az), degrees clockwise from north (default 315)");
+  shadowCmd->add_option("--alt", shadow.altitude, "Sun altitude (-alt), degrees above the horizon (default 45)");
   std::vector<double> sunVector;
   shadowCmd->add_option("--sun-vector", sunVector, "Vector toward the light: east,north,up")
       ->delimiter(',')
       ->expected(3);
   std::vector<double> at, sunVectorBody, subsolar;
-  shadowCmd->add_option("--at", at,
-                        "LON,LAT: -az/-alt are east-north-up at this place (default: the DEM's centre)")
+  shadowCmd->add_option("--at", at, "LON,LAT: -az/-alt are east-north-up at this place (default: the DEM's centre)")
       ->delimiter(',')
       ->expected(2);
-  shadowCmd->add_option("--sun-vector-body", sunVectorBody,
-                        "X,Y,Z: the direction to the Sun in the body-fixed, body-centred frame (ECEF; "
-                        "SPICE's spkpos in IAU_MARS, IAU_MOON): the same light at any place, poles included")
+  shadowCmd
+      ->add_option("--sun-vector-body", sunVectorBody,
+                   "X,Y,Z: the direction to the Sun in the body-fixed, body-centred frame (ECEF; "
+                   "SPICE's spkpos in IAU_MARS, IAU_MOON): the same light at any place, poles included")
       ->delimiter(',')
       ->expected(3);
-  shadowCmd->add_option("--subsolar", subsolar,
-                        "LON,LAT: the Sun over this point (east longitude, planetocentric latitude: the "
-                        "Sun's declination)")
+  shadowCmd
+      ->add_option("--subsolar", subsolar,
+                   "LON,LAT: the Sun over this point (east longitude, planetocentric latitude: the "
+                   "Sun's declination)")
       ->delimiter(',')
       ->expected(2);
   shadowCmd->add_option("--time", shadow.time,
@@ -160,22 +185,24 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
                         "Zone of a --time without offset: an offset (+02:00) or an IANA name "
                         "(Europe/Paris)");
   std::vector<double> hours;
-  shadowCmd->add_option("--hours", hours,
-                        "START END STEP: hours of direct sunlight between these local clock hours "
-                        "(0 to 48) of --time's date, in steps of STEP hours (at least 1/60); a "
-                        "cell lit at a step's middle counts the whole step")
+  shadowCmd
+      ->add_option("--hours", hours,
+                   "START END STEP: hours of direct sunlight between these local clock hours "
+                   "(0 to 48) of --time's date, in steps of STEP hours (at least 1/60); a "
+                   "cell lit at a step's middle counts the whole step")
       ->expected(3);
   shadowCmd->add_flag("--flat", shadow.flat,
                       "No curvature: a geographic DEM's lon/lat scaled linearly, a projected "
                       "DEM's grid as it is");
-  shadowCmd->add_option("-b,--band", shadow.band, "Raster band holding the heights")
-      ->check(CLI::Range(1, 1 << 30));
-  shadowCmd->add_option("-z,--z-factor", shadow.zFactor,
-                        "Multiply heights by this after converting their unit to metres (gdaldem's -z)")
+  shadowCmd->add_option("-b,--band", shadow.band, "Raster band holding the heights")->check(CLI::Range(1, 1 << 30));
+  shadowCmd
+      ->add_option("-z,--z-factor", shadow.zFactor,
+                   "Multiply heights by this after converting their unit to metres (gdaldem's -z)")
       ->check(CLI::PositiveNumber);
-  shadowCmd->add_option("-s,--scale", shadow.scale,
-                        "Horizontal units per vertical unit, for a raster whose vertical unit is not "
-                        "known (gdaldem's -s; a degree counts as 111120 m)")
+  shadowCmd
+      ->add_option("-s,--scale", shadow.scale,
+                   "Horizontal units per vertical unit, for a raster whose vertical unit is not "
+                   "known (gdaldem's -s; a degree counts as 111120 m)")
       ->check(CLI::PositiveNumber);
   shadowCmd->add_option("--pixel-size", shadow.pixelSize, "Metres per pixel for a raster without CRS");
   shadowCmd->add_option("--height-ref", shadow.heightRef,
@@ -184,8 +211,7 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
                         "the ellipsoid elsewhere (said in the frame line, recorded in the output)");
   shadowCmd->add_option("--png", shadow.png, "Also write a PNG preview: the shadows over a hillshade");
   shadowCmd->add_option("--lit-value", shadow.litValue, "Output value of lit cells")->capture_default_str();
-  shadowCmd->add_option("--shadow-value", shadow.shadowValue, "Output value of shadowed cells")
-      ->capture_default_str();
+  shadowCmd->add_option("--shadow-value", shadow.shadowValue, "Output value of shadowed cells")->capture_default_str();
   shadowCmd->add_option("--nodata-value", shadow.nodataValue, "Output value (and nodata) of cells without data")
       ->capture_default_str();
   std::string maxMemory;
@@ -193,18 +219,21 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
                         "Memory the run may take (64M, 2G...); a raster whose whole shadow would not fit "
                         "is shadowed by tiles with halos (the same values), streamed into a tiled GeoTIFF "
                         "or COG. Default: three quarters of the memory available");
-  shadowCmd->add_option("--max-cells", shadow.maxCells,
-                        "Refuse a raster of more cells than this (with the time it would take), before "
-                        "any work: raise it to run one that large")
+  shadowCmd
+      ->add_option("--max-cells", shadow.maxCells,
+                   "Refuse a raster of more cells than this (with the time it would take), before "
+                   "any work: raise it to run one that large")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
-  shadowCmd->add_option("--tile-size", shadow.tileSize,
-                        "Shadow by tiles of N x N cells (a multiple of 16), whatever the raster's size")
+  shadowCmd
+      ->add_option("--tile-size", shadow.tileSize,
+                   "Shadow by tiles of N x N cells (a multiple of 16), whatever the raster's size")
       ->check(CLI::Range(16, 1 << 20));
   std::vector<int> tileAt;
-  shadowCmd->add_option("--tile", tileAt,
-                        "Compute only tile COL,ROW (from 0) of the --tile-size grid, with its halo, as a "
-                        "raster of its own (for batch schedulers; qota assemble joins the tiles)")
+  shadowCmd
+      ->add_option("--tile", tileAt,
+                   "Compute only tile COL,ROW (from 0) of the --tile-size grid, with its halo, as a "
+                   "raster of its own (for batch schedulers; qota assemble joins the tiles)")
       ->delimiter(',')
       ->expected(2);
   shadowCmd->add_option("--tiles-state", shadow.tilesState,
@@ -216,17 +245,17 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
                    "How each cell's light ray finds the terrain it may meet (the same mask): 'strips' "
                    "(default; strips of the DEM along the sun's azimuth, sorted by distance) or "
                    "'quadtree' (the paper's shadow quadtree in the light's frame)")
-      ->transform(CLI::CheckedTransformer(
-          std::map<std::string, qota::ShadowSearch>{{"strips", qota::ShadowSearch::Strips},
-                                                    {"quadtree", qota::ShadowSearch::Quadtree}},
-          CLI::ignore_case));
+      ->transform(
+          CLI::CheckedTransformer(std::map<std::string, qota::ShadowSearch>{{"strips", qota::ShadowSearch::Strips},
+                                                                            {"quadtree", qota::ShadowSearch::Quadtree}},
+                                  CLI::ignore_case));
 
   AssembleOptions assembleOptions;
-  CLI::App* assembleCmd = app.add_subcommand(
-      "assemble",
-      "Join tiles (qota shadow --tile runs, or any one-band rasters on one grid) into one raster: "
-      "a GeoTIFF or COG written a tile at a time, or a VRT pointing at them. Refuses tiles on "
-      "other grids, overlapping, or missing from their run (named), rather than leave a hole.");
+  CLI::App* assembleCmd =
+      app.add_subcommand("assemble",
+                         "Join tiles (qota shadow --tile runs, or any one-band rasters on one grid) into one raster: "
+                         "a GeoTIFF or COG written a tile at a time, or a VRT pointing at them. Refuses tiles on "
+                         "other grids, overlapping, or missing from their run (named), rather than leave a hole.");
   assembleCmd->add_option("tiles", assembleOptions.tiles, "The tiles")->required();
   assembleCmd->add_option("-o,--output", assembleOptions.output, "Output raster (.tif, .vrt)")->required();
   assembleCmd->add_option("--of", assembleOptions.format, "GTiff, COG or VRT; default: from the extension");
@@ -234,48 +263,37 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
   assembleCmd->add_flag("-q,--quiet", assembleOptions.quiet, "No progress or summary");
 
   BuildOptions build;
-  CLI::App* buildCmd = app.add_subcommand(
-      "build",
-      "Build a terrain's QOTA index once and write it as a tree file (.qota), which sample, info "
-      "and render-tree load instead of rebuilding.");
-  buildCmd->add_option("source", build.source.source, "Raster (any GDAL format) or mesh file (OBJ, PLY, glTF, STL, GeoPackage...)")
+  CLI::App* buildCmd =
+      app.add_subcommand("build",
+                         "Build a terrain's QOTA index once and write it as a tree file (.qota), which sample, info "
+                         "and render-tree load instead of rebuilding.");
+  buildCmd
+      ->add_option("source", build.source.source,
+                   "Raster (any GDAL format) or mesh file (OBJ, PLY, glTF, STL, GeoPackage...)")
       ->required();
-  buildCmd->add_option("-o,--output", build.output, "Tree file to write (replaced only when complete)")
-      ->required();
-  buildCmd->add_option("--mapping", build.source.mapping,
-                       "cartesian (default), spherical, geodetic or cylindrical (see sample)")
-      ->check(CLI::IsMember({"cartesian", "spherical", "geodetic", "cylindrical", "enu"}));
-  buildCmd->add_option("--radius", build.source.radius, "spherical: planet radius; cylindrical: station radius")
-      ->check(CLI::PositiveNumber);
-  buildCmd->add_option("--length", build.source.length, "cylindrical: station length")
-      ->check(CLI::PositiveNumber);
+  buildCmd->add_option("-o,--output", build.output, "Tree file to write (replaced only when complete)")->required();
   buildCmd->add_flag("-q,--quiet", build.quiet, "No summary");
-  buildCmd->add_option("--height-ref", build.source.heightRef,
-                       "geodetic: what the raster's heights are over (see sample); recorded in the tree file");
-  buildCmd->add_option("-b,--band", build.source.band, "Raster band holding the heights")
-      ->check(CLI::Range(1, 1 << 30));
-  addTreeOptions(buildCmd, build.source.terrain);
+  addSourceOptions(buildCmd, build.source);
 
   RenderTreeOptions renderTree;
-  CLI::App* renderTreeCmd = app.add_subcommand(
-      "render-tree",
-      "A picture of the QOTA quadtree over a DEM (the paper's Figure 4): a grey PNG on the "
-      "raster's grid, each leaf filled by its polygon count (white = empty, darker on a log scale "
-      "down to grey 160 at --max-poly polygons or more), leaf edges in dark grey (40), over a "
-      "faint hillshade.");
-  renderTreeCmd->add_option("source", renderTree.source,
-                            "Elevation raster (any GDAL format) or tree file (qota build; its "
-                            "own Maxpoly and Maxdepth; drawn over its raster when that is still "
-                            "there, else over its (u, v) box)")
+  CLI::App* renderTreeCmd =
+      app.add_subcommand("render-tree",
+                         "A picture of the QOTA quadtree over a DEM (the paper's Figure 4): a grey PNG on the "
+                         "raster's grid, each leaf filled by its polygon count (white = empty, darker on a log scale "
+                         "down to grey 160 at --max-poly polygons or more), leaf edges in dark grey (40), over a "
+                         "faint hillshade.");
+  renderTreeCmd
+      ->add_option("source", renderTree.source.source,
+                   "Elevation raster (any GDAL format), mesh file or tree file (qota build; its "
+                   "own Maxpoly and Maxdepth; drawn over its raster when that is still "
+                   "there, else over its (u, v) box, as a mesh or a raster in a curved mapping is)")
       ->required();
   renderTreeCmd->add_option("-o,--output", renderTree.output, "Output PNG")->required();
   renderTreeCmd->add_option("--size", renderTree.size, "Pixels along the image's long side")
       ->capture_default_str()
       ->check(CLI::Range(16, 16384));
   renderTreeCmd->add_flag("-q,--quiet", renderTree.quiet, "No summary");
-  renderTreeCmd->add_option("-b,--band", renderTree.band, "Raster band holding the heights")
-      ->check(CLI::Range(1, 1 << 30));
-  addTreeOptions(renderTreeCmd, renderTree.terrain);
+  addSourceOptions(renderTreeCmd, renderTree.source);
 
   try {
     const std::vector<std::string> args = gdalStyleArguments(argc, argv);
@@ -290,14 +308,16 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
   if (*buildCmd) return tools::build(build, out, err);
   if (*sampleCmd) {
     if (!sampleOrigin.empty()) {
-      sample.origin = std::array<double, 3>{sampleOrigin[0], sampleOrigin[1], sampleOrigin.size() > 2 ? sampleOrigin[2] : 0.0};
+      sample.origin =
+          std::array<double, 3>{sampleOrigin[0], sampleOrigin[1], sampleOrigin.size() > 2 ? sampleOrigin[2] : 0.0};
     }
     return tools::sample(sample, in, out, err);
   }
   if (*infoCmd) return tools::info(info, out, err);
   if (*shadowCmd) {
     if (!sunVector.empty()) shadow.sunVector = Eigen::Vector3d(sunVector[0], sunVector[1], sunVector[2]);
-    if (!sunVectorBody.empty()) shadow.sunVectorBody = Eigen::Vector3d(sunVectorBody[0], sunVectorBody[1], sunVectorBody[2]);
+    if (!sunVectorBody.empty())
+      shadow.sunVectorBody = Eigen::Vector3d(sunVectorBody[0], sunVectorBody[1], sunVectorBody[2]);
     if (!subsolar.empty()) shadow.subsolar = std::array<double, 2>{subsolar[0], subsolar[1]};
     if (!at.empty()) shadow.at = std::array<double, 2>{at[0], at[1]};
     if (!hours.empty()) shadow.hours = std::array<double, 3>{hours[0], hours[1], hours[2]};

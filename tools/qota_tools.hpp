@@ -37,15 +37,16 @@ namespace qota::tools {
 // on the raster, 1 when any line was malformed or off the raster (with a message naming the line
 // on stderr), 2 for a usage error or unreadable file.
 struct SampleOptions {
-  std::string source;       // raster path
-  std::string inputFile;    // empty: read from the `in` stream
-  std::string outputFile;   // empty: write to the `out` stream; else written atomically
-  std::string srs;          // CRS of the input points; empty: the raster's
-  int precision = -1;       // -1: shortest round-trip; else decimals after the point (<= 100)
+  std::string source;      // raster path
+  std::string inputFile;   // empty: read from the `in` stream
+  std::string outputFile;  // empty: write to the `out` stream; else written atomically
+  std::string srs;         // CRS of the input points; empty: the raster's
+  int precision = -1;      // -1: shortest round-trip; else decimals after the point (<= 100)
   bool printWorld = false;
-  bool queryZ = false;      // the third field is the query height
-  bool header = false;      // the first line is a header
-  int band = 0;             // raster band (1-based); 0: the raster's only band
+  bool queryZ = false;  // the third field is the query height
+  bool header = false;  // the first line is a header
+  bool quiet = false;   // no notes on `err` (what was assumed); points' problems still are
+  int band = 0;         // raster band (1-based); 0: the raster's only band
   // The frame (coords/README.md): "cartesian" (the raster as a map, heights along -Z),
   // "spherical" (a lon/lat raster closed into a planet of radius `radius`, 0: from its CRS;
   // points "lon lat [r]", output the surface radius in metres), "geodetic" (a lon/lat raster on
@@ -55,10 +56,10 @@ struct SampleOptions {
   // [h]", output the distance from the axis in metres, "below" meaning away from it), or "enu"
   // (the raster on its ellipsoid seen in the east-north-up frame at `origin`: lines "east north
   // [up]" in metres, output the terrain's up in metres).
-  std::string mapping;       // empty: a tree file's own mapping, else cartesian
+  std::string mapping;  // empty: a tree file's own mapping, else cartesian
   double radius = 0;
   double length = 0;
-  bool swapXY = false;      // input lines are "y x" (lat lon), as GeographicLib's -w
+  bool swapXY = false;  // input lines are "y x" (lat lon), as GeographicLib's -w
   // geodetic: what the raster's heights are over (qota/geoid.hpp: ellipsoid, egm96, egm2008,
   // crs, a grid's path; "": its own, else assumed and said once on `err`). The surface is placed
   // over the ellipsoid; heights read (--query-z) and printed are in that same reference unless
@@ -75,9 +76,10 @@ int sample(const SampleOptions& options, std::istream& in, std::ostream& out, st
 // qota info: the raster, the terrain and the quadtree statistics (the paper's Table 4), one
 // "name: value" per line.
 struct InfoOptions {
-  std::string source;
-  int band = 0;  // raster band (1-based); 0: the raster's only band
-  IndexOptions terrain;
+  // The source, as every tool reads one: a raster (in --mapping, default cartesian), a mesh or a
+  // tree file; the band, the mapping's parameters and the quadtree's.
+  SourceOptions source;
+  bool quiet = false;  // (info prints no notes; kept so that -q means the same in every tool)
 };
 int info(const InfoOptions& options, std::ostream& out, std::ostream& err);
 
@@ -101,10 +103,10 @@ int info(const InfoOptions& options, std::ostream& out, std::ostream& err);
 struct ShadowOptions {
   std::string source;
   std::string output;
-  std::string format;                    // GDAL driver; empty: guessed from the extension
+  std::string format;                        // GDAL driver; empty: guessed from the extension
   std::vector<std::string> creationOptions;  // NAME=VALUE
   bool quiet = false;
-  int band = 0;                          // 1-based; 0: the raster's only band
+  int band = 0;  // 1-based; 0: the raster's only band
   std::optional<double> azimuth, altitude;
   // -az/-alt are east-north-up at this (longitude, latitude) (default: the DEM's centre); refused
   // within kPoleDegrees of a pole, where east and north are undefined.
@@ -115,14 +117,14 @@ struct ShadowOptions {
   // declination): the same light anywhere on the body, poles included.
   std::optional<Eigen::Vector3d> sunVectorBody;
   std::optional<std::array<double, 2>> subsolar;
-  std::string time;                      // ISO 8601
-  std::string tz;                        // zone of a time without offset: +HH:MM or an IANA name
+  std::string time;                            // ISO 8601
+  std::string tz;                              // zone of a time without offset: +HH:MM or an IANA name
   std::optional<std::array<double, 3>> hours;  // start, end, step (local hours of the date)
   bool flat = false;
-  double pixelSize = 0;                  // metres per pixel for a raster without CRS
-  double zFactor = 1;                    // gdaldem's -z
-  double scale = 0;                      // gdaldem's -s (horizontal units per vertical unit)
-  std::string png;                       // preview: shadow over a hillshade
+  double pixelSize = 0;  // metres per pixel for a raster without CRS
+  double zFactor = 1;    // gdaldem's -z
+  double scale = 0;      // gdaldem's -s (horizontal units per vertical unit)
+  std::string png;       // preview: shadow over a hillshade
   int litValue = 255, shadowValue = 0, nodataValue = 128;
   IndexOptions terrain;
   ShadowSearch search = ShadowSearch::Strips;  // how the occluders are found (same mask)
@@ -179,11 +181,10 @@ std::uint64_t parseByteSize(const std::string& text);
 // renamed into place. Exit code 0 on success, 2 on error (unreadable DEM, output folder missing
 // or not writable, output not named .png, size outside 16..16384).
 struct RenderTreeOptions {
-  std::string source, output;
-  int band = 0;     // raster band (1-based); 0: the raster's only band
+  SourceOptions source;  // as every tool reads one (a raster in --mapping, a mesh, a tree file)
+  std::string output;
   int size = 1024;  // pixels along the image's long side
   bool quiet = false;
-  IndexOptions terrain;
 };
 int renderTree(const RenderTreeOptions& options, std::ostream& out, std::ostream& err);
 

@@ -59,7 +59,8 @@ std::vector<std::string> checkCreationOptions(const std::string& format, const s
     return v;
   };
   const auto refuse = [&](const std::string& what) {
-    throw Error(what + ": the values written would not be the ones computed; give lossless options "
+    throw Error(what +
+                ": the values written would not be the ones computed; give lossless options "
                 "(COMPRESS=DEFLATE, LZW or ZSTD), or none");
   };
   if (f == "JPEG") refuse("-of JPEG (lossy)");
@@ -67,7 +68,8 @@ std::vector<std::string> checkCreationOptions(const std::string& format, const s
   if (f == "JP2OPENJPEG" && value("REVERSIBLE") != "YES") refuse("-of JP2OpenJPEG without -co REVERSIBLE=YES (lossy)");
   const std::string compress = value("COMPRESS");
   if (compress == "JPEG") refuse("-co COMPRESS=JPEG (lossy)");
-  if (compress == "WEBP" && value("WEBP_LOSSLESS") != "YES") refuse("-co COMPRESS=WEBP without WEBP_LOSSLESS=YES (lossy)");
+  if (compress == "WEBP" && value("WEBP_LOSSLESS") != "YES")
+    refuse("-co COMPRESS=WEBP without WEBP_LOSSLESS=YES (lossy)");
   if (compress == "JXL" && value("JXL_LOSSLESS") == "NO") refuse("-co JXL_LOSSLESS=NO (lossy)");
   if (compress.rfind("LERC", 0) == 0 && std::atof(value("MAX_Z_ERROR").c_str()) != 0) {
     refuse("-co MAX_Z_ERROR=" + value("MAX_Z_ERROR") + " (lossy LERC)");
@@ -77,7 +79,8 @@ std::vector<std::string> checkCreationOptions(const std::string& format, const s
     int need = 1;
     while (need < 8 && (1 << need) <= mostValue) ++need;
     if (byteData && bits < need) {
-      refuse("-co NBITS=" + value("NBITS") + " (the value " + std::to_string(mostValue) + " needs " + std::to_string(need) + " bits)");
+      refuse("-co NBITS=" + value("NBITS") + " (the value " + std::to_string(mostValue) + " needs " +
+             std::to_string(need) + " bits)");
     }
     if (!byteData && bits != 32) refuse("-co NBITS=" + value("NBITS") + " (hours are 32-bit floats)");
   }
@@ -120,8 +123,8 @@ void writeRaster(const RasterWrite& w, const DemTerrain& grid, const std::vector
   for (const auto& [name, value] : w.metadata) ds->SetMetadataItem(name.c_str(), value.c_str());
   GDALRasterBand* band = ds->GetRasterBand(1);
   band->SetNoDataValue(w.nodata);
-  if (band->RasterIO(GF_Write, 0, 0, grid.width, grid.height, const_cast<double*>(values.data()),
-                     grid.width, grid.height, GDT_Float64, 0, 0) != CE_None) {
+  if (band->RasterIO(GF_Write, 0, 0, grid.width, grid.height, const_cast<double*>(values.data()), grid.width,
+                     grid.height, GDT_Float64, 0, 0) != CE_None) {
     throw Error(w.path + ": cannot fill the output raster");
   }
 
@@ -209,8 +212,8 @@ void StreamedRaster::write(int col, int row, int width, int height, const std::v
   Open& o = *open_;
   if (!o.band) throw Error(w_.path + ": written after it was finished");
   if (values.size() != static_cast<std::size_t>(width) * height) throw Error(w_.path + ": a window of the wrong size");
-  if (o.band->RasterIO(GF_Write, col, row, width, height, const_cast<double*>(values.data()), width, height, GDT_Float64,
-                       0, 0) != CE_None ||
+  if (o.band->RasterIO(GF_Write, col, row, width, height, const_cast<double*>(values.data()), width, height,
+                       GDT_Float64, 0, 0) != CE_None ||
       o.errors.failed()) {
     throw Error(w_.path + ": cannot write (" + o.errors.message() + ")");
   }

@@ -37,7 +37,7 @@ struct RasterWrite {
   std::vector<std::string> creationOptions;
   bool byteData = true;
   double nodata = 0;
-  bool quiet = true;   // no progress on stdout
+  bool quiet = true;                                               // no progress on stdout
   std::vector<std::pair<std::string, std::string>> metadata = {};  // NAME, VALUE items of the dataset
 };
 void writeRaster(const RasterWrite& w, const DemTerrain& grid, const std::vector<double>& values, OutputStage& stage);
@@ -54,7 +54,7 @@ class StreamedRaster {
     std::array<double, 6> geotransform{0, 1, 0, 0, 0, 1};
     std::string crsWkt;
     int blockSize = 256;
-    std::optional<double> nodata;  // the band's (RasterWrite's nodata is not used here)
+    std::optional<double> nodata;                               // the band's (RasterWrite's nodata is not used here)
     std::vector<std::pair<std::string, std::string>> metadata;  // NAME, VALUE items of the dataset
   };
   StreamedRaster(const RasterWrite& w, const Grid& grid, OutputStage& stage);

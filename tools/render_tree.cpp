@@ -21,6 +21,7 @@
 
 #include "qota/dem.hpp"
 #include "qota/error.hpp"
+#include "qota/mapping_registry.hpp"
 #include "qota/treefile.hpp"
 #include "qota/shadow.hpp"
 #include "qota_tools.hpp"
@@ -67,15 +68,16 @@ void encodePng(int width, int height, const std::vector<std::uint8_t>& grey, std
   if (!mem || !png) throw Error("this GDAL has no PNG driver");
   std::unique_ptr<GDALDataset> ds(mem->Create("", width, height, 1, GDT_Byte, nullptr));
   if (!ds) throw Error("cannot allocate a " + std::to_string(width) + " x " + std::to_string(height) + " image");
-  if (ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, width, height, const_cast<std::uint8_t*>(grey.data()),
-                                     width, height, GDT_Byte, 0, 0) != CE_None) {
+  if (ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, width, height, const_cast<std::uint8_t*>(grey.data()), width,
+                                     height, GDT_Byte, 0, 0) != CE_None) {
     throw Error("cannot fill the image");
   }
   static std::atomic<unsigned> serial{0};
   const std::string name = "/vsimem/qota_render_tree_" + std::to_string(serial++) + ".png";
   CPLPushErrorHandler(CPLQuietErrorHandler);
   CPLErrorReset();
-  std::unique_ptr<GDALDataset> copy(png->CreateCopy(name.c_str(), ds.get(), FALSE, nullptr, GDALDummyProgress, nullptr));
+  std::unique_ptr<GDALDataset> copy(
+      png->CreateCopy(name.c_str(), ds.get(), FALSE, nullptr, GDALDummyProgress, nullptr));
   const std::string gdalError = CPLGetLastErrorMsg();
   CPLPopErrorHandler();
   const bool ok = copy != nullptr;
@@ -116,8 +118,8 @@ int renderTree(const RenderTreeOptions& o, std::ostream& out, std::ostream& err)
     if (o.output.empty()) throw Error("an output file is needed: -o OUT.png");
     if (!hasPngExtension(o.output)) throw Error(o.output + ": the picture is a PNG; name it .png");
     if (o.size < kMinSize || o.size > kMaxSize) {
-      throw Error("--size must be " + std::to_string(kMinSize) + ".." + std::to_string(kMaxSize) +
-                  " pixels, got " + std::to_string(o.size));
+      throw Error("--size must be " + std::to_string(kMinSize) + ".." + std::to_string(kMaxSize) + " pixels, got " +
+                  std::to_string(o.size));
     }
     requireWritableFolder(o.output);
     // The tree: from a tree file (qota build) as it is, or built from a DEM. The picture lies on
@@ -126,24 +128,28 @@ int renderTree(const RenderTreeOptions& o, std::ostream& out, std::ostream& err)
     // (longitude and latitude for a planet), u to the right and v up.
     std::optional<TreeFile> treeFile;
     std::optional<DemTerrain> dem;
-    std::optional<TerrainIndex> built;
+    std::optional<CartesianIndex> built;
     const Quadtree* treePtr = nullptr;
     const CartesianMapping* mapping = nullptr;
-    std::uint32_t maxPoly = o.terrain.tree.maxPoly, maxDepth = o.terrain.tree.maxDepth;
-    if (isTreeFile(o.source)) {
-      treeFile.emplace(loadTree(o.source));
+    const SourceOptions& so = o.source;
+    std::uint32_t maxPoly = so.terrain.tree.maxPoly, maxDepth = so.terrain.tree.maxDepth;
+    requireSource(so.source);
+    if (isTreeFile(so.source) || !mappingEntry(so.mapping).map || !isRaster(so.source) || so.radius != 0 ||
+        so.length != 0 || so.origin || !so.heightRef.empty()) {
+      // A tree file, a mesh or a raster in another mapping: opened as sample and build open it.
+      treeFile.emplace(openIndex(so));
       std::visit([&](const auto& index) { treePtr = &index.tree(); }, treeFile->index);
       maxPoly = treePtr->options().maxPoly, maxDepth = treePtr->options().maxDepth;
       const TreeSource& from = treeFile->source;
-      if (const auto* index = std::get_if<TerrainIndex>(&treeFile->index);
+      if (const auto* index = std::get_if<CartesianIndex>(&treeFile->index);
           index && from.width > 0 && std::filesystem::exists(from.path)) {
         dem.emplace(loadDem(from.path, {.band = from.band, .lonLatAsCartesian = true}));
         mapping = &index->mapping();
       }
     } else {
       // Drawn on the raster's own grid: a lon/lat raster's degrees are fine here.
-      dem.emplace(loadDem(o.source, {.band = o.band, .lonLatAsCartesian = true}));
-      built.emplace(dem->mesh, dem->mapping, o.terrain);
+      dem.emplace(loadDem(so.source, {.band = so.band, .lonLatAsCartesian = true}));
+      built.emplace(dem->mesh, dem->mapping, so.terrain);
       treePtr = &built->tree();
       mapping = &built->mapping();
     }
@@ -176,8 +182,7 @@ int renderTree(const RenderTreeOptions& o, std::ostream& out, std::ostream& err)
           const Eigen::Vector3d m = mapping->toMapped(Eigen::Vector3d(world[0], world[1], 0));
           ids[i] = leafAt(tree, m.x(), m.y());
         } else {
-          ids[i] = box.empty() ? -1
-                               : leafAt(tree, box.ulo + (i + 0.5) * boxW / iw, box.vhi - (j + 0.5) * boxH / ih);
+          ids[i] = box.empty() ? -1 : leafAt(tree, box.ulo + (i + 0.5) * boxW / iw, box.vhi - (j + 0.5) * boxH / ih);
         }
       }
     };
@@ -194,8 +199,7 @@ int renderTree(const RenderTreeOptions& o, std::ostream& out, std::ostream& err)
           px = kEdgeGrey;
           continue;
         }
-        const double fill = ids[i] < 0 ? kEmptyGrey
-                                       : leafGrey(Quadtree::leafSize(tree.nodes()[ids[i]]), maxPoly);
+        const double fill = ids[i] < 0 ? kEmptyGrey : leafGrey(Quadtree::leafSize(tree.nodes()[ids[i]]), maxPoly);
         double shade = 1.0;
         if (dem) {
           const auto [col, row] = rasterAt(i, j);
@@ -212,11 +216,11 @@ int renderTree(const RenderTreeOptions& o, std::ostream& out, std::ostream& err)
     file.commit();
     if (!o.quiet) {
       const QuadtreeStats t = tree.stats();
-      out << "qota render-tree: " << o.source << " -> " << o.output << '\n'
-          << "tree: " << t.nodes << " nodes, " << t.leaves << " leaves (" << t.emptyLeaves
-          << " empty), depth " << t.depth << " (max poly " << maxPoly << ", max depth " << maxDepth << ")\n"
-          << "image: " << iw << " x " << ih << " pixels; white: empty leaf, grey " << int(kFullGrey)
-          << ": " << maxPoly << " polygons or more (log scale), grey " << int(kEdgeGrey) << ": leaf edges\n"
+      out << "qota render-tree: " << o.source.source << " -> " << o.output << '\n'
+          << "tree: " << t.nodes << " nodes, " << t.leaves << " leaves (" << t.emptyLeaves << " empty), depth "
+          << t.depth << " (max poly " << maxPoly << ", max depth " << maxDepth << ")\n"
+          << "image: " << iw << " x " << ih << " pixels; white: empty leaf, grey " << int(kFullGrey) << ": " << maxPoly
+          << " polygons or more (log scale), grey " << int(kEdgeGrey) << ": leaf edges\n"
           << "written: " << o.output << '\n';
     }
     return 0;

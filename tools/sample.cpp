@@ -28,6 +28,7 @@
 #include "qota/dem.hpp"
 #include "qota/error.hpp"
 #include "qota/geoid.hpp"
+#include "qota/mapping_registry.hpp"
 #include "qota/raster_sampler.hpp"
 #include "qota/treefile.hpp"
 #include "cancel.hpp"
@@ -47,7 +48,9 @@ std::string quoted(std::string_view token, std::string_view what) {
       m += c;
     } else {
       static const char* hex = "0123456789ABCDEF";
-      m += c == '\r' ? std::string("\\r") : c == '\t' ? std::string("\\t") : std::string{'\\', 'x', hex[u >> 4], hex[u & 15]};
+      m += c == '\r'   ? std::string("\\r")
+           : c == '\t' ? std::string("\\t")
+                       : std::string{'\\', 'x', hex[u >> 4], hex[u & 15]};
     }
   }
   m += "' ";
@@ -60,9 +63,9 @@ bool isSeparator(char c) { return c == ' ' || c == '\t' || c == ','; }
 // One input line: its coordinates, and the fields after them, passed through to the output.
 struct PointLine {
   double v[3] = {0, 0, 0};
-  int count = 0;               // coordinates read: 0 for a blank line, else `want`
-  std::string_view rest;       // the text after the coordinates and their separators
-  char separator = ' ';        // what follows the last coordinate: ',', '\t' or ' '
+  int count = 0;          // coordinates read: 0 for a blank line, else `want`
+  std::string_view rest;  // the text after the coordinates and their separators
+  char separator = ' ';   // what follows the last coordinate: ',', '\t' or ' '
 };
 
 // Reads the first `want` fields of a line as finite numbers (fields are separated by spaces,
@@ -106,8 +109,7 @@ bool parsePointLine(std::string_view line, int want, PointLine& out, std::string
   return true;
 }
 
-std::unique_ptr<OGRCoordinateTransformation> makeTransform(const std::string& srs,
-                                                           const TreeSource& source) {
+std::unique_ptr<OGRCoordinateTransformation> makeTransform(const std::string& srs, const TreeSource& source) {
   if (srs.empty()) return nullptr;
   if (source.crsWkt.empty()) {
     throw Error(source.path + ": the source has no CRS, so points given in --srs cannot be placed on it");
@@ -226,15 +228,53 @@ Surface rasterSurface(std::shared_ptr<RasterSampler> sampler) {
   };
 }
 
+template <class... F>
+struct Overloaded : F... {
+  using F::operator()...;
+};
+
+// A terrain indexed in the Cartesian mapping as a map (a mesh, a tree file): answers in the
+// source's own x, y and up; nullopt for an index in another mapping.
+std::optional<Surface> mapAnswers(const std::shared_ptr<TreeFile>& tree,
+                                  const std::shared_ptr<const DemTerrain>& grid) {
+  return std::visit(
+      Overloaded{[&](const CartesianIndex& indexRef) -> std::optional<Surface> {
+                   const CartesianIndex* index = &indexRef;
+                   const CartesianMapping& mapping = index->mapping();
+                   return pointByPoint([tree, index, mapping, grid](double x, double y, const double* z) {
+                     const double px = x, py = y;
+                     std::string problem;
+                     if (!onSurface(grid.get(), x, y, problem)) return outside("none", problem);
+                     const Eigen::Vector3d m = mapping.toMapped(Eigen::Vector3d(x, y, z ? *z : 0.0));
+                     if (!grid && !index->tree().box().contains(m.x(), m.y())) {  // a mesh: off its footprint
+                       return outside("none",
+                                      "point (" + formatNumber(px) + ", " + formatNumber(py) + ") is off the terrain");
+                     }
+                     const std::optional<Hit> hit = z ? index->below(m.x(), m.y(), m.z()) : index->top(m.x(), m.y());
+                     if (!hit) return Answer{};
+                     // The height in the source's own coordinates: along "up" from its world origin (a mesh's
+                     // index works around the centre of its box, a raster's around its centre at z = 0).
+                     const double height = mapping.vertical() ? hit->world.z() : -hit->world.dot(mapping.gravity());
+                     return Answer{height, Eigen::Vector3d(px, py, height), "", ""};
+                   });
+                 },
+                 [](const auto&) -> std::optional<Surface> { return std::nullopt; }},
+      tree->index);
+}
+
 // The terrain of options.source: a raster in the Cartesian mapping through the tile sampler,
 // else an index (a tree file, a mesh, or a raster in a curved mapping) queried point by point.
 Surface openSurface(const SampleOptions& options, TreeSource& source, std::ostream& err) {
-  const bool cartesian = options.mapping.empty() || options.mapping == "cartesian";
-  if (!options.heightRef.empty() && options.mapping != "geodetic" && options.mapping != "enu") {
-    throw Error("--height-ref applies to a raster's heights placed on an ellipsoid (--mapping geodetic); the " +
-                (cartesian ? std::string("cartesian") : options.mapping) + " mapping keeps its heights as they are");
+  const MappingEntry& entry = mappingEntry(options.mapping);
+  if (!isTreeFile(options.source)) {  // (a tree file's options were given when it was built)
+    requireMappingTakes(entry, options.radius != 0, &MappingEntry::radius, "--radius");
+    requireMappingTakes(entry, options.length != 0, &MappingEntry::length, "--length");
+    requireMappingTakes(entry, options.origin.has_value(), &MappingEntry::origin, "--origin");
+    requireMappingTakes(entry, !options.heightRef.empty(), &MappingEntry::ellipsoid, "--height-ref");
   }
-  if (cartesian && !isTreeFile(options.source)) {
+  // The default mapping's rasters go through the streaming sampler: no index at all.
+  const bool asMap = entry.map;
+  if (asMap && !isTreeFile(options.source)) {
     requireSource(options.source);
     if (isRaster(options.source)) {
       // GDAL's block cache (5% of the RAM by default) bounded as well: the sampler's tiles are
@@ -260,40 +300,28 @@ Surface openSurface(const SampleOptions& options, TreeSource& source, std::ostre
   so.heightRef = options.heightRef;
   so.origin = options.origin;
   if (!options.outputHeightRef.empty() && options.outputHeightRef != "ellipsoid") {
-    throw Error("--output-height-ref '" + options.outputHeightRef + "': heights are printed over the source's own "
+    throw Error("--output-height-ref '" + options.outputHeightRef +
+                "': heights are printed over the source's own "
                 "reference, or over the ellipsoid with --output-height-ref ellipsoid");
   }
-  if (!options.outputHeightRef.empty() && options.mapping != "geodetic" && !isTreeFile(options.source)) {
-    throw Error("--output-height-ref applies to heights on an ellipsoid (--mapping geodetic)");
+  if (!isTreeFile(options.source)) {
+    // (answers in an east-north-up frame are its metres: no reference to print them over)
+    requireMappingTakes(entry, !options.outputHeightRef.empty(), &MappingEntry::ellipsoidHeights,
+                        "--output-height-ref");
   }
   auto tree = std::make_shared<TreeFile>(openIndex(so));
   if (tree->source.path.empty()) tree->source.path = options.source;
   source = tree->source;
   const std::shared_ptr<const DemTerrain> grid = gridOf(tree->source);
 
-  if (const TerrainIndex* index = std::get_if<TerrainIndex>(&tree->index)) {
-    const CartesianMapping& mapping = index->mapping();
-    return pointByPoint([tree, index, mapping, grid](double x, double y, const double* z) {
-      const double px = x, py = y;
-      std::string problem;
-      if (!onSurface(grid.get(), x, y, problem)) return outside("none", problem);
-      const Eigen::Vector3d m = mapping.toMapped(Eigen::Vector3d(x, y, z ? *z : 0.0));
-      if (!grid && !index->tree().box().contains(m.x(), m.y())) {  // a mesh: off its footprint
-        return outside("none", "point (" + formatNumber(px) + ", " + formatNumber(py) + ") is off the terrain");
-      }
-      const std::optional<Hit> hit = z ? index->below(m.x(), m.y(), m.z()) : index->top(m.x(), m.y());
-      if (!hit) return Answer{};
-      // The height in the source's own coordinates: along "up" from its world origin (a mesh's
-      // index works around the centre of its box, a raster's around its centre at z = 0).
-      const double height = mapping.vertical() ? hit->world.z() : -hit->world.dot(mapping.gravity());
-      return Answer{height, Eigen::Vector3d(px, py, height), "", ""};
-    });
-  }
+  // The map's own index (a mesh, or a tree file of a raster) answers in map coordinates; every
+  // other mapping goes through the index's (u, v, h), its registry entry saying what they are.
+  if (auto answer = mapAnswers(tree, grid)) return *answer;
   if (!options.srs.empty()) {
-    throw Error("--srs applies to the cartesian mapping only; the " +
-                std::string(mappingNameOf(tree->index)) +
-                " mapping reads longitude/latitude (or angle/axial) coordinates");
+    throw Error("--srs applies to the cartesian mapping only; the " + std::string(mappingNameOf(tree->index)) +
+                " mapping reads its own coordinates ('" + mappingEntry(mappingNameOf(tree->index)).line + "')");
   }
+  const MappingEntry& built = mappingEntry(mappingNameOf(tree->index));
   // A geodetic source's heights are in the raster's vertical unit (converted to metres for the
   // ellipsoid) and over its own reference (a geoid's undulation added to place them over the
   // ellipsoid): the query height comes in them and the answer goes out in them, as for
@@ -301,17 +329,17 @@ Surface openSurface(const SampleOptions& options, TreeSource& source, std::ostre
   const double metres = tree->source.metresPerUnit;
   auto geoid = std::make_shared<Geoid>(storedHeightReference(tree->source.heightRef, tree->source.geoidGrid));
   const bool overEllipsoid = options.outputHeightRef == "ellipsoid";
-  if (!geoid->ellipsoidal() && tree->source.heightRef.find("assumed") != std::string::npos) {
-    err << "qota sample: note: " << tree->source.path << ": heights taken over the " << tree->source.heightRef
-        << " (" << kHeightRefChoices << ")\n";
+  if (!options.quiet && !geoid->ellipsoidal() && tree->source.heightRef.find("assumed") != std::string::npos) {
+    err << "qota sample: note: " << tree->source.path << ": heights taken over the " << tree->source.heightRef << " ("
+        << kHeightRefChoices << ")\n";
   }
   return std::visit(
       [&](const auto& index) -> Surface {
-        using Index = std::decay_t<decltype(index)>;
-        constexpr bool kGeodetic = std::is_same_v<Index, GeodeticIndex>;
-        constexpr bool kSpherical = std::is_same_v<Index, SphericalIndex>;
-        constexpr bool kLatitude = kGeodetic || kSpherical;  // (u a longitude, v a latitude)
-        return pointByPoint([tree, &index, grid, metres, geoid, overEllipsoid](double u, double v, const double* z) {
+        // (u a longitude and v a latitude; heights over an ellipsoid, in the raster's unit)
+        const bool kLatitude = built.lonLat, kGeodetic = built.lonLat && built.ellipsoid;
+        const bool kSpherical = built.lonLat && !built.ellipsoid;
+        return pointByPoint([tree, &index, grid, metres, geoid, overEllipsoid, kLatitude, kGeodetic, kSpherical](
+                                double u, double v, const double* z) {
           if (kLatitude && !(v >= -90.0 && v <= 90.0)) {
             return outside("error", "latitude " + formatNumber(v) + " is outside [-90, 90]");
           }
@@ -323,12 +351,14 @@ Surface openSurface(const SampleOptions& options, TreeSource& source, std::ostre
             return outside("none", "point (" + formatNumber(u) + ", " + formatNumber(v) + ") is off the raster");
           }
           if (kLatitude) u -= 360.0 * std::floor((u + 180.0) / 360.0);  // the index's longitudes: [-180, 180)
-          if (!grid && !index.tree().box().contains(u, v)) {  // a mesh: off its footprint
+          if (!grid && !index.tree().box().contains(u, v)) {            // a mesh: off its footprint
             return outside("none", "point (" + formatNumber(u) + ", " + formatNumber(v) + ") is off the terrain");
           }
           const double scale = kGeodetic ? metres : 1.0;
           const double n = kGeodetic ? geoid->undulation(u, v) : 0.0;  // (0 over the ellipsoid)
-          if (std::isnan(n)) return outside("none", "point (" + formatNumber(u) + ", " + formatNumber(v) + ") is outside the geoid grid");
+          if (std::isnan(n))
+            return outside("none",
+                           "point (" + formatNumber(u) + ", " + formatNumber(v) + ") is outside the geoid grid");
           // (over a geoid, a height printed and asked again is widened by a few units in the last
           // place, so that it finds its own surface: z + N - N is not always z to the last bit)
           const double zh = z ? *z * scale + n : 0.0;
@@ -518,8 +548,7 @@ class LineLoop {
         } else {
           placed[k] = 0;
           answers_[k] = outside("error", "cannot transform (" + formatNumber(queries_[k].x) + ", " +
-                                             formatNumber(queries_[k].y) + ") from " + o_.srs +
-                                             " to the source's CRS");
+                                             formatNumber(queries_[k].y) + ") from " + o_.srs + " to the source's CRS");
         }
       }
     }
@@ -626,8 +655,8 @@ class LineLoop {
 int sample(const SampleOptions& options, std::istream& in, std::ostream& out, std::ostream& err) {
   try {
     if (options.precision > kMaxPrecision) {
-      throw Error("-p " + std::to_string(options.precision) + ": at most " +
-                  std::to_string(kMaxPrecision) + " decimals");
+      throw Error("-p " + std::to_string(options.precision) + ": at most " + std::to_string(kMaxPrecision) +
+                  " decimals");
     }
     TreeSource source;
     const Surface surface = openSurface(options, source, err);

@@ -68,10 +68,11 @@ LightChoice chooseLight(const ShadowOptions& o, const LocalFrame& frame, std::os
   // (A flat frame takes its grid's own north, as it takes the grid itself.)
   const bool atPole = frame.body.ellipsoid && std::fabs(frame.centreLat) > 90 - kPoleDegrees;
   const auto poleRefused = [&](const std::string& what) {
-    throw Error(what + " are east-north-up at the DEM's centre, " + formatNumber(frame.centreLon, 6) + ", " +
-                formatNumber(frame.centreLat, 6) + ", within " + formatNumber(kPoleDegrees) +
-                " degrees of a pole, where east and north are undefined; give the light in the body's own frame "
-                "(--sun-vector-body X,Y,Z or --subsolar LON,LAT), or -az/-alt at a place away from the pole (--at LON,LAT)");
+    throw Error(
+        what + " are east-north-up at the DEM's centre, " + formatNumber(frame.centreLon, 6) + ", " +
+        formatNumber(frame.centreLat, 6) + ", within " + formatNumber(kPoleDegrees) +
+        " degrees of a pole, where east and north are undefined; give the light in the body's own frame "
+        "(--sun-vector-body X,Y,Z or --subsolar LON,LAT), or -az/-alt at a place away from the pole (--at LON,LAT)");
   };
   if (o.at && !(o.azimuth || o.altitude)) throw Error("--at is where -az/-alt are east-north-up; give them with it");
   if (o.sunVectorBody || o.subsolar) {
@@ -86,7 +87,8 @@ LightChoice chooseLight(const ShadowOptions& o, const LocalFrame& frame, std::os
     } else {
       const auto [lon, lat] = *o.subsolar;
       if (!(std::fabs(lat) <= 90) || !std::isfinite(lon)) {
-        throw Error("--subsolar " + formatNumber(lon) + "," + formatNumber(lat) + ": give the sub-solar longitude and "
+        throw Error("--subsolar " + formatNumber(lon) + "," + formatNumber(lat) +
+                    ": give the sub-solar longitude and "
                     "latitude (degrees, latitude in [-90, 90])");
       }
       const double c = std::cos(lat * M_PI / 180);
@@ -103,8 +105,8 @@ LightChoice chooseLight(const ShadowOptions& o, const LocalFrame& frame, std::os
     }
     if (atPole) poleRefused("--sun-vector's east, north and up");
     const Eigen::Vector3d v = o.sunVector->normalized();
-    return {v, "light vector " + formatNumber(v.x(), 6) + "," + formatNumber(v.y(), 6) + "," +
-                   formatNumber(v.z(), 6) + " (east, north, up at the centre)"};
+    return {v, "light vector " + formatNumber(v.x(), 6) + "," + formatNumber(v.y(), 6) + "," + formatNumber(v.z(), 6) +
+                   " (east, north, up at the centre)"};
   }
   SunPosition sun;  // gdaldem hillshade's defaults: 315, 45
   std::string from = "-az/-alt";
@@ -119,20 +121,21 @@ LightChoice chooseLight(const ShadowOptions& o, const LocalFrame& frame, std::os
     if (o.altitude) sun.altitude = *o.altitude;
   }
   if (!(sun.altitude >= -90 && sun.altitude <= 90) || !std::isfinite(sun.azimuth)) {
-    throw Error("altitude must be between -90 and 90 degrees and azimuth finite, got -az " +
-                formatNumber(sun.azimuth) + " -alt " + formatNumber(sun.altitude));
+    throw Error("altitude must be between -90 and 90 degrees and azimuth finite, got -az " + formatNumber(sun.azimuth) +
+                " -alt " + formatNumber(sun.altitude));
   }
   if (o.time.empty() && o.at) {
     // East-north-up at the place given: the same light, seen from the frame.
     const auto [lon, lat] = *o.at;
     const EnuMapping enu = enuAt(frame, lon, lat, "--at");
-    if (std::fabs(lat) > 90 - kPoleDegrees) poleRefused("-az/-alt at --at " + formatNumber(lon) + "," + formatNumber(lat));
+    if (std::fabs(lat) > 90 - kPoleDegrees)
+      poleRefused("-az/-alt at --at " + formatNumber(lon) + "," + formatNumber(lat));
     const Eigen::Vector3d local = towardSunEnu(sun);
     const Eigen::Vector3d body = local.x() * enu.east() + local.y() * enu.north() + local.z() * enu.up();
     const Eigen::Vector3d toward = fromBody(frame, body);
     return {toward, "azimuth " + formatNumber(sun.azimuth, 3) + " deg, altitude " + formatNumber(sun.altitude, 3) +
-                        " deg at " + formatNumber(lon, 6) + ", " + formatNumber(lat, 6) + "; toward " + vectorText(toward) +
-                        " in the frame"};
+                        " deg at " + formatNumber(lon, 6) + ", " + formatNumber(lat, 6) + "; toward " +
+                        vectorText(toward) + " in the frame"};
   }
   if (o.time.empty() && atPole) poleRefused("-az/-alt");
   return {frame.towardSun(sun), "azimuth " + formatNumber(sun.azimuth, 3) + " deg, altitude " +
@@ -150,8 +153,8 @@ LocalSpan hoursSpan(const ShadowOptions& o) {
 namespace {
 
 // A grey hillshade (Lambert under the same light) darkened where shadowed; nodata black.
-std::vector<double> preview(const LocalFrame& f, const Eigen::Vector3d& light,
-                            const std::vector<Light>& mask, const std::vector<double>* hours) {
+std::vector<double> preview(const LocalFrame& f, const Eigen::Vector3d& light, const std::vector<Light>& mask,
+                            const std::vector<double>* hours) {
   const int w = f.width, h = f.height;
   std::vector<double> grey(f.cellCount(), 0.0);
   double maxHours = 0;
@@ -206,7 +209,8 @@ void checkOptions(const ShadowOptions& o, const std::string& format) {
                 " must differ, or lit, shadow and nodata cells could not be told apart");
   }
   if (format == "VRT" || format == "MEM") {
-    throw Error(o.output + ": the " + format + " format holds no pixels of its own (it would point at "
+    throw Error(o.output + ": the " + format +
+                " format holds no pixels of its own (it would point at "
                 "a dataset that is gone); write a GeoTIFF (.tif) or another format that stores them");
   }
   for (const std::string* path : {&o.output, &o.png}) {
@@ -271,9 +275,9 @@ int shadow(const ShadowOptions& o, std::ostream& out, std::ostream& err) {
       const double elapsed = sunlight.elapsedHours;
       if (!o.quiet) {
         GDALTermProgress(1.0, "", nullptr);
-        out << "sunlight: " << steps << " steps of " << formatNumber(step) << " h, from " << span.start.local
-            << " (" << span.start.utc << ") to " << span.end.local << " (" << span.end.utc << "), "
-            << formatNumber(elapsed) << " h\n";
+        out << "sunlight: " << steps << " steps of " << formatNumber(step) << " h, from " << span.start.local << " ("
+            << span.start.utc << ") to " << span.end.local << " (" << span.end.utc << "), " << formatNumber(elapsed)
+            << " h\n";
       }
     } else {
       const LightChoice light = chooseLight(o, frame, out);
@@ -293,22 +297,27 @@ int shadow(const ShadowOptions& o, std::ostream& out, std::ostream& err) {
         const double reach = shadowReach(frame, light.toward);
         out << "lit: " << formatNumber(valid ? 100.0 * lit / valid : 0.0, 2) << " % of " << valid << " cells\n";
         out << "shadow reach: "
-            << (std::isfinite(reach) ? formatReadable(reach, 0) + " m (" +
-                                           formatReadable(reach / std::min(frame.pixelSizeX, frame.pixelSizeY), 0) +
-                                           " pixels)"
-                                     : std::string("unbounded"))
+            << (std::isfinite(reach)
+                    ? formatReadable(reach, 0) + " m (" +
+                          formatReadable(reach / std::min(frame.pixelSizeX, frame.pixelSizeY), 0) + " pixels)"
+                    : std::string("unbounded"))
             << ": terrain outside the raster can shade cells this far inside it; pad tiles by that much\n";
       }
     }
 
     // Both outputs staged, then placed together: a failing preview leaves no mask either.
     OutputStage stage;
-    RasterWrite w{o.output, format, o.creationOptions, !o.hours, o.hours ? -1.0 : double(o.nodataValue), true,
+    RasterWrite w{o.output,
+                  format,
+                  o.creationOptions,
+                  !o.hours,
+                  o.hours ? -1.0 : double(o.nodataValue),
+                  true,
                   {{"QOTA_FRAME", frame.description}}};
     writeRaster(w, dem, values, stage);
     if (!o.png.empty()) {
-      const std::vector<double> grey = preview(frame, shownLight.z() > 0 ? shownLight : Eigen::Vector3d(0, 0, 1),
-                                               mask, o.hours ? &hoursLit : nullptr);
+      const std::vector<double> grey = preview(frame, shownLight.z() > 0 ? shownLight : Eigen::Vector3d(0, 0, 1), mask,
+                                               o.hours ? &hoursLit : nullptr);
       writeRaster({o.png, "PNG", {}, true, 0.0, true}, dem, grey, stage);
     }
     stage.commit();

@@ -39,7 +39,6 @@ std::uint64_t gdalCacheFor(std::uint64_t allowed) {
 // The whole raster's run loads more of GDAL and PROJ than a tile's (measured up to 11 MiB).
 constexpr std::uint64_t kWholeLater = 12ull << 20;
 
-
 // Measured rates on one core of this project's reference machine (bench/shadow_tiles.sh): the
 // pass over the heights reads 60 M cells a second or more, and shadows by tiles take about 0.4 us
 // a cell at mid suns (more at low ones). For estimates printed before long work, not promises.
@@ -68,7 +67,8 @@ std::uint64_t geoidBytes(const ShadowOptions& o, const DemTerrain& dem) {
     const HeightReference ref = heightReferenceOf(dem, o.heightRef);
     if (ref.ellipsoidal()) return 0;
     std::unique_ptr<GDALDataset> ds(GDALDataset::Open(ref.grid.c_str(), GDAL_OF_RASTER));
-    return ds ? static_cast<std::uint64_t>(ds->GetRasterXSize()) * static_cast<std::uint64_t>(ds->GetRasterYSize()) * 4 : 0;
+    return ds ? static_cast<std::uint64_t>(ds->GetRasterXSize()) * static_cast<std::uint64_t>(ds->GetRasterYSize()) * 4
+              : 0;
   } catch (const Error&) {
     return 0;
   }
@@ -147,7 +147,8 @@ std::vector<Eigen::Vector3d> lightsForEstimate(const ShadowOptions& o) {
       const auto& g = dem.geotransform;
       const double cornerX = std::fabs(g[1]) * dem.width / 2 + std::fabs(g[2]) * dem.height / 2;
       const double cornerY = std::fabs(g[4]) * dem.width / 2 + std::fabs(g[5]) * dem.height / 2;
-      const double across = basis.geographic ? std::hypot(cornerX, cornerY) : std::hypot(cornerX, cornerY) / f.body.a * 180 / M_PI;
+      const double across =
+          basis.geographic ? std::hypot(cornerX, cornerY) : std::hypot(cornerX, cornerY) / f.body.a * 180 / M_PI;
       slack = std::min(180.0, across) + std::acos(f.body.b / (f.body.b + 9000.0)) * 180 / M_PI + 1.0;
     }
     const auto masked = [&](const Eigen::Vector3d& light) {
@@ -158,7 +159,8 @@ std::vector<Eigen::Vector3d> lightsForEstimate(const ShadowOptions& o) {
     if (o.hours) {
       std::vector<Eigen::Vector3d> lights;
       const LocalSpan span = hoursSpan(o);
-      for (const SunlightStep& step : qota::sunlightSteps(span.start.julianDayUT, span.end.julianDayUT, (*o.hours)[2])) {
+      for (const SunlightStep& step :
+           qota::sunlightSteps(span.start.julianDayUT, span.end.julianDayUT, (*o.hours)[2])) {
         const Eigen::Vector3d light = f.towardSun(sunOverFrame(f, step.middleJulianDay, o.source));
         if (masked(light)) lights.push_back(light);
       }
@@ -201,8 +203,9 @@ bool runsByTiles(const ShadowOptions& o) {
 int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostream& out, std::ostream& err) {
   try {
     if (!o.png.empty()) {
-      throw Error("--png is drawn from the whole raster in memory; not with tiles (leave out --tile-size, --tile "
-                  "and --max-memory, or draw the preview from the output)");
+      throw Error(
+          "--png is drawn from the whole raster in memory; not with tiles (leave out --tile-size, --tile "
+          "and --max-memory, or draw the preview from the output)");
     }
     if (o.tile && o.tileSize <= 0) throw Error("--tile COL,ROW needs --tile-size N (the tile grid it counts in)");
     if (o.tileSize < 0 || (o.tileSize > 0 && o.tileSize % 16 != 0)) {
@@ -224,8 +227,7 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
     const std::uint64_t fixed = memory::residentBytes() + kLater + cache + geoidBytes(o, described);
     if (allowed <= fixed + (1ull << 20)) {
       throw Error("--max-memory " + mib(allowed) + ": the process itself takes " + mib(fixed - cache) +
-                  " and GDAL's cache " + mib(cache) + " before any tile; allow at least " +
-                  mib(fixed + (8ull << 20)));
+                  " and GDAL's cache " + mib(cache) + " before any tile; allow at least " + mib(fixed + (8ull << 20)));
     }
     const std::uint64_t windowBytes = allowed - fixed;
     GDALSetCacheMax64(static_cast<GIntBig>(cache));
@@ -248,12 +250,14 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
     if (cells > static_cast<double>(o.maxCells)) {
       throw Error(o.source + ": " + std::to_string(described.width) + " x " + std::to_string(described.height) +
                   " cells (" + formatReadable(cells, 0) + "), more than --max-cells " + std::to_string(o.maxCells) +
-                  " allows: at the measured rates, reading its heights takes about " + clock(cells / kPassCellsPerSecond) +
-                  " and its shadows about " + clock(cells / kShadowCellsPerSecond) +
-                  (o.hours ? " a step" : "") + "; give --max-cells " + std::to_string(static_cast<std::uint64_t>(cells)) + " to run it");
+                  " allows: at the measured rates, reading its heights takes about " +
+                  clock(cells / kPassCellsPerSecond) + " and its shadows about " +
+                  clock(cells / kShadowCellsPerSecond) + (o.hours ? " a step" : "") + "; give --max-cells " +
+                  std::to_string(static_cast<std::uint64_t>(cells)) + " to run it");
     }
     if (!o.quiet) {
-      out << "estimate: " << formatReadable(cells, 0) << " cells; " << (passSeconds > 0 ? "reading the heights about " + clock(passSeconds) + ", " : std::string())
+      out << "estimate: " << formatReadable(cells, 0) << " cells; "
+          << (passSeconds > 0 ? "reading the heights about " + clock(passSeconds) + ", " : std::string())
           << "the shadows about " << clock(shadowSeconds) << (o.hours ? " (hours: more at many steps)" : "") << '\n';
     }
     if (o.tile) {  // checked before the pass over the heights, which a large raster makes long
@@ -261,16 +265,17 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
       const int across = (d.width + o.tileSize - 1) / o.tileSize, down = (d.height + o.tileSize - 1) / o.tileSize;
       const auto [c, r] = *o.tile;
       if (c < 0 || r < 0 || c >= across || r >= down) {
-        throw Error("--tile " + std::to_string(c) + "," + std::to_string(r) + ": the raster has " + std::to_string(across) +
-                    " x " + std::to_string(down) + " tiles of " + std::to_string(o.tileSize) + " cells (columns 0.." +
-                    std::to_string(across - 1) + ", rows 0.." + std::to_string(down - 1) + ")");
+        throw Error("--tile " + std::to_string(c) + "," + std::to_string(r) + ": the raster has " +
+                    std::to_string(across) + " x " + std::to_string(down) + " tiles of " + std::to_string(o.tileSize) +
+                    " cells (columns 0.." + std::to_string(across - 1) + ", rows 0.." + std::to_string(down - 1) + ")");
       }
     }
     if (!o.quiet) out << "qota shadow: " << o.source << " -> " << o.output << " (" << format << ", by tiles)\n";
     // The pass over the heights holds a band of rows: half the windows' share at most.
     const std::uint64_t passBytes = std::clamp<std::uint64_t>(windowBytes / 2, 1ull << 20, ShadowTiles::kPassBytes);
     std::error_code ec;
-    const bool restoring = !o.tilesState.empty() && std::filesystem::exists(std::filesystem::symlink_status(o.tilesState, ec));
+    const bool restoring =
+        !o.tilesState.empty() && std::filesystem::exists(std::filesystem::symlink_status(o.tilesState, ec));
     const ShadowTiles tiles = passOverHeights(o, demOptions, frameOptions, passBytes, out);
     const LocalFrame& frame = tiles.frame();
     const DemTerrain& dem = tiles.dem();
@@ -308,7 +313,8 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
     const auto gridOf = [&](int s) {
       std::vector<CellWindow> all;
       for (int r = 0; r < dem.height; r += s) {
-        for (int c = 0; c < dem.width; c += s) all.push_back({c, r, std::min(s, dem.width - c), std::min(s, dem.height - r)});
+        for (int c = 0; c < dem.width; c += s)
+          all.push_back({c, r, std::min(s, dem.width - c), std::min(s, dem.height - r)});
       }
       return all;
     };
@@ -328,8 +334,8 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
     }
     if (side == 0) {
       const std::uint64_t need = tiles.largestWindowCells(gridOf(16), lights) * perCell;
-      throw Error("--max-memory " + mib(allowed) + ": even tiles of 16 cells need windows of up to " +
-                  mib(need) + " to hold every triangle that can shade them (a low sun's reach), so the run takes about " +
+      throw Error("--max-memory " + mib(allowed) + ": even tiles of 16 cells need windows of up to " + mib(need) +
+                  " to hold every triangle that can shade them (a low sun's reach), so the run takes about " +
                   mib(fixed + need) + "; allow that much, or use a higher sun");
     }
     const int across = (dem.width + side - 1) / side, down = (dem.height + side - 1) / side;
@@ -355,8 +361,9 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
     const std::uint64_t estimate = fixed + std::max(passHeld, largest * perCell);
     if (!o.quiet) {
       out << "tiles: " << todo.size() << " of " << side << " x " << side << " cells (" << across << " x " << down
-          << " over the raster); memory estimated " << mib(estimate) << " of " << mib(allowed) << " allowed (the process "
-          << mib(fixed - cache) << ", GDAL's cache " << mib(cache) << ", windows of up to " << largest << " cells)\n";
+          << " over the raster); memory estimated " << mib(estimate) << " of " << mib(allowed)
+          << " allowed (the process " << mib(fixed - cache) << ", GDAL's cache " << mib(cache) << ", windows of up to "
+          << largest << " cells)\n";
     }
 
     // The output: the whole raster, or the one tile's cells, on the DEM's grid.
@@ -378,9 +385,10 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
         {"QOTA_RASTER_SIZE", std::to_string(dem.width) + "," + std::to_string(dem.height)},
         {"QOTA_TILE_SIZE", std::to_string(side)},
         {"QOTA_TILES", std::to_string(across) + "," + std::to_string(down)},
-        {"QOTA_FRAME", std::string("flat ") + (o.flat ? "yes" : "no") + ", pixel size " + formatNumber(o.pixelSize) +
-                           ", z factor " + formatNumber(o.zFactor) + ", scale " + formatNumber(o.scale) +
-                           (tiles.basis().geoid ? ", heights over the " + tiles.basis().heightRef.describe() : std::string())},
+        {"QOTA_FRAME",
+         std::string("flat ") + (o.flat ? "yes" : "no") + ", pixel size " + formatNumber(o.pixelSize) + ", z factor " +
+             formatNumber(o.zFactor) + ", scale " + formatNumber(o.scale) +
+             (tiles.basis().geoid ? ", heights over the " + tiles.basis().heightRef.describe() : std::string())},
         {"QOTA_LIGHT", lightText},
         {"QOTA_VALUES", o.hours ? std::string("hours of direct sunlight, nodata -1")
                                 : "lit " + std::to_string(o.litValue) + ", shadow " + std::to_string(o.shadowValue) +
@@ -421,8 +429,8 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
       cells.add(values);
       fingerprint.push_back({"QOTA_CELLS", cells.hex()});
     }
-    output.setMetadata(sealTile(fingerprint, {grid.width, grid.height, grid.geotransform,
-                                              o.hours ? "Float32" : "Byte", grid.nodata}));
+    output.setMetadata(
+        sealTile(fingerprint, {grid.width, grid.height, grid.geotransform, o.hours ? "Float32" : "Byte", grid.nodata}));
     output.finish();
     stage.commit();
     if (!o.quiet) {

@@ -34,9 +34,9 @@ std::string sealedText(MetadataItems items, const TileGrid& grid) {
 }  // namespace
 
 const std::vector<std::string>& runFields() {
-  static const std::vector<std::string> fields{"QOTA_VERSION", "QOTA_SOURCE", "QOTA_HEIGHTS", "QOTA_RASTER_SIZE",
-                                               "QOTA_TILE_SIZE", "QOTA_TILES", "QOTA_FRAME", "QOTA_LIGHT",
-                                               "QOTA_VALUES"};
+  static const std::vector<std::string> fields{"QOTA_VERSION",     "QOTA_SOURCE",    "QOTA_HEIGHTS",
+                                               "QOTA_RASTER_SIZE", "QOTA_TILE_SIZE", "QOTA_TILES",
+                                               "QOTA_FRAME",       "QOTA_LIGHT",     "QOTA_VALUES"};
   return fields;
 }
 
@@ -47,7 +47,8 @@ MetadataItems qotaItemsOf(GDALDataset& dataset) {
     const std::string text = *item;
     const auto eq = text.find('=');
     if (text.rfind("QOTA_", 0) != 0 || eq == std::string::npos) continue;
-    if (text.size() > kLongestItem) throw Error("damaged: a QOTA_ metadata item of " + std::to_string(text.size()) + " bytes");
+    if (text.size() > kLongestItem)
+      throw Error("damaged: a QOTA_ metadata item of " + std::to_string(text.size()) + " bytes");
     items.push_back({text.substr(0, eq), text.substr(eq + 1)});
   }
   return items;

@@ -17,8 +17,7 @@
 
 namespace qota {
 
-using AnyMapping =
-    std::variant<CartesianMapping, SphericalMapping, CylindricalMapping, GeodeticMapping, EnuMapping>;
+using AnyMapping = std::variant<CartesianMapping, SphericalMapping, CylindricalMapping, GeodeticMapping, EnuMapping>;
 
 // Every mapping is a coordinate mapping, and planar (planar.hpp) or axial (axial.hpp).
 static_assert([]<class... M>(std::variant<M...>*) {

@@ -34,8 +34,8 @@ struct AxialLine {
 
 template <class M>
 concept AxialMapping = CoordinateMapping<M> &&
-    requires(const M& m, const Eigen::Vector3d& p, const Eigen::Vector3d (&tri)[3], const double (&h)[3],
-             double u, double v, double& lo, double& hi) {
+    requires(const M& m, const Eigen::Vector3d& p, const Eigen::Vector3d (&tri)[3], const double (&h)[3], double u,
+             double v, double& lo, double& hi) {
   { M::kPoles } -> std::convertible_to<bool>;
   { m.toLocal(p) } -> std::same_as<Eigen::Vector3d>;
   { m.fromLocal(p) } -> std::same_as<Eigen::Vector3d>;
@@ -43,7 +43,7 @@ concept AxialMapping = CoordinateMapping<M> &&
   { m.directionFromLocal(p) } -> std::same_as<Eigen::Vector3d>;
   { m.axialLine(u, v) } -> std::same_as<AxialLine>;
   { m.footprintHeight(p) } -> std::same_as<double>;
-  { m.footprintV(tri, h, u, lo, hi) };
+  {m.footprintV(tri, h, u, lo, hi)};
 };
 
 namespace axial {
@@ -62,16 +62,31 @@ inline void sinCosDegrees(double x, double& s, double& c) {
   const double r = (x - 90.0 * q) * (M_PI / 180.0);  // x - 90 q is exact for |x| < 2^44
   const double r2 = r * r;
   const double sr =
-      r * (1 + r2 * (-1.0 / 6 + r2 * (1.0 / 120 + r2 * (-1.0 / 5040 + r2 * (1.0 / 362880 +
-      r2 * (-1.0 / 39916800 + r2 * (1.0 / 6227020800 + r2 * (-1.0 / 1307674368000))))))));
+      r * (1 + r2 * (-1.0 / 6 +
+                     r2 * (1.0 / 120 +
+                           r2 * (-1.0 / 5040 +
+                                 r2 * (1.0 / 362880 + r2 * (-1.0 / 39916800 +
+                                                            r2 * (1.0 / 6227020800 + r2 * (-1.0 / 1307674368000))))))));
   const double cr =
-      1 + r2 * (-0.5 + r2 * (1.0 / 24 + r2 * (-1.0 / 720 + r2 * (1.0 / 40320 + r2 * (-1.0 / 3628800 +
-      r2 * (1.0 / 479001600 + r2 * (-1.0 / 87178291200 + r2 * (1.0 / 20922789888000))))))));
+      1 + r2 * (-0.5 +
+                r2 * (1.0 / 24 +
+                      r2 * (-1.0 / 720 +
+                            r2 * (1.0 / 40320 + r2 * (-1.0 / 3628800 +
+                                                      r2 * (1.0 / 479001600 + r2 * (-1.0 / 87178291200 +
+                                                                                    r2 * (1.0 / 20922789888000))))))));
   switch (static_cast<long long>(q) & 3) {
-    case 0: s = sr, c = cr; break;
-    case 1: s = cr, c = -sr; break;
-    case 2: s = -sr, c = -cr; break;
-    default: s = -cr, c = sr; break;
+    case 0:
+      s = sr, c = cr;
+      break;
+    case 1:
+      s = cr, c = -sr;
+      break;
+    case 2:
+      s = -sr, c = -cr;
+      break;
+    default:
+      s = -cr, c = sr;
+      break;
   }
   if (s == 0.0) s = 0.0;  // no negative zeros
   if (c == 0.0) c = 0.0;

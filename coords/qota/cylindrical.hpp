@@ -70,8 +70,7 @@ class CylindricalMapping {
   }
   static double footprintHeight(const Eigen::Vector3d&) { return 0.0; }
   // v is the axial coordinate: the corners' range, padded relative to the coordinates' scale.
-  static void footprintV(const Eigen::Vector3d (&p)[3], const double (&)[3], double scale, double& lo,
-                         double& hi) {
+  static void footprintV(const Eigen::Vector3d (&p)[3], const double (&)[3], double scale, double& lo, double& hi) {
     lo = std::min({p[0].z(), p[1].z(), p[2].z()});
     hi = std::max({p[0].z(), p[1].z(), p[2].z()});
     const double pad = 1e-12 * (std::fabs(lo) + std::fabs(hi) + scale);

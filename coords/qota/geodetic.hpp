@@ -38,7 +38,7 @@ class GeodeticMapping {
   static Eigen::Vector3d up(double u, double v);
   MappedLine line(double u, double v) const { return {toWorld({u, v, 0.0}), -up(u, v)}; }
   MappedDomain domain() const { return {-180.0, 180.0, -90.0, 90.0, true}; }
-  std::string describe() const;  // "geodetic a=... f=..."
+  std::string describe() const;                                 // "geodetic a=... f=..."
   static GeodeticMapping fromParameters(MappingParameters& p);  // WGS84 by default
 
   double a() const { return a_; }

@@ -50,7 +50,8 @@ void OutputStage::checkTarget(const fs::path& target) {
   std::error_code ec;
   const fs::file_status st = fs::symlink_status(target, ec);
   if (fs::exists(st) && !fs::is_regular_file(st) && !fs::is_symlink(st)) {
-    throw Error(target.string() + ": exists and is not a regular file (a folder, a device or a pipe); "
+    throw Error(target.string() +
+                ": exists and is not a regular file (a folder, a device or a pipe); "
                 "give the name of a file");
   }
 }
@@ -84,7 +85,8 @@ void OutputStage::commit() {
     for (const fs::path& f : files) {
       if (f.filename().string() == main + ".aux.xml") wroteAux = true;
       fs::rename(f, dir / f.filename(), ec);
-      if (ec) throw Error(e.target.string() + ": cannot move " + f.filename().string() + " into place (" + reason(ec) + ")");
+      if (ec)
+        throw Error(e.target.string() + ": cannot move " + f.filename().string() + " into place (" + reason(ec) + ")");
     }
     if (!wroteAux) fs::remove(dir / (main + ".aux.xml"), ec);  // it described the file replaced
     fs::remove_all(e.folder, ec);

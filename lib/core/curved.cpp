@@ -23,7 +23,6 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 using axial::kPadDegrees;
 using GeographicLib::Math;
 
-
 // The angle range around the z axis of a triangle whose edges each sweep the shorter arc between
 // their ends (a great-circle arc seen from the centre, a straight edge seen from the axis).
 // Vertices on the axis have no angle and are skipped: the edges to them are meridians of the
@@ -53,16 +52,17 @@ bool angleRange(const Eigen::Vector3d p[3], double& lo, double& hi) {
 }  // namespace
 
 template <class M>
-CurvedIndex<M>::CurvedIndex(const Mesh& mesh, const M& mapping, const IndexOptions& options)
-    : mapping_(mapping) {
+CurvedIndex<M>::CurvedIndex(const Mesh& mesh, const M& mapping, const IndexOptions& options) : mapping_(mapping) {
   if (options.gridFastPath.value_or(false)) {
-    throw Error(std::string(M::name()) + " terrain: the grid fast path (IndexOptions::gridFastPath) is for "
+    throw Error(std::string(M::name()) +
+                " terrain: the grid fast path (IndexOptions::gridFastPath) is for "
                 "planar mappings only");
   }
   const std::size_t nv = mesh.vertices.size();
   if (nv > 0xfffffff0u) throw Error("curved terrain: more than 2^32 vertices");
   std::uint64_t fanned = 0;  // refuse what cannot fit before allocating (memory_budget.hpp)
-  for (std::size_t p = 0; p < mesh.polygonCount(); ++p) fanned += mesh.polygon(p).size() > 2 ? mesh.polygon(p).size() - 2 : 0;
+  for (std::size_t p = 0; p < mesh.polygonCount(); ++p)
+    fanned += mesh.polygon(p).size() > 2 ? mesh.polygon(p).size() - 2 : 0;
   memory::require(std::string(M::name()) + " terrain", memory::kCurvedIndex, nv, fanned);
   std::vector<Eigen::Vector3d> local(nv);
   std::vector<double> vertexHeight(nv);  // what the mapping's footprints need of each vertex
@@ -82,17 +82,17 @@ CurvedIndex<M>::CurvedIndex(const Mesh& mesh, const M& mapping, const IndexOptio
   for (std::size_t poly = 0; poly < np; ++poly) {
     const auto corners = mesh.polygon(poly);
     if (corners.size() < 3) {
-      throw Error("curved terrain: polygon " + std::to_string(poly) + " has " +
-                  std::to_string(corners.size()) + " vertices (needs 3 or more)");
+      throw Error("curved terrain: polygon " + std::to_string(poly) + " has " + std::to_string(corners.size()) +
+                  " vertices (needs 3 or more)");
     }
     for (std::uint32_t c : corners) {
       if (c >= nv) {
-        throw Error("curved terrain: polygon " + std::to_string(poly) + " uses vertex " +
-                    std::to_string(c) + " of " + std::to_string(nv));
+        throw Error("curved terrain: polygon " + std::to_string(poly) + " uses vertex " + std::to_string(c) + " of " +
+                    std::to_string(nv));
       }
       if (!local[c].allFinite()) {
-        throw Error("curved terrain: polygon " + std::to_string(poly) + " uses vertex " +
-                    std::to_string(c) + ", which is not finite");
+        throw Error("curved terrain: polygon " + std::to_string(poly) + " uses vertex " + std::to_string(c) +
+                    ", which is not finite");
       }
     }
     for (std::size_t k = 1; k + 1 < corners.size(); ++k) {
@@ -161,8 +161,8 @@ CurvedIndex<M>::CurvedIndex(const Mesh& mesh, const M& mapping, const IndexOptio
     std::nth_element(sv.begin(), sv.begin() + count / 2, sv.end());
     minU = 0.5 * su[count / 2], minV = 0.5 * sv[count / 2];
   }
-  tree_.build(count, root, options.tree,
-              [this](std::uint32_t i, const Box2& b) { return overlaps(i, b); }, minU, minV);
+  tree_.build(
+      count, root, options.tree, [this](std::uint32_t i, const Box2& b) { return overlaps(i, b); }, minU, minV);
 
   stats_.polygons = np;
   stats_.triangles = count;
@@ -178,8 +178,8 @@ CurvedIndex<M>::CurvedIndex(const Mesh& mesh, const M& mapping, const IndexOptio
 // The record and footprint box of the triangle with local corners p (vertexHeight: the corners'
 // footprintHeight). False for a triangle of zero area.
 template <class M>
-bool CurvedIndex<M>::makeTriangle(const Eigen::Vector3d (&p)[3], const double (&vertexHeight)[3],
-                                  std::uint32_t poly, Tri& t, FootBox& box) const {
+bool CurvedIndex<M>::makeTriangle(const Eigen::Vector3d (&p)[3], const double (&vertexHeight)[3], std::uint32_t poly,
+                                  Tri& t, FootBox& box) const {
   const Eigen::Vector3d n = (p[1] - p[0]).cross(p[2] - p[0]);
   if (n.squaredNorm() == 0.0) return false;
   t = Tri{};
@@ -190,8 +190,7 @@ bool CurvedIndex<M>::makeTriangle(const Eigen::Vector3d (&p)[3], const double (&
   t.na = n.dot(p[0]);
   t.polygon = poly;
 
-  const bool allAngles =
-      !angleRange(p, box.ulo, box.uhi) || box.uhi - box.ulo > 360.0 - 2 * kPadDegrees;
+  const bool allAngles = !angleRange(p, box.ulo, box.uhi) || box.uhi - box.ulo > 360.0 - 2 * kPadDegrees;
   if (allAngles) {
     box.ulo = -180.0, box.uhi = 180.0;
   } else {
@@ -235,13 +234,12 @@ typename CurvedIndex<M>::Line CurvedIndex<M>::lineAt(double u, double v) const {
 }
 
 template <class M>
-int CurvedIndex<M>::edgeSign(const double* a, const double* b, const Line& line,
-                             double bound) const {
+int CurvedIndex<M>::edgeSign(const double* a, const double* b, const Line& line, double bound) const {
   // d . (a x b) - s (d_x (a_y - b_y) - d_y (a_x - b_x)) = det[a - O; b - O; d]. Swapping a and b
   // negates every rounded term exactly, so neighbours sharing the edge see opposite signs.
   const double* d = line.d;
-  double val = d[0] * (a[1] * b[2] - a[2] * b[1]) + d[1] * (a[2] * b[0] - a[0] * b[2]) +
-               d[2] * (a[0] * b[1] - a[1] * b[0]);
+  double val =
+      d[0] * (a[1] * b[2] - a[2] * b[1]) + d[1] * (a[2] * b[0] - a[0] * b[2]) + d[2] * (a[0] * b[1] - a[1] * b[0]);
   if (line.s != 0.0) val -= line.s * (d[0] * (a[1] - b[1]) - d[1] * (a[0] - b[0]));
   if (val > bound) return 1;
   if (val < -bound) return -1;
@@ -297,8 +295,7 @@ double CurvedIndex<M>::normalizeU(double u) const {
 
 template <class M>
 template <class Visit>
-void CurvedIndex<M>::forCandidates(double u, double v, const Line*& line, Line& storage,
-                                   Visit&& visit) const {
+void CurvedIndex<M>::forCandidates(double u, double v, const Line*& line, Line& storage, Visit&& visit) const {
   if (polar(v)) {
     storage = lineAt(u, v), line = &storage;
     for (std::uint32_t i : v > 0 ? polarNorth_ : polarSouth_) visit(i);
@@ -324,9 +321,8 @@ void CurvedIndex<M>::prefetch(std::span<const std::uint32_t> items) const {
 
 template <class M>
 template <bool Below>
-std::uint32_t CurvedIndex<M>::nearestIn(std::span<const std::uint32_t> items, bool checkBox,
-                                        double u, double v, const Line& line, double ez,
-                                        double& hOut, double& tOut) const {
+std::uint32_t CurvedIndex<M>::nearestIn(std::span<const std::uint32_t> items, bool checkBox, double u, double v,
+                                        const Line& line, double ez, double& hOut, double& tOut) const {
   std::uint32_t best = kNone;
   double bestE = 0;
   for (std::uint32_t i : items) {
@@ -336,8 +332,7 @@ std::uint32_t CurvedIndex<M>::nearestIn(std::span<const std::uint32_t> items, bo
     const double hh = heightOf(line, t);
     const double e = elevation(hh);
     if (Below ? !(e <= ez) : !(e >= ez)) continue;
-    if (best == kNone || (Below ? e > bestE : e < bestE) ||
-        (e == bestE && tris_[i].polygon < tris_[best].polygon)) {
+    if (best == kNone || (Below ? e > bestE : e < bestE) || (e == bestE && tris_[i].polygon < tris_[best].polygon)) {
       best = i, bestE = e, hOut = hh, tOut = t;
     }
   }
@@ -348,7 +343,7 @@ template <class M>
 template <class ZOf>
 void CurvedIndex<M>::heightsBelowBatch(std::span<const Point2> points, const ZOf& zOf,
                                        std::span<std::optional<double>> out) const {
-  // Software pipelining as in TerrainIndex::heightsBelow: every point's leaf, then every leaf's
+  // Software pipelining as in CartesianIndex::heightsBelow: every point's leaf, then every leaf's
   // references, then every leaf's triangles, each stage issuing its loads for the whole group
   // before any is waited for, so the three dependent cache misses of a query overlap.
   constexpr std::size_t kGroup = 16;
@@ -389,14 +384,16 @@ template <class M>
 void CurvedIndex<M>::heightsBelow(std::span<const Point2> points, double z,
                                   std::span<std::optional<double>> out) const {
   batch::requireRoom("heightsBelow", points.size(), out.size());
-  heightsBelowBatch(points, [z](std::size_t) { return z; }, out);
+  heightsBelowBatch(
+      points, [z](std::size_t) { return z; }, out);
 }
 
 template <class M>
 void CurvedIndex<M>::heightsBelow(std::span<const Point2> points, std::span<const double> zs,
                                   std::span<std::optional<double>> out) const {
   batch::requireRoom("heightsBelow", points.size(), std::min(out.size(), zs.size()));
-  heightsBelowBatch(points, [zs](std::size_t i) { return zs[i]; }, out);
+  heightsBelowBatch(
+      points, [zs](std::size_t i) { return zs[i]; }, out);
 }
 
 template <class M>
@@ -410,7 +407,8 @@ void CurvedIndex<M>::heightsBelowParallel(std::span<const Point2> points, double
                                           std::span<std::optional<double>> out, unsigned threads) const {
   batch::requireRoom("heightsBelowParallel", points.size(), out.size());
   batch::inSlices(points.size(), threads, 4096, [&](std::size_t lo, std::size_t hi) {
-    heightsBelowBatch(points.subspan(lo, hi - lo), [z](std::size_t) { return z; }, out.subspan(lo, hi - lo));
+    heightsBelowBatch(
+        points.subspan(lo, hi - lo), [z](std::size_t) { return z; }, out.subspan(lo, hi - lo));
   });
 }
 
@@ -420,21 +418,21 @@ void CurvedIndex<M>::heightsBelowParallel(std::span<const Point2> points, std::s
   batch::requireRoom("heightsBelowParallel", points.size(), std::min(out.size(), zs.size()));
   batch::inSlices(points.size(), threads, 4096, [&](std::size_t lo, std::size_t hi) {
     const std::span<const double> z = zs.subspan(lo, hi - lo);
-    heightsBelowBatch(points.subspan(lo, hi - lo), [z](std::size_t i) { return z[i]; }, out.subspan(lo, hi - lo));
+    heightsBelowBatch(
+        points.subspan(lo, hi - lo), [z](std::size_t i) { return z[i]; }, out.subspan(lo, hi - lo));
   });
 }
 
 template <class M>
 template <bool Below>
-std::uint32_t CurvedIndex<M>::nearest(double u, double v, double h, double& hOut, Line& line,
-                                      double& tOut, Quadtree::Cursor* cursor) const {
+std::uint32_t CurvedIndex<M>::nearest(double u, double v, double h, double& hOut, Line& line, double& tOut,
+                                      Quadtree::Cursor* cursor) const {
   // Outside the domain (a latitude beyond the poles) or not finite: no terrain (index.hpp).
   if (!validQuery(u, v) || std::isnan(h)) return kNone;
   u = normalizeU(u);
   if (polar(v)) {
     line = lineAt(u, v);
-    return nearestIn<Below>(v > 0 ? polarNorth_ : polarSouth_, false, u, v, line, elevation(h),
-                            hOut, tOut);
+    return nearestIn<Below>(v > 0 ? polarNorth_ : polarSouth_, false, u, v, line, elevation(h), hOut, tOut);
   }
   if (!tree_.contains(u, v)) return kNone;
   const std::span<const std::uint32_t> items =
@@ -461,8 +459,7 @@ Hit CurvedIndex<M>::makeHit(std::uint32_t i, const Line& line, double tHit) cons
 
 template <class M>
 template <bool Below>
-std::optional<Hit> CurvedIndex<M>::hitAt(double u, double v, double h,
-                                         Quadtree::Cursor* cursor) const {
+std::optional<Hit> CurvedIndex<M>::hitAt(double u, double v, double h, Quadtree::Cursor* cursor) const {
   double hh, t;
   Line line;
   const std::uint32_t i = nearest<Below>(u, v, h, hh, line, t, cursor);
@@ -489,14 +486,12 @@ std::optional<Hit> CurvedIndex<M>::above(double u, double v, double h) const {
 }
 
 template <class M>
-std::optional<Hit> CurvedIndex<M>::below(Quadtree::Cursor& cursor, double u, double v,
-                                         double h) const {
+std::optional<Hit> CurvedIndex<M>::below(Quadtree::Cursor& cursor, double u, double v, double h) const {
   return hitAt<true>(u, v, h, &cursor);
 }
 
 template <class M>
-std::optional<Hit> CurvedIndex<M>::above(Quadtree::Cursor& cursor, double u, double v,
-                                         double h) const {
+std::optional<Hit> CurvedIndex<M>::above(Quadtree::Cursor& cursor, double u, double v, double h) const {
   return hitAt<false>(u, v, h, &cursor);
 }
 
@@ -589,7 +584,7 @@ std::vector<LineHit> CurvedIndex<M>::alongLine(const Eigen::Vector3d& origin, co
   std::vector<LineHit> out;
   if (!origin.allFinite() || !direction.allFinite() || direction.squaredNorm() == 0) return out;
   // The line in the local frame; each live triangle tested exactly on its corners' offsets from
-  // the line's origin (the sign of det[a - O; b - O; d] per edge, as TerrainIndex::alongLine).
+  // the line's origin (the sign of det[a - O; b - O; d] per edge, as CartesianIndex::alongLine).
   const Eigen::Vector3d O = mapping_.toLocal(origin);
   // The direction turned, not the difference of two far points (which loses its low digits).
   const Eigen::Vector3d d = mapping_.directionToLocal(direction);
@@ -602,7 +597,7 @@ std::vector<LineHit> CurvedIndex<M>::alongLine(const Eigen::Vector3d& origin, co
       for (int c = 0; c < 3; ++c) q[k][c] = tri.p[k][c] - O[c];
     }
     const int s0 = orient3dSign(q[0], q[1], dv), s1 = orient3dSign(q[1], q[2], dv), s2 = orient3dSign(q[2], q[0], dv);
-    const bool neg = s0 < 0 || s1 < 0 || s2 < 0, pos = s0 > 0 || s1 > 0 || s2 > 0;
+    const bool neg = s0 < 0 || s1 < 0 || s2<0, pos = s0> 0 || s1 > 0 || s2 > 0;
     if (neg == pos) continue;  // outside, or the line lies in the triangle's plane
     const Eigen::Vector3d a(q[0][0], q[0][1], q[0][2]), b(q[1][0], q[1][1], q[1][2]), e(q[2][0], q[2][1], q[2][2]);
     Eigen::Vector3d n = (b - a).cross(e - a);
@@ -622,9 +617,8 @@ std::vector<LineHit> CurvedIndex<M>::alongLine(const Eigen::Vector3d& origin, co
     lh.hit.polygon = tri.polygon;
     out.push_back(lh);
   }
-  std::sort(out.begin(), out.end(), [](const LineHit& x, const LineHit& y) {
-    return x.t != y.t ? x.t < y.t : x.hit.polygon < y.hit.polygon;
-  });
+  std::sort(out.begin(), out.end(),
+            [](const LineHit& x, const LineHit& y) { return x.t != y.t ? x.t < y.t : x.hit.polygon < y.hit.polygon; });
   return out;
 }
 
@@ -640,9 +634,9 @@ template <class M>
 void CurvedIndex<M>::rebuildTree(Box2 root) {
   const QuadtreeOptions options = tree_.options();
   const double minU = tree_.minSizeU(), minV = tree_.minSizeV();
-  tree_.build(static_cast<std::uint32_t>(tris_.size()), root, options,
-              [this](std::uint32_t i, const Box2& b) { return live(i) && overlaps(i, b); }, minU,
-              minV);
+  tree_.build(
+      static_cast<std::uint32_t>(tris_.size()), root, options,
+      [this](std::uint32_t i, const Box2& b) { return live(i) && overlaps(i, b); }, minU, minV);
   stats_.domain = root;
 }
 
@@ -650,8 +644,7 @@ template <class M>
 std::uint32_t CurvedIndex<M>::insertPolygon(std::span<const Eigen::Vector3d> corners) {
   const auto id = static_cast<std::uint32_t>(stats_.polygons);
   if (corners.size() < 3) {
-    throw Error("insertPolygon: a polygon needs at least 3 corners, got " +
-                std::to_string(corners.size()));
+    throw Error("insertPolygon: a polygon needs at least 3 corners, got " + std::to_string(corners.size()));
   }
   std::vector<Eigen::Vector3d> local;
   std::vector<double> heights;
@@ -696,8 +689,9 @@ std::uint32_t CurvedIndex<M>::insertPolygon(std::span<const Eigen::Vector3d> cor
     rebuildTree(root);
   } else {
     for (auto i = first; i < tris_.size(); ++i) {
-      tree_.insert(i, [this](std::uint32_t j, const Box2& b) { return overlaps(j, b); },
-                   [](std::span<std::uint32_t>) { return false; });
+      tree_.insert(
+          i, [this](std::uint32_t j, const Box2& b) { return overlaps(j, b); },
+          [](std::span<std::uint32_t>) { return false; });
     }
   }
   treeStatsStale_ = true;

@@ -5,8 +5,8 @@
 
 namespace qota {
 
-bool fitPlane(std::span<const Eigen::Vector3d> points, Eigen::Vector3d& centroid,
-              Eigen::Vector3d& normal, double& rms) {
+bool fitPlane(std::span<const Eigen::Vector3d> points, Eigen::Vector3d& centroid, Eigen::Vector3d& normal,
+              double& rms) {
   const std::size_t n = points.size();
   if (n < 3) return false;
   centroid.setZero();
@@ -39,8 +39,8 @@ bool fitPlane(std::span<const Eigen::Vector3d> points, Eigen::Vector3d& centroid
   return true;
 }
 
-Pose poseOnPlane(const Eigen::Vector3d& position, const Eigen::Vector3d& normal,
-                 const Eigen::Vector3d& up, const Eigen::Vector3d& heading) {
+Pose poseOnPlane(const Eigen::Vector3d& position, const Eigen::Vector3d& normal, const Eigen::Vector3d& up,
+                 const Eigen::Vector3d& heading) {
   // x = horizontal heading + lambda up, with lambda putting it in the plane.
   Eigen::Vector3d h = heading - heading.dot(up) * up;
   const double nu = normal.dot(up);

@@ -220,8 +220,8 @@ bool GridPath::setUpLattice(std::uint64_t nw, std::uint64_t nh, std::span<const 
 
 void GridPath::clearSlot(const TriangleCorners& triangle, std::uint32_t t) {
   const std::optional<std::uint64_t> found =
-      RasterGrid(static_cast<int>(w), static_cast<int>(h), {}).innerTriangleWith(triangle.corner[0], triangle.corner[1],
-                                                                                 triangle.corner[2]);
+      RasterGrid(static_cast<int>(w), static_cast<int>(h), {})
+          .innerTriangleWith(triangle.corner[0], triangle.corner[1], triangle.corner[2]);
   if (!found) return;
   const std::uint64_t slot = *found;
   if (slot < cellTri.size() && cellTri[slot] == t) {

@@ -56,21 +56,19 @@ int orient2dSignExact(Point2 a, Point2 b, Point2 c) {
 int orient3dSign(const double a[3], const double b[3], const double d[3]) {
   // Fast filter: three rounded 2x2 minors, a rounded dot product; 8 ulps of the permanent bound
   // the error of the five roundings in each term.
-  const double m0 = b[1] * d[2] - b[2] * d[1], m1 = b[2] * d[0] - b[0] * d[2],
-               m2 = b[0] * d[1] - b[1] * d[0];
+  const double m0 = b[1] * d[2] - b[2] * d[1], m1 = b[2] * d[0] - b[0] * d[2], m2 = b[0] * d[1] - b[1] * d[0];
   const double det = a[0] * m0 + a[1] * m1 + a[2] * m2;
-  const double permanent =
-      std::fabs(a[0]) * (std::fabs(b[1] * d[2]) + std::fabs(b[2] * d[1])) +
-      std::fabs(a[1]) * (std::fabs(b[2] * d[0]) + std::fabs(b[0] * d[2])) +
-      std::fabs(a[2]) * (std::fabs(b[0] * d[1]) + std::fabs(b[1] * d[0]));
+  const double permanent = std::fabs(a[0]) * (std::fabs(b[1] * d[2]) + std::fabs(b[2] * d[1])) +
+                           std::fabs(a[1]) * (std::fabs(b[2] * d[0]) + std::fabs(b[0] * d[2])) +
+                           std::fabs(a[2]) * (std::fabs(b[0] * d[1]) + std::fabs(b[1] * d[0]));
   const double bound = 8.0 * 1.1102230246251565e-16 * permanent;
   if (det > bound) return 1;
   if (det < -bound) return -1;
 
   // det = sum over the six permutations (i, j, k) of sign * a_i b_j d_k. Each triple product is
   // exact as four terms: b_j d_k = p + e, then a_i p and a_i e each split again.
-  static constexpr int kTerms[6][4] = {{0, 1, 2, 1}, {0, 2, 1, -1}, {1, 2, 0, 1},
-                                       {1, 0, 2, -1}, {2, 0, 1, 1}, {2, 1, 0, -1}};
+  static constexpr int kTerms[6][4] = {{0, 1, 2, 1},  {0, 2, 1, -1}, {1, 2, 0, 1},
+                                       {1, 0, 2, -1}, {2, 0, 1, 1},  {2, 1, 0, -1}};
   double e[25];
   int n = 0;
   for (const auto& t : kTerms) {

@@ -15,9 +15,8 @@ void Quadtree::checkMemoryLeft() const {
   const std::uint64_t reserve = 128ull * (1ull << 20) + 12ull * nodes_.size();
   const std::uint64_t left = memory::availableBytes();
   if (left != 0 && left < reserve) {
-    throw Error("quadtree: " + std::to_string(nodes_.size()) + " nodes and " +
-                std::to_string(refs_.size()) + " leaf references for " + std::to_string(itemCount_) +
-                " polygons leave " + memory::gib(left) +
+    throw Error("quadtree: " + std::to_string(nodes_.size()) + " nodes and " + std::to_string(refs_.size()) +
+                " leaf references for " + std::to_string(itemCount_) + " polygons leave " + memory::gib(left) +
                 " of memory: the polygons are too thin or overlap too much for Maxpoly " +
                 std::to_string(options_.maxPoly) + " and Maxdepth " + std::to_string(options_.maxDepth) +
                 "; raise Maxpoly or lower Maxdepth");
@@ -118,10 +117,8 @@ void Quadtree::refreshJump(std::uint32_t n, std::uint32_t depth, const Box2& box
   }
   // The node's box starts on a cut of the table exactly (the same sums), and spans
   // 2^(jumpDepth - depth) cells each way.
-  const auto ix = static_cast<std::uint32_t>(
-      std::lower_bound(cutU_.begin(), cutU_.end(), box.ulo) - cutU_.begin());
-  const auto iy = static_cast<std::uint32_t>(
-      std::lower_bound(cutV_.begin(), cutV_.end(), box.vlo) - cutV_.begin());
+  const auto ix = static_cast<std::uint32_t>(std::lower_bound(cutU_.begin(), cutU_.end(), box.ulo) - cutU_.begin());
+  const auto iy = static_cast<std::uint32_t>(std::lower_bound(cutV_.begin(), cutV_.end(), box.vlo) - cutV_.begin());
   const std::uint32_t span = 1u << (jumpDepth_ - depth);
   for (std::uint32_t y = iy; y < iy + span && y < cutV_.size(); ++y) {
     for (std::uint32_t x = ix; x < ix + span && x < cutU_.size(); ++x) {
@@ -224,8 +221,8 @@ QuadtreeStats Quadtree::stats() const {
   QuadtreeStats s;
   s.nodes = nodes_.size();
   s.references = refs_.size();
-  s.memoryBytes = nodes_.size() * sizeof(Node) + refs_.size() * sizeof(std::uint32_t) +
-                  half_.size() * sizeof(Half) + jump_.size() * sizeof(Node) + cut_.size() * sizeof(Point2) +
+  s.memoryBytes = nodes_.size() * sizeof(Node) + refs_.size() * sizeof(std::uint32_t) + half_.size() * sizeof(Half) +
+                  jump_.size() * sizeof(Node) + cut_.size() * sizeof(Point2) +
                   (cutU_.size() + cutV_.size()) * sizeof(double);
   // Walk the tree to learn each leaf's depth; a leaf at depth d covers 4^-d of the domain.
   // With stored cuts a leaf's share is its box's area over the root's.

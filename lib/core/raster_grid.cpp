@@ -5,8 +5,7 @@
 
 namespace qota {
 
-RasterGrid::RasterGrid(int width, int height, Closure closure)
-    : width_(width), height_(height), closure_(closure) {
+RasterGrid::RasterGrid(int width, int height, Closure closure) : width_(width), height_(height), closure_(closure) {
   const int w = width, h = height;
   // A seam needs three columns to close anything; caps close the rows round a seam only.
   if (w < 3) closure_.wrapsColumns = false;
@@ -156,8 +155,9 @@ Mesh GridMesh::toMesh() const {
   Mesh mesh;
   mesh.vertices.assign(vertices.begin(), vertices.end());
   if (width >= 1 && height >= 1) {
-    RasterGrid(width, height, {}).appendTriangles(
-        mesh, [&](std::uint32_t v) { return hasData(vertices[v]); }, 0, reverse);
+    RasterGrid(width, height, {})
+        .appendTriangles(
+            mesh, [&](std::uint32_t v) { return hasData(vertices[v]); }, 0, reverse);
   }
   return mesh;
 }

@@ -9,8 +9,7 @@ namespace qota {
 
 void Scene::setTransform(std::size_t part, const Eigen::Isometry3d& partToWorld) {
   if (part >= parts_.size()) {
-    throw Error("scene: no part " + std::to_string(part) + " (the scene has " +
-                std::to_string(parts_.size()) + ")");
+    throw Error("scene: no part " + std::to_string(part) + " (the scene has " + std::to_string(parts_.size()) + ")");
   }
   if (!partToWorld.matrix().allFinite()) {
     throw Error("scene: the transform of part " + std::to_string(part) + " is not finite");

@@ -32,8 +32,7 @@ double valueNoise(double x, double y, std::uint64_t seed) {
 
 }  // namespace
 
-Heightfield fractalHeightfield(int nx, int ny, double cell, double amplitude, std::uint64_t seed,
-                               int octaves) {
+Heightfield fractalHeightfield(int nx, int ny, double cell, double amplitude, std::uint64_t seed, int octaves) {
   Heightfield f;
   f.nx = nx;
   f.ny = ny;
@@ -64,7 +63,9 @@ Mesh Heightfield::toMesh() const {
   }
   // The raster rule (raster_grid.hpp) with rows running up y: (i, j) (i+1, j+1) (i, j+1), then
   // (i, j) (i+1, j) (i+1, j+1), counter-clockwise seen from above.
-  RasterGrid(nx, ny, {}).appendTriangles(m, [](std::uint32_t) { return true; }, 0, /*reverse=*/true);
+  RasterGrid(nx, ny, {})
+      .appendTriangles(
+          m, [](std::uint32_t) { return true; }, 0, /*reverse=*/true);
   return m;
 }
 

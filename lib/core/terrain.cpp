@@ -19,7 +19,7 @@
 
 namespace qota {
 
-static_assert(EditableTerrain<TerrainIndex>);  // (and every PlanarIndex<M>: the same core)
+static_assert(EditableTerrain<CartesianIndex>);  // (and every PlanarIndex<M>: the same core)
 
 namespace {
 
@@ -46,8 +46,8 @@ struct PlaneFit {
 struct RawSlopes {
   double a, b, nh;
 };
-[[gnu::always_inline]] inline RawSlopes rawSlopes(double u0, double v0, double h0, double u1, double v1,
-                                                  double h1, double u2, double v2, double h2) {
+[[gnu::always_inline]] inline RawSlopes rawSlopes(double u0, double v0, double h0, double u1, double v1, double h1,
+                                                  double u2, double v2, double h2) {
   const double d1u = u1 - u0, d1v = v1 - v0, d1h = h1 - h0;
   const double d2u = u2 - u0, d2v = v2 - v0, d2h = h2 - h0;
   const double nu = d1v * d2h - d1h * d2v, nv = d1h * d2u - d1u * d2h, nh = d1u * d2v - d1v * d2u;
@@ -55,8 +55,8 @@ struct RawSlopes {
   const double q = -1.0 / nh;
   return {nu * q, nv * q, nh};
 }
-[[gnu::always_inline]] inline PlaneFit fitPlane(double u0, double v0, double h0, double u1, double v1,
-                                                double h1, double u2, double v2, double h2) {
+[[gnu::always_inline]] inline PlaneFit fitPlane(double u0, double v0, double h0, double u1, double v1, double h1,
+                                                double u2, double v2, double h2) {
   const RawSlopes r = rawSlopes(u0, v0, h0, u1, v1, h1, u2, v2, h2);
   PlaneFit p{r.a, r.b, h0};
   if (!(r.nh > 0) || !std::isfinite(p.a) || !std::isfinite(p.b)) [[unlikely]] {
@@ -126,8 +126,7 @@ PlaneHeights choosePlaneHeights() {
 const PlaneHeights planeHeights = choosePlaneHeights();
 
 std::string describePoint(const Eigen::Vector3d& p) {
-  return "(" + std::to_string(p.x()) + ", " + std::to_string(p.y()) + ", " + std::to_string(p.z()) +
-         ")";
+  return "(" + std::to_string(p.x()) + ", " + std::to_string(p.y()) + ", " + std::to_string(p.z()) + ")";
 }
 
 // A triangle waiting for the build: mapped corner indices (counter-clockwise) and its polygon.
@@ -153,8 +152,7 @@ bool nearlyFlat(std::span<const std::uint32_t> idx, std::span<const Point2> c) {
 // straight on), and the corners come in angular order around an extreme one (the lowest, then
 // leftmost), which a polygon winding round more than once (a pentagram turns one way at every
 // corner too) cannot do.
-int convexOrientation(std::span<const std::uint32_t> idx, std::span<const Point2> c,
-                      std::size_t polygon) {
+int convexOrientation(std::span<const std::uint32_t> idx, std::span<const Point2> c, std::size_t polygon) {
   const std::size_t n = idx.size();
   const auto notConvex = [&]() -> int {
     if (nearlyFlat(idx, c)) return 0;
@@ -185,8 +183,7 @@ int convexOrientation(std::span<const std::uint32_t> idx, std::span<const Point2
 
 }  // namespace
 
-PlanarCore::PlanarCore(const Mesh& mesh, const PlanarFrame& frame, const IndexOptions& options)
-    : frame_(frame) {
+PlanarCore::PlanarCore(const Mesh& mesh, const PlanarFrame& frame, const IndexOptions& options) : frame_(frame) {
   const std::size_t np = mesh.polygonCount();
   std::uint64_t fanned = 0;
   for (std::size_t p = 0; p < np; ++p) fanned += mesh.polygon(p).size() > 2 ? mesh.polygon(p).size() - 2 : 0;
@@ -209,8 +206,7 @@ PlanarCore::PlanarCore(const Mesh& mesh, const PlanarFrame& frame, const IndexOp
   finishBuild(pending, nullptr, options);
 }
 
-PlanarCore::PlanarCore(const GridMesh& grid, const PlanarFrame& frame, const IndexOptions& options)
-    : frame_(frame) {
+PlanarCore::PlanarCore(const GridMesh& grid, const PlanarFrame& frame, const IndexOptions& options) : frame_(frame) {
   const std::uint64_t w = static_cast<std::uint64_t>(std::max(grid.width, 0));
   const std::uint64_t h = static_cast<std::uint64_t>(std::max(grid.height, 0));
   if (grid.vertices.size() != w * h) {
@@ -257,8 +253,8 @@ PlanarCore::PlanarCore(const GridMesh& grid, const PlanarFrame& frame, const Ind
   finishBuild(pending, &lattice, options);
 }
 
-void PlanarCore::startBuild(std::span<const Eigen::Vector3d> vertices, std::uint64_t polygons,
-                            std::uint64_t fanned, const IndexOptions& options) {
+void PlanarCore::startBuild(std::span<const Eigen::Vector3d> vertices, std::uint64_t polygons, std::uint64_t fanned,
+                            const IndexOptions& options) {
   const std::size_t nv = vertices.size();
   if (nv >= std::numeric_limits<std::uint32_t>::max() || polygons >= std::numeric_limits<std::uint32_t>::max()) {
     throw Error("terrain: " + std::to_string(nv) + " vertices and " + std::to_string(polygons) +
@@ -268,7 +264,8 @@ void PlanarCore::startBuild(std::span<const Eigen::Vector3d> vertices, std::uint
   stats_.vertices = nv;
   // Refuse what cannot fit before allocating: at least a grid's worth (the lean grid is the
   // smallest index), a general mesh's with its tree.
-  memory::require("terrain", options.gridFastPath.value_or(true) ? memory::kGridIndex : memory::kCartesianIndex, nv, fanned);
+  memory::require("terrain", options.gridFastPath.value_or(true) ? memory::kGridIndex : memory::kCartesianIndex, nv,
+                  fanned);
 
   // Map every vertex once, so that polygons sharing a vertex share its mapped coordinates exactly.
   corners2_.resize(nv);
@@ -285,13 +282,13 @@ void PlanarCore::checkCorners(std::span<const std::uint32_t> idx, std::size_t p,
   const std::size_t nv = vertices.size();
   for (std::uint32_t i : idx) {
     if (i >= nv) {
-      throw Error("polygon " + std::to_string(p) + " refers to vertex " + std::to_string(i) +
-                  " but the mesh has " + std::to_string(nv) + " vertices");
+      throw Error("polygon " + std::to_string(p) + " refers to vertex " + std::to_string(i) + " but the mesh has " +
+                  std::to_string(nv) + " vertices");
     }
     if (!vertices[i].allFinite() || !std::isfinite(corners2_[i].u) || !std::isfinite(corners2_[i].v) ||
         !std::isfinite(cornerH_[i])) {
-      throw Error("polygon " + std::to_string(p) + ": vertex " + std::to_string(i) +
-                  " has a non-finite coordinate " + describePoint(vertices[i]));
+      throw Error("polygon " + std::to_string(p) + ": vertex " + std::to_string(i) + " has a non-finite coordinate " +
+                  describePoint(vertices[i]));
     }
   }
 }
@@ -321,8 +318,8 @@ void PlanarCore::finishBuild(std::vector<Pending>& pending, const Lattice* latti
   if (options.gridFastPath.value_or(true) && !lattice) recognised = grid_.recognise(corners2_, pending);
   const bool onLattice = options.gridFastPath.value_or(true) && lattice && !pending.empty() &&
                          grid_.fitLattice(corners2_, lattice->width, lattice->height);
-  const std::span<const std::uint32_t> slots = onLattice ? std::span<const std::uint32_t>(lattice->slots)
-                                                         : std::span<const std::uint32_t>(recognised);
+  const std::span<const std::uint32_t> slots =
+      onLattice ? std::span<const std::uint32_t>(lattice->slots) : std::span<const std::uint32_t>(recognised);
   if (!pending.empty()) {
     const double su = domain.uhi > domain.ulo ? 65535.0 / (domain.uhi - domain.ulo) : 0.0;
     const double sv = domain.vhi > domain.vlo ? 65535.0 / (domain.vhi - domain.vlo) : 0.0;
@@ -379,8 +376,8 @@ void PlanarCore::finishBuild(std::vector<Pending>& pending, const Lattice* latti
     }
   }
   deferredOptions_ = options.tree;
-  baseMemoryBytes_ = cold_.size() * sizeof(Cold) + corners2_.size() * (sizeof(Point2) + sizeof(double)) +
-                     grid_.memoryBytes();
+  baseMemoryBytes_ =
+      cold_.size() * sizeof(Cold) + corners2_.size() * (sizeof(Point2) + sizeof(double)) + grid_.memoryBytes();
   if (deferred) {
     // The grid answers every height query: the tree waits until something needs it.
     deferredTree_ = true;
@@ -388,9 +385,10 @@ void PlanarCore::finishBuild(std::vector<Pending>& pending, const Lattice* latti
     stats_.memoryBytes = baseMemoryBytes_ + recordBytesBeforeTree_;
   } else {
     setTreeFloor(boxes);
-    tree_.build(static_cast<std::uint32_t>(cold_.size()), domain, options.tree,
-                [this, &boxes](std::uint32_t t, const Box2& b) { return overlaps(t, boxes[t], b); },
-                floorU_, floorV_, [&boxes](std::uint32_t t) { return boxes[t]; });
+    tree_.build(
+        static_cast<std::uint32_t>(cold_.size()), domain, options.tree,
+        [this, &boxes](std::uint32_t t, const Box2& b) { return overlaps(t, boxes[t], b); }, floorU_, floorV_,
+        [&boxes](std::uint32_t t) { return boxes[t]; });
     tree_.markLeaves([this](std::span<std::uint32_t> items) { return prepareLeaf(items); });
     stats_.tree = tree_.stats();
     stats_.memoryBytes = baseMemoryBytes_ + tris_.size() * sizeof(Tri) + stats_.tree.memoryBytes;
@@ -418,9 +416,8 @@ PlanarCore::Tri PlanarCore::recordOf(std::uint32_t t) const {
   return grid_.lean || t >= tris_.size() ? computeRecord(cold_[t].corner) : tris_[t];
 }
 
-[[gnu::always_inline]] inline void PlanarCore::leanCorner(std::uint64_t col, std::uint64_t row,
-                                                            std::uint32_t half, int k, double& u,
-                                                            double& v, double& h) const {
+[[gnu::always_inline]] inline void PlanarCore::leanCorner(std::uint64_t col, std::uint64_t row, std::uint32_t half,
+                                                          int k, double& u, double& v, double& h) const {
   grid_.leanCorner(col, row, half, k, corners2_, cornerH_, u, v, h);
 }
 
@@ -429,9 +426,8 @@ PlanarCore::Tri PlanarCore::recordOf(std::uint32_t t) const {
 // clamp where they change nothing: finite slopes of an up-facing plane (nh > 0) give a finite
 // height, slopes that are not finite give none, so nh > 0 and a height within the corners' range
 // stand for all of them.
-[[gnu::always_inline]] inline double PlanarCore::leanAnswer(std::uint64_t col, std::uint64_t row,
-                                                              std::uint32_t half, double u, double v,
-                                                              LeanPlane& p) const {
+[[gnu::always_inline]] inline double PlanarCore::leanAnswer(std::uint64_t col, std::uint64_t row, std::uint32_t half,
+                                                            double u, double v, LeanPlane& p) const {
   double u0, v0, h0, u1, v1, h1, u2, v2, h2;
   leanCorner(col, row, half, 0, u0, v0, h0);
   leanCorner(col, row, half, 1, u1, v1, h1);
@@ -439,7 +435,8 @@ PlanarCore::Tri PlanarCore::recordOf(std::uint32_t t) const {
   const RawSlopes r = rawSlopes(u0, v0, h0, u1, v1, h1, u2, v2, h2);
   p = {r.a, r.b, h0, u0, v0, std::min(h0, std::min(h1, h2)), std::max(h0, std::max(h1, h2))};
   const double h = h0 + r.a * (u - u0) + r.b * (v - v0);
-  if (r.nh > 0 && h >= p.lo && h <= p.hi) [[likely]] return h;
+  if (r.nh > 0 && h >= p.lo && h <= p.hi) [[likely]]
+    return h;
   // A sliver, or a height the clamp may move: the checked plane.
   const PlaneFit f = fitPlane(u0, v0, h0, u1, v1, h1, u2, v2, h2);
   p.a = f.a, p.b = f.b, p.h0 = f.h0;
@@ -451,18 +448,19 @@ PlanarCore::Tri PlanarCore::recordOf(std::uint32_t t) const {
 // case.
 [[gnu::always_inline]] inline double PlanarCore::leanHeight(const LeanPlane& p, double u, double v) {
   const double h = p.h0 + p.a * (u - p.u0) + p.b * (v - p.v0);
-  if (h >= p.lo && h <= p.hi) [[likely]] return h;
+  if (h >= p.lo && h <= p.hi) [[likely]]
+    return h;
   return std::clamp(h, static_cast<double>(floatBelow(p.lo)), static_cast<double>(floatAbove(p.hi)));
 }
 
 template <bool NeedId>
-[[gnu::always_inline]] inline std::uint32_t PlanarCore::gridAnswer(double u, double v, double& h, Quadtree::Cursor* cursor) const {
+[[gnu::always_inline]] inline std::uint32_t PlanarCore::gridAnswer(double u, double v, double& h,
+                                                                   Quadtree::Cursor* cursor) const {
   if (grid_.lean) {
     const detail::GridPath::Cell g = grid_.cell(u, v);
     if (g.inGrid && g.clear) [[likely]] {
       const std::uint64_t slot = g.slot;
-      if (cursor && cursor->memo.key == slot && cursor->memo.owner == this &&
-          cursor->memo.generation == generation_) {
+      if (cursor && cursor->memo.key == slot && cursor->memo.owner == this && cursor->memo.generation == generation_) {
         const double* m = cursor->memo.value;
         h = leanHeight({m[0], m[1], m[2], m[3], m[4], m[5], m[6]}, u, v);
         return NeedId ? cursor->memo.item : kFound;
@@ -504,7 +502,7 @@ template <bool NeedId>
 }
 
 [[gnu::noinline]] std::uint32_t PlanarCore::gridAnswerNearEdge(double u, double v, double fc, double fr,
-                                                                double& h) const {
+                                                               double& h) const {
   Tri scratch;
   const Tri* rec = nullptr;
   const std::uint32_t t = gridTriangleNearEdge(u, v, fc, fr, scratch, rec);
@@ -536,8 +534,8 @@ std::uint32_t PlanarCore::gridTriangle(double u, double v, Tri& scratch, const T
   return gridTriangleNearEdge(u, v, fc, fr, scratch, rec);
 }
 
-std::uint32_t PlanarCore::gridTriangleNearEdge(double u, double v, double fc, double fr,
-                                                 Tri& scratch, const Tri*& rec) const {
+std::uint32_t PlanarCore::gridTriangleNearEdge(double u, double v, double fc, double fr, Tri& scratch,
+                                               const Tri*& rec) const {
   // Beyond a cell off the grid nothing can hold the point; NaN lands here too.
   if (!(fc >= -1 && fr >= -1 && fc <= grid_.w && fr <= grid_.h)) return kOffGrid;
   const double cellsU = grid_.w - 1, cellsV = grid_.h - 1;
@@ -569,11 +567,9 @@ std::uint32_t PlanarCore::gridTriangleNearEdge(double u, double v, double fc, do
   return best == kNone ? kOffGrid : best;
 }
 
-void PlanarCore::fanPolygon(std::span<const std::uint32_t> idx, std::uint32_t p,
-                              std::vector<Pending>& pending) const {
-  const int sign = idx.size() == 3
-                       ? orient2dSign(corners2_[idx[0]], corners2_[idx[1]], corners2_[idx[2]])
-                       : convexOrientation(idx, corners2_, p);
+void PlanarCore::fanPolygon(std::span<const std::uint32_t> idx, std::uint32_t p, std::vector<Pending>& pending) const {
+  const int sign = idx.size() == 3 ? orient2dSign(corners2_[idx[0]], corners2_[idx[1]], corners2_[idx[2]])
+                                   : convexOrientation(idx, corners2_, p);
   if (sign == 0) return;
   for (std::size_t k = 1; k + 1 < idx.size(); ++k) {
     const std::uint32_t a = idx[0], b = idx[k], c = idx[k + 1];
@@ -609,8 +605,8 @@ void PlanarCore::edgeRecord(const std::uint32_t corner[3], Tri& r) const {
     r.A[k] = p0.v - p1.v;
     r.B[k] = p1.u - p0.u;
     r.C[k] = p0.u * p1.v - p1.u * p0.v;
-    tol = std::max(tol, std::fabs(r.A[k]) * umax_ + std::fabs(r.B[k]) * vmax_ +
-                            std::fabs(p0.u * p1.v) + std::fabs(p1.u * p0.v));
+    tol = std::max(
+        tol, std::fabs(r.A[k]) * umax_ + std::fabs(r.B[k]) * vmax_ + std::fabs(p0.u * p1.v) + std::fabs(p1.u * p0.v));
   }
   r.tol = 16.0 * kUnitRoundoff * tol;
   r.u0 = corners2_[corner[0]].u, r.v0 = corners2_[corner[0]].v, r.h0 = cornerH_[corner[0]];
@@ -696,12 +692,12 @@ void PlanarCore::buildDeferredTree() const {
     for (std::uint32_t t = 0; t < cold_.size(); ++t) boxes[t] = boxOf(t);
     setTreeFloor(boxes);
   }
-  tree_.build(static_cast<std::uint32_t>(cold_.size()), stats_.domain, deferredOptions_,
-              [this](std::uint32_t t, const Box2& b) {
-                return !(cold_[t].polygon < removed_.size() && removed_[cold_[t].polygon]) &&
-                       overlaps(t, boxOf(t), b);
-              },
-              floorU_, floorV_, [this](std::uint32_t t) { return boxOf(t); });
+  tree_.build(
+      static_cast<std::uint32_t>(cold_.size()), stats_.domain, deferredOptions_,
+      [this](std::uint32_t t, const Box2& b) {
+        return !(cold_[t].polygon < removed_.size() && removed_[cold_[t].polygon]) && overlaps(t, boxOf(t), b);
+      },
+      floorU_, floorV_, [this](std::uint32_t t) { return boxOf(t); });
   tree_.markLeaves([this](std::span<std::uint32_t> items) { return prepareLeaf(items); });
   treeStatsStale_ = true;
   deferred_->built = true;
@@ -747,8 +743,7 @@ bool PlanarCore::inside(std::uint32_t t, double u, double v) const {
 
 inline double PlanarCore::heightOf(const Tri& t, double u, double v) const {
   // The clamp keeps a sliver's extrapolated plane inside its corners' height range.
-  return std::clamp(t.h0 + t.a * (u - t.u0) + t.b * (v - t.v0), static_cast<double>(t.hlo),
-                    static_cast<double>(t.hhi));
+  return std::clamp(t.h0 + t.a * (u - t.u0) + t.b * (v - t.v0), static_cast<double>(t.hlo), static_cast<double>(t.hhi));
 }
 
 // The nearest triangle at (u, v) on one side of z: Below = true finds the highest with h <= z,
@@ -759,8 +754,7 @@ inline double PlanarCore::heightOf(const Tri& t, double u, double v) const {
 // then selects without branching on the data, except for the rare point within rounding of an
 // edge, which takes the exact predicate.
 template <bool Below>
-std::uint32_t PlanarCore::nearest(double u, double v, double z, double& h,
-                                    Quadtree::Cursor* cursor) const {
+std::uint32_t PlanarCore::nearest(double u, double v, double z, double& h, Quadtree::Cursor* cursor) const {
   if (grid_.on()) {
     const std::uint32_t t = gridAnswer<true>(u, v, h, cursor);
     if (t == kOffGrid) return kNone;
@@ -787,13 +781,14 @@ bool PlanarCore::contains(const Tri& r, std::uint32_t t, double u, double v) con
   const double e1 = r.A[1] * u + r.B[1] * v + r.C[1];
   const double e2 = r.A[2] * u + r.B[2] * v + r.C[2];
   const double m = std::min(e0, std::min(e1, e2));
-  if (std::fabs(m) <= r.tol) [[unlikely]] return inside(t, u, v);
+  if (std::fabs(m) <= r.tol) [[unlikely]]
+    return inside(t, u, v);
   return m > 0;
 }
 
 template <bool Below>
-std::uint32_t PlanarCore::nearestIn(std::span<const std::uint32_t> items, bool singleLayer,
-                                      double u, double v, double z, double& h) const {
+std::uint32_t PlanarCore::nearestIn(std::span<const std::uint32_t> items, bool singleLayer, double u, double v,
+                                    double z, double& h) const {
   if (singleLayer) {
     // One surface: the first triangle containing the point is the answer, if on the right side.
     for (std::uint32_t t : items) {
@@ -851,13 +846,9 @@ std::optional<Hit> PlanarCore::hitAt(double u, double v, double z, Quadtree::Cur
   return makeHit(t, u, v, h);
 }
 
-std::optional<Hit> PlanarCore::below(double u, double v, double z) const {
-  return hitAt<true>(u, v, z, nullptr);
-}
+std::optional<Hit> PlanarCore::below(double u, double v, double z) const { return hitAt<true>(u, v, z, nullptr); }
 
-std::optional<Hit> PlanarCore::above(double u, double v, double z) const {
-  return hitAt<false>(u, v, z, nullptr);
-}
+std::optional<Hit> PlanarCore::above(double u, double v, double z) const { return hitAt<false>(u, v, z, nullptr); }
 
 namespace {
 
@@ -951,7 +942,7 @@ void detail::GridPath::leanHeights(std::span<const Point2> corners, std::span<co
 
 template <class ZOf>
 void PlanarCore::heightsBelowBatch(std::span<const Point2> points, const ZOf& zOf,
-                                     std::span<std::optional<double>> heights) const {
+                                   std::span<std::optional<double>> heights) const {
   // Software pipelining over groups of points: first every point's leaf (the jump table), then
   // every leaf's reference list, then every leaf's triangles, each stage issuing its loads for
   // the whole group before any of them is waited for. A single query waits for three dependent
@@ -1006,9 +997,8 @@ void PlanarCore::heightsBelowBatch(std::span<const Point2> points, const ZOf& zO
       for (std::size_t i = 0; i < n; ++i) {
         const Point2 p = points[g + i];
         double h = 0;
-        heights[g + i] = gridAnswer<false>(p.u, p.v, h) != kOffGrid && h <= zOf(g + i)
-                             ? std::optional<double>(h)
-                             : std::nullopt;
+        heights[g + i] =
+            gridAnswer<false>(p.u, p.v, h) != kOffGrid && h <= zOf(g + i) ? std::optional<double>(h) : std::nullopt;
       }
     }
     return;
@@ -1034,15 +1024,17 @@ void PlanarCore::heightsBelowBatch(std::span<const Point2> points, const ZOf& zO
 }
 
 void PlanarCore::heightsBelow(std::span<const Point2> points, double z,
-                                std::span<std::optional<double>> heights) const {
+                              std::span<std::optional<double>> heights) const {
   batch::requireRoom("heightsBelow", points.size(), heights.size());
-  heightsBelowBatch(points, [z](std::size_t) { return z; }, heights);
+  heightsBelowBatch(
+      points, [z](std::size_t) { return z; }, heights);
 }
 
 void PlanarCore::heightsBelow(std::span<const Point2> points, std::span<const double> zs,
-                                std::span<std::optional<double>> heights) const {
+                              std::span<std::optional<double>> heights) const {
   batch::requireRoom("heightsBelow", points.size(), std::min(heights.size(), zs.size()));
-  heightsBelowBatch(points, [zs](std::size_t i) { return zs[i]; }, heights);
+  heightsBelowBatch(
+      points, [zs](std::size_t i) { return zs[i]; }, heights);
 }
 
 void PlanarCore::heights(std::span<const Point2> points, std::span<std::optional<double>> heights) const {
@@ -1050,28 +1042,30 @@ void PlanarCore::heights(std::span<const Point2> points, std::span<std::optional
 }
 
 void PlanarCore::heightsBelowParallel(std::span<const Point2> points, double z,
-                                        std::span<std::optional<double>> heights, unsigned threads) const {
+                                      std::span<std::optional<double>> heights, unsigned threads) const {
   batch::requireRoom("heightsBelowParallel", points.size(), heights.size());
   // The tree built once here, not raced for by the workers; the grid fast path never needs it
   // (off the grid and in holes it answers no terrain itself).
   if (!grid_.on()) ensureTree();
   batch::inSlices(points.size(), threads, 4096, [&](std::size_t lo, std::size_t hi) {
-    heightsBelowBatch(points.subspan(lo, hi - lo), [z](std::size_t) { return z; }, heights.subspan(lo, hi - lo));
+    heightsBelowBatch(
+        points.subspan(lo, hi - lo), [z](std::size_t) { return z; }, heights.subspan(lo, hi - lo));
   });
 }
 
 void PlanarCore::heightsBelowParallel(std::span<const Point2> points, std::span<const double> zs,
-                                        std::span<std::optional<double>> heights, unsigned threads) const {
+                                      std::span<std::optional<double>> heights, unsigned threads) const {
   batch::requireRoom("heightsBelowParallel", points.size(), std::min(heights.size(), zs.size()));
   if (!grid_.on()) ensureTree();  // (as above)
   batch::inSlices(points.size(), threads, 4096, [&](std::size_t lo, std::size_t hi) {
     const std::span<const double> z = zs.subspan(lo, hi - lo);
-    heightsBelowBatch(points.subspan(lo, hi - lo), [z](std::size_t i) { return z[i]; }, heights.subspan(lo, hi - lo));
+    heightsBelowBatch(
+        points.subspan(lo, hi - lo), [z](std::size_t i) { return z[i]; }, heights.subspan(lo, hi - lo));
   });
 }
 
 void PlanarCore::heightsParallel(std::span<const Point2> points, std::span<std::optional<double>> heights,
-                                   unsigned threads) const {
+                                 unsigned threads) const {
   heightsBelowParallel(points, kInf, heights, threads);
 }
 
@@ -1082,26 +1076,21 @@ double PlanarCore::heightAt(double u, double v, double z, Quadtree::Cursor* curs
   return h;
 }
 
-[[gnu::noinline]] double PlanarCore::heightFromTree(double u, double v, double z,
-                                                      Quadtree::Cursor* cursor) const {
+[[gnu::noinline]] double PlanarCore::heightFromTree(double u, double v, double z, Quadtree::Cursor* cursor) const {
   double h = 0;
   if (nearest<true>(u, v, z, h, cursor) == kNone) return NAN;
   return h;
 }
 
-std::optional<Hit> PlanarCore::below(Quadtree::Cursor& cursor, double u, double v,
-                                       double z) const {
+std::optional<Hit> PlanarCore::below(Quadtree::Cursor& cursor, double u, double v, double z) const {
   return hitAt<true>(u, v, z, &cursor);
 }
 
-std::optional<Hit> PlanarCore::above(Quadtree::Cursor& cursor, double u, double v,
-                                       double z) const {
+std::optional<Hit> PlanarCore::above(Quadtree::Cursor& cursor, double u, double v, double z) const {
   return hitAt<false>(u, v, z, &cursor);
 }
 
-Bracket PlanarCore::bracket(double u, double v, double h) const {
-  return {below(u, v, h), above(u, v, h)};
-}
+Bracket PlanarCore::bracket(double u, double v, double h) const { return {below(u, v, h), above(u, v, h)}; }
 
 std::optional<Hit> PlanarCore::top(double u, double v) const {
   return below(u, v, std::numeric_limits<double>::infinity());
@@ -1122,8 +1111,7 @@ std::vector<Hit> PlanarCore::all(double u, double v) const {
   // A fanned polygon is met once: drop repeats from its fan triangles (on their shared diagonal).
   std::vector<Hit> unique;
   for (Hit& h : hits) {
-    const bool seen = std::any_of(unique.begin(), unique.end(),
-                                  [&](const Hit& k) { return k.polygon == h.polygon; });
+    const bool seen = std::any_of(unique.begin(), unique.end(), [&](const Hit& k) { return k.polygon == h.polygon; });
     if (!seen) unique.push_back(std::move(h));
   }
   return unique;
@@ -1159,8 +1147,7 @@ bool PlanarCore::occludedAbove(double u, double v, double h, std::uint32_t verte
   return false;
 }
 
-bool PlanarCore::triangleOccludesAbove(std::uint32_t t, double u, double v, double h,
-                                         std::uint32_t vertex) const {
+bool PlanarCore::triangleOccludesAbove(std::uint32_t t, double u, double v, double h, std::uint32_t vertex) const {
   const Cold& c = cold_[t];
   if (c.corner[0] == vertex || c.corner[1] == vertex || c.corner[2] == vertex) return false;
   if (c.polygon < removed_.size() && removed_[c.polygon]) return false;
@@ -1169,8 +1156,8 @@ bool PlanarCore::triangleOccludesAbove(std::uint32_t t, double u, double v, doub
   return contains(r, t, u, v) && heightOf(r, u, v) > h;
 }
 
-bool mappedTriangleAbove(const Eigen::Vector3d& c0, const Eigen::Vector3d& c1, const Eigen::Vector3d& c2,
-                         double u, double v, double h) {
+bool mappedTriangleAbove(const Eigen::Vector3d& c0, const Eigen::Vector3d& c1, const Eigen::Vector3d& c2, double u,
+                         double v, double h) {
   // The corners counter-clockwise from the first, as fanPolygon orders them; inside() and
   // computeRecord's plane and height range, as heightOf uses them.
   const Point2 p0{c0.x(), c0.y()};
@@ -1197,9 +1184,8 @@ std::uint32_t PlanarCore::testsAt(double u, double v) const {
 
 namespace qota {
 
-std::vector<LineHit> PlanarCore::alongLine(const Eigen::Vector3d& origin,
-                                             const Eigen::Vector3d& direction, double tmin,
-                                             double tmax) const {
+std::vector<LineHit> PlanarCore::alongLine(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction, double tmin,
+                                           double tmax) const {
   ensureTree();
   std::vector<LineHit> out;
   if (!origin.allFinite() || !direction.allFinite() || direction.squaredNorm() == 0) return out;  // no line
@@ -1232,10 +1218,9 @@ std::vector<LineHit> PlanarCore::alongLine(const Eigen::Vector3d& origin,
   clipAxis(O.y(), dn.y(), box.vlo, box.vhi);
   if (!(t0 <= t1)) return out;
   std::vector<std::uint32_t> candidates;
-  tree_.forLeavesAlong(O.x() + t0 * dn.x(), O.y() + t0 * dn.y(), O.x() + t1 * dn.x(),
-                       O.y() + t1 * dn.y(), [&](std::span<const std::uint32_t> items) {
-                         candidates.insert(candidates.end(), items.begin(), items.end());
-                       });
+  tree_.forLeavesAlong(
+      O.x() + t0 * dn.x(), O.y() + t0 * dn.y(), O.x() + t1 * dn.x(), O.y() + t1 * dn.y(),
+      [&](std::span<const std::uint32_t> items) { candidates.insert(candidates.end(), items.begin(), items.end()); });
   std::sort(candidates.begin(), candidates.end());
   candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
   const double dv[3] = {dn.x(), dn.y(), dn.z()};
@@ -1249,12 +1234,10 @@ std::vector<LineHit> PlanarCore::alongLine(const Eigen::Vector3d& origin,
       const std::uint32_t v = c.corner[k];
       q[k][0] = corners2_[v].u - O.x(), q[k][1] = corners2_[v].v - O.y(), q[k][2] = cornerH_[v] - O.z();
     }
-    const int s0 = orient3dSign(q[0], q[1], dv), s1 = orient3dSign(q[1], q[2], dv),
-              s2 = orient3dSign(q[2], q[0], dv);
-    const bool neg = s0 < 0 || s1 < 0 || s2 < 0, pos = s0 > 0 || s1 > 0 || s2 > 0;
+    const int s0 = orient3dSign(q[0], q[1], dv), s1 = orient3dSign(q[1], q[2], dv), s2 = orient3dSign(q[2], q[0], dv);
+    const bool neg = s0 < 0 || s1 < 0 || s2<0, pos = s0> 0 || s1 > 0 || s2 > 0;
     if (neg == pos) continue;  // outside, or the line lies in the triangle's plane
-    const Eigen::Vector3d a(q[0][0], q[0][1], q[0][2]), b(q[1][0], q[1][1], q[1][2]),
-        e(q[2][0], q[2][1], q[2][2]);
+    const Eigen::Vector3d a(q[0][0], q[0][1], q[0][2]), b(q[1][0], q[1][1], q[1][2]), e(q[2][0], q[2][1], q[2][2]);
     Eigen::Vector3d n = (b - a).cross(e - a);
     const double nd = n.dot(dn);
     if (nd == 0) continue;
@@ -1269,9 +1252,8 @@ std::vector<LineHit> PlanarCore::alongLine(const Eigen::Vector3d& origin,
     lh.hit.polygon = c.polygon;
     out.push_back(lh);
   }
-  std::sort(out.begin(), out.end(), [](const LineHit& x, const LineHit& y) {
-    return x.t != y.t ? x.t < y.t : x.hit.polygon < y.hit.polygon;
-  });
+  std::sort(out.begin(), out.end(),
+            [](const LineHit& x, const LineHit& y) { return x.t != y.t ? x.t < y.t : x.hit.polygon < y.hit.polygon; });
   return out;
 }
 
@@ -1290,12 +1272,12 @@ void PlanarCore::rebuildTree(const Box2& domain) {
   }
   const QuadtreeOptions options = tree_.options();
   const double minU = tree_.minSizeU(), minV = tree_.minSizeV();
-  tree_.build(static_cast<std::uint32_t>(tris_.size()), domain, options,
-              [this, &boxes](std::uint32_t t, const Box2& b) {
-                return !(cold_[t].polygon < removed_.size() && removed_[cold_[t].polygon]) &&
-                       overlaps(t, boxes[t], b);
-              },
-              minU, minV, [&boxes](std::uint32_t t) { return boxes[t]; });
+  tree_.build(
+      static_cast<std::uint32_t>(tris_.size()), domain, options,
+      [this, &boxes](std::uint32_t t, const Box2& b) {
+        return !(cold_[t].polygon < removed_.size() && removed_[cold_[t].polygon]) && overlaps(t, boxes[t], b);
+      },
+      minU, minV, [&boxes](std::uint32_t t) { return boxes[t]; });
   tree_.markLeaves([this](std::span<std::uint32_t> items) { return prepareLeaf(items); });
   stats_.domain = domain;
 }
@@ -1305,8 +1287,7 @@ std::uint32_t PlanarCore::insertPolygon(std::span<const Eigen::Vector3d> corners
   ++generation_;
   const auto id = static_cast<std::uint32_t>(stats_.polygons);
   if (corners.size() < 3) {
-    throw Error("insertPolygon: a polygon needs at least 3 corners, got " +
-                std::to_string(corners.size()));
+    throw Error("insertPolygon: a polygon needs at least 3 corners, got " + std::to_string(corners.size()));
   }
   if (corners2_.size() + corners.size() >= std::numeric_limits<std::uint32_t>::max()) {
     throw Error("insertPolygon: the index is full (32-bit vertex indices)");
@@ -1361,8 +1342,9 @@ std::uint32_t PlanarCore::insertPolygon(std::span<const Eigen::Vector3d> corners
     rebuildTree(domain);
   } else {
     for (auto t = firstTri; t < tris_.size(); ++t) {
-      tree_.insert(t, [this](std::uint32_t i, const Box2& b) { return overlaps(i, boxOf(i), b); },
-                   [this](std::span<std::uint32_t> items) { return prepareLeaf(items); });
+      tree_.insert(
+          t, [this](std::uint32_t i, const Box2& b) { return overlaps(i, boxOf(i), b); },
+          [this](std::span<std::uint32_t> items) { return prepareLeaf(items); });
     }
   }
   treeStatsStale_ = true;

@@ -14,7 +14,7 @@ namespace qota {
 namespace {
 
 constexpr char kMagic[8] = {'Q', 'O', 'T', 'A', 'T', 'R', 'E', 'E'};
-constexpr std::uint32_t kVersion = 4;  // 2: the grid keeps no plane table; 3: band and unit; 4: height reference
+constexpr std::uint32_t kVersion = 4;        // 2: the grid keeps no plane table; 3: band and unit; 4: height reference
 constexpr std::uint32_t kOldestVersion = 3;  // version 2 stored its statistics with padding
 // Structs written as they are must have no padding, whose bytes would be whatever memory held:
 // the same index must always make the same file.
@@ -270,8 +270,7 @@ struct TreeFileAccess {
 
   static void validate(const Reader& r, const PlanarCore& x) {
     if (x.grid_.on()) {
-      if (x.grid_.w < 2 || x.grid_.h < 2 ||
-          x.grid_.cellTri.size() != 2ull * (x.grid_.w - 1) * (x.grid_.h - 1)) {
+      if (x.grid_.w < 2 || x.grid_.h < 2 || x.grid_.cellTri.size() != 2ull * (x.grid_.w - 1) * (x.grid_.h - 1)) {
         r.fail("the grid's cell table has the wrong size");
       }
       for (std::uint32_t t : x.grid_.cellTri) {
@@ -424,9 +423,8 @@ TreeFile loadTree(const std::string& path) {
     throw Error(path + ": not a valid qota tree file: unknown kind " + std::to_string(kind));
   }
   if (payload != fileSize - 32) {
-    throw Error(path + ": not a valid qota tree file: truncated or extended (" +
-                std::to_string(fileSize - 32) + " payload bytes, the header says " +
-                std::to_string(payload) + ")");
+    throw Error(path + ": not a valid qota tree file: truncated or extended (" + std::to_string(fileSize - 32) +
+                " payload bytes, the header says " + std::to_string(payload) + ")");
   }
   Reader r(in, path, payload);
   AnyMapping mapping;

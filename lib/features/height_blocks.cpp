@@ -42,7 +42,9 @@ XXH3_state_t* stateAt(std::vector<std::uint64_t>& words, std::size_t k) {
 }  // namespace
 
 HeightBlocks::HeightBlocks(int width, int height) : width_(width), height_(height) {
-  if (width < 1 || height < 1) throw Error("heights of a raster of " + std::to_string(width) + " x " + std::to_string(height) + " cells cannot be hashed");
+  if (width < 1 || height < 1)
+    throw Error("heights of a raster of " + std::to_string(width) + " x " + std::to_string(height) +
+                " cells cannot be hashed");
   const double cells = static_cast<double>(width) * static_cast<double>(height);
   side_ = std::max(64, 16 * static_cast<int>(std::ceil(std::sqrt(cells / kMostBlocks) / 16)));
   while (static_cast<std::int64_t>(across()) * down() > kMostBlocks) side_ += 16;
@@ -75,8 +77,8 @@ std::uint64_t HeightBlocks::whole() const {
 void HeightBlocks::addRows(int row, int count, const std::vector<double>& heights) {
   if (row != rowsAdded_ || count < 0 || row + count > height_ ||
       heights.size() != static_cast<std::size_t>(width_) * static_cast<std::size_t>(count)) {
-    throw Error("heights hashed out of order: rows " + std::to_string(row) + " + " + std::to_string(count) +
-                " after " + std::to_string(rowsAdded_));
+    throw Error("heights hashed out of order: rows " + std::to_string(row) + " + " + std::to_string(count) + " after " +
+                std::to_string(rowsAdded_));
   }
   const int n = across();
   if (open_.empty()) open_.resize(static_cast<std::size_t>(n) * kStateWords);
@@ -156,7 +158,8 @@ void HeightBlocks::check(const CellWindow& window, const std::vector<double>& he
       const int w = std::min(side_, window.col + window.width - c0);
       block.resize(static_cast<std::size_t>(w) * h);
       for (int r = 0; r < h; ++r) {
-        const double* from = heights.data() + static_cast<std::size_t>(r0 - window.row + r) * window.width + (c0 - window.col);
+        const double* from =
+            heights.data() + static_cast<std::size_t>(r0 - window.row + r) * window.width + (c0 - window.col);
         canonicalCopy(from, static_cast<std::size_t>(w), block.data() + static_cast<std::size_t>(r) * w);
       }
       const std::uint64_t got = XXH3_64bits(block.data(), block.size() * sizeof(double));

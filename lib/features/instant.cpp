@@ -114,20 +114,21 @@ struct Zone {
 
 Zone zoneOf(std::string_view text, const Written& w) {
   if (w.offset && !text.empty()) {
-    throw Error("time carries its UTC offset and --tz '" + std::string(text) +
-                "' gives another: give only one");
+    throw Error("time carries its UTC offset and --tz '" + std::string(text) + "' gives another: give only one");
   }
   if (w.offset) return {w.offset, nullptr, offsetText(*w.offset)};
   if (text.empty()) {
-    throw Error("no UTC offset: add Z or +HH:MM to the time, or give --tz (an offset such as "
-                "-07:00, or a zone name such as America/Los_Angeles)");
+    throw Error(
+        "no UTC offset: add Z or +HH:MM to the time, or give --tz (an offset such as "
+        "-07:00, or a zone name such as America/Los_Angeles)");
   }
   if (const auto m = offsetMinutes(text)) return {m, nullptr, offsetText(*m)};
   try {
     const std::string name(text);
     return {std::nullopt, date::locate_zone(name), name};
   } catch (const std::exception&) {
-    throw Error("time zone '" + std::string(text) + "': not an offset (+HH:MM) nor a zone name "
+    throw Error("time zone '" + std::string(text) +
+                "': not an offset (+HH:MM) nor a zone name "
                 "the system's tz database knows (such as Europe/Paris; tzdata installed?)");
   }
 }
@@ -145,8 +146,7 @@ std::string isoText(const TimePoint& t) {
 std::string localText(const date::local_time<Micros>& t) { return isoText(t); }
 
 // The true instant of a local time in a zone.
-date::sys_time<Micros> toSys(const date::local_time<Micros>& local, const Zone& zone,
-                             std::string_view text) {
+date::sys_time<Micros> toSys(const date::local_time<Micros>& local, const Zone& zone, std::string_view text) {
   if (zone.offset) return date::sys_time<Micros>{local.time_since_epoch()} - std::chrono::minutes(*zone.offset);
   const date::local_info info = zone.tz->get_info(local);
   switch (info.result) {
@@ -156,10 +156,9 @@ date::sys_time<Micros> toSys(const date::local_time<Micros>& local, const Zone& 
       throw Error("time '" + std::string(text) + "': " + localText(local) + " does not exist in " + zone.name +
                   " (the clocks skip it); give an explicit UTC offset");
     default:
-      throw Error("time '" + std::string(text) + "': " + localText(local) + " happens twice in " +
-                  zone.name + " (" + offsetText(static_cast<int>(info.first.offset.count() / 60)) + " and " +
-                  offsetText(static_cast<int>(info.second.offset.count() / 60)) +
-                  "); give an explicit UTC offset");
+      throw Error("time '" + std::string(text) + "': " + localText(local) + " happens twice in " + zone.name + " (" +
+                  offsetText(static_cast<int>(info.first.offset.count() / 60)) + " and " +
+                  offsetText(static_cast<int>(info.second.offset.count() / 60)) + "); give an explicit UTC offset");
   }
 }
 

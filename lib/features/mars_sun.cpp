@@ -29,20 +29,20 @@ struct Leap {
   double taiMinusUtc;
 };
 constexpr std::array<Leap, 28> kLeaps{{
-    {2441317.5, 10}, {2441499.5, 11}, {2441683.5, 12}, {2442048.5, 13}, {2442413.5, 14},
-    {2442778.5, 15}, {2443144.5, 16}, {2443509.5, 17}, {2443874.5, 18}, {2444239.5, 19},
-    {2444786.5, 20}, {2445151.5, 21}, {2445516.5, 22}, {2446247.5, 23}, {2447161.5, 24},
-    {2447892.5, 25}, {2448257.5, 26}, {2448804.5, 27}, {2449169.5, 28}, {2449534.5, 29},
-    {2450083.5, 30}, {2450630.5, 31}, {2451179.5, 32}, {2453736.5, 33}, {2454832.5, 34},
-    {2456109.5, 35}, {2457204.5, 36}, {2457754.5, 37},
+    {2441317.5, 10}, {2441499.5, 11}, {2441683.5, 12}, {2442048.5, 13}, {2442413.5, 14}, {2442778.5, 15},
+    {2443144.5, 16}, {2443509.5, 17}, {2443874.5, 18}, {2444239.5, 19}, {2444786.5, 20}, {2445151.5, 21},
+    {2445516.5, 22}, {2446247.5, 23}, {2447161.5, 24}, {2447892.5, 25}, {2448257.5, 26}, {2448804.5, 27},
+    {2449169.5, 28}, {2449534.5, 29}, {2450083.5, 30}, {2450630.5, 31}, {2451179.5, 32}, {2453736.5, 33},
+    {2454832.5, 34}, {2456109.5, 35}, {2457204.5, 36}, {2457754.5, 37},
 }};
 
 }  // namespace
 
 double ttMinusUtc(double julianDayUT) {
   if (!(julianDayUT >= kLeaps.front().jd)) {
-    throw Error("the time is before 1972, where TT - UTC is not a whole number of leap seconds; "
-                "give -az/-alt or --sun-vector");
+    throw Error(
+        "the time is before 1972, where TT - UTC is not a whole number of leap seconds; "
+        "give -az/-alt or --sun-vector");
   }
   double tai = kLeaps.front().taiMinusUtc;
   for (const Leap& l : kLeaps) {
@@ -73,13 +73,13 @@ Mars24 mars24(double julianDayUT) {
   m.equationOfCenter = (10.691 + 3.0e-7 * dt) * sind(M) + 0.623 * sind(2 * M) + 0.050 * sind(3 * M) +
                        0.005 * sind(4 * M) + 0.0005 * sind(5 * M) + m.perturbers;  // B-4
   m.ls = mod(m.fmsAngle + m.equationOfCenter, 360.0);                              // B-5
-  m.equationOfTime = 2.861 * sind(2 * m.ls) - 0.071 * sind(4 * m.ls) + 0.002 * sind(6 * m.ls) -
-                     m.equationOfCenter;                                            // C-1
-  m.meanSolarTime = mod(24.0 * ((dt - 4.5) / 1.027491252 + 44796.0 - 0.00096), 24.0);  // C-2
-  m.subsolarWest = mod(m.meanSolarTime * (360.0 / 24.0) + m.equationOfTime + 180.0, 360.0);  // C-5
-  m.declination = std::asin(0.42565 * sind(m.ls)) / kDeg + 0.25 * sind(m.ls);                // D-1
-  m.distance = 1.523679 * (1.00436 - 0.09309 * cosd(M) - 0.004336 * cosd(2 * M) -
-                           0.00031 * cosd(3 * M) - 0.00003 * cosd(4 * M));  // D-2
+  m.equationOfTime =
+      2.861 * sind(2 * m.ls) - 0.071 * sind(4 * m.ls) + 0.002 * sind(6 * m.ls) - m.equationOfCenter;  // C-1
+  m.meanSolarTime = mod(24.0 * ((dt - 4.5) / 1.027491252 + 44796.0 - 0.00096), 24.0);                 // C-2
+  m.subsolarWest = mod(m.meanSolarTime * (360.0 / 24.0) + m.equationOfTime + 180.0, 360.0);           // C-5
+  m.declination = std::asin(0.42565 * sind(m.ls)) / kDeg + 0.25 * sind(m.ls);                         // D-1
+  m.distance = 1.523679 * (1.00436 - 0.09309 * cosd(M) - 0.004336 * cosd(2 * M) - 0.00031 * cosd(3 * M) -
+                           0.00003 * cosd(4 * M));  // D-2
   return m;
 }
 

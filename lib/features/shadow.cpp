@@ -29,9 +29,9 @@ double shadowReach(const LocalFrame& frame, const Eigen::Vector3d& towardLight) 
   return (frame.maxHeight - frame.minHeight) * horizontal / d.z();
 }
 
-std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& towardLight,
-                              const IndexOptions& options, const Progress& progress,
-                              unsigned threadCount, ShadowSearch search, std::optional<CellWindow> testOnly) {
+std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& towardLight, const IndexOptions& options,
+                              const Progress& progress, unsigned threadCount, ShadowSearch search,
+                              std::optional<CellWindow> testOnly) {
   const auto& vertices = frame.mesh.vertices;
   const std::size_t cellCount = frame.cellCount();
   if (frame.valid.size() != cellCount || vertices.size() < cellCount) {
@@ -79,8 +79,7 @@ std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& to
   double extent = 0;
   for (const Eigen::Vector3d& v : vertices) extent = std::max(extent, v.cwiseAbs().maxCoeff());
   const bool useStrips = search == ShadowSearch::Strips && light.head<2>().norm() > 1e-6 && extent < 1e30;
-  const unsigned threads =
-      threadCount ? threadCount : std::max(1u, std::min(8u, std::thread::hardware_concurrency()));
+  const unsigned threads = threadCount ? threadCount : std::max(1u, std::min(8u, std::thread::hardware_concurrency()));
   // The light's direction of travel is the "gravity" of the shadow quadtree's frame: "above" a
   // point means toward the light. The strips decide their candidates in the same frame.
   const CartesianMapping mapping(-light);
@@ -108,7 +107,8 @@ std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& to
       for (std::size_t g; !stop && (g = next++) < groups;) {
         body(g);
         const std::size_t done = cellsDone += cellsOf(g);
-        const double fraction = static_cast<double>(done) / static_cast<double>(2 * std::max<std::size_t>(1, testCount));
+        const double fraction =
+            static_cast<double>(done) / static_cast<double>(2 * std::max<std::size_t>(1, testCount));
         if (reporter && progress && !progress(0.3 + 0.7 * fraction, "testing cells")) stop = true;
       }
     };
@@ -128,9 +128,10 @@ std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& to
         bool closed = false;
         const std::span<const std::uint32_t> ring =
             gridMesh ? std::span<const std::uint32_t>(
-                           grid, static_cast<std::size_t>(frame.grid.ring(static_cast<int>(r),
-                                                                           static_cast<int>(i - r * width), grid, closed)))
-                     : std::span<const std::uint32_t>(star->tris.data() + star->start[i], star->start[i + 1] - star->start[i]);
+                           grid, static_cast<std::size_t>(frame.grid.ring(
+                                     static_cast<int>(r), static_cast<int>(i - r * width), grid, closed)))
+                     : std::span<const std::uint32_t>(star->tris.data() + star->start[i],
+                                                      star->start[i + 1] - star->start[i]);
         const bool shadow = attachedShadow(frame, ring, closed, static_cast<std::uint32_t>(i), light, facing.data()) ||
                             (frame.body.ellipsoid && bodyRays.entersBody(vertices[i]));
         out[i] = shadow ? Light::Shadow : Light::Lit;
@@ -151,7 +152,7 @@ std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& to
     report(0.3, "testing cells");
     attachedPass(threads);
     if (occluders.polygonCount() > 0) {
-      const TerrainIndex index(occluders, mapping, options);
+      const CartesianIndex index(occluders, mapping, options);
       inParallel(threads, static_cast<std::size_t>(test.height), rowCells, [&](std::size_t k) {
         const std::size_t r = k + static_cast<std::size_t>(test.row);
         for (std::size_t i = r * width + first; i < r * width + last; ++i) {
@@ -179,26 +180,28 @@ std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& to
     for (std::size_t g = 1; g < start.size(); ++g) start[g] += start[g - 1];
     std::vector<std::uint64_t> fill(start.begin(), start.end() - 1);
     for (std::size_t k = 0; k < testCount; ++k) order[fill[stripOf[k]]++] = static_cast<std::uint32_t>(testCell(k));
-    inParallel(threads, start.size() - 1, [&](std::size_t g) { return start[g + 1] - start[g]; }, [&](std::size_t g) {
-      std::uint64_t hint = 0;
-      for (std::uint64_t k = start[g]; k < start[g + 1]; ++k) {
-        if (k + 8 < start[g + 1]) {  // a strip's cells are a row apart in memory
-          __builtin_prefetch(&vertices[order[k + 8]]);
-          __builtin_prefetch(&out[order[k + 8]]);
-        }
-        const std::uint32_t i = order[k];
-        if (out[i] != Light::Lit) continue;
-        const Eigen::Vector3d m = mapping.toMapped(vertices[i]);
-        const auto occludes = [&](std::uint32_t t) {
-          // A cell's own triangles meet its ray at the cell itself: never an occluder.
-          const auto c = frame.mesh.polygon(t);
-          if (c[0] == i || c[1] == i || c[2] == i) return false;
-          return mappedTriangleAbove(mapping.toMapped(vertices[c[0]]), mapping.toMapped(vertices[c[1]]),
-                                     mapping.toMapped(vertices[c[2]]), m.x(), m.y(), m.z());
-        };
-        if (strips.anyAlong(vertices[i], hint, occludes)) out[i] = Light::Shadow;
-      }
-    });
+    inParallel(
+        threads, start.size() - 1, [&](std::size_t g) { return start[g + 1] - start[g]; },
+        [&](std::size_t g) {
+          std::uint64_t hint = 0;
+          for (std::uint64_t k = start[g]; k < start[g + 1]; ++k) {
+            if (k + 8 < start[g + 1]) {  // a strip's cells are a row apart in memory
+              __builtin_prefetch(&vertices[order[k + 8]]);
+              __builtin_prefetch(&out[order[k + 8]]);
+            }
+            const std::uint32_t i = order[k];
+            if (out[i] != Light::Lit) continue;
+            const Eigen::Vector3d m = mapping.toMapped(vertices[i]);
+            const auto occludes = [&](std::uint32_t t) {
+              // A cell's own triangles meet its ray at the cell itself: never an occluder.
+              const auto c = frame.mesh.polygon(t);
+              if (c[0] == i || c[1] == i || c[2] == i) return false;
+              return mappedTriangleAbove(mapping.toMapped(vertices[c[0]]), mapping.toMapped(vertices[c[1]]),
+                                         mapping.toMapped(vertices[c[2]]), m.x(), m.y(), m.z());
+            };
+            if (strips.anyAlong(vertices[i], hint, occludes)) out[i] = Light::Shadow;
+          }
+        });
   }
   if (stop) throw Error("shadow computation cancelled");
   report(1.0, "done");

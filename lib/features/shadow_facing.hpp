@@ -38,7 +38,7 @@ struct VertexStar {
 // either way round); `winding` (+1 or -1) says it for a grid, whose triangles all turn alike.
 constexpr std::uint8_t kOccluder = 1, kFacesAway = 2;
 inline std::uint8_t facingOf(const LocalFrame& frame, std::span<const std::uint32_t> c, const Eigen::Vector3d& light,
-                      int winding) {
+                             int winding) {
   const Mesh& mesh = frame.mesh;
   const Eigen::Vector3d& a = mesh.vertices[c[0]];
   const Eigen::Vector3d n = (mesh.vertices[c[1]] - a).cross(mesh.vertices[c[2]] - a);

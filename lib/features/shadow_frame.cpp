@@ -220,7 +220,8 @@ OGRSpatialReference basisCrs(const FrameBasis& b) { return rasterCrs(b.raster); 
 // the shadow search minutes and means nothing. The corners, the edge midpoints and the centre
 // must come back from longitude/latitude where they were (to a ten-millionth of their size, or a
 // hundredth of a pixel).
-void checkInsideProjection(const DemTerrain& dem, OGRCoordinateTransformation& toGeo, OGRCoordinateTransformation& toGrid) {
+void checkInsideProjection(const DemTerrain& dem, OGRCoordinateTransformation& toGeo,
+                           OGRCoordinateTransformation& toGrid) {
   const auto& gt = dem.geotransform;
   const double pixel = std::min(std::hypot(gt[1], gt[4]), std::hypot(gt[2], gt[5]));
   for (const double r : {0.0, (dem.height - 1) / 2.0, dem.height - 1.0}) {
@@ -276,7 +277,8 @@ FrameBasis frameBasis(const DemTerrain& dem, const FrameOptions& o) {
   f.width = dem.width;
   f.height = dem.height;
   const int w = dem.width, h = dem.height;
-  if (w < 1 || h < 1) throw Error(dem.path + ": a raster of " + std::to_string(w) + " x " + std::to_string(h) + " cells");
+  if (w < 1 || h < 1)
+    throw Error(dem.path + ": a raster of " + std::to_string(w) + " x " + std::to_string(h) + " cells");
   std::optional<OGRSpatialReference> srs;
   if (!dem.crsWkt.empty()) srs = rasterCrs(dem);
   f.metresPerUnit = heightMetres(dem, o, srs ? &*srs : nullptr);
@@ -297,7 +299,8 @@ FrameBasis frameBasis(const DemTerrain& dem, const FrameOptions& o) {
   }
   if (!srs) {
     if (!(o.pixelSize > 0) || !std::isfinite(o.pixelSize)) {
-      throw Error(dem.path + ": the raster has no coordinate reference system, so the size of its "
+      throw Error(dem.path +
+                  ": the raster has no coordinate reference system, so the size of its "
                   "pixels in metres is unknown; give it with --pixel-size METRES");
     }
     f.description = "pixel grid, " + std::to_string(o.pixelSize) + " m per pixel (no CRS)";
@@ -313,7 +316,8 @@ FrameBasis frameBasis(const DemTerrain& dem, const FrameOptions& o) {
     std::unique_ptr<OGRCoordinateTransformation> toGeo(OGRCreateCoordinateTransformation(&*srs, &geo));
     std::unique_ptr<OGRCoordinateTransformation> toGrid(OGRCreateCoordinateTransformation(&geo, &*srs));
     if (!toGeo || !toGrid) throw Error(dem.path + ": its CRS cannot be converted to longitude/latitude");
-    if (!toGeo->Transform(1, &lon0, &lat0)) throw Error(dem.path + ": its centre cannot be converted to longitude/latitude");
+    if (!toGeo->Transform(1, &lon0, &lat0))
+      throw Error(dem.path + ": its centre cannot be converted to longitude/latitude");
     if (ellipsoid) checkInsideProjection(dem, *toGeo, *toGrid);
     if (ellipsoid) geoidOver(b, toGeo.get());
     // Where true north points on the grid at the centre (for a flat projected frame).
@@ -335,15 +339,17 @@ FrameBasis frameBasis(const DemTerrain& dem, const FrameOptions& o) {
     f.description = std::string(b.geographic ? "" : "projected grid put ") + "on the " +
                     (f.body.name.empty() ? "" : f.body.name + " ") + "ellipsoid (a = " + std::to_string(b.a) +
                     " m), east-north-up at the centre" + (b.closure.wrapsColumns ? ", closed round the globe" : "") +
-                    (b.closure.northCap || b.closure.southCap ? " and over the poles" : "") +
-                    "; heights over the " + b.heightRef.describe();
+                    (b.closure.northCap || b.closure.southCap ? " and over the poles" : "") + "; heights over the " +
+                    b.heightRef.describe();
   } else {
-    f.description = b.geographic ? "flat east-north-up metres around the centre (--flat)" : "projected grid metres (--flat)";
+    f.description =
+        b.geographic ? "flat east-north-up metres around the centre (--flat)" : "projected grid metres (--flat)";
   }
   return b;
 }
 
-void heightsInMetres(const FrameBasis& b, const CellWindow& window, std::vector<double>& z, std::vector<std::uint8_t>& valid) {
+void heightsInMetres(const FrameBasis& b, const CellWindow& window, std::vector<double>& z,
+                     std::vector<std::uint8_t>& valid) {
   const std::size_t n = static_cast<std::size_t>(window.width) * window.height;
   if (z.size() != n) throw Error(b.raster.path + ": a window of heights of the wrong size");
   valid.resize(n);
@@ -359,7 +365,8 @@ void heightsInMetres(const FrameBasis& b, const CellWindow& window, std::vector<
   }
 }
 
-LocalFrame windowFrame(const FrameBasis& b, const CellWindow& window, std::vector<double> z, std::vector<std::uint8_t> valid) {
+LocalFrame windowFrame(const FrameBasis& b, const CellWindow& window, std::vector<double> z,
+                       std::vector<std::uint8_t> valid) {
   const DemTerrain& dem = b.raster;
   const int w = window.width, h = window.height;
   const std::size_t n = static_cast<std::size_t>(w) * h;

@@ -63,10 +63,14 @@ class HorizonStrips {
       constexpr std::uint64_t kSteps = 16;
       if (before(E[hint])) {
         for (lo = hint + 1; lo < hi && lo - hint < kSteps && before(E[lo]);) ++lo;
-        e = lo < hi && lo - hint == kSteps ? static_cast<std::uint64_t>(std::partition_point(E + lo, E + hi, before) - E) : lo;
+        e = lo < hi && lo - hint == kSteps
+                ? static_cast<std::uint64_t>(std::partition_point(E + lo, E + hi, before) - E)
+                : lo;
       } else {
         for (hi = hint; hi > lo && hint - hi < kSteps && !before(E[hi - 1]);) --hi;
-        e = hi > lo && hint - hi == kSteps ? static_cast<std::uint64_t>(std::partition_point(E + lo, E + hi, before) - E) : hi;
+        e = hi > lo && hint - hi == kSteps
+                ? static_cast<std::uint64_t>(std::partition_point(E + lo, E + hi, before) - E)
+                : hi;
       }
     } else {
       e = static_cast<std::uint64_t>(std::partition_point(E + lo, E + hi, before) - E);

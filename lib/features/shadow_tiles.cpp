@@ -48,14 +48,16 @@ struct ShadowTiles::Source {
     into.resize(cover.cellCount());
     reader(cover, into);
     if (into.size() != cover.cellCount()) {
-      throw Error("a height reader gave " + std::to_string(into.size()) + " heights for " + std::to_string(cover.cellCount()) + " cells");
+      throw Error("a height reader gave " + std::to_string(into.size()) + " heights for " +
+                  std::to_string(cover.cellCount()) + " cells");
     }
     if (blocks) blocks->check(cover, into, path);
     if (cover == w) return;
     out.resize(w.cellCount());
     for (int r = 0; r < w.height; ++r) {
       const std::size_t from = static_cast<std::size_t>(r + w.row - cover.row) * cover.width + (w.col - cover.col);
-      std::copy_n(all.begin() + static_cast<std::ptrdiff_t>(from), w.width, out.begin() + static_cast<std::ptrdiff_t>(r) * w.width);
+      std::copy_n(all.begin() + static_cast<std::ptrdiff_t>(from), w.width,
+                  out.begin() + static_cast<std::ptrdiff_t>(r) * w.width);
     }
   }
 };
@@ -160,8 +162,8 @@ void ShadowTiles::passOverHeights(const Progress& progress, std::uint64_t bytes)
     double cosTilt = 1;
     const LocalFrame& f = basis_.shared;
     const Eigen::RowVector3d upRow = f.body.rotation.row(2);
-    for (const CellWindow& rim : {CellWindow{0, 0, w, 1}, CellWindow{0, h - 1, w, 1}, CellWindow{0, 0, 1, h},
-                                  CellWindow{w - 1, 0, 1, h}}) {
+    for (const CellWindow& rim :
+         {CellWindow{0, 0, w, 1}, CellWindow{0, h - 1, w, 1}, CellWindow{0, 0, 1, h}, CellWindow{w - 1, 0, 1, h}}) {
       for (const double height : {0.0, f.maxHeight, f.minHeight}) {
         const LocalFrame edge = windowFrame(basis_, rim, std::vector<double>(rim.cellCount(), height),
                                             std::vector<std::uint8_t>(rim.cellCount(), 1));
@@ -321,17 +323,19 @@ namespace {
 
 // Whether the fill over `fill` (levels from fillVoids) is the whole raster's at every void cell of
 // `region` (inside `fill`): each has twice its level of room to the fill's sides inside the raster.
-bool filledAsWhole(const CellWindow& fill, const std::vector<std::uint8_t>& valid, const std::vector<std::uint32_t>& levels,
-                   const CellWindow& region, int rasterWidth, int rasterHeight) {
+bool filledAsWhole(const CellWindow& fill, const std::vector<std::uint8_t>& valid,
+                   const std::vector<std::uint32_t>& levels, const CellWindow& region, int rasterWidth,
+                   int rasterHeight) {
   constexpr std::int64_t kFree = std::int64_t{1} << 40;  // no side there: the raster's edge
   for (int r = region.row; r < region.row + region.height; ++r) {
     for (int c = region.col; c < region.col + region.width; ++c) {
       const std::size_t i = static_cast<std::size_t>(r - fill.row) * fill.width + (c - fill.col);
       if (valid[i]) continue;
-      const std::int64_t room = std::min({fill.col > 0 ? c - fill.col : kFree,
-                                          fill.col + fill.width < rasterWidth ? fill.col + fill.width - 1 - c : kFree,
-                                          fill.row > 0 ? r - fill.row : kFree,
-                                          fill.row + fill.height < rasterHeight ? fill.row + fill.height - 1 - r : kFree});
+      const std::int64_t room =
+          std::min({fill.col > 0 ? c - fill.col : kFree,
+                    fill.col + fill.width < rasterWidth ? fill.col + fill.width - 1 - c : kFree,
+                    fill.row > 0 ? r - fill.row : kFree,
+                    fill.row + fill.height < rasterHeight ? fill.row + fill.height - 1 - r : kFree});
       if (room < kFree && (levels[i] == kNeverFilled || room < 2 * static_cast<std::int64_t>(levels[i]))) return false;
     }
   }
@@ -343,7 +347,8 @@ template <class T>
 std::vector<T> crop(const std::vector<T>& all, const CellWindow& outer, const CellWindow& inner) {
   std::vector<T> out(inner.cellCount());
   for (int r = 0; r < inner.height; ++r) {
-    const std::size_t from = static_cast<std::size_t>(r + inner.row - outer.row) * outer.width + (inner.col - outer.col);
+    const std::size_t from =
+        static_cast<std::size_t>(r + inner.row - outer.row) * outer.width + (inner.col - outer.col);
     std::copy_n(all.begin() + static_cast<std::ptrdiff_t>(from), inner.width,
                 out.begin() + static_cast<std::ptrdiff_t>(r) * inner.width);
   }
@@ -378,7 +383,8 @@ void ShadowTiles::readFilled(const CellWindow& window, std::vector<double>& heig
   }
 }
 
-double ShadowTiles::lowestOf(const CellWindow& tile, std::vector<double> z, const std::vector<std::uint8_t>& valid) const {
+double ShadowTiles::lowestOf(const CellWindow& tile, std::vector<double> z,
+                             const std::vector<std::uint8_t>& valid) const {
   if (std::find(valid.begin(), valid.end(), 1) == valid.end()) return INFINITY;
   const Local here = localAt(basis_, tile.col + tile.width / 2, tile.row + tile.height / 2);
   fillVoids(z, tile.width, tile.height);  // positions only: the valid cells' do not depend on it
@@ -403,8 +409,9 @@ LocalFrame ShadowTiles::frameOver(const CellWindow& tile, const CellWindow& wind
                                   const std::vector<Eigen::Vector3d>& lights) const {
   if (bytes && window.cellCount() * bytesPerWindowCell(lights) > bytes) {
     throw Error(basis_.raster.path + ": cells " + cells(tile) + " need a window of " + cells(window) + " (" +
-                memory::gib(window.cellCount() * bytesPerWindowCell(lights)) + ") to hold every triangle that can shade them, over the " +
-                memory::gib(bytes) + " allowed; use smaller tiles or allow more memory");
+                memory::gib(window.cellCount() * bytesPerWindowCell(lights)) +
+                ") to hold every triangle that can shade them, over the " + memory::gib(bytes) +
+                " allowed; use smaller tiles or allow more memory");
   }
   std::vector<double> z;
   std::vector<std::uint8_t> valid;
@@ -467,8 +474,8 @@ std::vector<Light> tileMask(const LocalFrame& frame, const CellWindow& tile, con
   if (frame.cellCount() == 0) return std::vector<Light>(tile.cellCount(), Light::NoData);
   const CellWindow& window = frame.window;
   const CellWindow inside{tile.col - window.col, tile.row - window.row, tile.width, tile.height};
-  return crop(shadowMask(frame, light, options, {}, threads, search, inside), CellWindow{0, 0, window.width, window.height},
-              inside);
+  return crop(shadowMask(frame, light, options, {}, threads, search, inside),
+              CellWindow{0, 0, window.width, window.height}, inside);
 }
 
 }  // namespace
@@ -479,8 +486,9 @@ std::vector<Light> ShadowTiles::mask(const CellWindow& tile, const Eigen::Vector
   return tileMask(windowOfTile(tile, {light}, bytes, window), tile, light, options, threads, search);
 }
 
-std::vector<Light> ShadowTiles::maskFromHeights(const CellWindow& window, std::vector<double> heights, const CellWindow& tile,
-                                                const Eigen::Vector3d& light, const IndexOptions& options, unsigned threads,
+std::vector<Light> ShadowTiles::maskFromHeights(const CellWindow& window, std::vector<double> heights,
+                                                const CellWindow& tile, const Eigen::Vector3d& light,
+                                                const IndexOptions& options, unsigned threads,
                                                 ShadowSearch search) const {
   return tileMask(givenWindow(window, std::move(heights), tile, {light}), tile, light, options, threads, search);
 }
@@ -510,7 +518,8 @@ SunlightHours ShadowTiles::tileHours(const LocalFrame& frame, const CellWindow& 
   // Every step the window's own sunlightHours computes is among the halo's lights when its slack
   // is within the bound they were chosen with.
   if (frame.body.ellipsoid && frame.horizonSlack() > slack_ + 1e-9) {
-    throw Error(basis_.raster.path + ": the horizon slack of cells " + cells(frame.window) + " exceeds the raster's bound");
+    throw Error(basis_.raster.path + ": the horizon slack of cells " + cells(frame.window) +
+                " exceeds the raster's bound");
   }
   const CellWindow& window = frame.window;
   const CellWindow inside{tile.col - window.col, tile.row - window.row, tile.width, tile.height};
@@ -522,10 +531,11 @@ SunlightHours ShadowTiles::tileHours(const LocalFrame& frame, const CellWindow& 
 }
 
 SunlightHours ShadowTiles::hours(const CellWindow& tile, double startJulianDay, double endJulianDay, double stepHours,
-                                 const IndexOptions& options,
-                                 ShadowSearch search, std::uint64_t bytes, unsigned threads) const {
+                                 const IndexOptions& options, ShadowSearch search, std::uint64_t bytes,
+                                 unsigned threads) const {
   const double lowest = lowestIn(tile);
-  if (!std::isfinite(lowest)) return tileHours(LocalFrame{}, tile, startJulianDay, endJulianDay, stepHours, options, search, threads);
+  if (!std::isfinite(lowest))
+    return tileHours(LocalFrame{}, tile, startJulianDay, endJulianDay, stepHours, options, search, threads);
   // A low sun's halo is long, a high sun's short: a window for every light of the day would be a
   // sunrise's for the noon steps too. So the steps whose own window is at most twice the smallest
   // share one window, the others (the low suns) another, loaded as the steps come, in order; the
@@ -563,11 +573,13 @@ SunlightHours ShadowTiles::hours(const CellWindow& tile, double startJulianDay, 
     // Every step the window computes is among its lights when its slack is within the bound
     // they were chosen with (sunlightHours's skip, for the window).
     if (frame.body.ellipsoid && frame.horizonSlack() > slack_ + 1e-9) {
-      throw Error(basis_.raster.path + ": the horizon slack of cells " + cells(frame.window) + " exceeds the raster's bound");
+      throw Error(basis_.raster.path + ": the horizon slack of cells " + cells(frame.window) +
+                  " exceeds the raster's bound");
     }
     frameSlack = frame.horizonSlack();
     inside = CellWindow{tile.col - frame.window.col, tile.row - frame.window.row, tile.width, tile.height};
-    if (out.valid.empty()) out.valid = crop(frame.valid, CellWindow{0, 0, frame.window.width, frame.window.height}, inside);
+    if (out.valid.empty())
+      out.valid = crop(frame.valid, CellWindow{0, 0, frame.window.width, frame.window.height}, inside);
     loaded = g;
   };
   for (std::size_t k = 0; k < steps.size(); ++k) {
@@ -588,15 +600,16 @@ SunlightHours ShadowTiles::hours(const CellWindow& tile, double startJulianDay, 
   return out;
 }
 
-SunlightHours ShadowTiles::hoursFromHeights(const CellWindow& window, std::vector<double> heights, const CellWindow& tile,
-                                            double startJulianDay, double endJulianDay, double stepHours,
-                                            const std::vector<Eigen::Vector3d>& lights, const IndexOptions& options,
-                                            ShadowSearch search, unsigned threads) const {
+SunlightHours ShadowTiles::hoursFromHeights(const CellWindow& window, std::vector<double> heights,
+                                            const CellWindow& tile, double startJulianDay, double endJulianDay,
+                                            double stepHours, const std::vector<Eigen::Vector3d>& lights,
+                                            const IndexOptions& options, ShadowSearch search, unsigned threads) const {
   return tileHours(givenWindow(window, std::move(heights), tile, lights), tile, startJulianDay, endJulianDay, stepHours,
                    options, search, threads);
 }
 
-std::array<int, 4> ShadowTiles::haloFor(int tileWidth, int tileHeight, const std::vector<Eigen::Vector3d>& lights) const {
+std::array<int, 4> ShadowTiles::haloFor(int tileWidth, int tileHeight,
+                                        const std::vector<Eigen::Vector3d>& lights) const {
   return haloAtMost(tileWidth, tileHeight, lights, basis_.shared.minHeight);
 }
 
@@ -644,8 +657,8 @@ std::array<int, 4> ShadowTiles::haloAtMost(int tileWidth, int tileHeight, const 
   const int tw = std::min(tileWidth, w), th = std::min(tileHeight, h);
   // Unclipped by the raster's edges: the tile's halo as if the raster went on, at the centre and
   // the corners (on an ellipsoid the pixels' size changes across the raster).
-  for (const auto& [c, r] : {std::pair{0.5, 0.5}, std::pair{0.0, 0.0}, std::pair{1.0, 0.0}, std::pair{0.0, 1.0},
-                             std::pair{1.0, 1.0}}) {
+  for (const auto& [c, r] :
+       {std::pair{0.5, 0.5}, std::pair{0.0, 0.0}, std::pair{1.0, 0.0}, std::pair{0.0, 1.0}, std::pair{1.0, 1.0}}) {
     const CellWindow tile{static_cast<int>(c * (w - tw)), static_cast<int>(r * (h - th)), tw, th};
     double lowest = lowestHeight;
     if (f.body.ellipsoid) {
@@ -698,7 +711,8 @@ struct StateReader {
     in >> word;
     double v = 0;
     const auto [end, ec] = std::from_chars(word.data(), word.data() + word.size(), v, std::chars_format::hex);
-    if (ec != std::errc() || end != word.data() + word.size()) refuse(std::string("with '") + name + "' not a number: " + word);
+    if (ec != std::errc() || end != word.data() + word.size())
+      refuse(std::string("with '") + name + "' not a number: " + word);
     return v;
   }
   // A number that must be finite and in [lo, hi] (and whole, when asked).
@@ -723,7 +737,8 @@ struct StateReader {
 // The state's text without its checksum line, once that checksum is checked.
 std::string checkedStateBody(const std::string& state) {
   const std::string magic = std::string(kStateMagic) + " ";
-  if (state.compare(0, magic.size(), magic) != 0) throw Error("not a shadow tiles state (no '" + std::string(kStateMagic) + "' line)");
+  if (state.compare(0, magic.size(), magic) != 0)
+    throw Error("not a shadow tiles state (no '" + std::string(kStateMagic) + "' line)");
   const std::size_t line = state.rfind("\nchecksum ");
   if (line == std::string::npos) {
     if (state.compare(0, magic.size() + 2, magic + "1\n") == 0) {
@@ -735,7 +750,8 @@ std::string checkedStateBody(const std::string& state) {
   std::string sum = state.substr(line + 10);
   if (!sum.empty() && sum.back() == '\n') sum.pop_back();
   if (sum != checksumOf(body)) {
-    throw Error("a shadow tiles state that was edited or damaged (its checksum does not match its text); make it again");
+    throw Error(
+        "a shadow tiles state that was edited or damaged (its checksum does not match its text); make it again");
   }
   return body;
 }
@@ -799,7 +815,8 @@ std::string ShadowTiles::state() const {
 }
 
 ShadowTiles ShadowTiles::restore(const std::string& state) {
-  if (state.size() > kMostStateBytes) throw Error("a shadow tiles state of " + std::to_string(state.size()) + " bytes: larger than any");
+  if (state.size() > kMostStateBytes)
+    throw Error("a shadow tiles state of " + std::to_string(state.size()) + " bytes: larger than any");
   StateReader r{std::istringstream(checkedStateBody(state))};
   std::string magic;
   int format = 0;
@@ -826,7 +843,8 @@ ShadowTiles ShadowTiles::restore(const std::string& state) {
   if (nodata != "none") {
     double v = 0;
     const auto [end, ec] = std::from_chars(nodata.data(), nodata.data() + nodata.size(), v, std::chars_format::hex);
-    if (ec != std::errc() || end != nodata.data() + nodata.size()) StateReader::refuse("with a nodata value that is not a number");
+    if (ec != std::errc() || end != nodata.data() + nodata.size())
+      StateReader::refuse("with a nodata value that is not a number");
     d.nodata = v;
   }
   d.verticalUnit.name = r.text("unit");
@@ -882,7 +900,8 @@ ShadowTiles ShadowTiles::restore(const std::string& state) {
     while (p < end) {
       double v = 0;
       const auto [next, ec] = std::from_chars(p, end, v, std::chars_format::hex);
-      if (ec != std::errc() || next == end || *next != ' ') StateReader::refuse("with a block height range that is not numbers");
+      if (ec != std::errc() || next == end || *next != ' ')
+        StateReader::refuse("with a block height range that is not numbers");
       out.push_back(v);
       p = next + 1;
     }
@@ -921,7 +940,8 @@ ShadowTiles ShadowTiles::restore(const std::string& state, const std::string& pa
   const auto nodata = [](const DemTerrain& r) { return r.nodata ? shortest(*r.nodata) : std::string("none"); };
   if (d.width != was.width || d.height != was.height) refuse("size", size(was), size(d));
   if (d.geotransform != was.geotransform) refuse("geotransform", gt(was), gt(d));
-  if (d.crsWkt != was.crsWkt) refuse("CRS", "'" + was.crsWkt.substr(0, 60) + "...'", "'" + d.crsWkt.substr(0, 60) + "...'");
+  if (d.crsWkt != was.crsWkt)
+    refuse("CRS", "'" + was.crsWkt.substr(0, 60) + "...'", "'" + d.crsWkt.substr(0, 60) + "...'");
   if (d.band != was.band) refuse("band", std::to_string(was.band), std::to_string(d.band));
   if (d.nodata.has_value() != was.nodata.has_value() ||
       (d.nodata && !(*d.nodata == *was.nodata || (std::isnan(*d.nodata) && std::isnan(*was.nodata))))) {
@@ -944,7 +964,8 @@ ShadowTiles ShadowTiles::restore(const std::string& state, const std::string& pa
     throw Error(path + ": the shadow tiles' state was made with other frame options (--height-ref '" + o.heightRef +
                 "', this run '" + frame.heightRef + "'); give the same, or another state file");
   }
-  if (d.verticalReference.name != was.verticalReference.name || d.verticalReference.epsg != was.verticalReference.epsg ||
+  if (d.verticalReference.name != was.verticalReference.name ||
+      d.verticalReference.epsg != was.verticalReference.epsg ||
       d.verticalReference.ellipsoidal != was.verticalReference.ellipsoidal) {
     refuse("vertical CRS", "'" + was.verticalReference.name + "'", "'" + d.verticalReference.name + "'");
   }

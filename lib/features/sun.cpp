@@ -38,8 +38,7 @@ ln_equ_posn apparentEquatorial(double jd) {
 
 double sunDeclination(double julianDayUT) { return apparentEquatorial(julianDayUT).dec; }
 
-SunPosition sunPosition(double julianDayUT, double longitude, double latitude,
-                        const Atmosphere& atmosphere) {
+SunPosition sunPosition(double julianDayUT, double longitude, double latitude, const Atmosphere& atmosphere) {
   ln_equ_posn equ = apparentEquatorial(julianDayUT);
   ln_lnlat_posn observer{longitude, latitude};
   ln_hrz_posn hrz{};

@@ -10,12 +10,14 @@ namespace qota {
 
 SunPosition sunOverFrame(const LocalFrame& frame, double julianDayUT, const std::string& source) {
   if (!frame.geographicLocation) {
-    throw Error(source + ": the raster has no coordinate reference system, so its place (and the "
+    throw Error(source +
+                ": the raster has no coordinate reference system, so its place (and the "
                 "sun's position there) is unknown; give -az/-alt or --sun-vector instead");
   }
   if (frame.body.name == "Earth") return sunPosition(julianDayUT, frame.centreLon, frame.centreLat);
   if (frame.body.name == "Mars") return marsSunPosition(julianDayUT, frame.centreLon, frame.centreLat);
-  throw Error(source + ": the raster lies on " + frame.body.name + "; --time knows where the Sun is "
+  throw Error(source + ": the raster lies on " + frame.body.name +
+              "; --time knows where the Sun is "
               "seen from the Earth (VSOP87) and from Mars (Mars24) only: give the light with "
               "-az/-alt or --sun-vector");
 }
@@ -23,8 +25,8 @@ SunPosition sunOverFrame(const LocalFrame& frame, double julianDayUT, const std:
 std::vector<SunlightStep> sunlightSteps(double startJulianDay, double endJulianDay, double stepHours) {
   const double elapsed = (endJulianDay - startJulianDay) * 24.0;
   if (!(stepHours >= 1.0 / 60) || !(stepHours <= elapsed)) {
-    throw Error("sunlight hours: a step of " + std::to_string(stepHours) + " h; need at least a minute and at most the span (" +
-                std::to_string(elapsed) + " h)");
+    throw Error("sunlight hours: a step of " + std::to_string(stepHours) +
+                " h; need at least a minute and at most the span (" + std::to_string(elapsed) + " h)");
   }
   const int steps = static_cast<int>(std::ceil(elapsed / stepHours - 1e-9));
   std::vector<SunlightStep> out(static_cast<std::size_t>(steps));
@@ -75,10 +77,10 @@ SunlightHours sunlightHours(const LocalFrame& frame, const std::string& source, 
     const SunlightStep& step = steps[static_cast<std::size_t>(k)];
     const SunPosition sun = sunOverFrame(frame, step.middleJulianDay, source);
     if (!sunCanLight(frame, sun, slack)) continue;  // night everywhere
-    const Progress part = progress ? Progress([&, k](double done, const char* message) {
-      return progress((k + done) / out.steps, message);
-    })
-                                   : Progress();
+    const Progress part =
+        progress
+            ? Progress([&, k](double done, const char* message) { return progress((k + done) / out.steps, message); })
+            : Progress();
     const std::vector<Light> mask = shadowMask(frame, frame.towardSun(sun), options, part, threads, search, testOnly);
     for (std::size_t i = 0; i < mask.size(); ++i) {
       if (mask[i] == Light::Lit) out.hours[i] += step.hours;

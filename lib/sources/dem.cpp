@@ -23,9 +23,8 @@
 namespace qota {
 namespace {
 
-using detail::QuietGdalErrors;
 using detail::gdalMessage;
-
+using detail::QuietGdalErrors;
 
 }  // namespace
 
@@ -62,8 +61,7 @@ std::string lowerTrimmed(const std::string& text) {
 }
 
 // The band's unit type, else the unit of a vertical CRS (alone or in a compound CRS).
-VerticalUnit verticalUnitOf(const std::string& path, GDALRasterBand* band,
-                            const OGRSpatialReference* srs) {
+VerticalUnit verticalUnitOf(const std::string& path, GDALRasterBand* band, const OGRSpatialReference* srs) {
   VerticalUnit unit;
   const char* type = band->GetUnitType();
   if (type && *type) {
@@ -124,7 +122,8 @@ void checkGeotransform(const std::string& path, const std::array<double, 6>& g, 
   }
   const double det = g[1] * g[5] - g[2] * g[4];
   if (!(std::fabs(det) >= kMinPixelArea)) {
-    throw Error(path + ": geotransform (" + text() + ") gives pixels of no area (or below 1e-200): "
+    throw Error(path + ": geotransform (" + text() +
+                ") gives pixels of no area (or below 1e-200): "
                 "they cannot be placed");
   }
   // Pixels a million times longer one way than the other, or sheared flat, are a broken
@@ -152,15 +151,16 @@ void checkGeotransform(const std::string& path, const std::array<double, 6>& g, 
 }
 
 // Opens the raster and reads its description (no pixels). ds receives the dataset.
-DemTerrain openDem(const std::string& path, const DemOptions& options,
-                   std::unique_ptr<GDALDataset>& ds, GDALRasterBand*& band) {
+DemTerrain openDem(const std::string& path, const DemOptions& options, std::unique_ptr<GDALDataset>& ds,
+                   GDALRasterBand*& band) {
   ensureGdalRegistered();
   QuietGdalErrors quiet;
   ds.reset(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY | GDAL_OF_VERBOSE_ERROR));
   if (!ds) throw Error(path + ": cannot open as a raster" + gdalMessage());
   const int bands = ds->GetRasterCount();
   if (options.band == 0 && bands != 1) {
-    throw Error(path + ": has " + std::to_string(bands) + " bands; choose the one that holds the "
+    throw Error(path + ": has " + std::to_string(bands) +
+                " bands; choose the one that holds the "
                 "heights (-b N, DemOptions::band)");
   }
   const int b = options.band == 0 ? 1 : options.band;
@@ -197,7 +197,8 @@ DemTerrain openDem(const std::string& path, const DemOptions& options,
   dem.verticalReference = verticalReferenceOf(srs);
   dem.lonLat = srs && srs->IsGeographic() && dem.geotransform[2] == 0 && dem.geotransform[4] == 0;
   if (!options.lonLatAsCartesian && srs && srs->IsGeographic()) {
-    throw Error(path + ": the raster is in longitude/latitude degrees, so as a Cartesian terrain "
+    throw Error(path +
+                ": the raster is in longitude/latitude degrees, so as a Cartesian terrain "
                 "its x and y would be degrees and its heights metres, and slopes, normals and "
                 "poses would be wrong; put it on its ellipsoid (loadOnEllipsoid, --mapping "
                 "geodetic), reproject it (gdalwarp -t_srs EPSG:326..), or set "
@@ -253,13 +254,12 @@ bool crsIsGeographic(const std::string& wkt) {
 std::optional<double> metresPerLengthUnit(const std::string& unitText) {
   const std::string u = lowerTrimmed(unitText);
   if (u == "m" || u == "metre" || u == "meter" || u == "metres" || u == "meters") return 1.0;
-  if (u == "ft" || u == "foot" || u == "feet" || u == "international foot" ||
-      u == "foot (international)" || u == "ft (international)") {
+  if (u == "ft" || u == "foot" || u == "feet" || u == "international foot" || u == "foot (international)" ||
+      u == "ft (international)") {
     return 0.3048;
   }
-  if (u == "us survey foot" || u == "us-ft" || u == "ftus" || u == "us_survey_foot" ||
-      u == "foot_us" || u == "us foot" || u == "survey foot" || u == "ft_us" ||
-      u == "us survey feet") {
+  if (u == "us survey foot" || u == "us-ft" || u == "ftus" || u == "us_survey_foot" || u == "foot_us" ||
+      u == "us foot" || u == "survey foot" || u == "ft_us" || u == "us survey feet") {
     return 1200.0 / 3937.0;
   }
   if (u == "cm" || u == "centimetre" || u == "centimeter") return 0.01;
@@ -283,7 +283,7 @@ double DemTerrain::turnedOnto(double x) const {
 }
 
 std::optional<std::array<double, 2>> DemTerrain::surfacePoint(double x, double y,
-                                                               const std::array<double, 6>& inverse) const {
+                                                              const std::array<double, 6>& inverse) const {
   x = turnedOnto(x);
   const auto [col, row] = pixelOf(x, y, inverse);
   if (!(col >= 0 && col <= width && row >= 0 && row <= height)) return std::nullopt;
@@ -335,14 +335,14 @@ DemTerrain loadDem(const std::string& path, const DemOptions& options) {
   const std::uint64_t h = static_cast<std::uint64_t>(dem.height);
   const std::uint64_t vertices = w * h;
   const std::uint64_t triangles = w > 1 && h > 1 ? 2 * (w - 1) * (h - 1) : 0;
-  const std::uint64_t need = memory::kProcessBase + memory::kDemMesh.bytes(vertices, triangles) +
-                             options.then.bytes(vertices, triangles);
+  const std::uint64_t need =
+      memory::kProcessBase + memory::kDemMesh.bytes(vertices, triangles) + options.then.bytes(vertices, triangles);
   dem.estimatedBytes = need;
   const std::uint64_t limit = options.memoryLimitBytes ? options.memoryLimitBytes : memory::availableBytes();
   if (vertices >= 0xffffffffull || (limit && need > limit)) {
     throw Error(path + ": a " + std::to_string(dem.width) + " x " + std::to_string(dem.height) +
-                " raster needs about " + memory::gib(need) + " for this job, more than the " +
-                memory::gib(limit) + " of memory available; cut it into tiles (gdal_translate -srcwin) "
+                " raster needs about " + memory::gib(need) + " for this job, more than the " + memory::gib(limit) +
+                " of memory available; cut it into tiles (gdal_translate -srcwin) "
                 "or resample it");
   }
 

@@ -22,17 +22,23 @@ namespace {
 namespace fs = std::filesystem;
 
 struct KnownGeoid {
-  const char* word;        // the option's word
-  const char* name;        // as said
-  int verticalEpsg;        // the vertical CRS of heights over it
-  const char* files[2];    // the grid's names in PROJ's data (old and new)
-  const char* fetch;       // how to get it when it is not there
+  const char* word;      // the option's word
+  const char* name;      // as said
+  int verticalEpsg;      // the vertical CRS of heights over it
+  const char* files[2];  // the grid's names in PROJ's data (old and new)
+  const char* fetch;     // how to get it when it is not there
 };
 
 constexpr KnownGeoid kGeoids[] = {
-    {"egm96", "EGM96 geoid", 5773, {"egm96_15.gtx", "us_nga_egm96_15.tif"},
+    {"egm96",
+     "EGM96 geoid",
+     5773,
+     {"egm96_15.gtx", "us_nga_egm96_15.tif"},
      "install Debian's proj-data (apt-get install proj-data), or `projsync --file us_nga_egm96_15.tif`"},
-    {"egm2008", "EGM2008 geoid", 3855, {"us_nga_egm08_25.tif", "egm08_25.gtx"},
+    {"egm2008",
+     "EGM2008 geoid",
+     3855,
+     {"us_nga_egm08_25.tif", "egm08_25.gtx"},
      "it is not packaged in Debian: `projsync --file us_nga_egm08_25.tif` fetches it into PROJ's user folder, "
      "or give the path of a copy (--height-ref /path/us_nga_egm08_25.tif)"},
 };
@@ -124,7 +130,8 @@ HeightReference heightReferenceOf(const DemTerrain& dem, const std::string& aske
     double a = 0, f = 0;
     demEllipsoid(dem, a, f);
     if (f != 0) {
-      throw Error(dem.path + ": --height-ref " + askedText + " (heights over a sphere) on a flattened ellipsoid: a "
+      throw Error(dem.path + ": --height-ref " + askedText +
+                  " (heights over a sphere) on a flattened ellipsoid: a "
                   "sphere's heights run along its radii; take them with --mapping spherical --radius " +
                   askedText.substr(7));
     }
@@ -154,7 +161,8 @@ HeightReference heightReferenceOf(const DemTerrain& dem, const std::string& aske
         return geoid(g, "stated by its vertical CRS " + v.name + " (EPSG:" + std::to_string(v.epsg) + ")", dem.path);
       }
     }
-    throw Error(dem.path + ": its vertical CRS is " + v.name + (v.epsg ? " (EPSG:" + std::to_string(v.epsg) + ")" : "") +
+    throw Error(dem.path + ": its vertical CRS is " + v.name +
+                (v.epsg ? " (EPSG:" + std::to_string(v.epsg) + ")" : "") +
                 ", whose geoid grid qota does not know; give --height-ref with the grid's path, or " +
                 "--height-ref ellipsoid if the heights are over the ellipsoid");
   }
@@ -273,8 +281,9 @@ std::pair<double, double> Geoid::rangeOver(double lon0, double lat0, double lon1
       lo = std::min(lo, v), hi = std::max(hi, v);
     }
   }
-  if (!(lo <= hi)) throw Error(path_ + ": the geoid grid does not cover longitudes " + std::to_string(lon0) + " to " +
-                               std::to_string(lon1) + ", latitudes " + std::to_string(lat0) + " to " + std::to_string(lat1));
+  if (!(lo <= hi))
+    throw Error(path_ + ": the geoid grid does not cover longitudes " + std::to_string(lon0) + " to " +
+                std::to_string(lon1) + ", latitudes " + std::to_string(lat0) + " to " + std::to_string(lat1));
   return {lo, hi};
 }
 

@@ -45,12 +45,14 @@ namespace {
 void requireLonLatGrid(const DemTerrain& dem, const char* what) {
   const auto& gt = dem.geotransform;
   if (!demIsLonLat(dem)) {
-    throw Error(dem.path + ": " + what + " needs a raster in longitude/latitude degrees (a "
-                "geographic CRS); reproject it with gdalwarp -t_srs " + geographicCrsOf(dem) +
-                " (its own body's longitude/latitude)");
+    throw Error(dem.path + ": " + what +
+                " needs a raster in longitude/latitude degrees (a "
+                "geographic CRS); reproject it with gdalwarp -t_srs " +
+                geographicCrsOf(dem) + " (its own body's longitude/latitude)");
   }
   if (gt[2] != 0.0 || gt[4] != 0.0 || !(gt[1] > 0.0) || !(gt[5] < 0.0)) {
-    throw Error(dem.path + ": " + what + " needs a north-up raster without rotation "
+    throw Error(dem.path + ": " + what +
+                " needs a north-up raster without rotation "
                 "(geotransform with positive pixel width and negative pixel height)");
   }
 }
@@ -149,9 +151,10 @@ EllipsoidTerrain loadOnEllipsoid(const std::string& path, const DemOptions& opti
   demOptions.lonLatAsCartesian = true;  // read as lon/lat, placed on the ellipsoid below
   DemTerrain dem = loadDem(path, demOptions);
   if (!demIsLonLat(dem)) {
-    throw Error(dem.path + ": the geodetic mapping needs a raster in longitude/latitude degrees "
-                "(a geographic CRS); reproject it with gdalwarp -t_srs " + geographicCrsOf(dem) +
-                " (its own body's longitude/latitude)");
+    throw Error(dem.path +
+                ": the geodetic mapping needs a raster in longitude/latitude degrees "
+                "(a geographic CRS); reproject it with gdalwarp -t_srs " +
+                geographicCrsOf(dem) + " (its own body's longitude/latitude)");
   }
   double a, f;
   demEllipsoid(dem, a, f);
@@ -176,8 +179,8 @@ EllipsoidTerrain loadOnEllipsoid(const std::string& path, const DemOptions& opti
 Mesh stationMesh(const Heightfield& relief, const StationOptions& options) {
   const int nx = relief.nx, ny = relief.ny;
   if (nx < 3 || ny < 2 || relief.z.size() != static_cast<std::size_t>(nx) * ny) {
-    throw Error("station: the relief grid must be at least 3 x 2, got " + std::to_string(nx) +
-                " x " + std::to_string(ny));
+    throw Error("station: the relief grid must be at least 3 x 2, got " + std::to_string(nx) + " x " +
+                std::to_string(ny));
   }
   if (!(options.radius > 0) || !(options.length > 0)) {
     throw Error("station: radius and length must be positive");
@@ -193,9 +196,8 @@ Mesh stationMesh(const Heightfield& relief, const StationOptions& options) {
         continue;
       }
       if (!(r > 0) || !std::isfinite(r)) {
-        throw Error("station: relief height " + std::to_string(relief.at(i, j)) + " at (" +
-                    std::to_string(i) + ", " + std::to_string(j) + ") reaches the axis (radius " +
-                    std::to_string(options.radius) + ")");
+        throw Error("station: relief height " + std::to_string(relief.at(i, j)) + " at (" + std::to_string(i) + ", " +
+                    std::to_string(j) + ") reaches the axis (radius " + std::to_string(options.radius) + ")");
       }
       double s, c;
       GeographicLib::Math::sincosd(-180.0 + 360.0 * i / nx, s, c);

@@ -34,12 +34,12 @@ std::uint32_t Builder::vertex(const Eigen::Vector3d& p) {
   // Coordinates whose products stay in the range of doubles (the exact predicates multiply
   // coordinate differences): finite and within 1e100 in magnitude.
   if (!(p.cwiseAbs().maxCoeff() <= kMaxCoordinate)) {
-    throw Error(out_.path + ": vertex " + std::to_string(out_.mesh.vertices.size() + 1) + " (" +
-                std::to_string(p.x()) + ", " + std::to_string(p.y()) + ", " + std::to_string(p.z()) +
+    throw Error(out_.path + ": vertex " + std::to_string(out_.mesh.vertices.size() + 1) + " (" + std::to_string(p.x()) +
+                ", " + std::to_string(p.y()) + ", " + std::to_string(p.z()) +
                 ") is not finite or beyond 1e100; shift the model to a local origin");
   }
-  const auto [it, added] = ids_.try_emplace(
-      PointKey{p.x(), p.y(), p.z()}, static_cast<std::uint32_t>(out_.mesh.vertices.size()));
+  const auto [it, added] =
+      ids_.try_emplace(PointKey{p.x(), p.y(), p.z()}, static_cast<std::uint32_t>(out_.mesh.vertices.size()));
   if (added) {
     if (out_.mesh.vertices.size() >= std::numeric_limits<std::uint32_t>::max() - 1) {
       throw Error(out_.path + ": more than 2^32 - 2 vertices; split the file");
@@ -49,8 +49,8 @@ std::uint32_t Builder::vertex(const Eigen::Vector3d& p) {
   return it->second;
 }
 
-void Builder::addFace(std::vector<std::vector<std::uint32_t>> rings, std::uint32_t material,
-                      std::uint32_t object, std::uint64_t source, const Where& where) {
+void Builder::addFace(std::vector<std::vector<std::uint32_t>> rings, std::uint32_t material, std::uint32_t object,
+                      std::uint64_t source, const Where& where) {
   std::vector<std::uint32_t> raw;
   if (options_.keepDegenerate) raw = rings[0];
   for (auto& ring : rings) dropRepeats(ring);
@@ -89,8 +89,7 @@ void Builder::addFace(std::vector<std::vector<std::uint32_t>> rings, std::uint32
 void Builder::finish() {
   if (out_.mesh.polygonCount() == 0) {
     throw Error(out_.path + ": no polygons" +
-                (out_.degenerate ? " (all " + std::to_string(out_.degenerate) +
-                                       " faces are degenerate: no area)"
+                (out_.degenerate ? " (all " + std::to_string(out_.degenerate) + " faces are degenerate: no area)"
                                  : std::string()));
   }
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
@@ -99,8 +98,7 @@ void Builder::finish() {
   out_.origin = 0.5 * lo + 0.5 * hi;
 }
 
-std::uint32_t Builder::named(const std::string& name,
-                             std::unordered_map<std::string, std::uint32_t>& ids,
+std::uint32_t Builder::named(const std::string& name, std::unordered_map<std::string, std::uint32_t>& ids,
                              std::vector<std::string>& names) {
   const auto [it, added] = ids.try_emplace(name, static_cast<std::uint32_t>(names.size()));
   if (added) names.push_back(name);
@@ -122,8 +120,8 @@ bool Builder::degenerate(const std::vector<std::uint32_t>& ring) const {
   return true;
 }
 
-void Builder::emit(std::span<const std::uint32_t> corners, std::uint32_t material,
-                   std::uint32_t object, std::uint64_t source) {
+void Builder::emit(std::span<const std::uint32_t> corners, std::uint32_t material, std::uint32_t object,
+                   std::uint64_t source) {
   if (corners.size() == 3) {
     out_.mesh.addTriangle(corners[0], corners[1], corners[2]);
   } else {

@@ -65,18 +65,15 @@ MeshFile loadMeshFile(const std::string& path, const MeshFileOptions& options) {
   {
     QuietGdalErrors quiet;
     // A file a GDAL vector driver recognises goes to OGR first: doubles, and the CRS.
-    const bool gdalKnows =
-        !exists || GDALIdentifyDriverEx(path.c_str(), GDAL_OF_VECTOR, nullptr, nullptr);
+    const bool gdalKnows = !exists || GDALIdentifyDriverEx(path.c_str(), GDAL_OF_VECTOR, nullptr, nullptr);
     if (gdalKnows) {
-      detail::readIsolated(out, options, "GDAL/OGR",
-                           [&](MeshFile& m) { detail::readOgr(m, options); });
+      detail::readIsolated(out, options, "GDAL/OGR", [&](MeshFile& m) { detail::readOgr(m, options); });
       return out;
     }
   }
   Assimp::Importer importer;
   if (!ext.empty() && importer.IsExtensionSupported(ext)) {
-    detail::readIsolated(out, options, "Assimp",
-                         [&](MeshFile& m) { detail::readAssimp(m, options, ext); });
+    detail::readIsolated(out, options, "Assimp", [&](MeshFile& m) { detail::readAssimp(m, options, ext); });
     return out;
   }
   throw Error(path +

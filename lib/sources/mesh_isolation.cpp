@@ -41,9 +41,13 @@ class Pipe {
     return true;
   }
   template <class T>
-  bool pod(const T& v) { return write(&v, sizeof v); }
+  bool pod(const T& v) {
+    return write(&v, sizeof v);
+  }
   template <class T>
-  bool vec(const std::vector<T>& v) { return pod<std::uint64_t>(v.size()) && write(v.data(), v.size() * sizeof(T)); }
+  bool vec(const std::vector<T>& v) {
+    return pod<std::uint64_t>(v.size()) && write(v.data(), v.size() * sizeof(T));
+  }
   bool str(const std::string& s) { return pod<std::uint64_t>(s.size()) && write(s.data(), s.size()); }
 
  private:
@@ -57,7 +61,8 @@ class Reply {
   bool read(void* p, std::size_t n) {
     char* c = static_cast<char*>(p);
     while (n > 0) {
-      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline_ - std::chrono::steady_clock::now());
+      const auto left =
+          std::chrono::duration_cast<std::chrono::milliseconds>(deadline_ - std::chrono::steady_clock::now());
       if (left.count() <= 0) return timedOut_ = true, false;
       pollfd pfd{fd_, POLLIN, 0};
       const int r = ::poll(&pfd, 1, static_cast<int>(std::min<long long>(left.count(), 1000)));
@@ -72,7 +77,9 @@ class Reply {
     return true;
   }
   template <class T>
-  bool pod(T& v) { return read(&v, sizeof v); }
+  bool pod(T& v) {
+    return read(&v, sizeof v);
+  }
   // A vector of at most `limit` elements (a garbled count must not allocate the machine away).
   template <class T>
   bool vec(std::vector<T>& v, std::uint64_t limit) {
@@ -96,11 +103,10 @@ class Reply {
 };
 
 bool send(Pipe& p, const MeshFile& m) {
-  bool ok = p.pod<char>('M') && p.str(m.format) && p.str(m.crsWkt) && p.pod<std::uint8_t>(m.singlePrecision) && p.pod(m.origin) &&
-            p.pod<std::uint64_t>(m.degenerate) && p.pod<std::uint64_t>(m.triangulated) &&
-            p.vec(m.mesh.vertices) && p.vec(m.mesh.indices) && p.vec(m.mesh.offsets) &&
-            p.vec(m.polygonMaterial) && p.vec(m.polygonObject) && p.vec(m.polygonSource) &&
-            p.pod<std::uint64_t>(m.materials.size());
+  bool ok = p.pod<char>('M') && p.str(m.format) && p.str(m.crsWkt) && p.pod<std::uint8_t>(m.singlePrecision) &&
+            p.pod(m.origin) && p.pod<std::uint64_t>(m.degenerate) && p.pod<std::uint64_t>(m.triangulated) &&
+            p.vec(m.mesh.vertices) && p.vec(m.mesh.indices) && p.vec(m.mesh.offsets) && p.vec(m.polygonMaterial) &&
+            p.vec(m.polygonObject) && p.vec(m.polygonSource) && p.pod<std::uint64_t>(m.materials.size());
   for (const auto& s : m.materials) ok = ok && p.str(s);
   ok = ok && p.pod<std::uint64_t>(m.objects.size());
   for (const auto& s : m.objects) ok = ok && p.str(s);
@@ -111,10 +117,10 @@ bool receive(Reply& r, MeshFile& m) {
   constexpr std::uint64_t kLimit = 1ull << 32;
   std::uint8_t single = 0;
   std::uint64_t materials = 0, objects = 0;
-  bool ok = r.str(m.format) && r.str(m.crsWkt) && r.pod(single) && r.pod(m.origin) && r.pod(m.degenerate) && r.pod(m.triangulated) &&
-            r.vec(m.mesh.vertices, kLimit) && r.vec(m.mesh.indices, kLimit) && r.vec(m.mesh.offsets, kLimit) &&
-            r.vec(m.polygonMaterial, kLimit) && r.vec(m.polygonObject, kLimit) && r.vec(m.polygonSource, kLimit) &&
-            r.pod(materials) && materials <= kLimit;
+  bool ok = r.str(m.format) && r.str(m.crsWkt) && r.pod(single) && r.pod(m.origin) && r.pod(m.degenerate) &&
+            r.pod(m.triangulated) && r.vec(m.mesh.vertices, kLimit) && r.vec(m.mesh.indices, kLimit) &&
+            r.vec(m.mesh.offsets, kLimit) && r.vec(m.polygonMaterial, kLimit) && r.vec(m.polygonObject, kLimit) &&
+            r.vec(m.polygonSource, kLimit) && r.pod(materials) && materials <= kLimit;
   for (std::uint64_t i = 0; ok && i < materials; ++i) ok = r.str(m.materials.emplace_back());
   ok = ok && r.pod(objects) && objects <= kLimit;
   for (std::uint64_t i = 0; ok && i < objects; ++i) ok = r.str(m.objects.emplace_back());
@@ -153,9 +159,9 @@ void readIsolated(MeshFile& out, const MeshFileOptions& options, const char* rea
   std::error_code ec;
   const auto bytes = std::filesystem::file_size(out.path, ec);
   const double seconds = options.readerSeconds + static_cast<double>(ec ? 0 : bytes) / 5e6;
-  isolated::Reply reply(fds[0], std::chrono::steady_clock::now() +
-                                    std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-                                        std::chrono::duration<double>(seconds)));
+  isolated::Reply reply(
+      fds[0], std::chrono::steady_clock::now() + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                                     std::chrono::duration<double>(seconds)));
   char kind = 0;
   std::string message;
   bool ok = reply.pod(kind) && (kind == 'M' ? isolated::receive(reply, out) : kind == 'E' && reply.str(message));

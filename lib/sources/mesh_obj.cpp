@@ -129,8 +129,7 @@ class ObjReader {
         std::int64_t value = 0;
         const auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), value);
         if (ec != std::errc() || p != s.data() + s.size() || s.empty()) {
-          fail(line, "face corner '" + std::string(t) + "': '" + std::string(s) +
-                         "' is not an integer index");
+          fail(line, "face corner '" + std::string(t) + "': '" + std::string(s) + "' is not an integer index");
         }
         index[part] = value;
       }
@@ -143,15 +142,14 @@ class ObjReader {
     // Negative: relative to the vertices read so far (-1 is the last one).
     const std::int64_t r = static_cast<std::int64_t>(raw_.size()) + k;
     if (r < 0) {
-      fail(line, "vertex index " + std::to_string(k) + " is out of range: only " +
-                     std::to_string(raw_.size()) + " vertices so far");
+      fail(line, "vertex index " + std::to_string(k) + " is out of range: only " + std::to_string(raw_.size()) +
+                     " vertices so far");
     }
     return r;
   }
 
   void statement(std::string_view line, std::uint64_t lineNo) {
-    if (const std::size_t hash = line.find('#'); hash != std::string_view::npos)
-      line = line.substr(0, hash);
+    if (const std::size_t hash = line.find('#'); hash != std::string_view::npos) line = line.substr(0, hash);
     line = trim(line);
     if (line.empty()) return;
     const std::size_t sp = std::min(line.size(), line.find_first_of(" \t"));
@@ -161,8 +159,7 @@ class ObjReader {
     if (key == "v") {
       const auto t = tokens(rest);
       if (t.size() < 3) {
-        fail(lineNo,
-             "a vertex needs three coordinates x y z, this one has " + std::to_string(t.size()));
+        fail(lineNo, "a vertex needs three coordinates x y z, this one has " + std::to_string(t.size()));
       }
       // A w or vertex colour may follow; they must be numbers too but are not used.
       for (std::size_t i = 3; i < t.size(); ++i) number(t[i], lineNo);
@@ -170,8 +167,7 @@ class ObjReader {
     } else if (key == "f" || key == "fo") {
       const auto t = tokens(rest);
       if (t.size() < 3) {
-        fail(lineNo,
-             "a face needs at least three corners, this one has " + std::to_string(t.size()));
+        fail(lineNo, "a face needs at least three corners, this one has " + std::to_string(t.size()));
       }
       if (t.size() > std::numeric_limits<std::uint32_t>::max()) fail(lineNo, "face too large");
       // Faces before any usemtl / o / g get the name "", made here so that it exists only when

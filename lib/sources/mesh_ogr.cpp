@@ -27,8 +27,7 @@ bool surfaceLayer(OGRwkbGeometryType type) {
 
 class OgrReader {
  public:
-  OgrReader(MeshFile& out, const MeshFileOptions& options)
-      : out_(out), options_(options), builder_(out, options) {}
+  OgrReader(MeshFile& out, const MeshFileOptions& options) : out_(out), options_(options), builder_(out, options) {}
 
   void read(GDALDataset& ds) {
     out_.format = std::string("ogr:") + (ds.GetDriver() ? ds.GetDriver()->GetDescription() : "");
@@ -37,8 +36,7 @@ class OgrReader {
       OGRLayer* layer = ds.GetLayerByName(options_.layer.c_str());
       if (!layer) {
         std::string names;
-        for (OGRLayer* l : ds.GetLayers())
-          names += (names.empty() ? "" : ", ") + std::string(l->GetName());
+        for (OGRLayer* l : ds.GetLayers()) names += (names.empty() ? "" : ", ") + std::string(l->GetName());
         throw Error(out_.path + ": no layer '" + options_.layer + "' (layers: " + names + ")");
       }
       layers.push_back(layer);
@@ -75,8 +73,7 @@ class OgrReader {
       if (field < 0) {
         std::string fields;
         for (int i = 0; i < layer.GetLayerDefn()->GetFieldCount(); ++i) {
-          fields +=
-              (i ? ", " : "") + std::string(layer.GetLayerDefn()->GetFieldDefn(i)->GetNameRef());
+          fields += (i ? ", " : "") + std::string(layer.GetLayerDefn()->GetFieldDefn(i)->GetNameRef());
         }
         throw Error(out_.path + ": layer '" + name + "' has no field '" + options_.materialField +
                     "' (fields: " + fields + ")");
@@ -91,25 +88,22 @@ class OgrReader {
       ++sequence;
       const OGRGeometry* g = feature->GetGeometryRef();
       if (!g || g->IsEmpty()) continue;
-      const auto where = [&] {
-        return out_.path + ": layer '" + name + "' feature " + std::to_string(id);
-      };
+      const auto where = [&] { return out_.path + ": layer '" + name + "' feature " + std::to_string(id); };
       if (!g->Is3D()) {
         throw Error(where() + ": " + OGRGeometryTypeToName(g->getGeometryType()) +
                     " has no Z coordinates; a terrain needs heights");
       }
       std::uint32_t material = layerMaterial;
       if (field >= 0) {
-        material = builder_.material(
-            feature->IsFieldSetAndNotNull(field) ? feature->GetFieldAsString(field) : "");
+        material = builder_.material(feature->IsFieldSetAndNotNull(field) ? feature->GetFieldAsString(field) : "");
       }
       const std::uint32_t object = builder_.object(name + ":" + std::to_string(id));
       addGeometry(*g, material, object, id, where);
     }
   }
 
-  void addGeometry(const OGRGeometry& g, std::uint32_t material, std::uint32_t object,
-                   std::uint64_t id, const Builder::Where& where) {
+  void addGeometry(const OGRGeometry& g, std::uint32_t material, std::uint32_t object, std::uint64_t id,
+                   const Builder::Where& where) {
     switch (wkbFlatten(g.getGeometryType())) {
       case wkbPolygon:
       case wkbTriangle:
@@ -124,15 +118,13 @@ class OgrReader {
       case wkbMultiPolygon:
       case wkbMultiSurface:
       case wkbGeometryCollection:
-        for (const OGRGeometry* part : *g.toGeometryCollection())
-          addGeometry(*part, material, object, id, where);
+        for (const OGRGeometry* part : *g.toGeometryCollection()) addGeometry(*part, material, object, id, where);
         return;
       case wkbPolyhedralSurface:
       case wkbTIN: {
         // Each patch is a polygon; patches share corners, which Builder joins into shared vertices.
         const OGRPolyhedralSurface* s = g.toPolyhedralSurface();
-        for (int i = 0; i < s->getNumGeometries(); ++i)
-          addPolygon(*s->getGeometryRef(i), material, object, id, where);
+        for (int i = 0; i < s->getNumGeometries(); ++i) addPolygon(*s->getGeometryRef(i), material, object, id, where);
         return;
       }
       default:
@@ -141,8 +133,8 @@ class OgrReader {
     }
   }
 
-  void addPolygon(const OGRPolygon& polygon, std::uint32_t material, std::uint32_t object,
-                  std::uint64_t id, const Builder::Where& where) {
+  void addPolygon(const OGRPolygon& polygon, std::uint32_t material, std::uint32_t object, std::uint64_t id,
+                  const Builder::Where& where) {
     std::vector<std::vector<std::uint32_t>> rings;
     for (const OGRLinearRing* ring : polygon) {
       std::vector<std::uint32_t> r;
@@ -167,8 +159,8 @@ class OgrReader {
 
 void readOgr(MeshFile& out, const MeshFileOptions& options) {
   const QuietGdalErrors quietChild;
-  std::unique_ptr<GDALDataset> ds(GDALDataset::Open(
-      out.path.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY | GDAL_OF_VERBOSE_ERROR));
+  std::unique_ptr<GDALDataset> ds(
+      GDALDataset::Open(out.path.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY | GDAL_OF_VERBOSE_ERROR));
   if (!ds) throw Error(out.path + ": cannot open as a vector dataset" + gdalMessage());
   OgrReader reader(out, options);
   reader.read(*ds);

@@ -38,21 +38,18 @@ class Builder {
 
   std::uint32_t vertex(const Eigen::Vector3d& p);
 
-  std::uint32_t material(const std::string& name) {
-    return named(name, materialIds_, out_.materials);
-  }
+  std::uint32_t material(const std::string& name) { return named(name, materialIds_, out_.materials); }
   std::uint32_t object(const std::string& name) { return named(name, objectIds_, out_.objects); }
 
   // rings[0] is the outline, any further rings are holes. Corners are mesh vertex indices.
-  void addFace(std::vector<std::vector<std::uint32_t>> rings, std::uint32_t material,
-               std::uint32_t object, std::uint64_t source, const Where& where);
+  void addFace(std::vector<std::vector<std::uint32_t>> rings, std::uint32_t material, std::uint32_t object,
+               std::uint64_t source, const Where& where);
 
   // The origin, and the one check every reader shares: there is something to query.
   void finish();
 
  private:
-  static std::uint32_t named(const std::string& name,
-                             std::unordered_map<std::string, std::uint32_t>& ids,
+  static std::uint32_t named(const std::string& name, std::unordered_map<std::string, std::uint32_t>& ids,
                              std::vector<std::string>& names);
 
   // Removes repeated consecutive corners, the closing repeat of the first corner included.
@@ -61,8 +58,7 @@ class Builder {
   // Fewer than three distinct corners, or all exactly on one line.
   bool degenerate(const std::vector<std::uint32_t>& ring) const;
 
-  void emit(std::span<const std::uint32_t> corners, std::uint32_t material, std::uint32_t object,
-            std::uint64_t source);
+  void emit(std::span<const std::uint32_t> corners, std::uint32_t material, std::uint32_t object, std::uint64_t source);
 
   MeshFile& out_;
   const MeshFileOptions& options_;

@@ -235,7 +235,8 @@ std::vector<std::uint32_t> RasterSampler::answerByTile(const Groups& groups, std
   // would have the threads share cache lines), then put in place.
   std::vector<std::optional<double>> results(groups.points.size());
   const auto resultsOf = [&](std::uint32_t k) {
-    return std::span<std::optional<double>>(results).subspan(groups.offsets[k], groups.offsets[k + 1] - groups.offsets[k]);
+    return std::span<std::optional<double>>(results).subspan(groups.offsets[k],
+                                                             groups.offsets[k + 1] - groups.offsets[k]);
   };
   std::vector<std::vector<std::uint32_t>> left(ready.size());
   batch::inSlices(ready.size(), 0, 1, [&](std::size_t lo, std::size_t hi) {

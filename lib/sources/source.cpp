@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <filesystem>
 #include <memory>
+#include <type_traits>
 
 #include "gdal_errors.hpp"
 #include <GeographicLib/Geocentric.hpp>
@@ -13,6 +14,7 @@
 #include "qota/enu.hpp"
 #include "qota/error.hpp"
 #include "qota/globe.hpp"
+#include "qota/mapping_registry.hpp"
 #include "qota/mesh_io.hpp"
 
 namespace qota {
@@ -28,16 +30,23 @@ bool isRaster(const std::string& path) {
 namespace {
 
 TreeSource sourceOf(const DemTerrain& dem) {
-  return {dem.path,          dem.crsWkt, dem.width,
-          dem.height,        dem.geotransform, dem.band,
-          dem.verticalUnit.name, dem.verticalUnit.metresPerUnit};
+  return {dem.path,
+          dem.crsWkt,
+          dem.width,
+          dem.height,
+          dem.geotransform,
+          dem.band,
+          dem.verticalUnit.name,
+          dem.verticalUnit.metresPerUnit};
 }
 
 }  // namespace
 
 std::uint64_t estimatedPeakBytes(const TreeFile& tree, const SourceOptions& o) {
-  const bool cartesian = std::holds_alternative<TerrainIndex>(tree.index);
-  const memory::PerItem then = !cartesian ? memory::kCurvedIndex : o.heightsOnly ? memory::kGridIndex : memory::kCartesianIndex;
+  const bool cartesian = std::holds_alternative<CartesianIndex>(tree.index);
+  const memory::PerItem then = !cartesian      ? memory::kCurvedIndex
+                               : o.heightsOnly ? memory::kGridIndex
+                                               : memory::kCartesianIndex;
   const std::uint64_t w = static_cast<std::uint64_t>(std::max(tree.source.width, 0));
   const std::uint64_t h = static_cast<std::uint64_t>(std::max(tree.source.height, 0));
   if (w > 0 && h > 0 && !isTreeFile(o.source)) {
@@ -45,8 +54,52 @@ std::uint64_t estimatedPeakBytes(const TreeFile& tree, const SourceOptions& o) {
     return memory::kProcessBase + memory::kDemMesh.bytes(v, t) + then.bytes(v, t);
   }
   return std::visit(
-      [&](const auto& index) { return memory::kProcessBase + then.bytes(index.stats().vertices, index.stats().triangles); },
+      [&](const auto& index) {
+        return memory::kProcessBase + then.bytes(index.stats().vertices, index.stats().triangles);
+      },
       tree.index);
+}
+
+const MappingEntry& mappingEntry(std::string_view name) {
+  if (name.empty()) return kMappingEntries[0];
+  for (const MappingEntry& e : kMappingEntries) {
+    if (name == e.name) return e;
+  }
+  throw Error("mapping '" + std::string(name) + "' is not one of " + mappingNames());
+}
+
+std::vector<std::string> mappingNameList() {
+  std::vector<std::string> names;
+  for (const MappingEntry& e : kMappingEntries) names.emplace_back(e.name);
+  return names;
+}
+
+std::string mappingHelp() {
+  std::string help;
+  for (const MappingEntry& e : kMappingEntries) {
+    if (!help.empty()) help += "; ";
+    help += std::string(e.name) + " (" + e.raster + "; lines '" + e.line + "', prints " + e.answer + ")";
+  }
+  return help;
+}
+
+std::string mappingsWith(bool MappingEntry::*flag) {
+  std::vector<const char*> names;
+  for (const MappingEntry& e : kMappingEntries) {
+    if (e.*flag) names.push_back(e.name);
+  }
+  std::string text;
+  for (std::size_t i = 0; i < names.size(); ++i) {
+    text += (i == 0 ? "" : i + 1 == names.size() ? " or " : ", ");
+    text += names[i];
+  }
+  return text;
+}
+
+void requireMappingTakes(const MappingEntry& entry, bool given, bool MappingEntry::*flag, const std::string& what) {
+  if (given && !(entry.*flag)) {
+    throw Error(what + " applies to the " + mappingsWith(flag) + " mapping, not " + entry.name);
+  }
 }
 
 const char* mappingNameOf(const AnyIndex& index) {
@@ -60,16 +113,25 @@ void requireSource(const std::string& path) {
   }
 }
 
-AnyIndex meshIndex(const Mesh& mesh, const std::string& mapping, const Eigen::Vector3d& cartesianOrigin,
-                   const std::optional<std::array<double, 3>>& origin, const IndexOptions& terrain) {
-  if (origin && mapping != "enu") throw Error("--origin applies to the enu mapping (the frame's origin)");
-  if (mapping.empty() || mapping == "cartesian") {
-    return TerrainIndex(mesh, CartesianMapping(Eigen::Vector3d(0, 0, -1), cartesianOrigin), terrain);
+namespace {
+
+// A mesh in world coordinates in each mapping's default frame (meshIndex): one overload per
+// mapping, chosen by its type.
+struct MeshPlacement {
+  const Mesh& mesh;
+  const Eigen::Vector3d& cartesianOrigin;
+  const std::optional<std::array<double, 3>>& origin;
+  const IndexOptions& terrain;
+
+  AnyIndex in(std::type_identity<CartesianMapping>) const {
+    return CartesianIndex(mesh, CartesianMapping(Eigen::Vector3d(0, 0, -1), cartesianOrigin), terrain);
   }
-  if (mapping == "spherical") return SphericalIndex(mesh, SphericalMapping(), terrain);
-  if (mapping == "geodetic") return GeodeticIndex(mesh, GeodeticMapping(), terrain);
-  if (mapping == "cylindrical") return CylindricalIndex(mesh, CylindricalMapping(), terrain);
-  if (mapping == "enu") {
+  AnyIndex in(std::type_identity<SphericalMapping>) const { return SphericalIndex(mesh, SphericalMapping(), terrain); }
+  AnyIndex in(std::type_identity<GeodeticMapping>) const { return GeodeticIndex(mesh, GeodeticMapping(), terrain); }
+  AnyIndex in(std::type_identity<CylindricalMapping>) const {
+    return CylindricalIndex(mesh, CylindricalMapping(), terrain);
+  }
+  AnyIndex in(std::type_identity<EnuMapping>) const {
     // ECEF vertices (a city model in EPSG:4978) seen from the origin, by default the point of the
     // ellipsoid under the centre of their box, at that centre's height.
     std::array<double, 3> at{0, 0, 0};
@@ -80,82 +142,55 @@ AnyIndex meshIndex(const Mesh& mesh, const std::string& mapping, const Eigen::Ve
       for (const Eigen::Vector3d& v : mesh.vertices) lo = lo.cwiseMin(v), hi = hi.cwiseMax(v);
       const Eigen::Vector3d c = 0.5 * (lo + hi);
       if (c.norm() < 1e5) {
-        throw Error("the enu mapping takes ECEF vertices on the Earth; these are centred " +
-                    std::to_string(c.norm()) + " m from its centre (give the origin, or another mapping)");
+        throw Error("the enu mapping takes ECEF vertices on the Earth; these are centred " + std::to_string(c.norm()) +
+                    " m from its centre (give the origin, or another mapping)");
       }
       GeographicLib::Geocentric::WGS84().Reverse(c.x(), c.y(), c.z(), at[0], at[1], at[2]);
     }
     return EnuIndex(mesh, EnuMapping(at[0], at[1], at[2]), terrain);
   }
-  throw Error("mapping '" + mapping + "' is not one of cartesian, spherical, geodetic, cylindrical, enu");
+};
+
+}  // namespace
+
+AnyIndex meshIndex(const Mesh& mesh, const std::string& mapping, const Eigen::Vector3d& cartesianOrigin,
+                   const std::optional<std::array<double, 3>>& origin, const IndexOptions& terrain) {
+  const MappingEntry& entry = mappingEntry(mapping);
+  requireMappingTakes(entry, origin.has_value(), &MappingEntry::origin, "--origin");
+  const MeshPlacement place{mesh, cartesianOrigin, origin, terrain};
+  return withMapping(mapping, [&]<class M>() { return place.in(std::type_identity<M>{}); });
 }
 
-TreeFile openIndex(const SourceOptions& o) {
-  requireSource(o.source);
+namespace {
+
+// A raster placed in each mapping (openIndex): one overload per mapping, chosen by its type.
+struct RasterPlacement {
+  const SourceOptions& o;
   DemOptions demOptions;
-  demOptions.band = o.band;
-  demOptions.lonLatAsCartesian = true;
-  const bool cartesian = o.mapping.empty() || o.mapping == "cartesian";
-  demOptions.then = !cartesian ? memory::kCurvedIndex : o.heightsOnly ? memory::kGridIndex : memory::kCartesianIndex;
-  if (isTreeFile(o.source)) {
-    TreeFile tf = loadTree(o.source);
-    if (o.band != 0 && o.band != tf.source.band) {
-      throw Error(o.source + ": the tree file was built from band " + std::to_string(tf.source.band) +
-                  " of " + tf.source.path + ", not band " + std::to_string(o.band));
-    }
-    if (!o.heightRef.empty()) {
-      throw Error(o.source + ": --height-ref is given when a tree file is built (qota build); this one's heights are over the " +
-                  (tf.source.geoidGrid.empty() ? std::string("ellipsoid") : tf.source.heightRef));
-    }
-    if (!o.mapping.empty() && o.mapping != mappingNameOf(tf.index)) {
-      throw Error(o.source + ": the tree file was built in the " +
-                  std::string(mappingNameOf(tf.index)) + " mapping, not " + o.mapping +
-                  " (leave --mapping out or rebuild it)");
-    }
-    return tf;
-  }
-  if (o.origin && o.mapping != "enu") throw Error("--origin applies to the enu mapping (the frame's origin)");
-  if (!o.heightRef.empty() && ((o.mapping != "geodetic" && o.mapping != "enu") || !isRaster(o.source))) {
-    throw Error("--height-ref applies to a raster's heights placed on an ellipsoid (--mapping geodetic or enu); the " +
-                (o.mapping.empty() ? std::string("cartesian") : o.mapping) + " mapping of " + o.source +
-                " keeps its heights as they are");
-  }
-  if (!isRaster(o.source)) {
-    // A mesh file, in world coordinates: the mapping's default frame (a sphere or cylinder
-    // about the origin's z axis, the WGS84 ellipsoid with ECEF coordinates).
-    if (o.band != 0) throw Error(o.source + ": -b applies to rasters; this is a mesh file");
-    const MeshFile file = loadMeshFile(o.source);
-    TreeSource source;
-    source.path = o.source;
-    source.crsWkt = file.crsWkt;
-    return {meshIndex(file.mesh, o.mapping, file.origin, o.origin, o.terrain), source};
-  }
-  if (o.mapping.empty() || o.mapping == "cartesian") {
+
+  TreeFile in(std::type_identity<CartesianMapping>) const {
     const DemTerrain dem = loadDem(o.source, demOptions);
-    return {TerrainIndex(dem.mesh, dem.mapping, o.terrain), sourceOf(dem)};
+    return {CartesianIndex(dem.mesh, dem.mapping, o.terrain), sourceOf(dem)};
   }
-  if (o.mapping == "spherical") {
+  TreeFile in(std::type_identity<SphericalMapping>) const {
     PlanetOptions planetOptions;
     planetOptions.radius = o.radius;
     planetOptions.dem = demOptions;
     const PlanetTerrain planet = loadPlanet(o.source, planetOptions);
     return {SphericalIndex(planet.dem.mesh, planet.mapping, o.terrain), sourceOf(planet.dem)};
   }
-  if (o.mapping == "geodetic") {
-    demOptions.heightRef = o.heightRef;
-    const EllipsoidTerrain t = loadOnEllipsoid(o.source, demOptions);
+  TreeFile in(std::type_identity<GeodeticMapping>) const {
+    const EllipsoidTerrain t = onEllipsoid();
     TreeSource source = sourceOf(t.dem);
     source.heightRef = t.heightRef.describe();
     source.geoidGrid = t.heightRef.grid;
     return {GeodeticIndex(t.dem.mesh, t.mapping, o.terrain), source};
   }
-
-  if (o.mapping == "enu") {
+  TreeFile in(std::type_identity<EnuMapping>) const {
     // The DEM on its ellipsoid as the geodetic mapping places it (its heights over their
     // reference), seen in the east-north-up frame at the origin (default: the raster's centre, at
     // height 0 on the ellipsoid). Answers are metres up in that frame: no raster footprint.
-    demOptions.heightRef = o.heightRef;
-    const EllipsoidTerrain t = loadOnEllipsoid(o.source, demOptions);
+    const EllipsoidTerrain t = onEllipsoid();
     std::array<double, 3> at{0, 0, 0};
     if (o.origin) {
       at = *o.origin;
@@ -169,7 +204,7 @@ TreeFile openIndex(const SourceOptions& o) {
     source.metresPerUnit = 1;  // (answers in the frame's metres)
     return {EnuIndex(t.dem.mesh, EnuMapping(at[0], at[1], at[2], t.mapping.a(), t.mapping.f()), o.terrain), source};
   }
-  if (o.mapping == "cylindrical") {
+  TreeFile in(std::type_identity<CylindricalMapping>) const {
     // The raster is the station's relief: columns around the axis, rows along it.
     const DemTerrain dem = loadDem(o.source, demOptions);
     Heightfield relief;
@@ -185,7 +220,61 @@ TreeFile openIndex(const SourceOptions& o) {
     source.width = source.height = 0;  // not a map: no raster footprint to check points against
     return {CylindricalIndex(stationMesh(relief, station), CylindricalMapping(), o.terrain), source};
   }
-  throw Error("--mapping '" + o.mapping + "' is not one of cartesian, spherical, geodetic, cylindrical, enu");
+
+ private:
+  EllipsoidTerrain onEllipsoid() const {
+    DemOptions options = demOptions;
+    options.heightRef = o.heightRef;
+    return loadOnEllipsoid(o.source, options);
+  }
+};
+
+}  // namespace
+
+TreeFile openIndex(const SourceOptions& o) {
+  requireSource(o.source);
+  const MappingEntry& entry = mappingEntry(o.mapping);
+  DemOptions demOptions;
+  demOptions.band = o.band;
+  demOptions.lonLatAsCartesian = true;
+  const bool cartesian = entry.map;
+  demOptions.then = !cartesian ? memory::kCurvedIndex : o.heightsOnly ? memory::kGridIndex : memory::kCartesianIndex;
+  if (isTreeFile(o.source)) {
+    TreeFile tf = loadTree(o.source);
+    if (o.band != 0 && o.band != tf.source.band) {
+      throw Error(o.source + ": the tree file was built from band " + std::to_string(tf.source.band) + " of " +
+                  tf.source.path + ", not band " + std::to_string(o.band));
+    }
+    if (!o.heightRef.empty()) {
+      throw Error(o.source +
+                  ": --height-ref is given when a tree file is built (qota build); this one's heights are over the " +
+                  (tf.source.geoidGrid.empty() ? std::string("ellipsoid") : tf.source.heightRef));
+    }
+    if (!o.mapping.empty() && o.mapping != mappingNameOf(tf.index)) {
+      throw Error(o.source + ": the tree file was built in the " + std::string(mappingNameOf(tf.index)) +
+                  " mapping, not " + o.mapping + " (leave --mapping out or rebuild it)");
+    }
+    return tf;
+  }
+  // Each option only where the mapping takes it (the registry's entry says which).
+  requireMappingTakes(entry, o.radius != 0, &MappingEntry::radius, "--radius");
+  requireMappingTakes(entry, o.length != 0, &MappingEntry::length, "--length");
+  requireMappingTakes(entry, o.origin.has_value(), &MappingEntry::origin, "--origin");
+  requireMappingTakes(entry, !o.heightRef.empty(), &MappingEntry::ellipsoid, "--height-ref");
+  if (!isRaster(o.source)) {
+    // A mesh file, in world coordinates: the mapping's default frame (a sphere or cylinder
+    // about the origin's z axis, the WGS84 ellipsoid with ECEF coordinates).
+    if (o.band != 0) throw Error(o.source + ": -b applies to rasters; this is a mesh file");
+    if (!o.heightRef.empty())
+      throw Error("--height-ref applies to a raster's heights; " + o.source + " is a mesh file");
+    const MeshFile file = loadMeshFile(o.source);
+    TreeSource source;
+    source.path = o.source;
+    source.crsWkt = file.crsWkt;
+    return {meshIndex(file.mesh, o.mapping, file.origin, o.origin, o.terrain), source};
+  }
+  const RasterPlacement place{o, demOptions};
+  return withMapping(o.mapping, [&]<class M>() { return place.in(std::type_identity<M>{}); });
 }
 
 }  // namespace qota

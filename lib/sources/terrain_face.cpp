@@ -24,7 +24,7 @@ Terrain::Terrain(TreeFile tree) : index_(std::move(tree.index)), source_(std::mo
   //   geodetic: the index's h is metres along the normal over the ellipsoid; the source's are in
   //     its vertical unit over its reference (a geoid's undulation added);
   //   spherical, cylindrical: metres (the radius, the distance from the axis) on both sides.
-  if (const auto* cartesian = std::get_if<TerrainIndex>(&index_)) {
+  if (const auto* cartesian = std::get_if<CartesianIndex>(&index_)) {
     if (!cartesian->mapping().vertical()) {
       throw Error(where + ": a Cartesian terrain with tilted gravity has no map coordinates (query its index)");
     }
@@ -47,7 +47,7 @@ Terrain::Terrain(TreeFile tree) : index_(std::move(tree.index)), source_(std::mo
   }
   // A raster's footprint in the cartesian and geodetic mappings (a map; lon/lat on the
   // ellipsoid): the outer half-pixel rule, as `qota sample` keeps it.
-  const bool map = std::holds_alternative<TerrainIndex>(index_) || std::holds_alternative<GeodeticIndex>(index_);
+  const bool map = std::holds_alternative<CartesianIndex>(index_) || std::holds_alternative<GeodeticIndex>(index_);
   if (map && source_.width > 0 && source_.height > 0) {
     DemTerrain grid;
     grid.width = source_.width, grid.height = source_.height;
@@ -113,8 +113,8 @@ namespace {
 // The points (and heights) into the index's frame, run(index, points, zs, out) on every core,
 // the answers back: the batch's shape for every query.
 template <class Run>
-void inBatch(const Terrain& t, std::span<const double> x, std::span<const double> y, std::span<const double> z, int side,
-             std::span<double> out, Run&& run) {
+void inBatch(const Terrain& t, std::span<const double> x, std::span<const double> y, std::span<const double> z,
+             int side, std::span<double> out, Run&& run) {
   const std::size_t n = x.size();
   if (y.size() != n || out.size() != n || (!z.empty() && z.size() != n)) {
     throw Error("a batch of " + std::to_string(n) + " points with " + std::to_string(y.size()) + " y, " +
@@ -127,8 +127,11 @@ void inBatch(const Terrain& t, std::span<const double> x, std::span<const double
     for (std::size_t i = lo; i < hi; ++i) pts[i] = t.mapped(x[i], y[i]);
     for (std::size_t i = lo; !z.empty() && i < hi; ++i) zs[i] = t.toIndex(z[i], pts[i], side);
   });
-  std::visit([&](const auto& index) { run(index, std::span<const Point2>(pts), std::span<const double>(zs), std::span(answers)); },
-             t.index());
+  std::visit(
+      [&](const auto& index) {
+        run(index, std::span<const Point2>(pts), std::span<const double>(zs), std::span(answers));
+      },
+      t.index());
   batch::inSlices(n, 0, 1 << 15, [&](std::size_t lo, std::size_t hi) {
     for (std::size_t i = lo; i < hi; ++i) out[i] = answers[i] ? t.fromIndex(*answers[i], pts[i]) : kNaN;
   });
@@ -137,7 +140,8 @@ void inBatch(const Terrain& t, std::span<const double> x, std::span<const double
 }  // namespace
 
 void Terrain::heights(std::span<const double> x, std::span<const double> y, std::span<double> out) const {
-  inBatch(*this, x, y, {}, 0, out, [](const auto& index, auto pts, auto, auto answers) { index.heightsParallel(pts, answers); });
+  inBatch(*this, x, y, {}, 0, out,
+          [](const auto& index, auto pts, auto, auto answers) { index.heightsParallel(pts, answers); });
 }
 
 void Terrain::below(std::span<const double> x, std::span<const double> y, std::span<const double> z,

@@ -34,8 +34,7 @@ struct Projection {
 // triangles' unsigned normals (summed relative to its first corner, so that map-sized coordinates
 // do not swamp the small differences). Unsigned, so that a ring that crosses itself (whose signed
 // normal can cancel out) still gets a plane in which the crossing shows.
-Projection projectionFor(std::span<const std::uint32_t> ring,
-                         const std::vector<Eigen::Vector3d>& v) {
+Projection projectionFor(std::span<const std::uint32_t> ring, const std::vector<Eigen::Vector3d>& v) {
   Eigen::Vector3d n = Eigen::Vector3d::Zero();
   const Eigen::Vector3d o = v[ring[0]];
   for (std::size_t i = 1; i + 1 < ring.size(); ++i) {
@@ -52,8 +51,7 @@ Projection projectionFor(std::span<const std::uint32_t> ring,
 double signedArea2(const std::vector<Point2>& pts) {
   double a = 0;
   for (std::size_t i = 1; i + 1 < pts.size(); ++i) {
-    a += (pts[i].u - pts[0].u) * (pts[i + 1].v - pts[0].v) -
-         (pts[i].v - pts[0].v) * (pts[i + 1].u - pts[0].u);
+    a += (pts[i].u - pts[0].u) * (pts[i + 1].v - pts[0].v) - (pts[i].v - pts[0].v) * (pts[i + 1].u - pts[0].u);
   }
   return a;
 }
@@ -104,8 +102,8 @@ bool segmentsMeet(Point2 a, Point2 b, Point2 c, Point2 d) {
   const int d1 = orient2dSign(c, d, a), d2 = orient2dSign(c, d, b);
   const int d3 = orient2dSign(a, b, c), d4 = orient2dSign(a, b, d);
   if (d1 * d2 < 0 && d3 * d4 < 0) return true;
-  return (d1 == 0 && onSegment(c, d, a)) || (d2 == 0 && onSegment(c, d, b)) ||
-         (d3 == 0 && onSegment(a, b, c)) || (d4 == 0 && onSegment(a, b, d));
+  return (d1 == 0 && onSegment(c, d, a)) || (d2 == 0 && onSegment(c, d, b)) || (d3 == 0 && onSegment(a, b, c)) ||
+         (d4 == 0 && onSegment(a, b, d));
 }
 
 // Does the direction from corner b towards x point into the polygon (strictly), given the ring's
@@ -137,8 +135,7 @@ bool bridgeClear(const Node& m, const Node& p, const std::vector<const std::vect
       const Node& shared = aShared ? a : b;
       const Node& other = aShared ? b : a;
       const Node& far = shared.id == m.id ? p : m;
-      if (orient2dSign(shared.p, far.p, other.p) == 0 &&
-          sgn(far.p.u - shared.p.u) == sgn(other.p.u - shared.p.u) &&
+      if (orient2dSign(shared.p, far.p, other.p) == 0 && sgn(far.p.u - shared.p.u) == sgn(other.p.u - shared.p.u) &&
           sgn(far.p.v - shared.p.v) == sgn(other.p.v - shared.p.v)) {
         return false;
       }
@@ -162,9 +159,8 @@ bool joinHoles(std::vector<Node>& outer, std::vector<std::vector<Node>> holes) {
       if (q.u > r.u || (q.u == r.u && q.v > r.v)) rightmost[h] = i;
     }
   }
-  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
-    return holes[a][rightmost[a]].p.u > holes[b][rightmost[b]].p.u;
-  });
+  std::sort(order.begin(), order.end(),
+            [&](std::size_t a, std::size_t b) { return holes[a][rightmost[a]].p.u > holes[b][rightmost[b]].p.u; });
   for (std::size_t k = 0; k < order.size(); ++k) {
     const auto& hole = holes[order[k]];
     const std::size_t mi = rightmost[order[k]];
@@ -180,8 +176,7 @@ bool joinHoles(std::vector<Node>& outer, std::vector<std::vector<Node>> holes) {
       const double du = outer[i].p.u - m.p.u, dv = outer[i].p.v - m.p.v;
       return du * du + dv * dv;
     };
-    std::sort(cand.begin(), cand.end(),
-              [&](std::size_t a, std::size_t b) { return dist2(a) < dist2(b); });
+    std::sort(cand.begin(), cand.end(), [&](std::size_t a, std::size_t b) { return dist2(a) < dist2(b); });
     const std::size_t on = outer.size();
     // A corner the hole shares with the joined ring (holes that touch) is a last resort: a bridge
     // to it would visit that point three times, which ear clipping handles badly.
@@ -203,8 +198,7 @@ bool joinHoles(std::vector<Node>& outer, std::vector<std::vector<Node>> holes) {
       splice.reserve(hn + 2);
       for (std::size_t j = 0; j <= hn; ++j) splice.push_back(hole[(mi + j) % hn]);
       splice.push_back(p);
-      outer.insert(outer.begin() + static_cast<std::ptrdiff_t>(i + 1), splice.begin(),
-                   splice.end());
+      outer.insert(outer.begin() + static_cast<std::ptrdiff_t>(i + 1), splice.begin(), splice.end());
       joined = true;
       break;
     }
@@ -237,8 +231,7 @@ bool earClip(const std::vector<Node>& ring, std::vector<std::array<std::uint32_t
     if (orient2dSign(A.p, B.p, C.p) <= 0) return false;
     for (std::size_t k = next[c]; k != a; k = next[k]) {
       const Node& K = ring[k];
-      const int ab = orient2dSign(A.p, B.p, K.p), bc = orient2dSign(B.p, C.p, K.p),
-                ca = orient2dSign(C.p, A.p, K.p);
+      const int ab = orient2dSign(A.p, B.p, K.p), bc = orient2dSign(B.p, C.p, K.p), ca = orient2dSign(C.p, A.p, K.p);
       if (K.id != A.id && K.id != B.id && K.id != C.id) {
         if (ab >= 0 && bc >= 0 && ca >= 0) return false;
         continue;
@@ -324,16 +317,14 @@ bool earClip(const std::vector<Node>& ring, std::vector<std::array<std::uint32_t
   }
   if (remaining == 3) {
     const std::size_t a = prev[cur], c = next[cur];
-    if (orient2dSign(ring[a].p, ring[cur].p, ring[c].p) > 0)
-      out.push_back({ring[a].id, ring[cur].id, ring[c].id});
+    if (orient2dSign(ring[a].p, ring[cur].p, ring[c].p) > 0) out.push_back({ring[a].id, ring[cur].id, ring[c].id});
   }
   return true;
 }
 
 // Ear clipping a ring that crosses itself ends with triangles that overlap or leave gaps: their
 // area then differs from the polygon's (a bow tie's signed area is nothing at all).
-bool coversArea(const std::vector<std::array<std::uint32_t, 3>>& tris,
-                const std::vector<std::uint32_t>& outline,
+bool coversArea(const std::vector<std::array<std::uint32_t, 3>>& tris, const std::vector<std::uint32_t>& outline,
                 const std::vector<std::vector<std::uint32_t>>& holes, const Projection& proj,
                 const std::vector<Eigen::Vector3d>& v) {
   auto area = [&](const std::vector<std::uint32_t>& ring) {
@@ -349,14 +340,12 @@ bool coversArea(const std::vector<std::array<std::uint32_t, 3>>& tris,
   Point2 lo{INFINITY, INFINITY}, hi{-INFINITY, -INFINITY};
   for (std::uint32_t id : outline) {
     const Point2 q = proj(v[id]);
-    lo = {std::min(lo.u, q.u), std::min(lo.v, q.v)},
-    hi = {std::max(hi.u, q.u), std::max(hi.v, q.v)};
+    lo = {std::min(lo.u, q.u), std::min(lo.v, q.v)}, hi = {std::max(hi.u, q.u), std::max(hi.v, q.v)};
   }
   const double size2 = (hi.u - lo.u) * (hi.u - lo.u) + (hi.v - lo.v) * (hi.v - lo.v);
   std::size_t corners = outline.size();
   for (const auto& h : holes) corners += h.size();
-  const double tolerance =
-      1e-9 * (cut + std::fabs(polygon)) + 1e-14 * static_cast<double>(corners) * size2;
+  const double tolerance = 1e-9 * (cut + std::fabs(polygon)) + 1e-14 * static_cast<double>(corners) * size2;
   return !tris.empty() && std::fabs(cut - polygon) <= tolerance;
 }
 
@@ -371,8 +360,7 @@ bool collinear3(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen:
   return true;
 }
 
-FaceCut cutFace(const std::vector<std::uint32_t>& outline,
-                const std::vector<std::vector<std::uint32_t>>& holes,
+FaceCut cutFace(const std::vector<std::uint32_t>& outline, const std::vector<std::vector<std::uint32_t>>& holes,
                 const std::vector<Eigen::Vector3d>& v, bool keepConvex) {
   if (outline.size() == 3 && holes.empty()) return {FaceCut::whole, {}};
 

@@ -33,8 +33,7 @@ struct FaceCut {
 // consecutive corners removed, none of them degenerate) into triangles, or keeps it whole when it
 // is a triangle, or, with keepConvex, when it has no holes and is convex in its plane. Quadratic
 // in the corners (cubic at worst).
-FaceCut cutFace(const std::vector<std::uint32_t>& outline,
-                const std::vector<std::vector<std::uint32_t>>& holes,
+FaceCut cutFace(const std::vector<std::uint32_t>& outline, const std::vector<std::vector<std::uint32_t>>& holes,
                 const std::vector<Eigen::Vector3d>& vertices, bool keepConvex);
 
 }  // namespace qota::detail

@@ -9,17 +9,20 @@ where there is no terrain (a hole, nodata, outside the data, a latitude outside 
     >>> t.heights([-121.7603], [46.8529])          # x, y in the raster's CRS
     array([4367.4...])
 
-Terrains come in four mappings (the `qota sample --mapping` ones): "cartesian" (a map: x, y in
-the CRS, heights along -z), "spherical" (a lon/lat raster closed into a planet: lon, lat, and the
-radius), "geodetic" (a lon/lat raster on its ellipsoid: lon, lat, and the height along the
-normal) and "cylindrical" (the relief inside a rotating station: angle, axial, and the distance
-from the axis). rasterio datasets and xarray DataArrays (with rioxarray) are sources too.
+Terrains come in the mappings of qota.MAPPINGS (the `qota sample --mapping` ones): "cartesian" (a
+map: x, y in the CRS, heights along -z), "spherical" (a lon/lat raster closed into a planet: lon,
+lat, and the radius), "cylindrical" (the relief inside a rotating station: angle, axial, and the
+distance from the axis), "geodetic" (a lon/lat raster on its ellipsoid: lon, lat, and the height
+along the normal) and "enu" (that ellipsoid seen east-north-up at an origin: east, north, up).
+rasterio datasets and xarray DataArrays (with rioxarray) are sources too.
 """
 from __future__ import annotations
 
 import errno as _errno
 import os as _os
 import tempfile as _tempfile
+import typing as _typing
+import warnings as _warnings
 
 import numpy as _np
 
@@ -27,10 +30,11 @@ from . import _interop
 from . import _qota
 from ._qota import Error, __version__
 
-__all__ = ["Terrain", "Error", "__version__", "shadow", "sun_position", "MAPPINGS"]
+__all__ = ["Terrain", "Hits", "Error", "__version__", "shadow", "sun_position", "MAPPINGS"]
 
-#: The mappings a terrain can be built in (Terrain.mapping is one of these).
-MAPPINGS = ("cartesian", "spherical", "geodetic", "cylindrical", "enu")
+#: The mappings a terrain can be built in (Terrain.mapping is one of these): the library's mapping
+#: registry, as the tools' --mapping takes them.
+MAPPINGS: tuple = _qota.MAPPINGS
 
 
 def _local_file(path):
@@ -140,6 +144,13 @@ def _heights_array(heights):
         return _np.ascontiguousarray(a)
     except MemoryError as e:
         raise MemoryError(f"heights of shape {a.shape}: {e}") from None
+
+
+class Hits(_typing.NamedTuple):
+    """What Terrain.hits returns for every point: one type whatever is asked."""
+    height: _np.ndarray  # float64, NaN where no terrain
+    polygon: _np.ndarray  # int64 polygon ids, -1 where none
+    normal: "_np.ndarray | None"  # float64 unit normals, shape + (3,), NaN where none; None if not asked
 
 
 class Terrain:
@@ -282,7 +293,7 @@ class Terrain:
 
     @property
     def mapping(self) -> str:
-        """The terrain's mapping: "cartesian", "spherical", "geodetic" or "cylindrical"."""
+        """The terrain's mapping: one of MAPPINGS."""
         return self._t.mapping
 
     @property
@@ -300,48 +311,59 @@ class Terrain:
         b = _broadcast(**arrays)
         return method(*[_flat(a) for a in b]).reshape(b[0].shape)
 
-    def _hits(self, mode, polygons, normals, **arrays):
+    def hits(self, x, y, z=None, *, side: str = "top", normals: bool = True) -> "Hits":
+        """The surface hit at each point, as a Hits (height, polygon, normal): side "top" (the
+        top surface at each (x, y); z not given), "below" or "above" (the nearest surface at or
+        below / at or above z at each (x, y, z)). height is NaN and polygon -1 where there is
+        none; normal is the unit normal in the world frame (shape + (3,), NaN where none), or
+        None with normals=False (a longitude/latitude raster in the cartesian mapping has no
+        normals in one unit: ask with normals=False, or load it with mapping="geodetic")."""
+        if side not in ("top", "below", "above"):
+            raise Error(f"side must be 'top', 'below' or 'above', got {side!r}")
+        if (side == "top") != (z is None):
+            raise Error("z is given for side='below' or 'above', and only there")
         if normals and self._t._lon_lat_map:
             raise Error("normals of a longitude/latitude raster in the cartesian mapping would mix degrees and "
-                        "metres (its heights are right); load it with mapping='geodetic', or reproject it")
-        b = _broadcast(**arrays)
+                        "metres (its heights are right); pass normals=False, load it with mapping='geodetic', "
+                        "or reproject it")
+        b = _broadcast(x=x, y=y) if z is None else _broadcast(x=x, y=y, z=z)
         shape = b[0].shape
         flat = [_flat(a) for a in b]
-        h, p, n = self._t.hits(flat[0], flat[1], flat[2] if len(flat) > 2 else None, mode)
-        out = [h.reshape(shape)]
-        if polygons:
-            out.append(p.reshape(shape))
-        if normals:
-            out.append(n.reshape(shape + (3,)))
-        return tuple(out)
+        h, p, n = self._t.hits(flat[0], flat[1], flat[2] if len(flat) > 2 else None, side)
+        return Hits(h.reshape(shape), p.reshape(shape), n.reshape(shape + (3,)) if normals else None)
+
+    def _flagged(self, name, side, polygons, normals, **arrays):
+        # The 0.2 form: a tuple whose length follows the flags. Kept for a release, warned.
+        _warnings.warn(f"{name}(..., polygons=, normals=) is deprecated: use hits(..., side={side!r}), whose "
+                       "result is always a Hits (height, polygon, normal)", DeprecationWarning, stacklevel=3)
+        hit = self.hits(arrays["x"], arrays["y"], arrays.get("z"), side=side, normals=normals)
+        return tuple([hit.height] + ([hit.polygon] if polygons else []) + ([hit.normal] if normals else []))
 
     def heights(self, x, y, *, polygons=False, normals=False):
         """The top surface's height at each (x, y) (the mapping's coordinates); NaN where there is
-        none.
-
-        With polygons=True and/or normals=True, a tuple: the heights, then the polygon ids (int64,
-        -1 where none) and/or the unit normals in the world frame (shape + (3,), NaN where none)."""
+        none. (Polygon ids and normals: hits(x, y). The polygons= and normals= flags of 0.2 still
+        return a tuple, with a DeprecationWarning.)"""
         if polygons or normals:
-            return self._hits("top", polygons, normals, x=x, y=y)
+            return self._flagged("heights", "top", polygons, normals, x=x, y=y)
         return self._call(self._t.heights, x=x, y=y)
 
     def below(self, x, y, z, *, polygons=False, normals=False):
         """The height of the nearest surface at or below z at each (x, y, z); NaN if none.
-        polygons and normals as for heights."""
+        (Polygon ids and normals: hits(x, y, z, side="below").)"""
         if polygons or normals:
-            return self._hits("below", polygons, normals, x=x, y=y, z=z)
+            return self._flagged("below", "below", polygons, normals, x=x, y=y, z=z)
         return self._call(self._t.below, x=x, y=y, z=z)
 
     def above(self, x, y, z, *, polygons=False, normals=False):
         """The height of the nearest surface at or above z at each (x, y, z); NaN if none.
-        polygons and normals as for heights."""
+        (Polygon ids and normals: hits(x, y, z, side="above").)"""
         if polygons or normals:
-            return self._hits("above", polygons, normals, x=x, y=y, z=z)
+            return self._flagged("above", "above", polygons, normals, x=x, y=y, z=z)
         return self._call(self._t.above, x=x, y=y, z=z)
 
     def bracket(self, x, y, z, *, polygons=False, normals=False):
-        """(below, above): the floor and the ceiling around each point (each a tuple with
-        polygons and normals on request)."""
+        """(below, above): the floor's and the ceiling's heights around each point. (Polygon ids
+        and normals: hits with side="below" and "above".)"""
         return (self.below(x, y, z, polygons=polygons, normals=normals),
                 self.above(x, y, z, polygons=polygons, normals=normals))
 

@@ -1,5 +1,5 @@
 from os import PathLike
-from typing import Any, Literal
+from typing import Any, Literal, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -10,13 +10,21 @@ class Error(ValueError): ...
 
 _Coords = npt.ArrayLike
 _Path = str | PathLike[str]
-_Mapping = Literal["cartesian", "spherical", "geodetic", "cylindrical", "enu"]
+_Mapping = Literal["cartesian", "spherical", "cylindrical", "geodetic", "enu"]
 _Origin = tuple[float, float] | tuple[float, float, float]
 # A raster: a path, an open rasterio dataset, or an xarray.DataArray with rioxarray's accessor
 # (rasterio and xarray are optional, so their types are not named here).
 _Raster = _Path | Any
 
 MAPPINGS: tuple[str, ...]
+
+class Hits(NamedTuple):
+    height: npt.NDArray[np.float64]
+    polygon: npt.NDArray[np.int64]
+    normal: npt.NDArray[np.float64] | None
+
+_Side = Literal["top", "below", "above"]
+_Heights = npt.NDArray[np.float64]
 
 class Terrain:
     @classmethod
@@ -45,12 +53,14 @@ class Terrain:
     def crs(self) -> str | None: ...
     @property
     def height_ref(self) -> str | None: ...
-    # With polygons=True and/or normals=True each returns a tuple (heights, [polygons], [normals]).
-    def heights(self, x: _Coords, y: _Coords, *, polygons: bool = False, normals: bool = False) -> Any: ...
-    def below(self, x: _Coords, y: _Coords, z: _Coords, *, polygons: bool = False, normals: bool = False) -> Any: ...
-    def above(self, x: _Coords, y: _Coords, z: _Coords, *, polygons: bool = False, normals: bool = False) -> Any: ...
-    def bracket(self, x: _Coords, y: _Coords, z: _Coords, *, polygons: bool = False,
-                normals: bool = False) -> tuple[Any, Any]: ...
+    # One type per call: heights as arrays; polygon ids and normals through hits(). (The 0.2 flags
+    # polygons=/normals= still run, returning a tuple with a DeprecationWarning; not typed here.)
+    def hits(self, x: _Coords, y: _Coords, z: _Coords | None = None, *, side: _Side = "top",
+             normals: bool = True) -> Hits: ...
+    def heights(self, x: _Coords, y: _Coords) -> _Heights: ...
+    def below(self, x: _Coords, y: _Coords, z: _Coords) -> _Heights: ...
+    def above(self, x: _Coords, y: _Coords, z: _Coords) -> _Heights: ...
+    def bracket(self, x: _Coords, y: _Coords, z: _Coords) -> tuple[_Heights, _Heights]: ...
     def all(self, x: float, y: float) -> list[tuple[float, int, tuple[float, float, float]]]: ...
     def stats(self) -> dict[str, int]: ...
 

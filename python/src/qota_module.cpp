@@ -25,6 +25,7 @@
 #include "qota/curved.hpp"
 #include "qota/dem.hpp"
 #include "qota/error.hpp"
+#include "qota/mapping_registry.hpp"
 #include "qota/instant.hpp"
 #include "qota/raster_sampler.hpp"
 #include "qota/geoid.hpp"
@@ -43,13 +44,6 @@ namespace {
 
 using Array = py::array_t<double, py::array::c_style | py::array::forcecast>;
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-
-// The mappings a Python terrain may be in, as their names ("cartesian", ...): the raster and mesh
-// builders take one of these.
-const char* const kMappings = "cartesian, spherical, geodetic, cylindrical or enu";
-bool knownMapping(const std::string& m) {
-  return m == "cartesian" || m == "spherical" || m == "geodetic" || m == "cylindrical" || m == "enu";
-}
 
 // A terrain in any mapping (qota::Terrain, qota/terrain_face.hpp: points in the source's own
 // coordinates, heights in its unit and vertical reference), batched over numpy arrays with the
@@ -137,13 +131,12 @@ class Terrain {
   std::string heightRef() const { return t_.heightRef(); }
   // A lon/lat raster in the cartesian mapping: x, y in degrees, z in metres (heights are right,
   // normals are not).
-  bool lonLatMap() const {
-    return std::holds_alternative<qota::TerrainIndex>(t_.index()) && qota::crsIsGeographic(t_.source().crsWkt);
-  }
+  bool lonLatMap() const { return qota::mappingEntry(t_.mapping()).map && qota::crsIsGeographic(t_.source().crsWkt); }
 
  private:
   static void requireFlat(const Array& x, const Array& y, const Array* z) {
-    if (x.ndim() != 1 || y.ndim() != 1 || x.shape(0) != y.shape(0) || (z && (z->ndim() != 1 || z->shape(0) != x.shape(0)))) {
+    if (x.ndim() != 1 || y.ndim() != 1 || x.shape(0) != y.shape(0) ||
+        (z && (z->ndim() != 1 || z->shape(0) != x.shape(0)))) {
       throw qota::Error("x, y (and z) must be flat arrays of one length");
     }
   }
@@ -171,15 +164,11 @@ class Terrain {
 qota::tools::SourceOptions rasterOptions(const std::string& path, int band, const std::string& mapping,
                                          std::optional<double> radius, std::optional<double> length,
                                          std::optional<std::array<double, 3>> origin = std::nullopt) {
-  if (!knownMapping(mapping)) {
-    throw qota::Error("mapping '" + mapping + "' is not one of " + kMappings);
-  }
-  if (radius && !(mapping == "spherical" || mapping == "cylindrical")) {
-    throw qota::Error("radius applies to the spherical and cylindrical mappings, not " + mapping);
-  }
-  if (length && mapping != "cylindrical") {
-    throw qota::Error("length applies to the cylindrical mapping, not " + mapping);
-  }
+  // (the registry says which mapping takes which option; the messages name Python's arguments)
+  const qota::MappingEntry& entry = qota::mappingEntry(mapping);
+  qota::requireMappingTakes(entry, radius.has_value(), &qota::MappingEntry::radius, "radius");
+  qota::requireMappingTakes(entry, length.has_value(), &qota::MappingEntry::length, "length");
+  qota::requireMappingTakes(entry, origin.has_value(), &qota::MappingEntry::origin, "origin");
   if (radius && !(*radius > 0 && std::isfinite(*radius))) throw qota::Error("radius must be a positive number");
   if (length && !(*length > 0 && std::isfinite(*length))) throw qota::Error("length must be a positive number");
   qota::tools::SourceOptions o;
@@ -188,7 +177,6 @@ qota::tools::SourceOptions rasterOptions(const std::string& path, int band, cons
   o.mapping = mapping;
   o.radius = radius.value_or(0.0);  // 0: the tool's defaults (the CRS's radius; 250 and 1000)
   o.length = length.value_or(0.0);
-  if (origin && mapping != "enu") throw qota::Error("origin applies to the enu mapping, not " + mapping);
   o.origin = origin;
   return o;
 }
@@ -210,6 +198,8 @@ Terrain fromRaster(const std::string& path, int band, const std::string& mapping
                    std::optional<std::array<double, 3>> origin) {
   qota::tools::SourceOptions o = rasterOptions(path, band, mapping, radius, length, origin);
   o.heightRef = heightRef;
+  qota::requireMappingTakes(qota::mappingEntry(o.mapping), !heightRef.empty(), &qota::MappingEntry::ellipsoid,
+                            "height_ref");
   py::gil_scoped_release release;
   return Terrain(rasterTree(o));
 }
@@ -220,9 +210,9 @@ Terrain fromRaster(const std::string& path, int band, const std::string& mapping
 // given, its pixels not yet written. sparse: blocks never written take no room (a description of
 // a raster, its pixels elsewhere). Nothing here touches Python, so the caller may release the GIL
 // around it.
-std::unique_ptr<GDALDataset> createRaster(const std::string& path, int rows, int cols, const std::vector<double>& transform,
-                                          std::optional<double> nodata, const std::string& crs, const std::string& unit,
-                                          bool sparse = false) {
+std::unique_ptr<GDALDataset> createRaster(const std::string& path, int rows, int cols,
+                                          const std::vector<double>& transform, std::optional<double> nodata,
+                                          const std::string& crs, const std::string& unit, bool sparse = false) {
   qota::ensureGdalRegistered();
   OGRSpatialReference srs;
   if (!crs.empty()) {
@@ -248,8 +238,9 @@ std::unique_ptr<GDALDataset> createRaster(const std::string& path, int rows, int
 }
 
 // The same raster with the 2-D float64 array's values as its pixels.
-void writeRasterFile(const std::string& path, const double* data, int rows, int cols, const std::vector<double>& transform,
-                     std::optional<double> nodata, const std::string& crs, const std::string& unit) {
+void writeRasterFile(const std::string& path, const double* data, int rows, int cols,
+                     const std::vector<double>& transform, std::optional<double> nodata, const std::string& crs,
+                     const std::string& unit) {
   std::unique_ptr<GDALDataset> ds = createRaster(path, rows, cols, transform, nodata, crs, unit);
   if (ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, cols, rows, const_cast<double*>(data), cols, rows, GDT_Float64, 0,
                                      0) != CE_None) {
@@ -307,6 +298,8 @@ Terrain fromArray(py::array_t<double, py::array::c_style | py::array::forcecast>
   const std::string path = "/vsimem/qota_python_" + std::to_string(counter++) + ".tif";
   qota::tools::SourceOptions o = rasterOptions(path, 1, mapping, radius, length, origin);
   o.heightRef = heightRef;
+  qota::requireMappingTakes(qota::mappingEntry(o.mapping), !heightRef.empty(), &qota::MappingEntry::ellipsoid,
+                            "height_ref");
   const int rows = static_cast<int>(heights.shape(0)), cols = static_cast<int>(heights.shape(1));
   const double* data = heights.data();
   py::gil_scoped_release release;
@@ -329,7 +322,7 @@ Terrain fromArray(py::array_t<double, py::array::c_style | py::array::forcecast>
 Terrain fromMesh(py::array_t<double, py::array::c_style | py::array::forcecast> vertices,
                  py::array_t<std::int64_t, py::array::c_style | py::array::forcecast> triangles,
                  const std::string& mapping, std::optional<std::array<double, 3>> origin) {
-  if (!knownMapping(mapping)) throw qota::Error("mapping '" + mapping + "' is not one of " + kMappings);
+  qota::requireMappingTakes(qota::mappingEntry(mapping), origin.has_value(), &qota::MappingEntry::origin, "origin");
   if (vertices.ndim() != 2 || vertices.shape(1) != 3) throw qota::Error("vertices must be an (N, 3) array");
   if (triangles.ndim() != 2 || triangles.shape(1) != 3) throw qota::Error("triangles must be an (M, 3) array");
   const auto n = static_cast<std::size_t>(vertices.shape(0)), m = static_cast<std::size_t>(triangles.shape(0));
@@ -349,14 +342,15 @@ Terrain fromMesh(py::array_t<double, py::array::c_style | py::array::forcecast> 
   mesh.indices.reserve(3 * m);
   for (std::size_t k = 0; k < 3 * m; ++k) {
     if (t[k] < 0 || static_cast<std::uint64_t>(t[k]) >= n) {
-      throw qota::Error("triangle " + std::to_string(k / 3) + " names vertex " + std::to_string(t[k]) + ", not one of the " +
-                        std::to_string(n) + " vertices");
+      throw qota::Error("triangle " + std::to_string(k / 3) + " names vertex " + std::to_string(t[k]) +
+                        ", not one of the " + std::to_string(n) + " vertices");
     }
     mesh.indices.push_back(static_cast<std::uint32_t>(t[k]));
   }
   if (n == 0 || m == 0) throw qota::Error("the mesh has no triangles");
   // (origin: the enu frame's, checked by meshIndex as the tools check it)
-  qota::AnyIndex index = qota::meshIndex(mesh, mapping, {0.5 * (lo.x() + hi.x()), 0.5 * (lo.y() + hi.y()), 0.0}, origin);
+  qota::AnyIndex index =
+      qota::meshIndex(mesh, mapping, {0.5 * (lo.x() + hi.x()), 0.5 * (lo.y() + hi.y()), 0.0}, origin);
   qota::TreeSource source;
   source.path = "<mesh>";
   return Terrain(qota::TreeFile{std::move(index), source});
@@ -380,8 +374,8 @@ Terrain load(const std::string& path) {
 // qota shadow itself (the same cells, the same checks and messages), into `output`, read back:
 // uint8 lit, shadow, nodata; with hours (start, end, step), float32 hours of sunlight.
 py::array shadow(const std::string& dem, const std::string& output, std::optional<double> azimuth,
-                 std::optional<double> altitude, const std::string& time, const std::string& tz, int band, double zFactor,
-                 std::optional<std::array<double, 3>> hours, const std::string& heightRef,
+                 std::optional<double> altitude, const std::string& time, const std::string& tz, int band,
+                 double zFactor, std::optional<std::array<double, 3>> hours, const std::string& heightRef,
                  std::optional<std::array<double, 3>> sunVector, std::optional<std::array<double, 3>> sunVectorBody,
                  std::optional<std::array<double, 2>> subsolar, bool flat) {
   qota::tools::ShadowOptions o;
@@ -488,7 +482,8 @@ qota::ShadowTiles tilesFromReader(int rows, int cols, const std::vector<double>&
   PyObject* function = read.ptr();  // borrowed: `read` outlives this call, and no copy is made without the GIL
   const qota::ShadowTiles::HeightReader reader = [function](const qota::CellWindow& w, std::vector<double>& out) {
     py::gil_scoped_acquire acquire;
-    const auto heights = py::cast<Array>(py::reinterpret_borrow<py::function>(function)(w.col, w.row, w.width, w.height));
+    const auto heights =
+        py::cast<Array>(py::reinterpret_borrow<py::function>(function)(w.col, w.row, w.width, w.height));
     out = heightsOf(heights, w);
   };
   qota::FrameOptions frame;
@@ -556,7 +551,8 @@ py::array_t<float> hoursFromHeights(const qota::ShadowTiles& tiles, const Cells&
 
 // The Sun seen from the tiles' centre at an instant: (azimuth, altitude) in degrees.
 std::array<double, 2> sunAt(const qota::ShadowTiles& tiles, const std::string& time, const std::string& tz) {
-  const qota::SunPosition sun = qota::sunOverFrame(tiles.frame(), qota::parseInstant(time, tz).julianDayUT, tiles.dem().path);
+  const qota::SunPosition sun =
+      qota::sunOverFrame(tiles.frame(), qota::parseInstant(time, tz).julianDayUT, tiles.dem().path);
   return {sun.azimuth, sun.altitude};
 }
 
@@ -602,7 +598,8 @@ class Sampler {
   }
 
   py::array_t<double> heights(const Array& x, const Array& y) {
-    if (x.ndim() != 1 || y.ndim() != 1 || x.shape(0) != y.shape(0)) throw qota::Error("x and y must be flat arrays of one length");
+    if (x.ndim() != 1 || y.ndim() != 1 || x.shape(0) != y.shape(0))
+      throw qota::Error("x and y must be flat arrays of one length");
     const auto n = static_cast<std::size_t>(x.shape(0));
     std::vector<double> xs(x.data(), x.data() + n), ys(y.data(), y.data() + n);
     std::vector<std::optional<double>> answers(n);
@@ -633,6 +630,8 @@ class Sampler {
 PYBIND11_MODULE(_qota, m) {
   m.doc() = "qota: terrain heights from rasters, arrays and meshes (Quick Oriented Terrain Algorithm)";
   m.attr("__version__") = QOTA_VERSION_STRING;
+  // The mapping registry's names (qota/mapping_registry.hpp): qota.MAPPINGS.
+  m.attr("MAPPINGS") = py::tuple(py::cast(qota::mappingNameList()));
   static py::exception<qota::Error> error(m, "Error", PyExc_ValueError);
   py::register_exception_translator([](std::exception_ptr p) {
     try {
@@ -641,10 +640,10 @@ PYBIND11_MODULE(_qota, m) {
       PyErr_SetString(error.ptr(), e.what());
     }
   });
-  m.def("_shadow", &shadow, py::arg("dem"), py::arg("output"), py::arg("azimuth"), py::arg("altitude"),
-        py::arg("time"), py::arg("tz"), py::arg("band"), py::arg("z_factor"), py::arg("hours") = py::none(),
-        py::arg("height_ref") = "", py::arg("sun_vector") = py::none(), py::arg("sun_vector_body") = py::none(),
-        py::arg("subsolar") = py::none(), py::arg("flat") = false);
+  m.def("_shadow", &shadow, py::arg("dem"), py::arg("output"), py::arg("azimuth"), py::arg("altitude"), py::arg("time"),
+        py::arg("tz"), py::arg("band"), py::arg("z_factor"), py::arg("hours") = py::none(), py::arg("height_ref") = "",
+        py::arg("sun_vector") = py::none(), py::arg("sun_vector_body") = py::none(), py::arg("subsolar") = py::none(),
+        py::arg("flat") = false);
   m.def("_sun_position", &sunPosition, py::arg("time"), py::arg("lon"), py::arg("lat"), py::arg("tz"));
   m.def("_write_raster", &writeRaster, py::arg("path"), py::arg("heights"), py::arg("transform"),
         py::arg("nodata") = py::none(), py::arg("crs") = "", py::arg("unit") = "");
@@ -659,38 +658,58 @@ PYBIND11_MODULE(_qota, m) {
       .def_property_readonly("crs", [](const qota::ShadowTiles& t) { return t.dem().crsWkt; })
       .def_property_readonly("unit", [](const qota::ShadowTiles& t) { return t.dem().verticalUnit.name; })
       .def_property_readonly("source", [](const qota::ShadowTiles& t) { return t.dem().path; })
-      .def_property_readonly("heights_hash", [](const qota::ShadowTiles& t) { return qota::hexOf(t.heightBlocks().whole()); })
-      .def_static("bytes_per_window_cell", [](const std::vector<std::array<double, 3>>& lights) {
-             return qota::ShadowTiles::bytesPerWindowCell(lightsOf(lights));
-           }, py::arg("lights"))
-      .def("largest_window_cells", [](const qota::ShadowTiles& t, const std::vector<Cells>& tiles,
-                                      const std::vector<std::array<double, 3>>& lights) {
-             std::vector<qota::CellWindow> windows;
-             for (const Cells& c : tiles) windows.push_back(cellsOf(c));
-             return t.largestWindowCells(windows, lightsOf(lights));
-           }, py::arg("tiles"), py::arg("lights"))
-      .def("checkable_window", [](const qota::ShadowTiles& t, const Cells& w) {
-             const qota::CellWindow a = t.checkableWindow(cellsOf(w));
-             return Cells{a.col, a.row, a.width, a.height};
-           }, py::arg("window"))
+      .def_property_readonly("heights_hash",
+                             [](const qota::ShadowTiles& t) { return qota::hexOf(t.heightBlocks().whole()); })
+      .def_static(
+          "bytes_per_window_cell",
+          [](const std::vector<std::array<double, 3>>& lights) {
+            return qota::ShadowTiles::bytesPerWindowCell(lightsOf(lights));
+          },
+          py::arg("lights"))
+      .def(
+          "largest_window_cells",
+          [](const qota::ShadowTiles& t, const std::vector<Cells>& tiles,
+             const std::vector<std::array<double, 3>>& lights) {
+            std::vector<qota::CellWindow> windows;
+            for (const Cells& c : tiles) windows.push_back(cellsOf(c));
+            return t.largestWindowCells(windows, lightsOf(lights));
+          },
+          py::arg("tiles"), py::arg("lights"))
+      .def(
+          "checkable_window",
+          [](const qota::ShadowTiles& t, const Cells& w) {
+            const qota::CellWindow a = t.checkableWindow(cellsOf(w));
+            return Cells{a.col, a.row, a.width, a.height};
+          },
+          py::arg("window"))
       .def_property_readonly("height", [](const qota::ShadowTiles& t) { return t.dem().height; })
       .def_property_readonly("geotransform", [](const qota::ShadowTiles& t) { return t.dem().geotransform; })
       .def("state", [](const qota::ShadowTiles& t) { return py::bytes(t.state()); })
-      .def("halo_for", [](const qota::ShadowTiles& t, int width, int height,
-                          const std::vector<std::array<double, 3>>& lights) { return t.haloFor(width, height, lightsOf(lights)); },
-           py::arg("width"), py::arg("height"), py::arg("lights"))
-      .def("toward_sun", [](const qota::ShadowTiles& t, double azimuth, double altitude) {
-             const Eigen::Vector3d v = t.frame().towardSun({azimuth, altitude});
-             return std::array<double, 3>{v.x(), v.y(), v.z()};
-           }, py::arg("azimuth"), py::arg("altitude"))
+      .def(
+          "halo_for",
+          [](const qota::ShadowTiles& t, int width, int height, const std::vector<std::array<double, 3>>& lights) {
+            return t.haloFor(width, height, lightsOf(lights));
+          },
+          py::arg("width"), py::arg("height"), py::arg("lights"))
+      .def(
+          "toward_sun",
+          [](const qota::ShadowTiles& t, double azimuth, double altitude) {
+            const Eigen::Vector3d v = t.frame().towardSun({azimuth, altitude});
+            return std::array<double, 3>{v.x(), v.y(), v.z()};
+          },
+          py::arg("azimuth"), py::arg("altitude"))
       .def("sun_at", &sunAt, py::arg("time"), py::arg("tz"))
-      .def("sunlight_steps", [](const qota::ShadowTiles& t, double start, double end, double step) {
-             std::vector<std::array<double, 3>> out;
-             for (const Eigen::Vector3d& v : t.sunlightSteps(start, end, step, t.horizonSlack())) out.push_back({v.x(), v.y(), v.z()});
-             return out;
-           }, py::arg("start"), py::arg("end"), py::arg("step"))
-      .def("mask_from_heights", &maskFromHeights, py::arg("window"), py::arg("heights"), py::arg("tile"), py::arg("light"),
-           py::arg("threads") = 0)
+      .def(
+          "sunlight_steps",
+          [](const qota::ShadowTiles& t, double start, double end, double step) {
+            std::vector<std::array<double, 3>> out;
+            for (const Eigen::Vector3d& v : t.sunlightSteps(start, end, step, t.horizonSlack()))
+              out.push_back({v.x(), v.y(), v.z()});
+            return out;
+          },
+          py::arg("start"), py::arg("end"), py::arg("step"))
+      .def("mask_from_heights", &maskFromHeights, py::arg("window"), py::arg("heights"), py::arg("tile"),
+           py::arg("light"), py::arg("threads") = 0)
       .def("hours_from_heights", &hoursFromHeights, py::arg("window"), py::arg("heights"), py::arg("tile"),
            py::arg("start"), py::arg("end"), py::arg("step"), py::arg("lights"), py::arg("threads") = 0)
       .def(py::pickle([](const qota::ShadowTiles& t) { return py::make_tuple(py::bytes(t.state())); },

@@ -320,7 +320,7 @@ def test_every_mapping_answers_every_call(tmp_path):
         np.testing.assert_array_equal(terrain.below(x, y, h), h)
         np.testing.assert_array_equal(terrain.above(x, y, h), h)
         # Polygons and normals: unit normals facing up (away from the centre; toward the axis).
-        top, poly, normal = terrain.heights(x, y, polygons=True, normals=True)
+        top, poly, normal = terrain.hits(x, y)
         np.testing.assert_array_equal(top, h)
         hit = ~np.isnan(h)
         assert np.all(poly[hit] >= 0) and np.all(poly[~hit] == -1)
@@ -363,7 +363,7 @@ def test_points_without_a_line_are_nan():
         assert np.isnan(h).all()
         assert np.isnan(t[name].below([10.0], [95.0], [7e6])).all()
         assert np.isnan(t[name].above([10.0], [95.0], [0.0])).all()
-        h, p = t[name].heights(10.0, 91.0, polygons=True)
+        h, p, _ = t[name].hits(10.0, 91.0)
         assert np.isnan(h) and p == -1
         assert t[name].all(10.0, 91.0) == []
     assert np.isnan(t["cylindrical"].heights([np.nan, 10.0], [0.0, np.inf])).all()
@@ -441,7 +441,7 @@ def test_bad_arrays_are_converted_or_refused():
     with pytest.raises(qota.Error, match="do not broadcast"):
         terrain.heights(np.zeros(3), np.zeros(4))
     with pytest.raises(qota.Error, match="do not broadcast"):
-        terrain.below(np.zeros(3), np.zeros(3), np.zeros(2), polygons=True)
+        terrain.hits(np.zeros(3), np.zeros(3), np.zeros(2), side="below")
     # Heights: 2-D only; a masked array's masked cells are holes.
     with pytest.raises(qota.Error, match="2-D"):
         qota.Terrain.from_array(np.zeros((2, 3, 4)), (0, 1, 0, 0, 0, -1))
@@ -521,3 +521,44 @@ def test_enu_mesh_is_seen_from_its_origin():
     got = terrain.heights([0, 120, -480, 600], [0, -300, 470, 0])
     np.testing.assert_allclose(got[:3], 100, atol=1e-6)
     assert np.isnan(got[3])
+
+
+# A point in each mapping's source coordinates over the registry raster below (see
+# tests/test_registry.cpp): a mapping added to the registry without one here fails.
+REGISTRY_POINTS = {"cartesian": (10.2, 44.85), "spherical": (10.2, 44.85), "cylindrical": (10, 0),
+                   "geodetic": (10.2, 44.85), "enu": (120, -80)}
+
+
+def test_every_mapping_of_the_registry_is_reached(tmp_path):
+    # qota.MAPPINGS is the library's registry; each is built from a raster, answers as the tool
+    # answers, and survives a tree file; the stub's Literal lists the same names.
+    import ast
+    import subprocess
+    stub = ast.parse((Path(qota.__file__).parent / "__init__.pyi").read_text())
+    literal = next(node.value for node in ast.walk(stub)
+                   if isinstance(node, ast.Assign) and getattr(node.targets[0], "id", "") == "_Mapping")
+    assert tuple(e.value for e in literal.slice.elts) == qota.MAPPINGS
+    rows, cols = np.mgrid[0:30, 0:40]
+    heights = 60 + 20 * np.sin(0.3 * cols) + 15 * np.cos(0.2 * rows) + cols
+    path = tmp_path / "registry.tif"
+    rasterio = pytest.importorskip("rasterio")
+    with rasterio.open(path, "w", driver="GTiff", width=40, height=30, count=1, dtype="float64", crs="EPSG:4326",
+                       transform=rasterio.Affine(0.01, 0, 10.0, 0, -0.01, 45.0)) as out:
+        out.write(heights, 1)
+    tool = os.environ.get("QOTA_TOOL") or str(Path(__file__).resolve().parents[2] / "build" / "tools" / "qota")
+    for name in qota.MAPPINGS:
+        assert name in REGISTRY_POINTS, f"mapping {name} has no test point"
+        x, y = REGISTRY_POINTS[name]
+        terrain = qota.Terrain.from_raster(path, mapping=name)
+        assert terrain.mapping == name
+        got = terrain.heights([x], [y])[0]
+        assert np.isfinite(got)
+        if os.path.exists(tool):
+            run = subprocess.run([tool, "sample", str(path), "--mapping", name], input=f"{x!r} {y!r}\n",
+                                 capture_output=True, text=True)
+            assert run.returncode == 0, run.stderr
+            assert float(run.stdout) == pytest.approx(got, rel=1e-12, abs=1e-9)
+        terrain.save(tmp_path / f"{name}.qota")
+        again = qota.Terrain.load(tmp_path / f"{name}.qota")
+        assert again.mapping == name
+        assert again.heights([x], [y])[0] == got

@@ -259,7 +259,7 @@ def test_polygons_and_normals_on_request():
     terrain = qota.Terrain.from_mesh(v, t)
     x, y, z = rng.uniform(-1, 12, 3000), rng.uniform(-1, 12, 3000), rng.uniform(-2, 30, 3000)
     for name, below in [("below", True), ("above", False)]:
-        h, p, n = getattr(terrain, name)(x, y, z, polygons=True, normals=True)
+        h, p, n = terrain.hits(x, y, z, side=name)
         np.testing.assert_array_equal(h, getattr(terrain, name)(x, y, z))
         hit = ~np.isnan(h)
         assert np.all(p[~hit] == -1) and np.all(np.isnan(n[~hit]))
@@ -272,10 +272,25 @@ def test_polygons_and_normals_on_request():
         np.testing.assert_allclose(n[hit], normal, atol=1e-9)
         point = np.column_stack([x[hit], y[hit], h[hit]])
         np.testing.assert_allclose(np.einsum("ij,ij->i", point - a, normal), 0, atol=1e-9)
-    h, p = terrain.heights(np.full((2, 3), 3.3), 2.2, polygons=True)
-    assert h.shape == p.shape == (2, 3) and p.dtype == np.int64
-    (lo, lo_n), (hi, hi_n) = terrain.bracket(3.3, 2.2, 10.0, normals=True)
-    assert lo < 10 < hi and lo_n.shape == hi_n.shape == (3,)
+    hit = terrain.hits(np.full((2, 3), 3.3), 2.2, normals=False)
+    assert isinstance(hit, qota.Hits) and hit.normal is None
+    assert hit.height.shape == hit.polygon.shape == (2, 3) and hit.polygon.dtype == np.int64
+    lo, hi = terrain.hits(3.3, 2.2, 10.0, side="below"), terrain.hits(3.3, 2.2, 10.0, side="above")
+    assert lo.height < 10 < hi.height and lo.normal.shape == hi.normal.shape == (3,)
+    assert terrain.bracket(3.3, 2.2, 10.0) == (lo.height, hi.height)
+    with pytest.raises(qota.Error, match="side must be"):
+        terrain.hits(3.3, 2.2, 10.0, side="under")
+    with pytest.raises(qota.Error, match="z is given"):
+        terrain.hits(3.3, 2.2, 10.0)
+    with pytest.raises(qota.Error, match="z is given"):
+        terrain.hits(3.3, 2.2, side="below")
+    # The 0.2 flags still answer, as a tuple, and say what replaces them.
+    with pytest.warns(DeprecationWarning, match="use hits"):
+        h, p = terrain.heights(np.full((2, 3), 3.3), 2.2, polygons=True)
+    np.testing.assert_array_equal(p, hit.polygon)
+    with pytest.warns(DeprecationWarning):
+        (lo_h, lo_n), (hi_h, hi_n) = terrain.bracket(3.3, 2.2, 10.0, normals=True)
+    np.testing.assert_array_equal(lo_n, lo.normal)
 
 
 def test_outer_half_pixel_takes_the_nearest_centres_height():
@@ -364,3 +379,16 @@ def test_heights_over_a_geoid_and_lights_of_the_body():
     assert qota.shadow(dem, sun_vector=(0.5, 0.5, 0.7), flat=True).shape == v.shape
     with pytest.raises(qota.Error, match="sun_vector_body must be 3 numbers"):
         qota.shadow(dem, sun_vector_body=(1, 2))
+
+
+def test_a_lon_lat_map_gives_heights_and_polygons_but_no_mixed_normals():
+    # A longitude/latitude raster in the cartesian mapping: x, y in degrees, heights in metres.
+    # Its heights and polygons are right; its normals would mix the units, so hits() refuses them
+    # unless normals=False.
+    heights = np.arange(20.0).reshape(4, 5) * 10
+    terrain = qota.Terrain.from_array(heights, (10.0, 0.1, 0, 45.0, 0, -0.1), crs="EPSG:4326")
+    with pytest.raises(qota.Error, match="normals=False"):
+        terrain.hits(10.2, 44.8)
+    hit = terrain.hits(10.25, 44.85, normals=False)
+    assert hit.normal is None and hit.polygon >= 0
+    assert hit.height == terrain.heights(10.25, 44.85)

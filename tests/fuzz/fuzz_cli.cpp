@@ -60,7 +60,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   setUp();
   const std::string text(reinterpret_cast<const char*>(data), size);
   const std::size_t split = text.find('\x01');
-  const std::string argText = text.substr(0, split), stdinText = split == std::string::npos ? "" : text.substr(split + 1);
+  const std::string argText = text.substr(0, split),
+                    stdinText = split == std::string::npos ? "" : text.substr(split + 1);
   std::vector<std::string> args{"qota"};
   std::string current;
   for (char c : argText) {

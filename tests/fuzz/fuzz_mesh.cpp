@@ -8,7 +8,7 @@
 #include "qota/terrain.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  static constexpr std::array<const char*, 6> kNames = {"input.obj", "input.ply", "input.off",
+  static constexpr std::array<const char*, 6> kNames = {"input.obj", "input.ply",     "input.off",
                                                         "input.stl", "input.geojson", "input.dxf"};
   if (size == 0) return 0;
   const std::string path = qota::fuzz::writeFile(kNames[data[0] % kNames.size()], data + 1, size - 1);
@@ -17,7 +17,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     options.triangulate = (data[0] / kNames.size()) % 2 == 1;
     options.readerSeconds = 2;  // a hang in Assimp's parsers is an error after this
     const qota::MeshFile file = qota::loadMeshFile(path, options);
-    const qota::TerrainIndex index(file.mesh, qota::CartesianMapping(Eigen::Vector3d(0, 0, -1), file.origin));
+    const qota::CartesianIndex index(file.mesh, qota::CartesianMapping(Eigen::Vector3d(0, 0, -1), file.origin));
     const qota::Box2 box = index.tree().box();
     for (int i = 0; i <= 4; ++i) {
       const double u = box.ulo + (box.uhi - box.ulo) * i / 4, v = box.vlo + (box.vhi - box.vlo) * i / 4;

@@ -47,11 +47,20 @@ std::string structuredRaster(Bytes& in) {
   const GDALDataType type = kTypes[in.byte() % kTypes.size()];
   double gt[6] = {500000, 30, 0, 5000000, 0, -30};
   switch (in.byte() % 5) {
-    case 1: gt[0] = -121, gt[1] = 1.0 / 120, gt[3] = 47, gt[5] = -1.0 / 120; break;
-    case 2: for (double& g : gt) g = in.f64(); break;
-    case 3: gt[2] = 10, gt[4] = 20; break;                            // rotated
-    case 4: gt[0] = -180, gt[1] = 360.0 / w, gt[3] = 90, gt[5] = -180.0 / h; break;  // the globe
-    default: break;
+    case 1:
+      gt[0] = -121, gt[1] = 1.0 / 120, gt[3] = 47, gt[5] = -1.0 / 120;
+      break;
+    case 2:
+      for (double& g : gt) g = in.f64();
+      break;
+    case 3:
+      gt[2] = 10, gt[4] = 20;
+      break;  // rotated
+    case 4:
+      gt[0] = -180, gt[1] = 360.0 / w, gt[3] = 90, gt[5] = -180.0 / h;
+      break;  // the globe
+    default:
+      break;
   }
   const std::uint8_t crs = in.byte();
   const std::uint8_t extras = in.byte();
@@ -85,7 +94,8 @@ std::string structuredRaster(Bytes& in) {
     const std::string_view pixels = in.rest();
     const int bytes = GDALGetDataTypeSizeBytes(type);
     std::vector<std::uint8_t> buffer(static_cast<std::size_t>(w) * h * bytes);
-    for (std::size_t i = 0; i < buffer.size() && !pixels.empty(); ++i) buffer[i] = static_cast<std::uint8_t>(pixels[i % pixels.size()]);
+    for (std::size_t i = 0; i < buffer.size() && !pixels.empty(); ++i)
+      buffer[i] = static_cast<std::uint8_t>(pixels[i % pixels.size()]);
     if (band->RasterIO(GF_Write, 0, 0, w, h, buffer.data(), w, h, type, 0, 0) != CE_None) return "";
   }
   return path;
@@ -118,8 +128,11 @@ void runTools(const std::string& path, std::uint8_t how) {
   std::string points;
   try {
     const qota::DemTerrain d = qota::describeDem(path, {.band = 1, .lonLatAsCartesian = true});
-    for (const auto& [c, r] : {std::pair{0.0, 0.0}, {d.width * 1.0, d.height * 1.0}, {d.width / 2.0, d.height / 2.0},
-                               {-1.0, -1.0}, {0.25, d.height - 0.25}}) {
+    for (const auto& [c, r] : {std::pair{0.0, 0.0},
+                               {d.width * 1.0, d.height * 1.0},
+                               {d.width / 2.0, d.height / 2.0},
+                               {-1.0, -1.0},
+                               {0.25, d.height - 0.25}}) {
       const auto xy = d.pixelCentre(c - 0.5, r - 0.5);
       points += qota::tools::formatNumber(xy[0]) + " " + qota::tools::formatNumber(xy[1]) + " 1e9\n";
     }
@@ -210,7 +223,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   }
   try {
     const qota::DemTerrain dem = qota::loadDem(path, {.band = 1, .lonLatAsCartesian = true});
-    const qota::TerrainIndex index(dem.mesh, dem.mapping);
+    const qota::CartesianIndex index(dem.mesh, dem.mapping);
     for (int r = 0; r < std::min(dem.height, 4); ++r) {
       const auto xy = dem.pixelCentre(r * 0.7, r * 0.3);
       (void)index.topWorld({xy[0], xy[1], 0});

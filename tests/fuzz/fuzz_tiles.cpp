@@ -56,9 +56,12 @@ const Run& run() {
     ds->SetGeoTransform(gt);
     std::vector<float> z(1600);
     for (int r = 0; r < 40; ++r) {
-      for (int c = 0; c < 40; ++c) z[r * 40 + c] = 500 + 300 * std::exp(-std::pow((c - 20) / 4.0, 2)) - 200 * std::exp(-((c - 30) * (c - 30) + (r - 10) * (r - 10)) / 20.0);
+      for (int c = 0; c < 40; ++c)
+        z[r * 40 + c] = 500 + 300 * std::exp(-std::pow((c - 20) / 4.0, 2)) -
+                        200 * std::exp(-((c - 30) * (c - 30) + (r - 10) * (r - 10)) / 20.0);
     }
-    if (ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, 40, 40, z.data(), 40, 40, GDT_Float32, 0, 0) != CE_None) std::abort();
+    if (ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, 40, 40, z.data(), 40, 40, GDT_Float32, 0, 0) != CE_None)
+      std::abort();
     ds.reset();
     std::ostringstream sink;
     qota::tools::ShadowOptions o;
@@ -151,7 +154,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     std::istringstream lines{std::string(in.rest())};
     for (std::string line; std::getline(lines, line);) {
       const auto eq = line.find('=');
-      if (eq != std::string::npos && eq > 0) ds->SetMetadataItem(line.substr(0, eq).c_str(), line.substr(eq + 1).c_str());
+      if (eq != std::string::npos && eq > 0)
+        ds->SetMetadataItem(line.substr(0, eq).c_str(), line.substr(eq + 1).c_str());
     }
     if (reseal) {
       try {
@@ -162,7 +166,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     }
   } else {
     const std::string_view bytes = in.rest();
-    std::ofstream(tiles[0], std::ios::binary | std::ios::trunc).write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+    std::ofstream(tiles[0], std::ios::binary | std::ios::trunc)
+        .write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
   }
   assembleChecked(tiles);
   return 0;

@@ -15,8 +15,8 @@ namespace qota::batch {
 // Throws qota::Error when a batch's output has no room for every point.
 inline void requireRoom(const char* what, std::size_t points, std::size_t room) {
   if (room < points) {
-    throw Error(std::string(what) + ": " + std::to_string(points) + " points but room for " +
-                std::to_string(room) + " answers");
+    throw Error(std::string(what) + ": " + std::to_string(points) + " points but room for " + std::to_string(room) +
+                " answers");
   }
 }
 

@@ -1,5 +1,5 @@
 // CurvedIndex: the QOTA query structure for the curved mappings (spherical, cylindrical,
-// geodetic), on the same quadtree core as the Cartesian TerrainIndex.
+// geodetic), on the same quadtree core as the Cartesian CartesianIndex.
 //
 // In a curved mapping the line of (u, v) is not vertical, and a 3D triangle's projection into
 // (u, v) has curved edges. So the quadtree is used only to find candidates: each triangle is
@@ -33,7 +33,7 @@
 //
 // Polygons of more than 3 vertices are fanned from their first vertex. Degenerate triangles
 // (zero area) are left out and counted. Ties between equally near hits go to the smallest polygon
-// id, as in TerrainIndex.
+// id, as in CartesianIndex.
 //
 // Thread safety: a built index is immutable; any number of threads may query it at once.
 #pragma once
@@ -81,7 +81,7 @@ class CurvedIndex {
   std::optional<double> height(double u, double v) const;
   std::optional<double> heightBelow(double u, double v, double z) const;
   // Temporal coherence: the same queries from a per-object cursor that remembers the last leaf
-  // (see TerrainIndex); identical answers.
+  // (see CartesianIndex); identical answers.
   std::optional<Hit> below(Quadtree::Cursor& cursor, double u, double v, double h) const;
   std::optional<Hit> above(Quadtree::Cursor& cursor, double u, double v, double h) const;
   std::optional<double> height(Quadtree::Cursor& cursor, double u, double v) const;
@@ -115,7 +115,7 @@ class CurvedIndex {
                                  double tmin = -std::numeric_limits<double>::infinity(),
                                  double tmax = std::numeric_limits<double>::infinity()) const;
 
-  // Dynamic edits, as TerrainIndex's: insertPolygon adds a polygon by its world corners (ids
+  // Dynamic edits, as CartesianIndex's: insertPolygon adds a polygon by its world corners (ids
   // continue after the mesh's), into every leaf its footprint meets (leaves split by the build's
   // rule; a footprint outside the tree's box grows it and rebuilds the tree); removePolygon takes
   // one out (false when there is no such live polygon). The answers then equal an index built
@@ -141,7 +141,7 @@ class CurvedIndex {
     double s;
     double d[3];
     double hOffset;  // the height of O + t d is t - hOffset (geodetic: N at the latitude; else 0)
-    double bound;   // error bound of the filtered edge tests on this line
+    double bound;    // error bound of the filtered edge tests on this line
   };
   Line lineAt(double u, double v) const;
 
@@ -164,20 +164,17 @@ class CurvedIndex {
   struct FootBox {
     double ulo, uhi, vlo, vhi;
   };
-  bool makeTriangle(const Eigen::Vector3d (&p)[3], const double (&vertexHeight)[3], std::uint32_t poly,
-                    Tri& t, FootBox& box) const;
+  bool makeTriangle(const Eigen::Vector3d (&p)[3], const double (&vertexHeight)[3], std::uint32_t poly, Tri& t,
+                    FootBox& box) const;
   void addToPolarLists(std::uint32_t i, const FootBox& box);
   // The tree's overlap test: the record's float box (rounded outward) against a node's box, with
   // the seam; the same at build and on edits.
   bool overlaps(std::uint32_t i, const Box2& b) const {
     const Tri& f = tris_[i];
     if (f.vlo > b.vhi || f.vhi < b.vlo) return false;
-    return (f.ulo <= b.uhi && f.uhi >= b.ulo) ||
-           (f.ulo - 360.0 <= b.uhi && f.uhi - 360.0 >= b.ulo);
+    return (f.ulo <= b.uhi && f.uhi >= b.ulo) || (f.ulo - 360.0 <= b.uhi && f.uhi - 360.0 >= b.ulo);
   }
-  bool live(std::uint32_t i) const {
-    return !(tris_[i].polygon < removed_.size() && removed_[tris_[i].polygon]);
-  }
+  bool live(std::uint32_t i) const { return !(tris_[i].polygon < removed_.size() && removed_[tris_[i].polygon]); }
   void rebuildTree(Box2 root);
 
   double normalizeU(double u) const;
@@ -198,8 +195,8 @@ class CurvedIndex {
   }
   void prefetch(std::span<const std::uint32_t> items) const;
   template <bool Below>
-  std::uint32_t nearestIn(std::span<const std::uint32_t> items, bool checkBox, double u, double v,
-                          const Line& line, double ez, double& hOut, double& tOut) const;
+  std::uint32_t nearestIn(std::span<const std::uint32_t> items, bool checkBox, double u, double v, const Line& line,
+                          double ez, double& hOut, double& tOut) const;
   template <bool Below>
   std::uint32_t nearest(double u, double v, double h, double& hOut, Line& line, double& tOut,
                         Quadtree::Cursor* cursor = nullptr) const;
@@ -211,8 +208,8 @@ class CurvedIndex {
   template <class ZOf>  // z of point i: zOf(i)
   void heightsBelowBatch(std::span<const Point2> points, const ZOf& zOf, std::span<std::optional<double>> out) const;
   // The top of the mapping's h ("below" any terrain) in the direction of up.
-  static constexpr double kTop = M::kHeightUp ? std::numeric_limits<double>::infinity()
-                                              : -std::numeric_limits<double>::infinity();
+  static constexpr double kTop =
+      M::kHeightUp ? std::numeric_limits<double>::infinity() : -std::numeric_limits<double>::infinity();
 
   M mapping_;
   BigVector<Tri> tris_;

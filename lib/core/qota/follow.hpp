@@ -1,6 +1,6 @@
 // Terrain following: the paper's uses of a QOTA index beyond one height, for every mapping.
 //
-// Each function takes any index with the query interface of TerrainIndex and CurvedIndex
+// Each function takes any index with the query interface of CartesianIndex and CurvedIndex
 // (mapping(), below(u, v, h), above(u, v, h)), so it works in the Cartesian, spherical,
 // cylindrical and geodetic mappings alike: "up" is always against the mapping's down at the
 // point, and "below" is the mapping's (farther from the axis in a station).
@@ -54,7 +54,6 @@ inline Pose poseOnHit(const Hit& hit, const Eigen::Vector3d& forward) {
   return pose;
 }
 
-
 template <class Index>
 using MappingOf = std::decay_t<decltype(std::declval<const Index&>().mapping())>;
 
@@ -78,21 +77,20 @@ std::optional<Hit> groundUnder(const Index& index, const Eigen::Vector3d& world,
 // The plane through points (3: exact; more: least squares, Eigen's self-adjoint eigensolver on
 // the covariance): centroid, unit normal (either sign), RMS distance of the points from it.
 // False when the points are (nearly) collinear.
-bool fitPlane(std::span<const Eigen::Vector3d> points, Eigen::Vector3d& centroid,
-              Eigen::Vector3d& normal, double& rms);
+bool fitPlane(std::span<const Eigen::Vector3d> points, Eigen::Vector3d& centroid, Eigen::Vector3d& normal, double& rms);
 
 // The pose of an object on a plane through `position` with upward unit normal `normal`, where
 // the world's up is `up`: z along the normal, x in the plane and in the vertical plane of
 // `heading` (so seen from above the object faces the heading, as a car does on a slope), y = z x
 // x. A heading along up falls back to any direction in the plane.
-Pose poseOnPlane(const Eigen::Vector3d& position, const Eigen::Vector3d& normal,
-                 const Eigen::Vector3d& up, const Eigen::Vector3d& heading);
+Pose poseOnPlane(const Eigen::Vector3d& position, const Eigen::Vector3d& normal, const Eigen::Vector3d& up,
+                 const Eigen::Vector3d& heading);
 
 struct FootprintPose {
-  std::optional<Pose> pose;           // none with fewer than 3 hits or collinear hits
-  std::vector<std::optional<Hit>> hits;  // the ground under each sample, in order
-  std::vector<std::size_t> missing;   // samples over a hole (a wheel off the edge)
-  double rms = 0;                     // RMS distance of the hits from the plane (0 for 3)
+  std::optional<Pose> pose;                      // none with fewer than 3 hits or collinear hits
+  std::vector<std::optional<Hit>> hits;          // the ground under each sample, in order
+  std::vector<std::size_t> missing;              // samples over a hole (a wheel off the edge)
+  double rms = 0;                                // RMS distance of the hits from the plane (0 for 3)
   Eigen::Vector3d up = Eigen::Vector3d::Zero();  // the plane's normal, pointing up
 };
 
@@ -133,18 +131,18 @@ enum class MoveBlock {
 };
 
 struct MoveOptions {
-  bool wholePath = false;  // false: the endpoint only (the paper's check)
-  double step = 1.0;       // sample spacing along the way, in world units
+  bool wholePath = false;                                    // false: the endpoint only (the paper's check)
+  double step = 1.0;                                         // sample spacing along the way, in world units
   double maxStep = std::numeric_limits<double>::infinity();  // climbable height between samples
-  double clearance = 1.0;  // how far above the object's feet the ground is looked for
+  double clearance = 1.0;                                    // how far above the object's feet the ground is looked for
   std::function<bool(std::uint32_t polygon)> impassable;     // null: every polygon passable
 };
 
 struct MoveResult {
   MoveBlock block = MoveBlock::None;
-  double fraction = 1;               // how far along A -> B the object got (0..1)
-  Eigen::Vector3d last;              // the last point on walkable ground (A's ground if none)
-  std::optional<Hit> ground;         // the ground at `last`
+  double fraction = 1;        // how far along A -> B the object got (0..1)
+  Eigen::Vector3d last;       // the last point on walkable ground (A's ground if none)
+  std::optional<Hit> ground;  // the ground at `last`
   bool allowed() const { return block == MoveBlock::None; }
 };
 
@@ -176,9 +174,8 @@ MoveResult checkMove(const Index& index, const Eigen::Vector3d& from, const Eige
     // the sample at this fraction, lifted to the previous ground's height plus the clearance, so
     // that an overhang above the object (a bridge over its road) is not taken for its ground.
     const Eigen::Vector3d m = index.mapping().toMapped(from + f * (to - from));
-    const std::optional<Hit> g =
-        options.wholePath ? index.below(m.x(), m.y(), prev->height + sign * options.clearance)
-                          : groundUnder(index, to, options.clearance);
+    const std::optional<Hit> g = options.wholePath ? index.below(m.x(), m.y(), prev->height + sign * options.clearance)
+                                                   : groundUnder(index, to, options.clearance);
     MoveBlock block = MoveBlock::None;
     if (!g) {
       block = MoveBlock::Hole;
@@ -212,8 +209,7 @@ bool inLocale(const FloorIndex& floor, const CeilingIndex& ceiling, const Eigen:
 // One index holding both: the nearest terrain below must be a floor polygon and the nearest
 // above a ceiling polygon (so a point under a second storey's floor is not inside the first).
 template <class Index>
-bool inLocale(const Index& index, const Eigen::Vector3d& p,
-              const std::function<bool(std::uint32_t)>& isFloor,
+bool inLocale(const Index& index, const Eigen::Vector3d& p, const std::function<bool(std::uint32_t)>& isFloor,
               const std::function<bool(std::uint32_t)>& isCeiling) {
   const Eigen::Vector3d m = index.mapping().toMapped(p);
   const std::optional<Hit> below = index.below(m.x(), m.y(), m.z());

@@ -63,8 +63,8 @@ class GridPath {
   // exact path. corners and heights are the vertices' mapped (u, v) and h (read where the lean
   // tables do not hold them).
   static constexpr std::uint8_t kUndecided = 0, kHeight = 1, kNoTerrain = 2;
-  void leanHeights(std::span<const Point2> corners, std::span<const double> heights,
-                   std::span<const Point2> points, double* out, std::uint8_t* decided) const;
+  void leanHeights(std::span<const Point2> corners, std::span<const double> heights, std::span<const Point2> points,
+                   double* out, std::uint8_t* decided) const;
   // A removed triangle leaves its slot.
   void clearSlot(const TriangleCorners& triangle, std::uint32_t t);
   // Off for good (an inserted polygon may overlap the grid).
@@ -91,8 +91,8 @@ class GridPath {
   // Corner k of the triangle in half `half` of cell (col, row) on a lean grid: its mapped (u, v)
   // and height, from the lattice's axes and float heights when exact, else from the vertices.
   [[gnu::always_inline]] void leanCorner(std::uint64_t col, std::uint64_t row, std::uint32_t half, int k,
-                                         std::span<const Point2> corners, std::span<const double> heights,
-                                         double& u, double& v, double& h) const;
+                                         std::span<const Point2> corners, std::span<const double> heights, double& u,
+                                         double& v, double& h) const;
   // The vertex index of a cell's first corner.
   std::uint64_t firstVertex(std::uint64_t col, std::uint64_t row) const { return row * w + col; }
 
@@ -106,7 +106,7 @@ class GridPath {
   // (else empty); heights as floats when exact (else empty); one bit per slot that holds a
   // triangle (empty: all do).
   bool lean = false;
-  bool axesF32 = false;  // colU and h32 both in use: the common DEM
+  bool axesF32 = false;           // colU and h32 both in use: the common DEM
   double cellsU = 0, cellsV = 0;  // w - 1, h - 1
   std::uint32_t cornerOffset[2][3] = {{0, 0, 0}, {0, 0, 0}};
   std::uint8_t dc[2][3] = {}, dr[2][3] = {};
@@ -139,8 +139,8 @@ class GridPath {
   return g;
 }
 
-[[gnu::always_inline]] inline void GridPath::leanCorner(std::uint64_t col, std::uint64_t row, std::uint32_t half,
-                                                        int k, std::span<const Point2> corners,
+[[gnu::always_inline]] inline void GridPath::leanCorner(std::uint64_t col, std::uint64_t row, std::uint32_t half, int k,
+                                                        std::span<const Point2> corners,
                                                         std::span<const double> heights, double& u, double& v,
                                                         double& h) const {
   const std::uint64_t x = row * w + col + cornerOffset[half][k];

@@ -1,4 +1,4 @@
-// The one face of every index (TerrainIndex for the planar mappings, CurvedIndex<M> for the
+// The one face of every index (CartesianIndex for the planar mappings, CurvedIndex<M> for the
 // curved ones): the same calls, names and policies whatever the mapping.
 //
 // Policy: "no terrain" is std::nullopt (an empty vector for all(), alongLine()); a query that is
@@ -27,17 +27,17 @@ namespace qota {
 using Cursor = Quadtree::Cursor;
 
 template <class I>
-concept TerrainQuery = requires(const I& index, double u, double v, double h, const Eigen::Vector3d& p,
-                                Cursor& cursor, std::span<const Point2> points, std::span<const double> zs,
+concept TerrainQuery = requires(const I& index, double u, double v, double h, const Eigen::Vector3d& p, Cursor& cursor,
+                                std::span<const Point2> points, std::span<const double> zs,
                                 std::span<std::optional<double>> out, unsigned threads) {
   index.mapping();
   // At a point (u, v) of the mapped plane.
-  { index.below(u, v, h) } -> std::same_as<std::optional<Hit>>;   // nearest with height <= h
-  { index.above(u, v, h) } -> std::same_as<std::optional<Hit>>;   // nearest with height >= h
+  { index.below(u, v, h) } -> std::same_as<std::optional<Hit>>;  // nearest with height <= h
+  { index.above(u, v, h) } -> std::same_as<std::optional<Hit>>;  // nearest with height >= h
   { index.bracket(u, v, h) } -> std::same_as<Bracket>;
-  { index.top(u, v) } -> std::same_as<std::optional<Hit>>;         // the highest
-  { index.all(u, v) } -> std::same_as<std::vector<Hit>>;           // every hit, top first
-  { index.height(u, v) } -> std::same_as<std::optional<double>>;   // top's height
+  { index.top(u, v) } -> std::same_as<std::optional<Hit>>;        // the highest
+  { index.all(u, v) } -> std::same_as<std::vector<Hit>>;          // every hit, top first
+  { index.height(u, v) } -> std::same_as<std::optional<double>>;  // top's height
   { index.heightBelow(u, v, h) } -> std::same_as<std::optional<double>>;
   // At a world point: the mapping's line through it.
   { index.belowWorld(p) } -> std::same_as<std::optional<Hit>>;
@@ -68,8 +68,8 @@ concept TerrainQuery = requires(const I& index, double u, double v, double h, co
 
 // The edits every index takes (the paper's dynamic insertion).
 template <class I>
-concept EditableTerrain = TerrainQuery<I> && requires(I& index, std::span<const Eigen::Vector3d> corners,
-                                                      std::uint32_t polygon) {
+concept EditableTerrain = TerrainQuery<I> &&
+    requires(I& index, std::span<const Eigen::Vector3d> corners, std::uint32_t polygon) {
   { index.insertPolygon(corners) } -> std::same_as<std::uint32_t>;
   { index.removePolygon(polygon) } -> std::same_as<bool>;
 };

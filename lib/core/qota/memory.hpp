@@ -26,7 +26,7 @@ struct HugePageAllocator {
   T* allocate(std::size_t n) {
     const std::size_t bytes = n * sizeof(T);
     if (bytes < kHugePage) {
-      return static_cast<T*>(::operator new(bytes, std::align_val_t{alignof(T) < 64 ? 64 : alignof(T)}));
+      return static_cast<T*>(::operator new (bytes, std::align_val_t{alignof(T) < 64 ? 64 : alignof(T)}));
     }
     const std::size_t rounded = (bytes + kHugePage - 1) / kHugePage * kHugePage;
     void* p = std::aligned_alloc(kHugePage, rounded);
@@ -36,13 +36,15 @@ struct HugePageAllocator {
   }
   void deallocate(T* p, std::size_t n) {
     if (n * sizeof(T) < kHugePage) {
-      ::operator delete(p, std::align_val_t{alignof(T) < 64 ? 64 : alignof(T)});
+      ::operator delete (p, std::align_val_t{alignof(T) < 64 ? 64 : alignof(T)});
     } else {
       std::free(p);
     }
   }
   template <class U>
-  bool operator==(const HugePageAllocator<U>&) const { return true; }
+  bool operator==(const HugePageAllocator<U>&) const {
+    return true;
+  }
 };
 
 template <class T>

@@ -22,10 +22,10 @@ constexpr std::uint64_t kProcessBase = 80ull << 20;
 // A raster read into a terrain (loadDem): the vertices, the pixels read as doubles while they are
 // placed, the triangles' indices.
 constexpr PerItem kDemMesh{36, 13};
-// A TerrainIndex with its quadtree, at its build's peak (records, pending list, Morton keys,
+// A CartesianIndex with its quadtree, at its build's peak (records, pending list, Morton keys,
 // references). Measured up to 206 bytes a triangle (a 500 x 500 raster), 192 at 2000 x 2000.
 constexpr PerItem kCartesianIndex{40, 230};
-// A TerrainIndex on a regular grid answering heights only: the lean grid, no tree (qota sample).
+// A CartesianIndex on a regular grid answering heights only: the lean grid, no tree (qota sample).
 constexpr PerItem kGridIndex{40, 80};
 // A curved index (spherical, geodetic, cylindrical) with its quadtree. Measured up to 313.
 constexpr PerItem kCurvedIndex{40, 360};

@@ -1,6 +1,6 @@
 // A terrain as a polygon soup: world-frame vertices and convex polygons given by vertex indices.
 // Polygons may overlap and need not be connected; gaps between them are holes. Winding does not
-// matter. This is what every terrain source (rasters, mesh files) produces and what TerrainIndex
+// matter. This is what every terrain source (rasters, mesh files) produces and what CartesianIndex
 // builds from.
 #pragma once
 
@@ -20,9 +20,7 @@ struct Mesh {
   // triangle (the common case, which then costs no offset array): polygon p is indices[3p .. 3p+3).
   std::vector<std::uint32_t> offsets;
 
-  std::size_t polygonCount() const {
-    return offsets.empty() ? indices.size() / 3 : offsets.size() - 1;
-  }
+  std::size_t polygonCount() const { return offsets.empty() ? indices.size() / 3 : offsets.size() - 1; }
   std::span<const std::uint32_t> polygon(std::size_t p) const {
     if (offsets.empty()) return {indices.data() + 3 * p, 3};
     return {indices.data() + offsets[p], offsets[p + 1] - offsets[p]};

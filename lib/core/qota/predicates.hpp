@@ -10,7 +10,7 @@
 // exact error with fma, and sums the twelve terms into a non-overlapping floating-point expansion
 // (Priest/Shewchuk's expansion arithmetic). The sign of an expansion is the sign of its largest
 // component. It is about 100 times slower than the plain determinant, so the hot paths call it
-// only when a filtered floating-point evaluation cannot decide (see TerrainIndex).
+// only when a filtered floating-point evaluation cannot decide (see CartesianIndex).
 //
 // Valid for all finite inputs whose products neither overflow nor underflow (|coordinate| between
 // about 1e-150 and 1e150, or zero), far beyond any terrain.

@@ -55,13 +55,12 @@ class Quadtree {
   // Builds over items 0..itemCount-1 in the closed box root. overlaps(item, box) must return true
   // whenever the item meets the closed box (it may also return true when in doubt).
   // minSizeU/V: a node smaller than this along both axes is not split (no cut can separate items
-  // larger than the node; see TerrainIndex). 0: no floor.
+  // larger than the node; see CartesianIndex). 0: no floor.
   // boxOf(item): the item's bounding box, for the cost-model cuts (QuadtreeOptions::cuts); empty:
   // midpoint cuts.
   template <class Overlaps>
-  void build(std::uint32_t itemCount, Box2 root, const QuadtreeOptions& options,
-             Overlaps&& overlaps, double minSizeU = 0, double minSizeV = 0,
-             const std::function<Box2(std::uint32_t)>& boxOf = {});
+  void build(std::uint32_t itemCount, Box2 root, const QuadtreeOptions& options, Overlaps&& overlaps,
+             double minSizeU = 0, double minSizeV = 0, const std::function<Box2(std::uint32_t)>& boxOf = {});
   // Whether the cuts are stored per node (cost model) rather than at the midpoints.
   bool storedCuts() const { return !cut_.empty(); }
   // The index into nodes() of the leaf containing (u, v). Precondition: contains(u, v).
@@ -74,9 +73,7 @@ class Quadtree {
   bool contains(double u, double v) const { return root_.contains(u, v); }
 
   // The items of the leaf containing (u, v). Precondition: contains(u, v).
-  std::span<const std::uint32_t> leafItems(double u, double v) const {
-    return leafRange(leafNode(u, v));
-  }
+  std::span<const std::uint32_t> leafItems(double u, double v) const { return leafRange(leafNode(u, v)); }
   // The leaf containing (u, v), as a copy of its node. Precondition: contains(u, v).
   Node leafNode(double u, double v) const {
     if (!cut_.empty()) {
@@ -198,8 +195,8 @@ class Quadtree {
   void forOverlappingLeaves(const Visit& visitLeaf, const std::function<bool(const Box2&)>& meets);
   void buildJumpTable();
   template <class Overlaps>
-  void buildNode(std::uint32_t node, const Box2& box, std::uint32_t depth,
-                 std::vector<std::uint32_t>& items, Overlaps& overlaps);
+  void buildNode(std::uint32_t node, const Box2& box, std::uint32_t depth, std::vector<std::uint32_t>& items,
+                 Overlaps& overlaps);
 
   Box2 root_;
   QuadtreeOptions options_;
@@ -273,8 +270,7 @@ void Quadtree::forLeavesAlong(double u0, double v0, double u1, double v1, Visit&
 }
 
 template <class Visit>
-void Quadtree::forOverlappingLeaves(const Visit& visitLeaf,
-                                    const std::function<bool(const Box2&)>& meets) {
+void Quadtree::forOverlappingLeaves(const Visit& visitLeaf, const std::function<bool(const Box2&)>& meets) {
   struct Item {
     std::uint32_t node, depth;
     Box2 box;
@@ -307,8 +303,7 @@ void Quadtree::insert(std::uint32_t item, Overlaps&& overlaps, Prepare&& prepare
   forOverlappingLeaves(
       [&](std::uint32_t n, std::uint32_t depth, const Box2& box) {
         const Node old = nodes_[n];
-        std::vector<std::uint32_t> items(refs_.begin() + old.first,
-                                         refs_.begin() + old.first + leafSize(old));
+        std::vector<std::uint32_t> items(refs_.begin() + old.first, refs_.begin() + old.first + leafSize(old));
         items.push_back(item);
         abandoned_ += leafSize(old);
         const std::size_t before = nodes_.size();
@@ -346,9 +341,8 @@ void Quadtree::remove(std::uint32_t item, Overlaps&& overlaps) {
 }
 
 template <class Overlaps>
-void Quadtree::build(std::uint32_t itemCount, Box2 root, const QuadtreeOptions& options,
-                     Overlaps&& overlaps, double minSizeU, double minSizeV,
-                     const std::function<Box2(std::uint32_t)>& boxOf) {
+void Quadtree::build(std::uint32_t itemCount, Box2 root, const QuadtreeOptions& options, Overlaps&& overlaps,
+                     double minSizeU, double minSizeV, const std::function<Box2(std::uint32_t)>& boxOf) {
   // A root much longer than it is wide would cut its short side into cells far thinner than the
   // items, each item referenced by thousands of them (a raster two pixels by five thousand). So
   // the short side is widened, about its centre, to at least half the long one.
@@ -376,8 +370,7 @@ void Quadtree::build(std::uint32_t itemCount, Box2 root, const QuadtreeOptions& 
   // Exact halvings of the root size (powers of two scale without rounding).
   const double su = root.uhi - root.ulo, sv = root.vhi - root.vlo;
   for (std::uint32_t d = 0; d <= options.maxDepth; ++d) {
-    half_.push_back({std::ldexp(su, -static_cast<int>(d) - 1),
-                     std::ldexp(sv, -static_cast<int>(d) - 1)});
+    half_.push_back({std::ldexp(su, -static_cast<int>(d) - 1), std::ldexp(sv, -static_cast<int>(d) - 1)});
   }
   // Items that share an edge can never be separated by a cut, so with a Maxpoly below the number
   // of polygons along an edge or around a vertex every leaf on that edge would split down to
@@ -397,12 +390,11 @@ void Quadtree::build(std::uint32_t itemCount, Box2 root, const QuadtreeOptions& 
 }
 
 template <class Overlaps>
-void Quadtree::buildNode(std::uint32_t node, const Box2& box, std::uint32_t depth,
-                         std::vector<std::uint32_t>& items, Overlaps& overlaps) {
+void Quadtree::buildNode(std::uint32_t node, const Box2& box, std::uint32_t depth, std::vector<std::uint32_t>& items,
+                         Overlaps& overlaps) {
   if (items.size() <= options_.maxPoly || depth >= options_.maxDepth ||
       (box.uhi - box.ulo < minSizeU_ && box.vhi - box.vlo < minSizeV_)) {
-    nodes_[node] = {static_cast<std::uint32_t>(refs_.size()),
-                    static_cast<std::uint32_t>(items.size())};
+    nodes_[node] = {static_cast<std::uint32_t>(refs_.size()), static_cast<std::uint32_t>(items.size())};
     refs_.insert(refs_.end(), items.begin(), items.end());
     return;
   }
@@ -418,10 +410,8 @@ void Quadtree::buildNode(std::uint32_t node, const Box2& box, std::uint32_t dept
     cut_[node] = cut;
   }
   const double mu = cut.u, mv = cut.v;
-  const Box2 child[4] = {{box.ulo, box.vlo, mu, mv},
-                         {mu, box.vlo, box.uhi, mv},
-                         {box.ulo, mv, mu, box.vhi},
-                         {mu, mv, box.uhi, box.vhi}};
+  const Box2 child[4] = {
+      {box.ulo, box.vlo, mu, mv}, {mu, box.vlo, box.uhi, mv}, {box.ulo, mv, mu, box.vhi}, {mu, mv, box.uhi, box.vhi}};
   std::vector<std::uint32_t> sub[4];
   for (int c = 0; c < 4; ++c) {
     sub[c].reserve(items.size() / 2);
@@ -443,18 +433,16 @@ void Quadtree::buildNode(std::uint32_t node, const Box2& box, std::uint32_t dept
       static_cast<double>(childRefs) > kMinSplitGain * filled * static_cast<double>(items.size())) {
     nodes_.resize(first);
     if (!cut_.empty()) cut_.resize(first);
-    nodes_[node] = {static_cast<std::uint32_t>(refs_.size()),
-                    static_cast<std::uint32_t>(items.size())};
+    nodes_[node] = {static_cast<std::uint32_t>(refs_.size()), static_cast<std::uint32_t>(items.size())};
     refs_.insert(refs_.end(), items.begin(), items.end());
     return;
   }
   if (refs_.size() + items.size() > refBudget_ || nodes_.size() > refBudget_) {
     throw Error("quadtree: more than " + std::to_string(refBudget_) + " leaf references for " +
-                std::to_string(itemCount_) + " polygons; Maxpoly " +
-                std::to_string(options_.maxPoly) +
+                std::to_string(itemCount_) + " polygons; Maxpoly " + std::to_string(options_.maxPoly) +
                 " is smaller than the number of polygons that share an edge or overlap here, so "
-                "leaves split down to Maxdepth " + std::to_string(options_.maxDepth) +
-                ": raise Maxpoly or lower Maxdepth");
+                "leaves split down to Maxdepth " +
+                std::to_string(options_.maxDepth) + ": raise Maxpoly or lower Maxdepth");
   }
   if ((first >> 20) != ((first + 4) >> 20)) checkMemoryLeft();
   std::vector<std::uint32_t>().swap(items);  // free the parent's list before descending

@@ -32,7 +32,7 @@
 namespace qota {
 
 struct SceneHit {
-  Hit hit;              // world point, world normal (up), world height, the part's polygon id
+  Hit hit;  // world point, world normal (up), world height, the part's polygon id
   std::size_t part = 0;
 };
 
@@ -43,8 +43,7 @@ class Scene {
 
   // Adds a part; the index must outlive the scene. Returns the part's number.
   template <class Index>
-  std::size_t add(const Index& index,
-                  const Eigen::Isometry3d& partToWorld = Eigen::Isometry3d::Identity(),
+  std::size_t add(const Index& index, const Eigen::Isometry3d& partToWorld = Eigen::Isometry3d::Identity(),
                   std::string name = {}) {
     parts_.push_back({&index, partToWorld, partToWorld.inverse(), std::move(name)});
     return parts_.size() - 1;
@@ -62,8 +61,8 @@ class Scene {
 
  private:
   bool onWorldLine(const Eigen::Vector3d& x, const Eigen::Vector3d& down) const;
-  using AnyIndexPtr = std::variant<const TerrainIndex*, const SphericalIndex*,
-                                   const CylindricalIndex*, const GeodeticIndex*>;
+  using AnyIndexPtr =
+      std::variant<const CartesianIndex*, const SphericalIndex*, const CylindricalIndex*, const GeodeticIndex*>;
   struct Part {
     AnyIndexPtr index;
     Eigen::Isometry3d toWorld;

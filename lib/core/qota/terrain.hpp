@@ -1,4 +1,4 @@
-// TerrainIndex (PlanarIndex<M>): the QOTA terrain query structure for a planar mapping: the
+// CartesianIndex (PlanarIndex<M>): the QOTA terrain query structure for a planar mapping: the
 // Cartesian one with any gravity (MERL TR-96-17), or a local east-north-up frame.
 //
 // Build: every vertex is mapped once to (u, v, h) (so polygons sharing a vertex share its mapped
@@ -66,13 +66,12 @@ class PlanarCore {
   // no search for the grid in it).
   PlanarCore(const GridMesh& grid, const PlanarFrame& frame, const IndexOptions& options = {});
 
-
   // Queries at a point (u, v) of the mapped frame.
-  std::optional<Hit> below(double u, double v, double h) const;   // nearest with height <= h
-  std::optional<Hit> above(double u, double v, double h) const;   // nearest with height >= h
+  std::optional<Hit> below(double u, double v, double h) const;  // nearest with height <= h
+  std::optional<Hit> above(double u, double v, double h) const;  // nearest with height >= h
   Bracket bracket(double u, double v, double h) const;
-  std::optional<Hit> top(double u, double v) const;               // highest hit
-  std::vector<Hit> all(double u, double v) const;                 // every polygon, top to bottom
+  std::optional<Hit> top(double u, double v) const;  // highest hit
+  std::vector<Hit> all(double u, double v) const;    // every polygon, top to bottom
 
   // The same at a world point: the line through it along gravity, "below" meaning further along
   // gravity.
@@ -165,8 +164,7 @@ class PlanarCore {
   // The memory the index holds right now: without the tree (and the records it brings) while a
   // grid has not needed it. Thread-safe, during the deferred build too.
   std::uint64_t memoryBytesNow() const {
-    return deferredTree_ && !deferred_->built.load() ? baseMemoryBytes_ + recordBytesBeforeTree_
-                                                    : stats().memoryBytes;
+    return deferredTree_ && !deferred_->built.load() ? baseMemoryBytes_ + recordBytesBeforeTree_ : stats().memoryBytes;
   }
 
   // The memory a query at (u, v) looks at: polygon tests (bbox checks), the size of its leaf.
@@ -176,9 +174,9 @@ class PlanarCore {
   PlanarCore() = default;
 
  private:
-  friend struct TreeFileAccess;  // the on-disk format (treefile.hpp)
+  friend struct TreeFileAccess;                                            // the on-disk format (treefile.hpp)
   static constexpr double kTop = std::numeric_limits<double>::infinity();  // "below" any terrain
-  template <class ZOf>  // z of point i: zOf(i)
+  template <class ZOf>                                                     // z of point i: zOf(i)
   void heightsBelowBatch(std::span<const Point2> points, const ZOf& zOf, std::span<std::optional<double>> out) const;
   // Hot per-triangle record, one per triangle, 128 bytes (two cache lines), in Morton order.
   // The plane is solved from corner 0 (h0 + a (u - u0) + b (v - v0)) rather than as a u + b v + c:
@@ -186,11 +184,11 @@ class PlanarCore {
   // the coordinates. There is no separate bbox: the three edge tests cost about as much as four
   // bbox compares and need no extra bytes.
   struct alignas(64) Tri {
-    double A[3], B[3], C[3];   // edges: inside is A u + B v + C >= 0 (counter-clockwise order)
-    double u0, v0, h0;         // corner 0
-    double a, b;               // plane slopes: dh/du, dh/dv
-    double tol;                // error bound of the edge evaluations inside the domain
-    float hlo, hhi;            // height range of the corners, rounded outward (clamps the plane)
+    double A[3], B[3], C[3];  // edges: inside is A u + B v + C >= 0 (counter-clockwise order)
+    double u0, v0, h0;        // corner 0
+    double a, b;              // plane slopes: dh/du, dh/dv
+    double tol;               // error bound of the edge evaluations inside the domain
+    float hlo, hhi;           // height range of the corners, rounded outward (clamps the plane)
   };
   static_assert(sizeof(Tri) == 128);
 
@@ -198,8 +196,7 @@ class PlanarCore {
   // before it gets its records (Pending, a polygon's fan).
   using Cold = detail::TriangleCorners;
   using Pending = detail::TriangleCorners;
-  void fanPolygon(std::span<const std::uint32_t> idx, std::uint32_t polygon,
-                  std::vector<Pending>& pending) const;
+  void fanPolygon(std::span<const std::uint32_t> idx, std::uint32_t polygon, std::vector<Pending>& pending) const;
   // The build's steps: the size checks and the mapped vertices; a polygon's corners checked (in
   // range, finite); then everything after the fan. A grid mesh hands its lattice's shape and
   // each triangle's slot to the last.
@@ -236,11 +233,10 @@ class PlanarCore {
   }
   static constexpr std::uint32_t kNone = 0xffffffffu;
   template <bool Below>
-  std::uint32_t nearest(double u, double v, double z, double& h,
-                        Quadtree::Cursor* cursor = nullptr) const;
+  std::uint32_t nearest(double u, double v, double z, double& h, Quadtree::Cursor* cursor = nullptr) const;
   template <bool Below>
-  std::uint32_t nearestIn(std::span<const std::uint32_t> items, bool singleLayer, double u,
-                          double v, double z, double& h) const;
+  std::uint32_t nearestIn(std::span<const std::uint32_t> items, bool singleLayer, double u, double v, double z,
+                          double& h) const;
   bool contains(const Tri& r, std::uint32_t t, double u, double v) const;
   bool separated(std::uint32_t a, std::uint32_t b) const;
   void prefetchTriangles(std::span<const std::uint32_t> items) const;
@@ -248,10 +244,10 @@ class PlanarCore {
   PlanarFrame frame_;
   mutable BigVector<Tri> tris_;  // empty for a compact grid until the tree is built
   BigVector<Cold> cold_;
-  BigVector<Point2> corners2_;  // mapped (u, v) of each vertex, for the exact predicate
-  BigVector<double> cornerH_;   // mapped h of each vertex (for lines not along gravity)
+  BigVector<Point2> corners2_;                 // mapped (u, v) of each vertex, for the exact predicate
+  BigVector<double> cornerH_;                  // mapped h of each vertex (for lines not along gravity)
   double hmin_ = INFINITY, hmax_ = -INFINITY;  // the triangles' height range
-  double umax_ = 0, vmax_ = 0;  // largest |u|, |v| of the domain: sets the edge tolerances
+  double umax_ = 0, vmax_ = 0;                 // largest |u|, |v| of the domain: sets the edge tolerances
   // Edits: the triangles of each polygon (built on the first removal) and the removed polygons.
   std::unordered_multimap<std::uint32_t, std::uint32_t> trianglesOf_;
   std::vector<std::uint8_t> removed_;
@@ -264,12 +260,12 @@ class PlanarCore {
   // `record` points at the stored record, or at `scratch` where it was computed.
   std::uint32_t gridTriangle(double u, double v, Tri& scratch, const Tri*& record) const;
   // Its rare path, kept out of line: points on or near an edge, in holes, off the grid.
-  [[gnu::noinline]] std::uint32_t gridTriangleNearEdge(double u, double v, double fc, double fr,
-                                                       Tri& scratch, const Tri*& record) const;
+  [[gnu::noinline]] std::uint32_t gridTriangleNearEdge(double u, double v, double fc, double fr, Tri& scratch,
+                                                       const Tri*& record) const;
   // The record of triangle t of the grid: the stored one, or computed into scratch from its
   // corners while no records are kept.
   const Tri& gridRecord(std::uint32_t t, Tri& scratch) const;
-  Tri recordOf(std::uint32_t t) const;    // stored, or computed from its corners
+  Tri recordOf(std::uint32_t t) const;  // stored, or computed from its corners
   Tri computeRecord(const std::uint32_t corner[3]) const;
   void edgeRecord(const std::uint32_t corner[3], Tri& r) const;
   void planeRecord(const std::uint32_t corner[3], Tri& r) const;
@@ -288,8 +284,7 @@ class PlanarCore {
   struct LeanPlane {
     double a, b, h0, u0, v0, lo, hi;
   };
-  double leanAnswer(std::uint64_t col, std::uint64_t row, std::uint32_t half, double u, double v,
-                    LeanPlane& p) const;
+  double leanAnswer(std::uint64_t col, std::uint64_t row, std::uint32_t half, double u, double v, LeanPlane& p) const;
   // Corner k of that triangle.
   void leanCorner(std::uint64_t col, std::uint64_t row, std::uint32_t half, int k, double& u, double& v,
                   double& h) const;
@@ -336,8 +331,10 @@ class PlanarIndex : public PlanarCore {
   M mapping_;
 };
 
-// The index of the Cartesian mapping (any gravity): the paper's.
-using TerrainIndex = PlanarIndex<CartesianMapping>;
+// The index of the Cartesian mapping (any gravity): the paper's. Named as its siblings are;
+// TerrainIndex, its name until 0.2, is kept as a deprecated alias.
+using CartesianIndex = PlanarIndex<CartesianMapping>;
+using TerrainIndex [[deprecated("TerrainIndex is now CartesianIndex")]] = CartesianIndex;
 using EnuIndex = PlanarIndex<EnuMapping>;  // ECEF data in a local east-north-up frame
 
 // occludedAbove's exact test of one triangle, from its mapped corners (u, v, h) in the polygon's
@@ -346,7 +343,7 @@ using EnuIndex = PlanarIndex<EnuMapping>;  // ECEF data in a local east-north-up
 // arithmetic, so this is the answer the quadtree would give for that triangle: a caller that finds
 // its candidates another way (the shadow mask's strips) decides them as the quadtree does, without
 // building one. A triangle seen edge-on (zero projected area) covers nothing, as in the index.
-bool mappedTriangleAbove(const Eigen::Vector3d& c0, const Eigen::Vector3d& c1, const Eigen::Vector3d& c2,
-                         double u, double v, double h);
+bool mappedTriangleAbove(const Eigen::Vector3d& c0, const Eigen::Vector3d& c1, const Eigen::Vector3d& c2, double u,
+                         double v, double h);
 
 }  // namespace qota

@@ -39,9 +39,9 @@ struct TreeSource {
   std::string crsWkt;
   int width = 0, height = 0;  // raster size; 0 when the source was not a raster
   std::array<double, 6> geotransform{0, 1, 0, 0, 0, 1};
-  int band = 1;                 // the raster band the heights came from
-  std::string verticalUnit;     // the raster's vertical unit ("" when it said nothing)
-  double metresPerUnit = 1;     // of that unit
+  int band = 1;              // the raster band the heights came from
+  std::string verticalUnit;  // the raster's vertical unit ("" when it said nothing)
+  double metresPerUnit = 1;  // of that unit
   // On an ellipsoid (the geodetic mapping): what the raster's heights were over (qota/geoid.hpp),
   // said as HeightReference::describe says it, and its geoid grid's path ("" for the ellipsoid);
   // the index holds heights over the ellipsoid, and the tools turn them back. Tree files before

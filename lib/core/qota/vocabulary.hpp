@@ -33,11 +33,11 @@ struct QuadtreeOptions {
   std::uint32_t maxDepth = 16;
   // Where a node is cut. Midpoint: the middle of its box, the paper's rule; the descent needs no
   // stored cut, and the top levels go through a jump table. CostModel: along each axis the cut,
-  // among 9 evenly spaced candidates in the middle half of the box, that minimises the expected polygon tests of the two sides
-  // (each side's item count, from the items' bounding boxes, weighted by its share of the box,
-  // as the surface-area heuristic of BVH builders does); cuts are stored per node (16 bytes) and
-  // the descent reads them (no jump table). Only for owners that give the build the items'
-  // boxes (TerrainIndex); others always cut at the midpoint.
+  // among 9 evenly spaced candidates in the middle half of the box, that minimises the expected polygon tests of the
+  // two sides (each side's item count, from the items' bounding boxes, weighted by its share of the box, as the
+  // surface-area heuristic of BVH builders does); cuts are stored per node (16 bytes) and the descent reads them (no
+  // jump table). Only for owners that give the build the items' boxes (CartesianIndex); others always cut at the
+  // midpoint.
   enum class Cuts : std::uint8_t { Midpoint, CostModel };
   Cuts cuts = Cuts::Midpoint;
   // Tree files store this struct as it is: no byte may be left to chance (padding).
@@ -49,12 +49,12 @@ struct QuadtreeStats {  // (no padding: tree files store it as it is)
   std::uint64_t nodes = 0;
   std::uint64_t leaves = 0;
   std::uint64_t emptyLeaves = 0;
-  std::uint64_t references = 0;         // total leaf references (sum of leaf sizes)
-  std::uint32_t depth = 0;              // deepest leaf (root = 0)
+  std::uint64_t references = 0;  // total leaf references (sum of leaf sizes)
+  std::uint32_t depth = 0;       // deepest leaf (root = 0)
   std::uint32_t maxLeafItems = 0;
-  double meanLeafItems = 0;             // over all leaves
-  double averageTests = 0;              // leaf size averaged over the domain's area (Table 4)
-  std::uint64_t memoryBytes = 0;        // nodes and references
+  double meanLeafItems = 0;       // over all leaves
+  double averageTests = 0;        // leaf size averaged over the domain's area (Table 4)
+  std::uint64_t memoryBytes = 0;  // nodes and references
 };
 
 // How an index is built. Options that do not apply to an index's mapping are refused (an error),
@@ -80,10 +80,10 @@ using TerrainOptions [[deprecated("use qota::IndexOptions")]] = IndexOptions;
 
 // Where a line of the mapping meets the terrain.
 struct Hit {
-  double height = 0;         // h in the mapped frame (up = against down)
-  Eigen::Vector3d world;     // the point in the world frame
-  Eigen::Vector3d normal;    // unit surface normal in the world frame, pointing up (against down)
-  std::uint32_t polygon = 0; // index of the source polygon in the Mesh
+  double height = 0;          // h in the mapped frame (up = against down)
+  Eigen::Vector3d world;      // the point in the world frame
+  Eigen::Vector3d normal;     // unit surface normal in the world frame, pointing up (against down)
+  std::uint32_t polygon = 0;  // index of the source polygon in the Mesh
 };
 
 // The nearest terrain below and above a point (the paper's floor and ceiling).
@@ -106,7 +106,7 @@ struct IndexStats {
                                 // (walls) in a planar mapping, zero-area triangles in a curved one
   std::uint64_t vertices = 0;
   std::uint64_t polarNorth = 0, polarSouth = 0;  // curved: triangles in the polar lists
-  Box2 domain;                  // the tree's (u, v) box
+  Box2 domain;                                   // the tree's (u, v) box
   QuadtreeStats tree;
   std::uint64_t memoryBytes = 0;  // everything the index holds
 };

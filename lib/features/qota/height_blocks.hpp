@@ -77,7 +77,7 @@ class HeightBlocks {
   int rowsAdded_ = 0;
   std::vector<std::uint64_t> hashes_;
   std::vector<double> lows_, highs_;  // per block, over its cells with data
-  std::vector<std::uint64_t> open_;  // addRows: the current row of blocks' XXH3 states, as raw bytes
+  std::vector<std::uint64_t> open_;   // addRows: the current row of blocks' XXH3 states, as raw bytes
 };
 
 // XXH3 (64 bits) of bytes given in parts: the same hash as hashOf of them all at once.

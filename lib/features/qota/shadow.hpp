@@ -62,8 +62,8 @@ enum class ShadowSearch {
 // testOnly: the cells to test, in the frame's own columns and rows (the others are left NoData);
 // all of them when not given. The others still occlude.
 std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& towardLight,
-                              const IndexOptions& options = {}, const Progress& progress = {},
-                              unsigned threads = 0, ShadowSearch search = ShadowSearch::Strips,
+                              const IndexOptions& options = {}, const Progress& progress = {}, unsigned threads = 0,
+                              ShadowSearch search = ShadowSearch::Strips,
                               std::optional<CellWindow> testOnly = std::nullopt);
 
 // How far (metres) a shadow can reach across the raster's edge: relief / tan(altitude).

@@ -41,9 +41,9 @@ namespace qota {
 
 // How a DEM becomes a frame (see above).
 struct FrameOptions {
-  bool flat = false;      // no curvature: lon/lat scaled linearly, a projected grid as it is
-  double pixelSize = 0;   // metres per pixel for a raster without CRS (0: refuse such a raster)
-  double zFactor = 1;     // heights times this (gdaldem's -z), after the unit's conversion
+  bool flat = false;     // no curvature: lon/lat scaled linearly, a projected grid as it is
+  double pixelSize = 0;  // metres per pixel for a raster without CRS (0: refuse such a raster)
+  double zFactor = 1;    // heights times this (gdaldem's -z), after the unit's conversion
   // gdaldem's -s: horizontal units per vertical unit, for a raster whose vertical unit is not
   // known (0: metres). Horizontal units: the CRS's linear unit, a degree counted as 111120 m
   // (gdaldem's convention), or the metre of --pixel-size for a raster without CRS.
@@ -67,9 +67,9 @@ struct LocalFrame {
   // Clockwise angle (degrees) from the frame's +y axis to true north: 0 for east-north-up
   // frames, the meridian convergence for flat projected grids.
   double trueNorthFromY = 0;
-  double minHeight = 0, maxHeight = 0;  // metres above the reference surface, over valid cells
+  double minHeight = 0, maxHeight = 0;    // metres above the reference surface, over valid cells
   double pixelSizeX = 1, pixelSizeY = 1;  // metres, at the centre
-  double metresPerUnit = 1;             // of the DEM's heights (unit and zFactor)
+  double metresPerUnit = 1;               // of the DEM's heights (unit and zFactor)
   std::string description;
   // The triangulation: mesh's triangles are grid's (inner ones in the DEM's order, then the
   // closure's), so the shadow mask finds a vertex's triangles by arithmetic. Clear gridMesh after
@@ -132,7 +132,7 @@ LocalFrame localFrame(const DemTerrain& dem, const FrameOptions& options);
 // (completeBasis: the height range of the valid cells in metres, and a window's frame holding
 // the centre square, whose vertices give the pixel size and the triangles' turn).
 struct FrameBasis {
-  DemTerrain raster;   // the raster's description (no mesh)
+  DemTerrain raster;  // the raster's description (no mesh)
   FrameOptions options;
   // On an ellipsoid: the heights' reference and its geoid (none for the ellipsoid), whose least
   // and greatest undulation over the raster widen the height range (so that it bounds the
@@ -140,7 +140,7 @@ struct FrameBasis {
   HeightReference heightRef;
   std::shared_ptr<const Geoid> geoid;
   double geoidLow = 0, geoidHigh = 0;
-  LocalFrame shared;   // the fields every window's frame copies (no mesh, cells or grid)
+  LocalFrame shared;            // the fields every window's frame copies (no mesh, cells or grid)
   RasterGrid::Closure closure;  // the whole raster's
   bool geographic = false;
   double a = 0, flattening = 0;  // the CRS's ellipsoid

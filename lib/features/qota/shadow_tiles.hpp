@@ -73,8 +73,8 @@ class ShadowTiles {
   // The same from any source of heights (a Dask array, ...); description: the raster's size,
   // geotransform, CRS, vertical unit and path (for messages), as describeDem gives them. `read`
   // may be called from one thread at a time only.
-  ShadowTiles(const DemTerrain& description, HeightReader read, const FrameOptions& frame, const Progress& progress = {},
-              std::uint64_t bytes = 0);
+  ShadowTiles(const DemTerrain& description, HeightReader read, const FrameOptions& frame,
+              const Progress& progress = {}, std::uint64_t bytes = 0);
   // Text that makes the same tiles in another process (restore), without reading the raster
   // again: the description (band and nodata value included), the frame's options, what the pass
   // over the heights found (the numbers bit for bit) and the heights' block hashes
@@ -128,7 +128,8 @@ class ShadowTiles {
   // The most cells any of `tiles`' windows takes under these lights: at least what mask and hours
   // read for each, planned from the blocks' height ranges (HeightBlocks::rangeOver) without
   // reading any heights. For estimates and for choosing a tile size.
-  std::uint64_t largestWindowCells(const std::vector<CellWindow>& tiles, const std::vector<Eigen::Vector3d>& lights) const;
+  std::uint64_t largestWindowCells(const std::vector<CellWindow>& tiles,
+                                   const std::vector<Eigen::Vector3d>& lights) const;
   // The largest square tile side (a multiple of `multiple`, at least `multiple`) whose worst-case
   // window under these lights fits in `bytes`; 0 when none does.
   int tileSideFor(std::uint64_t bytes, const std::vector<Eigen::Vector3d>& lights, int multiple) const;
@@ -144,8 +145,8 @@ class ShadowTiles {
   // share one window, the low suns' another (a day's sunrise need not lengthen its noon's): each
   // step's light is found here (sunlightSteps's lights serve tileSideFor and hoursFromHeights).
   SunlightHours hours(const CellWindow& tile, double startJulianDay, double endJulianDay, double stepHours,
-                      const IndexOptions& options = {},
-                      ShadowSearch search = ShadowSearch::Strips, std::uint64_t bytes = 0, unsigned threads = 0) const;
+                      const IndexOptions& options = {}, ShadowSearch search = ShadowSearch::Strips,
+                      std::uint64_t bytes = 0, unsigned threads = 0) const;
   // The lights of the steps of a span (qota::sunlightSteps, sunlightHours's) with the Sun above
   // the horizon at the centre less the frame's slack bound (sunCanLight): the lights a tile's halo
   // must serve. slack: how far below the centre's horizon the Sun may be while some cell sees it

@@ -28,8 +28,8 @@
 namespace qota {
 
 struct SunPosition {
-  double azimuth = 315;   // degrees clockwise from north, [0, 360)
-  double altitude = 45;   // degrees above the horizon, [-90, 90]
+  double azimuth = 315;  // degrees clockwise from north, [0, 360)
+  double altitude = 45;  // degrees above the horizon, [-90, 90]
 };
 
 struct Atmosphere {
@@ -39,8 +39,7 @@ struct Atmosphere {
 
 // The apparent position of the sun seen from (longitude, latitude) (degrees, east and north
 // positive) at the given Julian day (UT).
-SunPosition sunPosition(double julianDayUT, double longitude, double latitude,
-                        const Atmosphere& atmosphere = {});
+SunPosition sunPosition(double julianDayUT, double longitude, double latitude, const Atmosphere& atmosphere = {});
 
 // The sun's apparent geocentric declination (degrees) at the given Julian day (UT).
 double sunDeclination(double julianDayUT);

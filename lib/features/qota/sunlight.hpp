@@ -16,9 +16,9 @@ namespace qota {
 SunPosition sunOverFrame(const LocalFrame& frame, double julianDayUT, const std::string& source);
 
 struct SunlightHours {
-  std::vector<double> hours;  // per cell: hours of direct sunlight (0 where there is no data)
-  int steps = 0;              // masks computed, night steps skipped included
-  double elapsedHours = 0;    // the span's length
+  std::vector<double> hours;        // per cell: hours of direct sunlight (0 where there is no data)
+  int steps = 0;                    // masks computed, night steps skipped included
+  double elapsedHours = 0;          // the span's length
   std::vector<std::uint8_t> valid;  // per cell of hours: it has data (filled by ShadowTiles only)
 };
 

@@ -57,7 +57,7 @@ struct DemOptions {
   // heights at points (qota sample), wrong for anything metric (normals, slopes, poses, moves).
   bool lonLatAsCartesian = false;
   // What the caller builds on the terrain, for the memory check (qota/memory_budget.hpp): by
-  // default a TerrainIndex with its quadtree.
+  // default a CartesianIndex with its quadtree.
   memory::PerItem then = memory::kCartesianIndex;
   // On an ellipsoid (loadOnEllipsoid): what the heights are over (qota/geoid.hpp: "ellipsoid",
   // "egm96", "egm2008", "crs", a grid's path; "": the raster's own, else assumed). Maps ignore it.
@@ -93,16 +93,16 @@ struct DemTerrain {
   std::string crsWkt;  // empty when the raster has no CRS
   std::optional<double> nodata;
   std::uint64_t nodataCells = 0;
-  int band = 1;               // the band read (1-based)
-  std::uint64_t estimatedBytes = 0;  // the job's peak memory as loadDem estimated it
-  VerticalUnit verticalUnit;  // of the heights in mesh (they are kept in this unit)
+  int band = 1;                         // the band read (1-based)
+  std::uint64_t estimatedBytes = 0;     // the job's peak memory as loadDem estimated it
+  VerticalUnit verticalUnit;            // of the heights in mesh (they are kept in this unit)
   VerticalReference verticalReference;  // what the raster states of its heights' reference
   // A north-up grid in longitude/latitude degrees: a longitude names a meridian whatever its turn,
   // so onRaster and surfacePoint take x at whichever of x + 360 k lies on the raster (a MOLA grid
   // in 0..360 east answers -9.8 as 350.2; a tile across the antimeridian answers -179.8).
   bool lonLat = false;
-  Mesh mesh;                   // vertex index = row * width + col
-  CartesianMapping mapping;    // gravity -Z, origin at the raster centre
+  Mesh mesh;                 // vertex index = row * width + col
+  CartesianMapping mapping;  // gravity -Z, origin at the raster centre
 
   // World (x, y) of the centre of pixel (col, row).
   std::array<double, 2> pixelCentre(double col, double row) const {  // (inline: once a pixel)

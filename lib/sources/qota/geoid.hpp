@@ -34,8 +34,8 @@ struct HeightReference {
   // The geoid grid's path; "radius:R" for a sphere of radius R metres on a spherical body (MOLA's
   // "topography = radius - 3396000 m": a constant undulation R - a); empty: over the ellipsoid.
   std::string grid;
-  std::string why;                 // "stated by its vertical CRS EGM96 height (EPSG:5773)", ...
-  bool assumed = false;            // neither stated nor asked
+  std::string why;       // "stated by its vertical CRS EGM96 height (EPSG:5773)", ...
+  bool assumed = false;  // neither stated nor asked
   bool ellipsoidal() const { return grid.empty(); }
   // "EGM96 geoid (egm96_15.gtx; assumed: the raster states no vertical reference)"
   std::string describe() const;

@@ -32,9 +32,9 @@ struct PlanetOptions {
 };
 
 struct PlanetTerrain {
-  DemTerrain dem;             // the raster's description; dem.mesh holds the planet's mesh
-  SphericalMapping mapping;   // centred at the origin
-  double radius = 0;          // the reference radius used
+  DemTerrain dem;            // the raster's description; dem.mesh holds the planet's mesh
+  SphericalMapping mapping;  // centred at the origin
+  double radius = 0;         // the reference radius used
   bool wrapsLongitude = false, northCap = false, southCap = false;
 };
 

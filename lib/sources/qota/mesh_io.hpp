@@ -30,12 +30,12 @@
 // by ear clipping in the plane it is most nearly parallel to, with exact orientation tests; each
 // triangle keeps the face's material, object and source (counted in MeshFile::triangulated). A
 // face kept whole that is not planar may still look non-convex along some gravity, which
-// TerrainIndex refuses; MeshFileOptions::triangulate cuts every face and so avoids that.
+// CartesianIndex refuses; MeshFileOptions::triangulate cuts every face and so avoids that.
 //
 // Degenerate faces: fewer than three distinct corners, or all corners exactly on one line in
 // double arithmetic. They cover no area, so dropping them never opens a crack; a sliver with any
 // area at all is kept, because dropping it would. They are counted in MeshFile::degenerate and
-// dropped unless MeshFileOptions::keepDegenerate (then kept as read; TerrainIndex counts them
+// dropped unless MeshFileOptions::keepDegenerate (then kept as read; CartesianIndex counts them
 // as walls).
 //
 // Materials and objects: OBJ "usemtl" names the material and "o" or "g" the object (the latest
@@ -96,9 +96,7 @@ struct MeshFile {
   // Index of the material or object with this name, or -1 when there is none.
   std::int64_t materialIndex(std::string_view name) const;
   std::int64_t objectIndex(std::string_view name) const;
-  const std::string& materialOf(std::size_t polygon) const {
-    return materials[polygonMaterial[polygon]];
-  }
+  const std::string& materialOf(std::size_t polygon) const { return materials[polygonMaterial[polygon]]; }
   const std::string& objectOf(std::size_t polygon) const { return objects[polygonObject[polygon]]; }
 };
 

@@ -1,5 +1,5 @@
 // Heights under points of a raster of any size, read tile by tile: the answers of loadDem's
-// whole terrain under its TerrainIndex (dem.hpp: pixel centres, the raster rule's triangles,
+// whole terrain under its CartesianIndex (dem.hpp: pixel centres, the raster rule's triangles,
 // nodata holes), bit for bit, in memory bounded by a tile cache instead of by the raster.
 //
 // A tile is a square of tileSize x tileSize cells (the squares between four pixel centres),
@@ -69,7 +69,7 @@ class RasterSampler {
   // the index's own arithmetic (GridPath::leanHeights), and hands the others (near a triangle's
   // side, beside a hole: about 1 in 10,000 random points) to small tiles.
   struct Tile {
-    std::optional<TerrainIndex> index;
+    std::optional<CartesianIndex> index;
     detail::GridPath lean;
     std::vector<Point2> corners;  // the vertices' mapped (u, v), where the lean tables lack them
     std::vector<double> heights;  // and their mapped h
@@ -80,8 +80,8 @@ class RasterSampler {
   // A tile's key: its index at `level` (0: tileSize cells a side, 1: small tiles) and the level;
   // kOff for a point off the cells.
   std::uint64_t tileKey(double x, double y, int level) const;
-  const Tile* cached(std::uint64_t key);            // null: not in the cache
-  void keep(Tile tile);                              // into the cache, evicting the oldest
+  const Tile* cached(std::uint64_t key);  // null: not in the cache
+  void keep(Tile tile);                   // into the cache, evicting the oldest
   // A tile from its window (window: a reusable buffer); thread-safe.
   Tile build(std::uint64_t key, std::vector<double>& window) const;
   // results[k] for point which[k], every point in the tile; the points a lean tile leaves to

@@ -12,13 +12,13 @@
 namespace qota {
 
 struct SourceOptions {
-  std::string source = {};            // a .qota tree file, a raster, or a mesh file
+  std::string source = {};  // a .qota tree file, a raster, or a mesh file
   // cartesian | spherical | geodetic | cylindrical | enu; empty: a tree file's own, else cartesian
   std::string mapping = {};
-  double radius = 0;                  // spherical: planet radius; cylindrical: station radius
-  double length = 0;                  // cylindrical: station length
-  int band = 0;                       // raster band (1-based); 0: the raster's only band
-  bool heightsOnly = false;           // only heights at points (sample): no quadtree on a grid
+  double radius = 0;         // spherical: planet radius; cylindrical: station radius
+  double length = 0;         // cylindrical: station length
+  int band = 0;              // raster band (1-based); 0: the raster's only band
+  bool heightsOnly = false;  // only heights at points (sample): no quadtree on a grid
   // geodetic, enu: what the raster's heights are over (qota/geoid.hpp; "": its own, else assumed)
   std::string heightRef = {};
   // enu: the frame's origin (latitude, longitude degrees, height metres over the ellipsoid);

@@ -47,8 +47,10 @@ class Terrain {
   std::vector<Hit> all(double x, double y) const;
   // The same in batches, on every core: out[i] for (x[i], y[i] (, z[i])), NaN for no terrain.
   void heights(std::span<const double> x, std::span<const double> y, std::span<double> out) const;
-  void below(std::span<const double> x, std::span<const double> y, std::span<const double> z, std::span<double> out) const;
-  void above(std::span<const double> x, std::span<const double> y, std::span<const double> z, std::span<double> out) const;
+  void below(std::span<const double> x, std::span<const double> y, std::span<const double> z,
+             std::span<double> out) const;
+  void above(std::span<const double> x, std::span<const double> y, std::span<const double> z,
+             std::span<double> out) const;
 
   const AnyIndex& index() const { return index_; }
   const TreeSource& source() const { return source_; }
@@ -69,10 +71,10 @@ class Terrain {
   AnyIndex index_;
   TreeSource source_;
   double du_ = 0, dv_ = 0, dh_ = 0, scale_ = 1;  // u = x - du, v = y - dv, h = (z - dh) scale
-  bool longitudes_ = false;                       // u is a longitude: [-180, 180) in the index
-  std::shared_ptr<const Geoid> geoid_;            // geodetic: the heights' geoid
-  std::optional<DemTerrain> footprint_;           // a raster's, for the outer half pixel
-  std::array<double, 6> inverse_{};               // its inverse geotransform
+  bool longitudes_ = false;                      // u is a longitude: [-180, 180) in the index
+  std::shared_ptr<const Geoid> geoid_;           // geodetic: the heights' geoid
+  std::optional<DemTerrain> footprint_;          // a raster's, for the outer half pixel
+  std::array<double, 6> inverse_{};              // its inverse geotransform
 };
 
 }  // namespace qota
