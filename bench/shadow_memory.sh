@@ -14,16 +14,26 @@ trap 'rm -rf "$work"' EXIT
 # Mars too: the Rainier tile on Mars's sphere (whose Sun, at an instant, is Mars24's).
 gdal_translate -q -a_srs "+proj=longlat +R=3396190 +no_defs" data/mt_rainier_90m.tif "$work/mars.tif"
 rasters=(data/mt_rainier_90m.tif data/SainteHelens.dem "$work/mars.tif")
-budgets=(64M 128M 256M 1G)
-lights=("-az 90 -alt 2" "-az 135 -alt 10" "-az 315 -alt 45" "--time 2024-06-21 --tz America/Los_Angeles --hours 6 20 2")
-if [ "${2:-}" = quick ]; then budgets=(64M 1G); lights=("-az 90 -alt 2" "-az 315 -alt 45" "--time 2024-06-21 --tz America/Los_Angeles --hours 6 20 2"); fi
+# ("none": no --max-memory, the whole raster when it fits the machine)
+budgets=(64M 128M 256M 1G none)
+# (the Sun just before sunrise, below the horizon at the centre; hours in fine steps, whose
+# strips are built and freed 72 times)
+lights=("-az 90 -alt 2" "-az 135 -alt 10" "-az 315 -alt 45" "--time 2024-06-21 --tz America/Los_Angeles --hours 6 20 2"
+  "--time 2024-06-21T05:00 --tz America/Los_Angeles" "--time 2024-06-21 --tz America/Los_Angeles --hours 4 22 0.25")
+if [ "${2:-}" = quick ]; then
+  budgets=(64M 1G none)
+  lights=("-az 90 -alt 2" "-az 315 -alt 45" "--time 2024-06-21 --tz America/Los_Angeles --hours 6 20 2"
+    "--time 2024-06-21T05:00 --tz America/Los_Angeles")
+fi
 lights+=("--time 2004-01-03T13:46:31Z")  # (on Mars: Mars24's example B, the Sun 62 degrees below the horizon)
 failed=0
 for dem in "${rasters[@]}"; do
   for budget in "${budgets[@]}"; do
     for light in "${lights[@]}"; do
+      limit=(--max-memory "$budget")
+      [ "$budget" = none ] && limit=()
       # shellcheck disable=SC2086
-      if ! log=$("$qota" shadow "$dem" -o "$work/out.tif" $light --max-memory "$budget" 2>&1); then
+      if ! log=$("$qota" shadow "$dem" -o "$work/out.tif" $light "${limit[@]}" 2>&1); then
         echo "$(basename "$dem") $budget $light: refused: $(echo "$log" | tail -1)"
         continue
       fi

@@ -76,7 +76,8 @@ TEST(MappingRegistry, EveryMappingIsReachedByTheToolTheFaceAndTreeFiles) {
   s.crs = "EPSG:4326";
   s.bands = {{}};
   for (int r = 0; r < s.height; ++r) {
-    for (int c = 0; c < s.width; ++c) s.bands[0].push_back(60 + 20 * std::sin(0.3 * c) + 15 * std::cos(0.2 * r) + c);  // (inside a station too)
+    for (int c = 0; c < s.width; ++c)
+      s.bands[0].push_back(60 + 20 * std::sin(0.3 * c) + 15 * std::cos(0.2 * r) + c);  // (inside a station too)
   }
   const std::string raster = qota::test::scratchPath("registry.tif").string();
   qota::test::writeRaster(raster, s);

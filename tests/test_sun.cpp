@@ -4,6 +4,7 @@
 #include "qota/error.hpp"
 #include "qota/instant.hpp"
 #include "qota/sun.hpp"
+#include "qota/sunlight.hpp"
 
 namespace {
 
@@ -167,6 +168,22 @@ TEST(Mars24, SunOverheadAtTheSubsolarPoint) {
   EXPECT_NEAR(s.altitude, 90.0, 1e-6);
   const qota::SunPosition far = qota::marsSunPosition(t, 180 - m.subsolarWest, -m.declination);
   EXPECT_NEAR(far.altitude, -90.0, 1e-6);
+}
+
+}  // namespace
+
+namespace {
+
+TEST(Sunlight, AStepAsLongAsTheSpanIsOneStep) {
+  // Half an hour from 20:30 local (Julian days carry rounding of some 1e-8 h): one step of 0.5 h,
+  // as asked; a quarter of an hour gives two; a step longer than the span is refused.
+  const double start = 2460483.647916667, end = start + 0.5 / 24;
+  const std::vector<qota::SunlightStep> one = qota::sunlightSteps(start, end, 0.5);
+  ASSERT_EQ(one.size(), 1u);
+  EXPECT_NEAR(one[0].hours, 0.5, 1e-6);
+  EXPECT_EQ(qota::sunlightSteps(start, end, 0.25).size(), 2u);
+  EXPECT_EQ(qota::sunlightSteps(start, start + 18.0 / 24, 0.25).size(), 72u);
+  EXPECT_THROW(qota::sunlightSteps(start, end, 0.51), qota::Error);
 }
 
 }  // namespace

@@ -2,6 +2,9 @@
 
 #include <sys/resource.h>
 #include <unistd.h>
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
 
 #include <algorithm>
 #include <atomic>
@@ -90,7 +93,18 @@ void setLimit(std::uint64_t bytes) { gLimit.store(bytes); }
 
 std::uint64_t peakBytes() { return procKib("/proc/self/status", "VmHWM:"); }
 
-std::uint64_t residentBytes() { return procKib("/proc/self/status", "VmRSS:"); }
+std::uint64_t residentBytes() {
+  // What the process holds, not what its allocator keeps of what was freed: the budgets are
+  // planned from this, after the checks that read and free a geoid grid, the raster's blocks...
+  releaseFreedMemory();
+  return procKib("/proc/self/status", "VmRSS:");
+}
+
+void releaseFreedMemory() {
+#if defined(__GLIBC__)
+  malloc_trim(0);  // glibc keeps freed memory in each thread's arena unless asked
+#endif
+}
 
 std::string gib(std::uint64_t bytes) {
   std::ostringstream s;

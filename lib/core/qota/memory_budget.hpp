@@ -43,6 +43,10 @@ void setLimit(std::uint64_t bytes);
 std::uint64_t peakBytes();
 // This process's resident memory now (VmRSS), in bytes; 0 when unknown.
 std::uint64_t residentBytes();
+// Gives memory the process freed back to the system (glibc keeps it in its arenas otherwise): a
+// job of many steps that each allocate and free much (hours of sunlight) calls it between them,
+// so that its peak is one step's, not the sum of what the arenas kept.
+void releaseFreedMemory();
 // "1.23 GiB".
 std::string gib(std::uint64_t bytes);
 // Throws qota::Error when `cost` for these vertices and triangles exceeds the memory available

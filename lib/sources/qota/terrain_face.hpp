@@ -30,22 +30,22 @@ namespace qota {
 
 class Terrain {
  public:
-  // From a raster, a mesh or a tree file (openIndex's rules: SourceOptions says the mapping, band,
-  // radius, height reference). Throws qota::Error.
+  /// From a raster, a mesh or a tree file (openIndex's rules: SourceOptions says the mapping, band,
+  /// radius, height reference). Throws qota::Error.
   static Terrain open(const SourceOptions& options);
-  // From an index and where it came from (a tree file, or what openIndex gave). Throws
-  // qota::Error for an index the face has no source coordinates for (a Cartesian frame whose
-  // gravity is not vertical; east-north-up).
+  /// From an index and where it came from (a tree file, or what openIndex gave). Throws
+  /// qota::Error for an index the face has no source coordinates for (a Cartesian frame whose
+  /// gravity is not vertical; east-north-up).
   explicit Terrain(TreeFile tree);
 
-  // The topmost terrain at (x, y); the nearest at or below z; at or above z.
+  /// The topmost terrain at (x, y); the nearest at or below z; at or above z.
   std::optional<double> height(double x, double y) const;
   std::optional<double> below(double x, double y, double z) const;
   std::optional<double> above(double x, double y, double z) const;
-  // Every surface on the line of (x, y), topmost first: heights in the source's terms, the rest as
-  // the index gives it (polygon id, unit normal in the world frame).
+  /// Every surface on the line of (x, y), topmost first: heights in the source's terms, the rest as
+  /// the index gives it (polygon id, unit normal in the world frame).
   std::vector<Hit> all(double x, double y) const;
-  // The same in batches, on every core: out[i] for (x[i], y[i] (, z[i])), NaN for no terrain.
+  /// The same in batches, on every core: out[i] for (x[i], y[i] (, z[i])), NaN for no terrain.
   void heights(std::span<const double> x, std::span<const double> y, std::span<double> out) const;
   void below(std::span<const double> x, std::span<const double> y, std::span<const double> z,
              std::span<double> out) const;
@@ -55,14 +55,14 @@ class Terrain {
   const AnyIndex& index() const { return index_; }
   const TreeSource& source() const { return source_; }
   const char* mapping() const { return mappingNameOf(index_); }
-  // What the heights are over: "ellipsoid" or the geoid as described (geodetic); "" elsewhere.
+  /// What the heights are over: "ellipsoid" or the geoid as described (geodetic); "" elsewhere.
   std::string heightRef() const;
 
-  // The face's conversions, for callers that drive the index themselves: the index's (u, v) of a
-  // point ({NaN, NaN} off the terrain), and a height to the index's h and back at that (u, v).
-  // side: +1 for a height asked "at or below", -1 for "at or above" (over a geoid, z + N - N is
-  // not z to the last bit: it is widened by a few units in the last place toward that side, so that
-  // a height answered and asked again finds its own surface), 0 for neither.
+  /// The face's conversions, for callers that drive the index themselves: the index's (u, v) of a
+  /// point ({NaN, NaN} off the terrain), and a height to the index's h and back at that (u, v).
+  /// side: +1 for a height asked "at or below", -1 for "at or above" (over a geoid, z + N - N is
+  /// not z to the last bit: it is widened by a few units in the last place toward that side, so that
+  /// a height answered and asked again finds its own surface), 0 for neither.
   Point2 mapped(double x, double y) const;
   double toIndex(double z, const Point2& at, int side = 0) const;
   double fromIndex(double h, const Point2& at) const;
@@ -70,11 +70,11 @@ class Terrain {
  private:
   AnyIndex index_;
   TreeSource source_;
-  double du_ = 0, dv_ = 0, dh_ = 0, scale_ = 1;  // u = x - du, v = y - dv, h = (z - dh) scale
-  bool longitudes_ = false;                      // u is a longitude: [-180, 180) in the index
-  std::shared_ptr<const Geoid> geoid_;           // geodetic: the heights' geoid
-  std::optional<DemTerrain> footprint_;          // a raster's, for the outer half pixel
-  std::array<double, 6> inverse_{};              // its inverse geotransform
+  double du_ = 0, dv_ = 0, dh_ = 0, scale_ = 1;  ///< u = x - du, v = y - dv, h = (z - dh) scale
+  bool longitudes_ = false;                      ///< u is a longitude: [-180, 180) in the index
+  std::shared_ptr<const Geoid> geoid_;           ///< geodetic: the heights' geoid
+  std::optional<DemTerrain> footprint_;          ///< a raster's, for the outer half pixel
+  std::array<double, 6> inverse_{};              ///< its inverse geotransform
 };
 
 }  // namespace qota
