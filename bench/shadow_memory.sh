@@ -2,7 +2,8 @@
 # qota shadow's memory estimate beside its measured peak, across rasters, budgets (--max-memory)
 # and lights: whole rasters and runs by tiles, masks and hours of sunlight. Prints one line a run,
 # "raster budget light: peak P MiB, estimated E MiB, ratio E/P", and checks that every estimate
-# bounds its peak (E >= P) within 1.5 times (E <= 1.5 P); exit 1 when one does not, 0 else.
+# bounds its peak (E >= P) within 1.5 times (E <= 1.5 P), and that a high sun runs within every
+# budget from 64M; exit 1 when one does not, 0 else.
 #
 #   bench/shadow_memory.sh [BUILD] [quick]      (default build; quick: fewer runs, for ctest)
 set -euo pipefail
@@ -35,6 +36,10 @@ for dem in "${rasters[@]}"; do
       # shellcheck disable=SC2086
       if ! log=$("$qota" shadow "$dem" -o "$work/out.tif" $light "${limit[@]}" 2>&1); then
         echo "$(basename "$dem") $budget $light: refused: $(echo "$log" | tail -1)"
+        # A high sun fits any budget from 64M (its tiles' halos are small): refusing it fails the
+        # full run. (The quick run in ctest only reports it: at 64M the process itself leaves a
+        # mebibyte or two, which another machine's libraries may take.)
+        [ "$light" = "-az 315 -alt 45" ] && [ "${2:-}" != quick ] && failed=1
         continue
       fi
       line=$(echo "$log" | tr '\r' '\n' | grep -o 'peak [0-9]* MiB (estimated [0-9]* MiB' | tail -1)

@@ -9,6 +9,7 @@
 #include <proj.h>
 
 #include <filesystem>
+#include <array>
 #include <random>
 #include <sstream>
 
@@ -57,6 +58,30 @@ SampleRun sample(qota::tools::SampleOptions o, const std::string& input) {
   std::ostringstream out, err;
   const int code = qota::tools::sample(o, in, out, err);
   return {code, out.str(), err.str()};
+}
+
+TEST(Geoid, AWindowHoldsTheWholeGridsValuesOverItsBox) {
+  // A frame reads only the nodes over its raster: the same undulations there as the whole grid's
+  // (the same nodes, the same arithmetic), NaN well beyond it; across the antimeridian too.
+  qota::DemTerrain dem;
+  const qota::HeightReference ref = qota::heightReferenceOf(dem, "egm96");
+  const qota::Geoid whole(ref);
+  std::mt19937_64 rng(28);
+  for (const std::array<double, 4>& box :
+       {std::array<double, 4>{-122.0, 46.0, -121.0, 47.0}, std::array<double, 4>{170.0, -20.0, 190.0, -10.0},
+        std::array<double, 4>{-180.0, -90.0, 180.0, 90.0}}) {
+    const qota::Geoid window(ref, box);
+    EXPECT_LE(window.bytes(), whole.bytes());
+    std::uniform_real_distribution<double> lon(box[0], box[2]), lat(box[1], box[3]);
+    for (int k = 0; k < 2000; ++k) {
+      const double x = lon(rng), y = lat(rng);
+      ASSERT_EQ(window.undulation(x, y), whole.undulation(x, y)) << x << ", " << y;
+    }
+    EXPECT_EQ(window.rangeOver(box[0], box[1], box[2], box[3]), whole.rangeOver(box[0], box[1], box[2], box[3]));
+  }
+  const qota::Geoid rainier(ref, {-122.0, 46.0, -121.0, 47.0});
+  EXPECT_LT(rainier.bytes(), 1024u);
+  EXPECT_TRUE(std::isnan(rainier.undulation(0, 0)));
 }
 
 TEST(Geoid, Egm96UndulationsAreProjs) {

@@ -232,6 +232,8 @@ template <class... F>
 struct Overloaded : F... {
   using F::operator()...;
 };
+template <class... F>
+Overloaded(F...) -> Overloaded<F...>;  // (clang 14 deduces no aggregate's arguments without it)
 
 // A terrain indexed in the Cartesian mapping as a map (a mesh, a tree file): answers in the
 // source's own x, y and up; nullopt for an index in another mapping.

@@ -62,15 +62,16 @@ std::uint64_t pixelBytes(const std::string& path, int band) {
 // is on the ellipsoid and the heights are over a geoid; 0 else (or when it cannot be told: the
 // frame's own error comes later).
 std::uint64_t geoidBytes(const ShadowOptions& o, const DemTerrain& dem) {
+  // The geoid's nodes over the raster, as its frame reads them (qota::Geoid's window).
   if (o.flat || dem.crsWkt.empty()) return 0;
   try {
-    const HeightReference ref = heightReferenceOf(dem, o.heightRef);
-    if (ref.ellipsoidal()) return 0;
-    std::unique_ptr<GDALDataset> ds(GDALDataset::Open(ref.grid.c_str(), GDAL_OF_RASTER));
-    return ds ? static_cast<std::uint64_t>(ds->GetRasterXSize()) * static_cast<std::uint64_t>(ds->GetRasterYSize()) * 4
-              : 0;
+    FrameOptions frameOptions;
+    frameOptions.flat = o.flat, frameOptions.pixelSize = o.pixelSize, frameOptions.zFactor = o.zFactor;
+    frameOptions.scale = o.scale, frameOptions.heightRef = o.heightRef;
+    const FrameBasis basis = frameBasis(dem, frameOptions);
+    return basis.geoid ? basis.geoid->bytes() : 0;
   } catch (const Error&) {
-    return 0;
+    return 0;  // (the run says what is wrong)
   }
 }
 

@@ -247,8 +247,10 @@ void checkInsideProjection(const DemTerrain& dem, OGRCoordinateTransformation& t
 // are curves) and its inside, which lies between them.
 void geoidOver(FrameBasis& b, OGRCoordinateTransformation* toGeo) {
   b.heightRef = heightReferenceOf(b.raster, b.options.heightRef);
-  b.geoid = std::make_shared<const Geoid>(b.heightRef);
-  if (b.geoid->ellipsoidal()) return;
+  if (b.heightRef.ellipsoidal()) {
+    b.geoid = std::make_shared<const Geoid>();
+    return;
+  }
   const DemTerrain& dem = b.raster;
   constexpr int kSamples = 64;
   double lon0 = INFINITY, lon1 = -INFINITY, lat0 = INFINITY, lat1 = -INFINITY;
@@ -263,6 +265,9 @@ void geoidOver(FrameBasis& b, OGRCoordinateTransformation* toGeo) {
     }
   }
   if (!(lon0 <= lon1 && lat0 <= lat1)) throw Error(dem.path + ": its edges cannot be converted to longitude/latitude");
+  // Only the grid's nodes over the raster (two of margin beyond the box of its sampled edges):
+  // kilobytes where EGM96's whole grid is 4 MiB, which counts in a small --max-memory.
+  b.geoid = std::make_shared<const Geoid>(b.heightRef, std::array<double, 4>{lon0, lat0, lon1, lat1});
   std::tie(b.geoidLow, b.geoidHigh) = b.geoid->rangeOver(lon0, std::max(lat0, -90.0), lon1, std::min(lat1, 90.0));
 }
 

@@ -204,6 +204,16 @@ HeightReference storedHeightReference(const std::string& name, const std::string
 Geoid::Geoid(const HeightReference& reference) {
   if (reference.ellipsoidal()) return;
   path_ = reference.grid;
+  read(std::nullopt);
+}
+
+Geoid::Geoid(const HeightReference& reference, const std::array<double, 4>& lonLatBox) {
+  if (reference.ellipsoidal()) return;
+  path_ = reference.grid;
+  read(lonLatBox);
+}
+
+void Geoid::read(const std::optional<std::array<double, 4>>& box) {
   if (path_.rfind("radius:", 0) == 0) {  // "radius:R:R-a"
     constant_ = std::strtod(path_.c_str() + path_.rfind(':') + 1, nullptr);
     if (constant_ == 0) constant_ = std::numeric_limits<double>::denorm_min();  // (a sphere of radius a: still said)
@@ -225,9 +235,32 @@ Geoid::Geoid(const HeightReference& reference) {
   dlon_ = gt[1], dlat_ = gt[5];
   lon0_ = gt[0] + 0.5 * gt[1], lat0_ = gt[3] + 0.5 * gt[5];
   wraps_ = dlon_ * width_ >= 360.0 - 1e-9;
-  values_.resize(static_cast<std::size_t>(width_) * height_);
+  // The window: the whole grid, or the nodes around the box with two of margin. A box that needs
+  // the grid's columns across its seam takes every column (simple, and rare: a raster across the
+  // grid's own edge).
+  col0_ = 0, row0_ = 0, windowWidth_ = width_, windowHeight_ = height_;
+  if (box && std::isfinite((*box)[0]) && std::isfinite((*box)[1]) && std::isfinite((*box)[2]) &&
+      std::isfinite((*box)[3])) {
+    const double xa = ((*box)[0] - lon0_) / dlon_, xb = ((*box)[2] - lon0_) / dlon_;
+    const double ya = ((*box)[1] - lat0_) / dlat_, yb = ((*box)[3] - lat0_) / dlat_;
+    long long c0 = static_cast<long long>(std::floor(std::min(xa, xb))) - 2;
+    long long c1 = static_cast<long long>(std::ceil(std::max(xa, xb))) + 2;
+    const long long r0 = std::max<long long>(0, static_cast<long long>(std::floor(std::min(ya, yb))) - 2);
+    const long long r1 = std::min<long long>(height_ - 1, static_cast<long long>(std::ceil(std::max(ya, yb))) + 2);
+    if (wraps_ && (c0 < 0 || c1 >= width_)) {
+      const auto period = static_cast<long long>(std::llround(360.0 / dlon_));
+      const long long shift = period * static_cast<long long>(std::floor(static_cast<double>(c0) / period));
+      c0 -= shift, c1 -= shift;  // (the same meridians, from the grid's first turn)
+    }
+    if (c0 >= 0 && c1 < width_ && c0 <= c1 && r0 <= r1) {
+      col0_ = c0, row0_ = r0, windowWidth_ = c1 - c0 + 1, windowHeight_ = r1 - r0 + 1;
+    }
+  }
+  values_.resize(static_cast<std::size_t>(windowWidth_ * windowHeight_));
   GDALRasterBand* band = ds->GetRasterBand(1);
-  if (band->RasterIO(GF_Read, 0, 0, width_, height_, values_.data(), width_, height_, GDT_Float32, 0, 0) != CE_None) {
+  if (band->RasterIO(GF_Read, static_cast<int>(col0_), static_cast<int>(row0_), static_cast<int>(windowWidth_),
+                     static_cast<int>(windowHeight_), values_.data(), static_cast<int>(windowWidth_),
+                     static_cast<int>(windowHeight_), GDT_Float32, 0, 0) != CE_None) {
     throw Error(path_ + ": cannot read the geoid grid (" + errors.reason() + ")");
   }
   int hasNodata = 0;
@@ -247,7 +280,9 @@ double Geoid::node(long long col, long long row) const {
     if (col < 0) return NAN;
   }
   if (col < 0 || col >= width_ || row < 0 || row >= height_) return NAN;
-  return values_[static_cast<std::size_t>(row) * width_ + static_cast<std::size_t>(col)];
+  col -= col0_, row -= row0_;  // (into the window read)
+  if (col < 0 || col >= windowWidth_ || row < 0 || row >= windowHeight_) return NAN;
+  return values_[static_cast<std::size_t>(row * windowWidth_ + col)];
 }
 
 double Geoid::undulation(double lon, double lat) const {

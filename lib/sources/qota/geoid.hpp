@@ -21,6 +21,9 @@
 #pragma once
 
 #include <memory>
+#include <array>
+#include <cstdint>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -60,6 +63,12 @@ class Geoid {
   Geoid() = default;  // the ellipsoid: N = 0
   // Throws qota::Error naming the grid when GDAL cannot read it as longitude/latitude.
   explicit Geoid(const HeightReference& reference);
+  // Only the nodes over a box of longitudes and latitudes (degrees, lon0 <= lon1 and lat0 <= lat1;
+  // lon1 may pass 180), with two nodes of margin: what a raster's frame needs, a few kilobytes
+  // instead of EGM96's whole grid. undulation() is NaN beyond the window.
+  Geoid(const HeightReference& reference, const std::array<double, 4>& lonLatBox);
+  // The bytes its grid holds.
+  std::uint64_t bytes() const { return values_.size() * sizeof(float); }
   bool ellipsoidal() const { return values_.empty() && constant_ == 0; }
   // N in metres at (lon, lat) degrees; NaN outside a grid that covers part of the body.
   double undulation(double lon, double lat) const;
@@ -70,7 +79,10 @@ class Geoid {
  private:
   double node(long long col, long long row) const;
   std::string path_;
-  int width_ = 0, height_ = 0;
+  void read(const std::optional<std::array<double, 4>>& lonLatBox);
+  int width_ = 0, height_ = 0;     // the whole grid's nodes
+  long long col0_ = 0, row0_ = 0;  // the window read: its first node
+  long long windowWidth_ = 0, windowHeight_ = 0;
   double lon0_ = 0, lat0_ = 0, dlon_ = 1, dlat_ = -1;  // the first node's centre and the steps
   bool wraps_ = false;
   std::vector<float> values_;
