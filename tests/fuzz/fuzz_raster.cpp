@@ -145,8 +145,8 @@ void runTools(const std::string& path, std::uint8_t how) {
   if (code < 0 || code > 2 || (code != 2 && linesIn(out.str()) != linesIn(points))) std::abort();
 
   qota::tools::InfoOptions i;
-  i.source = path;
-  i.band = 1;
+  i.source.source = path;
+  i.source.band = 1;
   if (int c = qota::tools::info(i, out, err); c != 0 && c != 2) std::abort();
 
   qota::tools::ShadowOptions sh;
