@@ -6,6 +6,7 @@ set -euo pipefail
 
 packages=(
   build-essential cmake pkg-config
+  ccache                        # rebuilds compile only what changed (CI's builds, branch switches)
   libgdal-dev gdal-bin          # rasters, CRS transforms (and gdallocationinfo for the tests)
   libgeographiclib-dev          # ellipsoid math
   libeigen3-dev                 # rotations, plane fits

@@ -33,6 +33,34 @@ cmake --build "$work/consumer" -j2 > /dev/null
 "$work/consumer/core_only"
 "$work/consumer/with_rasters" "$data/mt_rainier_90m.tif"
 PKG_CONFIG_PATH=$(dirname "$pc") pkg-config --modversion qota
+# COMPONENTS core: configured, built and run with the full library's dependencies hidden from
+# find_package; an unknown component is refused.
+hide=()
+for p in GDAL PROJ glm assimp date; do hide+=(-DCMAKE_DISABLE_FIND_PACKAGE_$p=ON); done
+cmake -S "$here/package/core" -B "$work/core" -DCMAKE_PREFIX_PATH="$work/prefix" -DCMAKE_BUILD_TYPE=Release \
+  "${hide[@]}" "${flags[@]}" > /dev/null
+cmake --build "$work/core" -j2 > /dev/null
+"$work/core/core_component"
+mkdir -p "$work/nosuch"
+printf 'cmake_minimum_required(VERSION 3.25)\nproject(n LANGUAGES CXX)\nfind_package(qota CONFIG REQUIRED COMPONENTS nosuch)\n' \
+  > "$work/nosuch/CMakeLists.txt"
+if cmake -S "$work/nosuch" -B "$work/nosuch/build" -DCMAKE_PREFIX_PATH="$work/prefix" > "$work/nosuch.log" 2>&1; then
+  echo "find_package(qota COMPONENTS nosuch) was accepted"; exit 1
+fi
+grep -q "no component 'nosuch'" "$work/nosuch.log" || { cat "$work/nosuch.log"; exit 1; }
+echo "COMPONENTS core: found and linked without GDAL, PROJ, GLM, Assimp or date; nosuch refused"
+# qota.pc from a moved install: its prefix follows the file.
+cp -r "$work/prefix" "$work/moved"
+moved_pc=$(ls "$work"/moved/lib*/pkgconfig/qota.pc)
+inc=$(PKG_CONFIG_PATH=$(dirname "$moved_pc") pkg-config --variable=includedir qota)
+[ -e "$inc/qota/terrain.hpp" ] || { echo "qota.pc of a moved install names $inc"; exit 1; }
+if [ "${QOTA_CONSUMER_FLAGS:-}" = "" ]; then
+  # shellcheck disable=SC2046
+  c++ -std=c++20 -O1 "$here/package/core_only.cpp" -o "$work/pc_core" \
+    $(PKG_CONFIG_PATH=$(dirname "$moved_pc") pkg-config --cflags --libs qota-core)
+  "$work/pc_core"
+  echo "qota.pc, qota-core.pc: a moved install's paths; qota-core builds a program"
+fi
 "$work/prefix/bin/qota" --version | head -1
 # The examples as a project of their own against the installed package, built and run.
 cmake -S "$here/../examples" -B "$work/examples" -DCMAKE_PREFIX_PATH="$work/prefix" -DCMAKE_BUILD_TYPE=Release "${flags[@]}" > /dev/null

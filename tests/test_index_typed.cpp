@@ -409,9 +409,11 @@ struct World {
   Mesh mesh = T::mesh();
   typename T::Mapping mapping = T::mapping();
   Index index{mesh, mapping, T::options()};
-  double scale = scaleOf(mesh);      // bounds the world coordinates
-  double ambiguous = 1e-10 * scale;  // nearer an outline than this: either answer
-  double tolerance = 1e-10 * scale;  // heights, points, line parameters
+  double scale = scaleOf(mesh);  // bounds the world coordinates
+  // The bound index.hpp states: nearer an outline than this, either answer; heights, points
+  // and line parameters within it.
+  double ambiguous = qota::kAnswerAccuracy * scale;
+  double tolerance = qota::kAnswerAccuracy * scale;
   Oracle oracle{mesh, ambiguous};
   MappedDomain domain = mapping.domain();
   Box2 box;                           // the mapped vertices' (u, v)

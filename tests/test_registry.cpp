@@ -191,4 +191,42 @@ TEST(ToolsAgree, SampleTakesOutputAndQuietAsEveryTool) {
   }
 }
 
+TEST(ToolsAgree, ShadowTakesMappingAsEveryTool) {
+  // --mapping in shadow names the frame as in every tool: cartesian is --flat, geodetic the
+  // ellipsoid (the default); a mapping no parallel light is cast in is refused by name.
+  qota::test::RasterSpec s;
+  s.width = s.height = 30;
+  s.geotransform = {10.0, 0.1, 0, 46.0, 0, -0.1};  // pixels of some 8 by 11 km: curvature shows
+  s.crs = "EPSG:4326";
+  std::vector<double> z(900, 100.0);
+  for (int r = 10; r < 13; ++r) {
+    for (int c = 26; c < 29; ++c) z[static_cast<std::size_t>(r) * 30 + c] = 8000.0;  // (west: its shadow)
+  }
+  s.bands = {z};
+  const std::string raster = qota::test::scratchPath("mapping_shadow.tif").string();
+  qota::test::writeRaster(raster, s);
+  auto run = [&](const std::string& name, std::vector<std::string> more) {
+    const std::string out = qota::test::scratchPath(name).string();
+    std::vector<std::string> args{"shadow", raster, "-o", out, "-az", "90", "-alt", "4", "-q"};
+    args.insert(args.end(), more.begin(), more.end());
+    const CliRun r = cli(args);
+    EXPECT_EQ(r.code, 0) << r.err;
+    return qota::test::readRaster(out).values;
+  };
+  const std::vector<double> flat = run("flat.tif", {"--flat"});
+  const std::vector<double> ellipsoid = run("ellipsoid.tif", {});
+  EXPECT_EQ(run("cartesian.tif", {"--mapping", "cartesian"}), flat);
+  EXPECT_EQ(run("geodetic.tif", {"--mapping", "geodetic"}), ellipsoid);
+  EXPECT_NE(flat, ellipsoid);  // (the ellipsoid shortens the shadow by a pixel: --mapping is not ignored)
+  const std::string out = qota::test::scratchPath("refused_shadow.tif").string();
+  const CliRun spherical = cli({"shadow", raster, "-o", out, "-az", "90", "-alt", "4", "--mapping", "spherical"});
+  EXPECT_EQ(spherical.code, 2);
+  EXPECT_NE(spherical.err.find("--mapping spherical: qota shadow places a DEM on its ellipsoid"), std::string::npos)
+      << spherical.err;
+  const CliRun both = cli({"shadow", raster, "-o", out, "-az", "90", "-alt", "4", "--mapping", "geodetic", "--flat"});
+  EXPECT_EQ(both.code, 2);
+  EXPECT_NE(both.err.find("give one"), std::string::npos) << both.err;
+  EXPECT_FALSE(std::filesystem::exists(out));
+}
+
 }  // namespace

@@ -63,7 +63,7 @@ RenderTreeOptions helens(const std::string& name, int size, std::uint32_t maxPol
   o.source.source = kHelens;
   o.output = scratch(name).string();
   o.size = size;
-  o.source.terrain.tree.maxPoly = maxPoly;
+  o.source.index.tree.maxPoly = maxPoly;
   o.quiet = true;
   std::filesystem::remove(o.output);
   return o;
@@ -131,7 +131,7 @@ TEST(RenderTree, EmptyLeavesAreWhiteAndFullLeavesGrey) {
   ASSERT_GT(im.width, 0);
 
   const qota::DemTerrain dem = qota::loadDem(kHelens);
-  const qota::CartesianIndex index(dem.mesh, dem.mapping, o.source.terrain);
+  const qota::CartesianIndex index(dem.mesh, dem.mapping, o.source.index);
   std::vector<Leaf> leaves;
   collectLeaves(index.tree(), 0, index.tree().box(), 0, leaves);
   // The image pixel at a leaf's centre, when the leaf is at least 5 pixels wide and high.
@@ -153,7 +153,7 @@ TEST(RenderTree, EmptyLeavesAreWhiteAndFullLeavesGrey) {
     if (l.polygons == 0) {
       emptyGrey = std::max(emptyGrey, im.at(i, j)), ++empties;
       EXPECT_GT(im.at(i, j), 160) << "empty leaf at pixel " << i << ", " << j;
-    } else if (l.polygons >= o.source.terrain.tree.maxPoly) {
+    } else if (l.polygons >= o.source.index.tree.maxPoly) {
       fullGrey = std::min(fullGrey, im.at(i, j)), ++fulls;
       EXPECT_LE(im.at(i, j), 160) << "full leaf at pixel " << i << ", " << j;
       EXPECT_GE(im.at(i, j), 80) << "full leaf at pixel " << i << ", " << j;

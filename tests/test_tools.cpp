@@ -228,7 +228,7 @@ TEST(SampleTool, MissingFilesAndAtomicOutput) {
 TEST(InfoTool, PrintsTable4Statistics) {
   qota::tools::InfoOptions o;
   o.source.source = QOTA_DATA_DIR "/SainteHelens.dem";
-  o.source.terrain.tree.maxPoly = 12;
+  o.source.index.tree.maxPoly = 12;
   std::ostringstream out, err;
   ASSERT_EQ(qota::tools::info(o, out, err), 0) << err.str();
   const std::string s = out.str();

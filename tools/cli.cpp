@@ -47,9 +47,10 @@ void addSourceOptions(CLI::App* app, qota::SourceOptions& source) {
       ->delimiter(',')
       ->expected(2, 3);
   app->add_option("--height-ref", source.heightRef,
-                  "geodetic, enu: what the raster's heights are over: ellipsoid, egm96, egm2008, crs, radius:R or "
-                  "a geoid grid's path (see sample)");
-  addTreeOptions(app, source.terrain);
+                  "geodetic, enu: what the raster's heights are over: ellipsoid, egm96, egm2008, crs (its vertical "
+                  "CRS), radius:R (a sphere of radius R metres) or a geoid grid's path; default: its vertical CRS, "
+                  "else EGM96 on the Earth and the ellipsoid elsewhere (said once)");
+  addTreeOptions(app, source.index);
 }
 
 // GDAL's tools spell some options with one dash and several letters (-az, -alt, -of, -co);
@@ -96,40 +97,14 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
                       "The third field of a line is the query height: answer the nearest terrain "
                       "at or below it (else it is passed through like any other field)");
   sampleCmd->add_flag("--header", sample.header, "The first line is a header: print 'height' and its other names");
-  sampleCmd
-      ->add_option("-b,--band", sample.band, "Raster band holding the heights (needed when the raster has several)")
-      ->check(CLI::Range(1, 1 << 30));
   sampleCmd->add_flag("--world", sample.printWorld, "Also print the world point x y z of the hit");
-  sampleCmd
-      ->add_option("--mapping", sample.mapping,
-                   "Frame: " + qota::mappingHelp() + "; default: a tree file's own, else cartesian")
-      ->check(CLI::IsMember(qota::mappingNameList()));
-  sampleCmd
-      ->add_option("--radius", sample.radius,
-                   "spherical: the planet's reference radius in metres (default: from the "
-                   "raster's CRS, 6371008.8 for WGS84); cylindrical: the station's radius "
-                   "(default 250)")
-      ->check(CLI::PositiveNumber);
-  sampleCmd->add_option("--length", sample.length, "cylindrical: the station's length (default 1000)")
-      ->check(CLI::PositiveNumber);
   sampleCmd->add_flag("-w,--lat-lon", sample.swapXY, "Input lines are 'lat lon' (or 'y x') instead of 'lon lat'");
-  std::vector<double> sampleOrigin;
-  sampleCmd
-      ->add_option("--origin", sampleOrigin,
-                   "enu: the frame's origin LAT,LON[,H] (H metres over the ellipsoid); default: the "
-                   "raster's centre at height 0")
-      ->delimiter(',')
-      ->expected(2, 3);
-  sampleCmd->add_option("--height-ref", sample.heightRef,
-                        "geodetic: what the raster's heights are over: ellipsoid, egm96, egm2008, crs (its "
-                        "vertical CRS) or a geoid grid's path; default: its vertical CRS, else EGM96 on "
-                        "the Earth and the ellipsoid elsewhere (said once)");
   sampleCmd
       ->add_option("--output-height-ref", sample.outputHeightRef,
                    "geodetic: print heights over the ellipsoid (ellipsoid) instead of the source's own "
                    "reference")
       ->check(CLI::IsMember({"ellipsoid"}));
-  addTreeOptions(sampleCmd, sample.terrain);
+  addSourceOptions(sampleCmd, sample);
 
   InfoOptions info;
   CLI::App* infoCmd = app.add_subcommand("info", "Raster, terrain and quadtree statistics (the paper's Table 4)");
@@ -194,6 +169,10 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
   shadowCmd->add_flag("--flat", shadow.flat,
                       "No curvature: a geographic DEM's lon/lat scaled linearly, a projected "
                       "DEM's grid as it is");
+  shadowCmd
+      ->add_option("--mapping", shadow.mapping,
+                   "Frame: geodetic (a DEM with a CRS on its ellipsoid, the default) or cartesian (as --flat)")
+      ->check(CLI::IsMember(qota::mappingNameList()));
   shadowCmd->add_option("-b,--band", shadow.band, "Raster band holding the heights")->check(CLI::Range(1, 1 << 30));
   shadowCmd
       ->add_option("-z,--z-factor", shadow.zFactor,
@@ -239,7 +218,7 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
   shadowCmd->add_option("--tiles-state", shadow.tilesState,
                         "By tiles: read the pass over the heights (height range, frame) from FILE when it "
                         "exists, else make it and write it there: the jobs of a batch (--tile) make it once");
-  addTreeOptions(shadowCmd, shadow.terrain);
+  addTreeOptions(shadowCmd, shadow.index);
   shadowCmd
       ->add_option("--search", shadow.search,
                    "How each cell's light ray finds the terrain it may meet (the same mask): 'strips' "
@@ -307,10 +286,6 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
   }
   if (*buildCmd) return tools::build(build, out, err);
   if (*sampleCmd) {
-    if (!sampleOrigin.empty()) {
-      sample.origin =
-          std::array<double, 3>{sampleOrigin[0], sampleOrigin[1], sampleOrigin.size() > 2 ? sampleOrigin[2] : 0.0};
-    }
     return tools::sample(sample, in, out, err);
   }
   if (*infoCmd) return tools::info(info, out, err);

@@ -104,7 +104,7 @@ int info(const InfoOptions& options, std::ostream& out, std::ostream& err) {
     // quadtree works in (u, v) whatever their unit.
     const DemTerrain dem = loadDem(so.source, {.band = so.band, .lonLatAsCartesian = true});
     const auto start = std::chrono::steady_clock::now();
-    const CartesianIndex index(dem.mesh, dem.mapping, so.terrain);
+    const CartesianIndex index(dem.mesh, dem.mapping, so.index);
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     const IndexStats& s = index.stats();
     const QuadtreeStats& t = s.tree;
@@ -122,8 +122,8 @@ int info(const InfoOptions& options, std::ostream& out, std::ostream& err) {
     out << "polygons: " << s.polygons << '\n';
     out << "triangles: " << s.triangles << '\n';
     out << "walls left out: " << s.leftOut << '\n';
-    out << "max poly: " << so.terrain.tree.maxPoly << '\n';
-    out << "max depth: " << so.terrain.tree.maxDepth << '\n';
+    out << "max poly: " << so.index.tree.maxPoly << '\n';
+    out << "max depth: " << so.index.tree.maxDepth << '\n';
     printTree(t, s.memoryBytes, s.triangles, out);
     out << "build time (s): " << formatNumber(seconds, 3) << '\n';
     return 0;

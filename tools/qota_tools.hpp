@@ -36,8 +36,16 @@ namespace qota::tools {
 // point on the outermost centres' lines (dem.hpp). Exit code: 0 when every line had a valid point
 // on the raster, 1 when any line was malformed or off the raster (with a message naming the line
 // on stderr), 2 for a usage error or unreadable file.
-struct SampleOptions {
-  std::string source;      // raster path
+// The source as every tool reads one (qota::SourceOptions: the path, band, mapping and its
+// parameters, --height-ref, --origin, the quadtree's options), and what sample adds: where the
+// lines come from and go, and how they read and print. The mappings' lines (coords/README.md):
+// cartesian "x y [z]" in the raster's CRS, answers the height in its vertical unit; spherical
+// "lon lat [r]", the surface radius in metres; geodetic "lon lat [h]", the height along the
+// ellipsoid normal in the raster's vertical unit; cylindrical "angle axial [h]", the distance
+// from the axis in metres ("below" meaning away from it); enu "east north [up]" in metres in the
+// frame at `origin`, the terrain's up in metres. (A base, not a member: a sample's options are a
+// source's and these.)
+struct SampleOptions : SourceOptions {
   std::string inputFile;   // empty: read from the `in` stream
   std::string outputFile;  // empty: write to the `out` stream; else written atomically
   std::string srs;         // CRS of the input points; empty: the raster's
@@ -46,30 +54,10 @@ struct SampleOptions {
   bool queryZ = false;  // the third field is the query height
   bool header = false;  // the first line is a header
   bool quiet = false;   // no notes on `err` (what was assumed); points' problems still are
-  int band = 0;         // raster band (1-based); 0: the raster's only band
-  // The frame (coords/README.md): "cartesian" (the raster as a map, heights along -Z),
-  // "spherical" (a lon/lat raster closed into a planet of radius `radius`, 0: from its CRS;
-  // points "lon lat [r]", output the surface radius in metres), "geodetic" (a lon/lat raster on
-  // its CRS's ellipsoid; points "lon lat [h]", output the height along the ellipsoid normal, in
-  // the raster's vertical unit), or "cylindrical" (the raster as the relief of a station of
-  // `radius` (default 250) and `length` (default 1000) around the z axis; points "angle axial
-  // [h]", output the distance from the axis in metres, "below" meaning away from it), or "enu"
-  // (the raster on its ellipsoid seen in the east-north-up frame at `origin`: lines "east north
-  // [up]" in metres, output the terrain's up in metres).
-  std::string mapping;  // empty: a tree file's own mapping, else cartesian
-  double radius = 0;
-  double length = 0;
   bool swapXY = false;  // input lines are "y x" (lat lon), as GeographicLib's -w
-  // geodetic: what the raster's heights are over (qota/geoid.hpp: ellipsoid, egm96, egm2008,
-  // crs, a grid's path; "": its own, else assumed and said once on `err`). The surface is placed
-  // over the ellipsoid; heights read (--query-z) and printed are in that same reference unless
-  // outputHeightRef is "ellipsoid" (printed over the ellipsoid).
-  std::string heightRef = {};
+  // geodetic: heights read (--query-z) and printed are over the source's reference (heightRef)
+  // unless this is "ellipsoid" (printed over the ellipsoid).
   std::string outputHeightRef = {};
-  // enu: the frame's origin (latitude, longitude, height over the ellipsoid); none: the raster's
-  // centre at height 0. Lines are "east north [up]" in metres; answers the terrain's up.
-  std::optional<std::array<double, 3>> origin = {};
-  IndexOptions terrain;
 };
 int sample(const SampleOptions& options, std::istream& in, std::ostream& out, std::ostream& err);
 
@@ -121,12 +109,16 @@ struct ShadowOptions {
   std::string tz;                              // zone of a time without offset: +HH:MM or an IANA name
   std::optional<std::array<double, 3>> hours;  // start, end, step (local hours of the date)
   bool flat = false;
+  // The frame, as every tool's --mapping names it: "geodetic" (a DEM with a CRS on its
+  // ellipsoid, the default) or "cartesian" (the grid flat: as `flat`); the other mappings are
+  // refused by name. Empty: geodetic, or flat with `flat`.
+  std::string mapping = {};
   double pixelSize = 0;  // metres per pixel for a raster without CRS
   double zFactor = 1;    // gdaldem's -z
   double scale = 0;      // gdaldem's -s (horizontal units per vertical unit)
   std::string png;       // preview: shadow over a hillshade
   int litValue = 255, shadowValue = 0, nodataValue = 128;
-  IndexOptions terrain;
+  IndexOptions index;  // the quadtree's options (Maxpoly, Maxdepth) for a shadow search that builds one
   ShadowSearch search = ShadowSearch::Strips;  // how the occluders are found (same mask)
   // By tiles (qota/shadow_tiles.hpp; the same values as the whole raster's): memory bounded by
   // maxMemory bytes (0: three quarters of what is available), output streamed into a tiled

@@ -132,7 +132,7 @@ int renderTree(const RenderTreeOptions& o, std::ostream& out, std::ostream& err)
     const Quadtree* treePtr = nullptr;
     const CartesianMapping* mapping = nullptr;
     const SourceOptions& so = o.source;
-    std::uint32_t maxPoly = so.terrain.tree.maxPoly, maxDepth = so.terrain.tree.maxDepth;
+    std::uint32_t maxPoly = so.index.tree.maxPoly, maxDepth = so.index.tree.maxDepth;
     requireSource(so.source);
     if (isTreeFile(so.source) || !mappingEntry(so.mapping).map || !isRaster(so.source) || so.radius != 0 ||
         so.length != 0 || so.origin || !so.heightRef.empty()) {
@@ -149,7 +149,7 @@ int renderTree(const RenderTreeOptions& o, std::ostream& out, std::ostream& err)
     } else {
       // Drawn on the raster's own grid: a lon/lat raster's degrees are fine here.
       dem.emplace(loadDem(so.source, {.band = so.band, .lonLatAsCartesian = true}));
-      built.emplace(dem->mesh, dem->mapping, so.terrain);
+      built.emplace(dem->mesh, dem->mapping, so.index);
       treePtr = &built->tree();
       mapping = &built->mapping();
     }

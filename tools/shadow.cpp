@@ -9,6 +9,7 @@
 #include "qota/enu.hpp"
 #include "qota/error.hpp"
 #include "qota/instant.hpp"
+#include "qota/mapping_registry.hpp"
 #include "qota/shadow.hpp"
 #include "qota/sunlight.hpp"
 #include "cancel.hpp"
@@ -221,8 +222,30 @@ void checkOptions(const ShadowOptions& o, const std::string& format) {
   if (!o.png.empty() && sameFile(o.png, o.output)) throw Error("--png and -o name the same file");
 }
 
-int shadow(const ShadowOptions& o, std::ostream& out, std::ostream& err) {
+namespace {
+
+// The options with --mapping read: "cartesian" is --flat, "geodetic" the ellipsoid (which --flat
+// contradicts); the axial mappings cast no parallel light on a DEM's grid.
+ShadowOptions withMappingRead(const ShadowOptions& given) {
+  ShadowOptions o = given;
+  if (o.mapping.empty()) return o;
+  if (o.mapping == "cartesian") {
+    o.flat = true;
+  } else if (o.mapping == "geodetic") {
+    if (o.flat) throw Error("--mapping geodetic puts the DEM on its ellipsoid; --flat keeps it flat: give one");
+  } else {
+    mappingEntry(o.mapping);  // (an unknown name is refused with the list)
+    throw Error("--mapping " + o.mapping +
+                ": qota shadow places a DEM on its ellipsoid (geodetic, the default) or flat (cartesian)");
+  }
+  return o;
+}
+
+}  // namespace
+
+int shadow(const ShadowOptions& given, std::ostream& out, std::ostream& err) {
   try {
+    const ShadowOptions o = withMappingRead(given);
     for (const std::string* path : {&o.output, &o.png}) {
       if (!path->empty()) OutputStage::checkTarget(*path);
     }
@@ -267,7 +290,7 @@ int shadow(const ShadowOptions& o, std::ostream& out, std::ostream& err) {
       const double step = (*o.hours)[2];
       const LocalSpan span = hoursSpan(o);
       const SunlightHours sunlight = sunlightHours(frame, o.source, span.start.julianDayUT, span.end.julianDayUT, step,
-                                                   o.terrain, termProgress(o.quiet, 0, 1), o.search);
+                                                   o.index, termProgress(o.quiet, 0, 1), o.search);
       hoursLit = sunlight.hours;
       for (std::size_t i = 0; i < cells; ++i) values[i] = frame.valid[i] ? hoursLit[i] : -1.0;
       shownLight = frame.towardSun(sunOverFrame(frame, (span.start.julianDayUT + span.end.julianDayUT) / 2, o.source));
@@ -287,7 +310,7 @@ int shadow(const ShadowOptions& o, std::ostream& out, std::ostream& err) {
         err << "qota shadow: the light is at or below the horizon at the centre"
             << (frame.body.ellipsoid ? "" : ": every cell is in shadow") << '\n';
       }
-      mask = shadowMask(frame, light.toward, o.terrain, termProgress(o.quiet, 0, 1), 0, o.search);
+      mask = shadowMask(frame, light.toward, o.index, termProgress(o.quiet, 0, 1), 0, o.search);
       for (std::size_t i = 0; i < cells; ++i) {
         values[i] = mask[i] == Light::Lit ? o.litValue : mask[i] == Light::Shadow ? o.shadowValue : o.nodataValue;
       }

@@ -407,11 +407,11 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
       values.resize(tile.cellCount());
       if (o.hours) {
         const SunlightHours h = tiles.hours(tile, span->start.julianDayUT, span->end.julianDayUT, (*o.hours)[2],
-                                            o.terrain, o.search, windowBytes);
+                                            o.index, o.search, windowBytes);
         // Cells without data: nodata (-1); the others their hours, 0 included.
         for (std::size_t i = 0; i < tile.cellCount(); ++i) values[i] = h.valid[i] ? h.hours[i] : -1.0;
       } else {
-        const std::vector<Light> mask = tiles.mask(tile, lights[0], o.terrain, 0, o.search, windowBytes);
+        const std::vector<Light> mask = tiles.mask(tile, lights[0], o.index, 0, o.search, windowBytes);
         for (std::size_t i = 0; i < mask.size(); ++i) {
           values[i] = mask[i] == Light::Lit ? o.litValue : mask[i] == Light::Shadow ? o.shadowValue : o.nodataValue;
           lit += mask[i] == Light::Lit, valid += mask[i] != Light::NoData;

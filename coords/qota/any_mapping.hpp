@@ -27,7 +27,7 @@ static_assert([]<class... M>(std::variant<M...>*) {
 // The mapping's describe() text: its name and parameters, "spherical centre=0,0,0".
 std::string describe(const AnyMapping& mapping);
 
-// "cartesian, spherical, cylindrical or geodetic": every mapping's name, for messages.
+// Every mapping's name in AnyMapping's order, "cartesian, spherical, ... or enu", for messages.
 std::string mappingNames();
 
 // Reads a describe() text back (exact round trip). Parameters may be omitted (defaults: gravity

@@ -51,7 +51,7 @@ bool angleRange(const Eigen::Vector3d p[3], double& lo, double& hi) {
 
 }  // namespace
 
-template <class M>
+template <AxialMapping M>
 CurvedIndex<M>::CurvedIndex(const Mesh& mesh, const M& mapping, const IndexOptions& options) : mapping_(mapping) {
   if (options.gridFastPath.value_or(false)) {
     throw Error(std::string(M::name()) +
@@ -177,7 +177,7 @@ CurvedIndex<M>::CurvedIndex(const Mesh& mesh, const M& mapping, const IndexOptio
 
 // The record and footprint box of the triangle with local corners p (vertexHeight: the corners'
 // footprintHeight). False for a triangle of zero area.
-template <class M>
+template <AxialMapping M>
 bool CurvedIndex<M>::makeTriangle(const Eigen::Vector3d (&p)[3], const double (&vertexHeight)[3], std::uint32_t poly,
                                   Tri& t, FootBox& box) const {
   const Eigen::Vector3d n = (p[1] - p[0]).cross(p[2] - p[0]);
@@ -215,7 +215,7 @@ bool CurvedIndex<M>::makeTriangle(const Eigen::Vector3d (&p)[3], const double (&
 }
 
 // The polar lists: the triangles the exact test finds on the line of each pole.
-template <class M>
+template <AxialMapping M>
 void CurvedIndex<M>::addToPolarLists(std::uint32_t i, const FootBox& box) {
   if (!M::kPoles) return;
   const MappedDomain domain = mapping_.domain();
@@ -224,7 +224,7 @@ void CurvedIndex<M>::addToPolarLists(std::uint32_t i, const FootBox& box) {
   if (box.vlo <= domain.vlo && hits(tris_[i], lineAt(0.0, domain.vlo), t)) polarSouth_.push_back(i);
 }
 
-template <class M>
+template <AxialMapping M>
 typename CurvedIndex<M>::Line CurvedIndex<M>::lineAt(double u, double v) const {
   const AxialLine a = mapping_.axialLine(u, v);
   Line line{a.s, {a.d[0], a.d[1], a.d[2]}, a.hOffset, 0.0};
@@ -233,7 +233,7 @@ typename CurvedIndex<M>::Line CurvedIndex<M>::lineAt(double u, double v) const {
   return line;
 }
 
-template <class M>
+template <AxialMapping M>
 int CurvedIndex<M>::edgeSign(const double* a, const double* b, const Line& line, double bound) const {
   // d . (a x b) - s (d_x (a_y - b_y) - d_y (a_x - b_x)) = det[a - O; b - O; d]. Swapping a and b
   // negates every rounded term exactly, so neighbours sharing the edge see opposite signs.
@@ -250,7 +250,7 @@ int CurvedIndex<M>::edgeSign(const double* a, const double* b, const Line& line,
   return orient3dSign(as, bs, d);
 }
 
-template <class M>
+template <AxialMapping M>
 bool CurvedIndex<M>::hits(const Tri& t, const Line& line, double& tOut) const {
   const int s0 = edgeSign(t.p[0], t.p[1], line, line.bound);
   const int s1 = edgeSign(t.p[1], t.p[2], line, line.bound);
@@ -264,18 +264,18 @@ bool CurvedIndex<M>::hits(const Tri& t, const Line& line, double& tOut) const {
   return tOut > 0.0;
 }
 
-template <class M>
+template <AxialMapping M>
 bool CurvedIndex<M>::polar(double v) const {
   return M::kPoles && (v == mapping_.domain().vhi || v == mapping_.domain().vlo);
 }
 
-template <class M>
+template <AxialMapping M>
 bool CurvedIndex<M>::validQuery(double u, double v) const {
   if (!std::isfinite(u) || !std::isfinite(v)) return false;
   return v >= mapping_.domain().vlo && v <= mapping_.domain().vhi;
 }
 
-template <class M>
+template <AxialMapping M>
 bool CurvedIndex<M>::mapped(const Eigen::Vector3d& world, Eigen::Vector3d& m) const {
   if (!world.allFinite()) return false;
   try {
@@ -286,14 +286,14 @@ bool CurvedIndex<M>::mapped(const Eigen::Vector3d& world, Eigen::Vector3d& m) co
   return m.allFinite();
 }
 
-template <class M>
+template <AxialMapping M>
 double CurvedIndex<M>::normalizeU(double u) const {
   if (u >= -180.0 && u < 180.0) return u;
   double w = std::remainder(u, 360.0);  // [-180, 180]
   return w >= 180.0 ? w - 360.0 : w;
 }
 
-template <class M>
+template <AxialMapping M>
 template <class Visit>
 void CurvedIndex<M>::forCandidates(double u, double v, const Line*& line, Line& storage, Visit&& visit) const {
   if (polar(v)) {
@@ -310,7 +310,7 @@ void CurvedIndex<M>::forCandidates(double u, double v, const Line*& line, Line& 
   }
 }
 
-template <class M>
+template <AxialMapping M>
 void CurvedIndex<M>::prefetch(std::span<const std::uint32_t> items) const {
   for (std::uint32_t i : items) {
     const char* p = reinterpret_cast<const char*>(&tris_[i]);
@@ -319,11 +319,11 @@ void CurvedIndex<M>::prefetch(std::span<const std::uint32_t> items) const {
   }
 }
 
-template <class M>
+template <AxialMapping M>
 template <bool Below>
 std::uint32_t CurvedIndex<M>::nearestIn(std::span<const std::uint32_t> items, bool checkBox, double u, double v,
                                         const Line& line, double ez, double& hOut, double& tOut) const {
-  std::uint32_t best = kNone;
+  std::uint32_t best = kNoTriangle;
   double bestE = 0;
   for (std::uint32_t i : items) {
     if (checkBox && !inBox(tris_[i], u, v)) continue;
@@ -332,14 +332,15 @@ std::uint32_t CurvedIndex<M>::nearestIn(std::span<const std::uint32_t> items, bo
     const double hh = heightOf(line, t);
     const double e = elevation(hh);
     if (Below ? !(e <= ez) : !(e >= ez)) continue;
-    if (best == kNone || (Below ? e > bestE : e < bestE) || (e == bestE && tris_[i].polygon < tris_[best].polygon)) {
+    if (best == kNoTriangle || (Below ? e > bestE : e < bestE) ||
+        (e == bestE && tris_[i].polygon < tris_[best].polygon)) {
       best = i, bestE = e, hOut = hh, tOut = t;
     }
   }
   return best;
 }
 
-template <class M>
+template <AxialMapping M>
 template <class ZOf>
 void CurvedIndex<M>::heightsBelowBatch(std::span<const Point2> points, const ZOf& zOf,
                                        std::span<std::optional<double>> out) const {
@@ -363,78 +364,43 @@ void CurvedIndex<M>::heightsBelowBatch(std::span<const Point2> points, const ZOf
     for (std::size_t i = 0; i < n; ++i) {
       const Point2 p = points[g + i];
       if (!inTree[i]) {
-        out[g + i] = heightBelow(p.u, p.v, zOf(g + i));  // the poles, off the domain, the invalid
+        out[g + i] = this->heightBelow(p.u, p.v, zOf(g + i));  // the poles, off the domain, the invalid
         continue;
       }
       double h = 0, t = 0;
       const Line line = lineAt(uu[i], p.v);
       const std::uint32_t best =
           nearestIn<true>(tree_.leafRange(leaf[i]), true, uu[i], p.v, line, elevation(zOf(g + i)), h, t);
-      out[g + i] = best == kNone ? std::nullopt : std::optional<double>(h);
+      out[g + i] = best == kNoTriangle ? std::nullopt : std::optional<double>(h);
     }
   }
 }
 
-template <class M>
-void CurvedIndex<M>::heights(std::span<const Point2> points, std::span<std::optional<double>> out) const {
-  heightsBelow(points, kTop, out);
-}
-
-template <class M>
-void CurvedIndex<M>::heightsBelow(std::span<const Point2> points, double z,
-                                  std::span<std::optional<double>> out) const {
-  batch::requireRoom("heightsBelow", points.size(), out.size());
+template <AxialMapping M>
+void CurvedIndex<M>::batchBelow(std::span<const Point2> points, double z, std::span<std::optional<double>> out) const {
   heightsBelowBatch(
       points, [z](std::size_t) { return z; }, out);
 }
 
-template <class M>
-void CurvedIndex<M>::heightsBelow(std::span<const Point2> points, std::span<const double> zs,
-                                  std::span<std::optional<double>> out) const {
-  batch::requireRoom("heightsBelow", points.size(), std::min(out.size(), zs.size()));
+template <AxialMapping M>
+void CurvedIndex<M>::batchBelow(std::span<const Point2> points, std::span<const double> zs,
+                                std::span<std::optional<double>> out) const {
   heightsBelowBatch(
       points, [zs](std::size_t i) { return zs[i]; }, out);
 }
 
-template <class M>
-void CurvedIndex<M>::heightsParallel(std::span<const Point2> points, std::span<std::optional<double>> out,
-                                     unsigned threads) const {
-  heightsBelowParallel(points, kTop, out, threads);
-}
-
-template <class M>
-void CurvedIndex<M>::heightsBelowParallel(std::span<const Point2> points, double z,
-                                          std::span<std::optional<double>> out, unsigned threads) const {
-  batch::requireRoom("heightsBelowParallel", points.size(), out.size());
-  batch::inSlices(points.size(), threads, 4096, [&](std::size_t lo, std::size_t hi) {
-    heightsBelowBatch(
-        points.subspan(lo, hi - lo), [z](std::size_t) { return z; }, out.subspan(lo, hi - lo));
-  });
-}
-
-template <class M>
-void CurvedIndex<M>::heightsBelowParallel(std::span<const Point2> points, std::span<const double> zs,
-                                          std::span<std::optional<double>> out, unsigned threads) const {
-  batch::requireRoom("heightsBelowParallel", points.size(), std::min(out.size(), zs.size()));
-  batch::inSlices(points.size(), threads, 4096, [&](std::size_t lo, std::size_t hi) {
-    const std::span<const double> z = zs.subspan(lo, hi - lo);
-    heightsBelowBatch(
-        points.subspan(lo, hi - lo), [z](std::size_t i) { return z[i]; }, out.subspan(lo, hi - lo));
-  });
-}
-
-template <class M>
+template <AxialMapping M>
 template <bool Below>
 std::uint32_t CurvedIndex<M>::nearest(double u, double v, double h, double& hOut, Line& line, double& tOut,
                                       Quadtree::Cursor* cursor) const {
   // Outside the domain (a latitude beyond the poles) or not finite: no terrain (index.hpp).
-  if (!validQuery(u, v) || std::isnan(h)) return kNone;
+  if (!validQuery(u, v) || std::isnan(h)) return kNoTriangle;
   u = normalizeU(u);
   if (polar(v)) {
     line = lineAt(u, v);
     return nearestIn<Below>(v > 0 ? polarNorth_ : polarSouth_, false, u, v, line, elevation(h), hOut, tOut);
   }
-  if (!tree_.contains(u, v)) return kNone;
+  if (!tree_.contains(u, v)) return kNoTriangle;
   const std::span<const std::uint32_t> items =
       tree_.leafRange(cursor ? tree_.leafNode(u, v, *cursor) : tree_.leafNode(u, v));
   prefetch(items);  // the candidates load while the line is computed
@@ -442,7 +408,7 @@ std::uint32_t CurvedIndex<M>::nearest(double u, double v, double h, double& hOut
   return nearestIn<Below>(items, true, u, v, line, elevation(h), hOut, tOut);
 }
 
-template <class M>
+template <AxialMapping M>
 Hit CurvedIndex<M>::makeHit(std::uint32_t i, const Line& line, double tHit) const {
   const Tri& t = tris_[i];
   const Eigen::Vector3d d(line.d[0], line.d[1], line.d[2]);
@@ -457,75 +423,35 @@ Hit CurvedIndex<M>::makeHit(std::uint32_t i, const Line& line, double tHit) cons
   return hit;
 }
 
-template <class M>
+template <AxialMapping M>
 template <bool Below>
 std::optional<Hit> CurvedIndex<M>::hitAt(double u, double v, double h, Quadtree::Cursor* cursor) const {
   double hh, t;
   Line line;
   const std::uint32_t i = nearest<Below>(u, v, h, hh, line, t, cursor);
-  if (i == kNone) return std::nullopt;
+  if (i == kNoTriangle) return std::nullopt;
   return makeHit(i, line, t);
 }
 
-template <class M>
+template <AxialMapping M>
 std::optional<double> CurvedIndex<M>::heightAt(double u, double v, double z, Quadtree::Cursor* cursor) const {
   double hh, t;
   Line line;
-  if (nearest<true>(u, v, z, hh, line, t, cursor) == kNone) return std::nullopt;
+  if (nearest<true>(u, v, z, hh, line, t, cursor) == kNoTriangle) return std::nullopt;
   return hh;
 }
 
-template <class M>
-std::optional<Hit> CurvedIndex<M>::below(double u, double v, double h) const {
-  return hitAt<true>(u, v, h, nullptr);
+template <AxialMapping M>
+std::optional<Hit> CurvedIndex<M>::hitBelow(double u, double v, double h, Quadtree::Cursor* cursor) const {
+  return hitAt<true>(u, v, h, cursor);
 }
 
-template <class M>
-std::optional<Hit> CurvedIndex<M>::above(double u, double v, double h) const {
-  return hitAt<false>(u, v, h, nullptr);
+template <AxialMapping M>
+std::optional<Hit> CurvedIndex<M>::hitAbove(double u, double v, double h, Quadtree::Cursor* cursor) const {
+  return hitAt<false>(u, v, h, cursor);
 }
 
-template <class M>
-std::optional<Hit> CurvedIndex<M>::below(Quadtree::Cursor& cursor, double u, double v, double h) const {
-  return hitAt<true>(u, v, h, &cursor);
-}
-
-template <class M>
-std::optional<Hit> CurvedIndex<M>::above(Quadtree::Cursor& cursor, double u, double v, double h) const {
-  return hitAt<false>(u, v, h, &cursor);
-}
-
-template <class M>
-std::optional<double> CurvedIndex<M>::height(Quadtree::Cursor& cursor, double u, double v) const {
-  return heightAt(u, v, kTop, &cursor);
-}
-
-template <class M>
-std::optional<double> CurvedIndex<M>::heightBelow(Quadtree::Cursor& cursor, double u, double v, double z) const {
-  return heightAt(u, v, z, &cursor);
-}
-
-template <class M>
-Bracket CurvedIndex<M>::bracket(double u, double v, double h) const {
-  return {below(u, v, h), above(u, v, h)};
-}
-
-template <class M>
-std::optional<Hit> CurvedIndex<M>::top(double u, double v) const {
-  return below(u, v, M::kHeightUp ? kInf : -kInf);
-}
-
-template <class M>
-std::optional<double> CurvedIndex<M>::height(double u, double v) const {
-  return heightAt(u, v, kTop, nullptr);
-}
-
-template <class M>
-std::optional<double> CurvedIndex<M>::heightBelow(double u, double v, double z) const {
-  return heightAt(u, v, z, nullptr);
-}
-
-template <class M>
+template <AxialMapping M>
 std::vector<Hit> CurvedIndex<M>::all(double u, double v) const {
   if (!validQuery(u, v)) return {};
   u = normalizeU(u);
@@ -543,42 +469,7 @@ std::vector<Hit> CurvedIndex<M>::all(double u, double v) const {
   return hits_;
 }
 
-template <class M>
-std::optional<Hit> CurvedIndex<M>::belowWorld(const Eigen::Vector3d& p) const {
-  Eigen::Vector3d m;
-  if (!mapped(p, m)) return std::nullopt;
-  return below(m.x(), m.y(), m.z());
-}
-
-template <class M>
-std::optional<Hit> CurvedIndex<M>::aboveWorld(const Eigen::Vector3d& p) const {
-  Eigen::Vector3d m;
-  if (!mapped(p, m)) return std::nullopt;
-  return above(m.x(), m.y(), m.z());
-}
-
-template <class M>
-Bracket CurvedIndex<M>::bracketWorld(const Eigen::Vector3d& p) const {
-  Eigen::Vector3d m;
-  if (!mapped(p, m)) return {};
-  return bracket(m.x(), m.y(), m.z());
-}
-
-template <class M>
-std::optional<Hit> CurvedIndex<M>::topWorld(const Eigen::Vector3d& p) const {
-  Eigen::Vector3d m;
-  if (!mapped(p, m)) return std::nullopt;
-  return top(m.x(), m.y());
-}
-
-template <class M>
-std::vector<Hit> CurvedIndex<M>::allWorld(const Eigen::Vector3d& p) const {
-  Eigen::Vector3d m;
-  if (!mapped(p, m)) return {};
-  return all(m.x(), m.y());
-}
-
-template <class M>
+template <AxialMapping M>
 std::vector<LineHit> CurvedIndex<M>::alongLine(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction,
                                                double tmin, double tmax) const {
   std::vector<LineHit> out;
@@ -622,7 +513,7 @@ std::vector<LineHit> CurvedIndex<M>::alongLine(const Eigen::Vector3d& origin, co
   return out;
 }
 
-template <class M>
+template <AxialMapping M>
 std::uint32_t CurvedIndex<M>::testsAt(double u, double v) const {
   u = normalizeU(u);
   if (polar(v)) return static_cast<std::uint32_t>((v > 0 ? polarNorth_ : polarSouth_).size());
@@ -630,7 +521,7 @@ std::uint32_t CurvedIndex<M>::testsAt(double u, double v) const {
   return static_cast<std::uint32_t>(tree_.leafItems(u, v).size());
 }
 
-template <class M>
+template <AxialMapping M>
 void CurvedIndex<M>::rebuildTree(Box2 root) {
   const QuadtreeOptions options = tree_.options();
   const double minU = tree_.minSizeU(), minV = tree_.minSizeV();
@@ -640,7 +531,7 @@ void CurvedIndex<M>::rebuildTree(Box2 root) {
   stats_.domain = root;
 }
 
-template <class M>
+template <AxialMapping M>
 std::uint32_t CurvedIndex<M>::insertPolygon(std::span<const Eigen::Vector3d> corners) {
   const auto id = static_cast<std::uint32_t>(stats_.polygons);
   if (corners.size() < 3) {
@@ -673,7 +564,7 @@ std::uint32_t CurvedIndex<M>::insertPolygon(std::span<const Eigen::Vector3d> cor
     }
     const auto i = static_cast<std::uint32_t>(tris_.size());
     tris_.push_back(t);
-    if (!trianglesOf_.empty()) trianglesOf_.emplace(id, i);
+    ledger_.added(id, i);
     ++stats_.triangles;
     addToPolarLists(i, box);
     // Grow the tree's box to the footprint (all of u when it crosses the seam).
@@ -698,25 +589,18 @@ std::uint32_t CurvedIndex<M>::insertPolygon(std::span<const Eigen::Vector3d> cor
   return id;
 }
 
-template <class M>
+template <AxialMapping M>
 bool CurvedIndex<M>::removePolygon(std::uint32_t polygon) {
-  if (polygon >= stats_.polygons) return false;
-  if (removed_.size() < stats_.polygons) removed_.resize(stats_.polygons, 0);
-  if (removed_[polygon]) return false;
-  if (trianglesOf_.empty()) {
-    trianglesOf_.reserve(tris_.size());
-    for (std::uint32_t i = 0; i < tris_.size(); ++i) trianglesOf_.emplace(tris_[i].polygon, i);
-  }
-  removed_[polygon] = 1;
-  const auto [first, last] = trianglesOf_.equal_range(polygon);
-  for (auto it = first; it != last; ++it) {
-    tree_.remove(it->second, [this](std::uint32_t j, const Box2& b) { return overlaps(j, b); });
-    --stats_.triangles;
-  }
+  const std::optional<std::size_t> triangles = ledger_.remove(
+      polygon, stats_.polygons, tris_.size(), [this](std::size_t i) { return tris_[i].polygon; },
+      [this](std::uint32_t i) {
+        tree_.remove(i, [this](std::uint32_t j, const Box2& b) { return overlaps(j, b); });
+        --stats_.triangles;
+      });
+  if (!triangles) return false;
   for (auto* list : {&polarNorth_, &polarSouth_}) {
     std::erase_if(*list, [&](std::uint32_t i) { return tris_[i].polygon == polygon; });
   }
-  trianglesOf_.erase(polygon);
   treeStatsStale_ = true;
   return true;
 }

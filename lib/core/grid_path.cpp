@@ -93,7 +93,7 @@ bool GridPath::fitLattice(std::span<const Point2> corners, std::uint64_t nw, std
 }
 
 void GridPath::fillSlots(std::span<const std::uint64_t> slotThenTriangle) {
-  cellTri.assign(2ull * (w - 1) * (h - 1), kNone);
+  cellTri.assign(2ull * (w - 1) * (h - 1), kNoTriangle);
   for (std::size_t t = 0; t < slotThenTriangle.size(); ++t) {
     cellTri[slotThenTriangle[t] >> 32] = static_cast<std::uint32_t>(t);
   }
@@ -111,7 +111,7 @@ void GridPath::setUpLean(std::span<const TriangleCorners> triangles, std::span<c
   bool seen[2] = {false, false};
   for (std::uint32_t slot = 0; slot < cellTri.size(); ++slot) {
     const std::uint32_t t = cellTri[slot];
-    if (t == kNone) continue;
+    if (t == kNoTriangle) continue;
     const std::uint64_t cell = slot / 2, half = slot % 2;
     const std::uint64_t x = (cell / (w - 1)) * w + cell % (w - 1);
     for (int k = 0; k < 3; ++k) {
@@ -133,10 +133,10 @@ void GridPath::setUpLean(std::span<const TriangleCorners> triangles, std::span<c
   lean = true;
   setUpTables(corners, heights);
   // Which slots hold a triangle, one bit each, unless every one does.
-  if (std::find(cellTri.begin(), cellTri.end(), kNone) != cellTri.end()) {
+  if (std::find(cellTri.begin(), cellTri.end(), kNoTriangle) != cellTri.end()) {
     presentBits.assign((cellTri.size() + 63) / 64, 0);
     for (std::uint64_t slot = 0; slot < cellTri.size(); ++slot) {
-      if (cellTri[slot] != kNone) presentBits[slot >> 6] |= std::uint64_t{1} << (slot & 63);
+      if (cellTri[slot] != kNoTriangle) presentBits[slot >> 6] |= std::uint64_t{1} << (slot & 63);
     }
   }
 }
@@ -204,7 +204,7 @@ bool GridPath::setUpLattice(std::uint64_t nw, std::uint64_t nh, std::span<const 
   std::vector<std::uint64_t> bits((slots + 63) / 64, 0);
   for (std::uint64_t r = 0; r + 1 < h; ++r) {
     for (std::uint64_t c = 0; c + 1 < w; ++c) {
-      const std::uint64_t x = r * w + c, slot = 2 * (r * (w - 1) + c);
+      const std::uint64_t x = r * w + c, slot = slotOf(c, r, 0);
       const bool tl = !std::isnan(heights[x]), tr = !std::isnan(heights[x + 1]);
       const bool bl = !std::isnan(heights[x + w]), br = !std::isnan(heights[x + w + 1]);
       const bool present[2] = {tl && bl && br, tl && br && tr};
@@ -225,7 +225,7 @@ void GridPath::clearSlot(const TriangleCorners& triangle, std::uint32_t t) {
   if (!found) return;
   const std::uint64_t slot = *found;
   if (slot < cellTri.size() && cellTri[slot] == t) {
-    cellTri[slot] = kNone;
+    cellTri[slot] = kNoTriangle;
     if (lean) {
       if (presentBits.empty()) presentBits.assign((cellTri.size() + 63) / 64, ~std::uint64_t{0});
       presentBits[slot >> 6] &= ~(std::uint64_t{1} << (slot & 63));

@@ -101,7 +101,7 @@ std::optional<std::uint64_t> RasterGrid::innerTriangleWith(std::uint32_t a, std:
   if (w < 2 || col + 1 >= w || row + 1 >= static_cast<std::uint64_t>(height_) || k[2] != x + w + 1) {
     return std::nullopt;
   }
-  const std::uint64_t first = 2 * (row * (w - 1) + col);
+  const std::uint64_t first = innerTriangle(w, row, col, 0);
   if (k[1] == x + w) return first;      // (TL, BL, BR)
   if (k[1] == x + 1) return first + 1;  // (TL, BR, TR)
   return std::nullopt;
@@ -115,7 +115,7 @@ std::vector<std::uint32_t> RasterGrid::indices() const {
 
 int RasterGrid::ring(int row, int col, std::uint32_t out[kMaxRing], bool& closed) const {
   const int w = width_, h = height_;
-  const auto first = [w](int r, int c) { return static_cast<std::uint32_t>(2 * (r * (w - 1) + c)); };
+  const auto first = [w](int r, int c) { return static_cast<std::uint32_t>(innerTriangle(w, r, c, 0)); };
   int n = 0;
   if (row > 0 && col > 0) out[n++] = first(row - 1, col - 1), out[n++] = first(row - 1, col - 1) + 1;
   if (row > 0 && col + 1 < w) out[n++] = first(row - 1, col);

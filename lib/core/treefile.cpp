@@ -231,7 +231,7 @@ struct TreeFileAccess {
     w.array(x.cold_);
     w.array(x.corners2_);
     w.array(x.cornerH_);
-    w.array(x.removed_);
+    w.array(x.ledger_.flags());
     w.pod(x.grid_.w);
     w.pod(x.grid_.h);
     w.pod(x.grid_.u0);
@@ -251,7 +251,7 @@ struct TreeFileAccess {
     r.array(x.cold_, "triangle corners");
     r.array(x.corners2_, "vertices");
     r.array(x.cornerH_, "vertex heights");
-    r.array(x.removed_, "removed polygons");
+    r.array(x.ledger_.flags(), "removed polygons");
     x.grid_.w = r.pod<std::uint32_t>("grid");
     x.grid_.h = r.pod<std::uint32_t>("grid");
     x.grid_.u0 = r.pod<double>("grid");
@@ -274,7 +274,7 @@ struct TreeFileAccess {
         r.fail("the grid's cell table has the wrong size");
       }
       for (std::uint32_t t : x.grid_.cellTri) {
-        if (t != PlanarCore::kNone && t >= x.tris_.size()) r.fail("a grid cell references a missing triangle");
+        if (t != kNoTriangle && t >= x.tris_.size()) r.fail("a grid cell references a missing triangle");
       }
       for (double g : {x.grid_.u0, x.grid_.v0, x.grid_.inv[0], x.grid_.inv[1], x.grid_.inv[2], x.grid_.inv[3]}) {
         if (!std::isfinite(g)) r.fail("the grid's geometry is not finite");
@@ -299,7 +299,7 @@ struct TreeFileAccess {
     w.array(x.tris_);
     w.array(x.polarNorth_);
     w.array(x.polarSouth_);
-    w.array(x.removed_);
+    w.array(x.ledger_.flags());
     write(w, x.tree_);
   }
 
@@ -310,7 +310,7 @@ struct TreeFileAccess {
     r.array(x.tris_, "triangles");
     r.array(x.polarNorth_, "north polar list");
     r.array(x.polarSouth_, "south polar list");
-    r.array(x.removed_, "removed polygons");
+    r.array(x.ledger_.flags(), "removed polygons");
     read(r, x.tree_);
   }
 

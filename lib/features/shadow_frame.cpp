@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "gdal_errors.hpp"
+#include "qota/enu.hpp"
 #include "qota/error.hpp"
 #include "qota/globe.hpp"
 #include "qota/shadow.hpp"
@@ -61,15 +62,6 @@ double heightMetres(const DemTerrain& dem, const FrameOptions& o, const OGRSpati
     metres = horizontal / o.scale;
   }
   return metres * o.zFactor;
-}
-
-// The geocentric-to-east-north-up rotation at geodetic (lat, lon): rows east, north, up.
-Eigen::Matrix3d enuRotation(double lat, double lon) {
-  const double sp = std::sin(lat * kDeg), cp = std::cos(lat * kDeg);
-  const double sl = std::sin(lon * kDeg), cl = std::cos(lon * kDeg);
-  Eigen::Matrix3d r;
-  r << -sl, cl, 0, -sp * cl, -sp * sl, cp, cp * cl, cp * sl, sp;
-  return r;
 }
 
 }  // namespace
@@ -334,12 +326,13 @@ FrameBasis frameBasis(const DemTerrain& dem, const FrameOptions& o) {
   f.centreLon = lon0;
   f.centreLat = lat0;
   if (ellipsoid) {
-    const GeographicLib::Geocentric earth(b.a, b.flattening);
+    // The frame is the enu mapping's at the centre, on the ellipsoid (height 0).
+    const EnuMapping enu(lat0, lon0, 0.0, b.a, b.flattening);
     f.body.ellipsoid = true;
     f.body.a = b.a;
     f.body.b = b.a * (1 - b.flattening);
-    f.body.rotation = enuRotation(lat0, lon0);
-    earth.Forward(lat0, lon0, 0, f.body.origin.x(), f.body.origin.y(), f.body.origin.z());
+    f.body.rotation = enu.frame().rotation;
+    f.body.origin = enu.origin();
     f.trueNorthFromY = 0;
     f.description = std::string(b.geographic ? "" : "projected grid put ") + "on the " +
                     (f.body.name.empty() ? "" : f.body.name + " ") + "ellipsoid (a = " + std::to_string(b.a) +

@@ -115,7 +115,7 @@ HorizonStrips::HorizonStrips(const LocalFrame& frame, const Eigen::Vector3d& lig
     for (std::size_t k = strips * part / parts; k < strips * (part + 1) / parts; ++k) {
       Entry* E = entries_.get();
       std::sort(E + start_[k], E + used[k], [](const Entry& x, const Entry& y) { return x.aHi < y.aHi; });
-      std::fill(E + used[k], E + start_[k + 1], Entry{INFINITY, -INFINITY, INFINITY, INFINITY, -INFINITY, kNone});
+      std::fill(E + used[k], E + start_[k + 1], Entry{INFINITY, -INFINITY, INFINITY, INFINITY, -INFINITY, kNoTriangle});
       float later = -INFINITY;
       for (std::uint64_t sb = start_[k + 1] / kSuper; sb-- > start_[k] / kSuper;) {
         for (std::uint64_t e = sb * kSuper; e < (sb + 1) * kSuper; ++e) {

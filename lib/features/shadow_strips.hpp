@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "qota/shadow_frame.hpp"
+#include "qota/vocabulary.hpp"
 
 namespace qota::shadow {
 
@@ -93,7 +94,6 @@ class HorizonStrips {
   }
 
  private:
-  static constexpr std::uint32_t kNone = 0xffffffffu;
   static constexpr std::uint64_t kBlock = 8, kSuper = 64;
   struct Entry {
     float aHi, wHi, wLo, cLo, cHi;  // rounded outward

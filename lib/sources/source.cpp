@@ -170,21 +170,21 @@ struct RasterPlacement {
 
   TreeFile in(std::type_identity<CartesianMapping>) const {
     const DemTerrain dem = loadDem(o.source, demOptions);
-    return {CartesianIndex(dem.mesh, dem.mapping, o.terrain), sourceOf(dem)};
+    return {CartesianIndex(dem.mesh, dem.mapping, o.index), sourceOf(dem)};
   }
   TreeFile in(std::type_identity<SphericalMapping>) const {
     PlanetOptions planetOptions;
     planetOptions.radius = o.radius;
     planetOptions.dem = demOptions;
     const PlanetTerrain planet = loadPlanet(o.source, planetOptions);
-    return {SphericalIndex(planet.dem.mesh, planet.mapping, o.terrain), sourceOf(planet.dem)};
+    return {SphericalIndex(planet.dem.mesh, planet.mapping, o.index), sourceOf(planet.dem)};
   }
   TreeFile in(std::type_identity<GeodeticMapping>) const {
     const EllipsoidTerrain t = onEllipsoid();
     TreeSource source = sourceOf(t.dem);
     source.heightRef = t.heightRef.describe();
     source.geoidGrid = t.heightRef.grid;
-    return {GeodeticIndex(t.dem.mesh, t.mapping, o.terrain), source};
+    return {GeodeticIndex(t.dem.mesh, t.mapping, o.index), source};
   }
   TreeFile in(std::type_identity<EnuMapping>) const {
     // The DEM on its ellipsoid as the geodetic mapping places it (its heights over their
@@ -202,7 +202,7 @@ struct RasterPlacement {
     source.width = source.height = 0;
     source.heightRef = t.heightRef.describe();
     source.metresPerUnit = 1;  // (answers in the frame's metres)
-    return {EnuIndex(t.dem.mesh, EnuMapping(at[0], at[1], at[2], t.mapping.a(), t.mapping.f()), o.terrain), source};
+    return {EnuIndex(t.dem.mesh, EnuMapping(at[0], at[1], at[2], t.mapping.a(), t.mapping.f()), o.index), source};
   }
   TreeFile in(std::type_identity<CylindricalMapping>) const {
     // The raster is the station's relief: columns around the axis, rows along it.
@@ -218,7 +218,7 @@ struct RasterPlacement {
     if (o.length > 0) station.length = o.length;
     TreeSource source = sourceOf(dem);
     source.width = source.height = 0;  // not a map: no raster footprint to check points against
-    return {CylindricalIndex(stationMesh(relief, station), CylindricalMapping(), o.terrain), source};
+    return {CylindricalIndex(stationMesh(relief, station), CylindricalMapping(), o.index), source};
   }
 
  private:
@@ -271,7 +271,7 @@ TreeFile openIndex(const SourceOptions& o) {
     TreeSource source;
     source.path = o.source;
     source.crsWkt = file.crsWkt;
-    return {meshIndex(file.mesh, o.mapping, file.origin, o.origin, o.terrain), source};
+    return {meshIndex(file.mesh, o.mapping, file.origin, o.origin, o.index), source};
   }
   const RasterPlacement place{o, demOptions};
   return withMapping(o.mapping, [&]<class M>() { return place.in(std::type_identity<M>{}); });

@@ -48,64 +48,35 @@
 #include <unordered_map>
 #include <vector>
 
+#include "qota/axial.hpp"
 #include "qota/cylindrical.hpp"
 #include "qota/geodetic.hpp"
+#include "qota/index_face.hpp"
 #include "qota/memory.hpp"
 #include "qota/mesh.hpp"
+#include "qota/polygon_ledger.hpp"
 #include "qota/quadtree.hpp"
 #include "qota/spherical.hpp"
 #include "qota/terrain.hpp"
 
 namespace qota {
 
-// M is SphericalMapping, CylindricalMapping or GeodeticMapping (explicitly instantiated in
-// curved.cpp). Hits carry heights in the mapping's h, world points and world normals (pointing
+// M is an axial mapping: SphericalMapping, CylindricalMapping or GeodeticMapping (explicitly
+// instantiated in curved.cpp). Hits carry heights in the mapping's h, world points and world normals (pointing
 // up, against down).
-template <class M>
-class CurvedIndex {
+template <AxialMapping M>
+class CurvedIndex : public IndexFace<CurvedIndex<M>> {
  public:
   // Throws qota::Error for polygons with fewer than 3 vertices, out-of-range indices or
   // non-finite vertices, naming the polygon.
   CurvedIndex(const Mesh& mesh, const M& mapping, const IndexOptions& options = {});
 
-  // The face of every index (index.hpp): queries at (u, v) in degrees (u any value, wrapped; v in
-  // [-90, 90] for the sphere and the ellipsoid: outside it, or not finite, there is no terrain),
-  // "below" meaning further along down: a smaller radius or ellipsoid height, a larger distance
-  // from a cylinder's axis.
-  std::optional<Hit> below(double u, double v, double h) const;
-  std::optional<Hit> above(double u, double v, double h) const;
-  Bracket bracket(double u, double v, double h) const;
-  std::optional<Hit> top(double u, double v) const;  // the highest hit (up = against down)
-  std::vector<Hit> all(double u, double v) const;    // every hit, top to bottom
-  // Height only: the h of top(u, v), or of below(u, v, z); nullopt for no terrain.
-  std::optional<double> height(double u, double v) const;
-  std::optional<double> heightBelow(double u, double v, double z) const;
-  // Temporal coherence: the same queries from a per-object cursor that remembers the last leaf
-  // (see CartesianIndex); identical answers.
-  std::optional<Hit> below(Quadtree::Cursor& cursor, double u, double v, double h) const;
-  std::optional<Hit> above(Quadtree::Cursor& cursor, double u, double v, double h) const;
-  std::optional<double> height(Quadtree::Cursor& cursor, double u, double v) const;
-  std::optional<double> heightBelow(Quadtree::Cursor& cursor, double u, double v, double z) const;
-  // Heights for many points at once (out[i] for points[i], u = points[i].u, v = points[i].v),
-  // below one z or zs[i]: the same answers, with the memory latency of the points overlapped
-  // (several times faster on terrains larger than the cache); and the same on several threads.
-  void heights(std::span<const Point2> points, std::span<std::optional<double>> out) const;
-  void heightsBelow(std::span<const Point2> points, double z, std::span<std::optional<double>> out) const;
-  void heightsBelow(std::span<const Point2> points, std::span<const double> zs,
-                    std::span<std::optional<double>> out) const;
-  void heightsParallel(std::span<const Point2> points, std::span<std::optional<double>> out,
-                       unsigned threads = 0) const;
-  void heightsBelowParallel(std::span<const Point2> points, double z, std::span<std::optional<double>> out,
-                            unsigned threads = 0) const;
-  void heightsBelowParallel(std::span<const Point2> points, std::span<const double> zs,
-                            std::span<std::optional<double>> out, unsigned threads = 0) const;
-
-  // The same at a world point (mapped with the mapping first).
-  std::optional<Hit> belowWorld(const Eigen::Vector3d& p) const;
-  std::optional<Hit> aboveWorld(const Eigen::Vector3d& p) const;
-  Bracket bracketWorld(const Eigen::Vector3d& p) const;
-  std::optional<Hit> topWorld(const Eigen::Vector3d& p) const;
-  std::vector<Hit> allWorld(const Eigen::Vector3d& p) const;
+  // The face (index_face.hpp): below, above, bracket, top, height, heightBelow at (u, v) in
+  // degrees (u any value, wrapped; v in [-90, 90] for the sphere and the ellipsoid: outside it,
+  // or not finite, there is no terrain), from a cursor, at a world point (mapped first) and in
+  // batches, "below" meaning further along down: a smaller radius or ellipsoid height, a larger
+  // distance from a cylinder's axis; and here every hit at (u, v), top to bottom.
+  std::vector<Hit> all(double u, double v) const;
 
   // Every crossing of any world line origin + t direction, t in [tmin, tmax], nearest t first
   // (equal t: smaller polygon id), with the exact edge test on the corners' offsets from the
@@ -147,7 +118,19 @@ class CurvedIndex {
 
  private:
   friend struct TreeFileAccess;  // the on-disk format (treefile.hpp)
+  friend class IndexFace<CurvedIndex>;
   CurvedIndex() = default;
+  // The face's primitives (index_face.hpp).
+  std::optional<Hit> hitBelow(double u, double v, double h, Quadtree::Cursor* cursor) const;
+  std::optional<Hit> hitAbove(double u, double v, double h, Quadtree::Cursor* cursor) const;
+  std::optional<double> heightQuery(double u, double v, double z, Quadtree::Cursor* cursor) const {
+    return heightAt(u, v, z, cursor);
+  }
+  bool toQuery(const Eigen::Vector3d& world, Eigen::Vector3d& m) const { return mapped(world, m); }
+  void batchBelow(std::span<const Point2> points, double z, std::span<std::optional<double>> out) const;
+  void batchBelow(std::span<const Point2> points, std::span<const double> zs,
+                  std::span<std::optional<double>> out) const;
+  void beforeParallel() const {}
   // One triangle, 128 bytes: its local vertices (for the edge tests and the exact fallback), the
   // plane n . x = na, the footprint box (float, rounded outward) and the source polygon.
   struct alignas(64) Tri {
@@ -159,7 +142,6 @@ class CurvedIndex {
     std::uint32_t reserved = 0;  // tree files store records as they are: no byte left to chance
   };
   static_assert(sizeof(Tri) == 128);
-  static constexpr std::uint32_t kNone = 0xffffffffu;
   // A footprint box in (u, v); ulo in [-180, 180), uhi <= ulo + 360 (past 180 across the seam).
   struct FootBox {
     double ulo, uhi, vlo, vhi;
@@ -174,7 +156,7 @@ class CurvedIndex {
     if (f.vlo > b.vhi || f.vhi < b.vlo) return false;
     return (f.ulo <= b.uhi && f.uhi >= b.ulo) || (f.ulo - 360.0 <= b.uhi && f.uhi - 360.0 >= b.ulo);
   }
-  bool live(std::uint32_t i) const { return !(tris_[i].polygon < removed_.size() && removed_[tris_[i].polygon]); }
+  bool live(std::uint32_t i) const { return !ledger_.removed(tris_[i].polygon); }
   void rebuildTree(Box2 root);
 
   double normalizeU(double u) const;
@@ -215,9 +197,8 @@ class CurvedIndex {
   BigVector<Tri> tris_;
   std::vector<std::uint32_t> polarNorth_, polarSouth_;
   Quadtree tree_;
-  double scale_ = 0;  // max L1 norm of a local vertex: sets the edge tests' error bound
-  std::unordered_multimap<std::uint32_t, std::uint32_t> trianglesOf_;  // edits: polygon -> tris
-  std::vector<std::uint8_t> removed_;                                  // edits: removed polygons
+  double scale_ = 0;      // max L1 norm of a local vertex: sets the edge tests' error bound
+  PolygonLedger ledger_;  // edits: the removed polygons, each polygon's triangles
   mutable IndexStats stats_;
   mutable bool treeStatsStale_ = false;
   std::unique_ptr<std::mutex> statsMutex_ = std::make_unique<std::mutex>();  // (a mutex does not move)

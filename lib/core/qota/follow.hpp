@@ -1,8 +1,7 @@
 // Terrain following: the paper's uses of a QOTA index beyond one height, for every mapping.
 //
-// Each function takes any index with the query interface of CartesianIndex and CurvedIndex
-// (mapping(), below(u, v, h), above(u, v, h)), so it works in the Cartesian, spherical,
-// cylindrical and geodetic mappings alike: "up" is always against the mapping's down at the
+// Each function takes any index (the TerrainQuery concept of index.hpp: CartesianIndex, EnuIndex,
+// CurvedIndex<M>), so it works in every mapping alike: "up" is always against the mapping's down at the
 // point, and "below" is the mapping's (farther from the axis in a station).
 //
 // - groundUnder: the terrain under a world point, along the mapping's line.
@@ -27,6 +26,7 @@
 #include <type_traits>
 #include <vector>
 
+#include "qota/index.hpp"
 #include "qota/terrain.hpp"
 
 namespace qota {
@@ -54,11 +54,11 @@ inline Pose poseOnHit(const Hit& hit, const Eigen::Vector3d& forward) {
   return pose;
 }
 
-template <class Index>
+template <TerrainQuery Index>
 using MappingOf = std::decay_t<decltype(std::declval<const Index&>().mapping())>;
 
 // Unit "up" (against down) of the mapping's line through a world point.
-template <class Index>
+template <TerrainQuery Index>
 Eigen::Vector3d upAt(const Index& index, const Eigen::Vector3d& world) {
   const Eigen::Vector3d m = index.mapping().toMapped(world);
   return -index.mapping().line(m.x(), m.y()).down;
@@ -66,7 +66,7 @@ Eigen::Vector3d upAt(const Index& index, const Eigen::Vector3d& world) {
 
 // The nearest terrain at or below the point raised by `clearance` along up (infinity: the
 // topmost terrain on the point's line), or nullopt over a hole.
-template <class Index>
+template <TerrainQuery Index>
 std::optional<Hit> groundUnder(const Index& index, const Eigen::Vector3d& world,
                                double clearance = std::numeric_limits<double>::infinity()) {
   const Eigen::Vector3d m = index.mapping().toMapped(world);
@@ -99,7 +99,7 @@ struct FootprintPose {
 // them, the object's origin at the centroid of the hits, its z axis along the plane's upward
 // normal and its x axis as close to `heading` as the plane allows. The pose is the one of the
 // samples that hit; `missing` names the others.
-template <class Index>
+template <TerrainQuery Index>
 FootprintPose poseFromFootprint(const Index& index, std::span<const Eigen::Vector3d> samples,
                                 const Eigen::Vector3d& heading,
                                 double clearance = std::numeric_limits<double>::infinity()) {
@@ -151,7 +151,7 @@ struct MoveResult {
 // clearance above the previous ground). Holes are found where a sample has no ground, so a hole
 // narrower than `step` between two samples can be missed: pick a step below the smallest gap
 // that matters (half a metre for a person).
-template <class Index>
+template <TerrainQuery Index>
 MoveResult checkMove(const Index& index, const Eigen::Vector3d& from, const Eigen::Vector3d& to,
                      const MoveOptions& options = {}) {
   MoveResult r;
@@ -198,7 +198,7 @@ MoveResult checkMove(const Index& index, const Eigen::Vector3d& from, const Eige
 
 // The paper's containment: inside a locale when there is floor terrain below the point and
 // ceiling terrain above it (two indexes; they may be the same one).
-template <class FloorIndex, class CeilingIndex>
+template <TerrainQuery FloorIndex, TerrainQuery CeilingIndex>
 bool inLocale(const FloorIndex& floor, const CeilingIndex& ceiling, const Eigen::Vector3d& p) {
   const Eigen::Vector3d mf = floor.mapping().toMapped(p);
   if (!floor.below(mf.x(), mf.y(), mf.z())) return false;
@@ -208,7 +208,7 @@ bool inLocale(const FloorIndex& floor, const CeilingIndex& ceiling, const Eigen:
 
 // One index holding both: the nearest terrain below must be a floor polygon and the nearest
 // above a ceiling polygon (so a point under a second storey's floor is not inside the first).
-template <class Index>
+template <TerrainQuery Index>
 bool inLocale(const Index& index, const Eigen::Vector3d& p, const std::function<bool(std::uint32_t)>& isFloor,
               const std::function<bool(std::uint32_t)>& isCeiling) {
   const Eigen::Vector3d m = index.mapping().toMapped(p);
@@ -219,7 +219,7 @@ bool inLocale(const Index& index, const Eigen::Vector3d& p, const std::function<
 }
 
 // inLocale for many points: inside[i] for points[i] (1 inside, 0 outside).
-template <class FloorIndex, class CeilingIndex>
+template <TerrainQuery FloorIndex, TerrainQuery CeilingIndex>
 std::vector<std::uint8_t> classifyLocale(const FloorIndex& floor, const CeilingIndex& ceiling,
                                          std::span<const Eigen::Vector3d> points) {
   std::vector<std::uint8_t> inside(points.size());

@@ -8,7 +8,8 @@
 // a half's corners sit. The index (PlanarCore) keeps the plane arithmetic and decides when to
 // use the path.
 //
-// Slots: 2 * (row * (w - 1) + col) + half, half 0 being the triangle with corner (col, row + 1).
+// Slots: the raster rule's inner triangle numbers (RasterGrid::innerTriangle), half 0 being the
+// triangle with corner (col, row + 1).
 // A lean grid stores every half's corners at the same offsets from the cell's first vertex, so
 // a query reads the corners straight from the vertex arrays (and keeps no triangle records).
 #pragma once
@@ -20,6 +21,7 @@
 #include <vector>
 
 #include "qota/memory.hpp"
+#include "qota/raster_grid.hpp"
 #include "qota/vocabulary.hpp"
 
 namespace qota::detail {
@@ -32,8 +34,6 @@ struct TriangleCorners {
 
 class GridPath {
  public:
-  static constexpr std::uint32_t kNone = 0xffffffffu;  // a slot without a triangle
-
   // Whether the triangles over the vertices `corners` form a regular grid, vertex i at lattice
   // (i % w, i / w), every triangle one half of a cell, each half once, and the vertices on an
   // affine lattice to within 1e-6 of a cell. If so, sets the grid's shape and returns each
@@ -93,11 +93,15 @@ class GridPath {
   [[gnu::always_inline]] void leanCorner(std::uint64_t col, std::uint64_t row, std::uint32_t half, int k,
                                          std::span<const Point2> corners, std::span<const double> heights, double& u,
                                          double& v, double& h) const;
+  // The slot of half `half` of cell (col, row).
+  std::uint64_t slotOf(std::uint64_t col, std::uint64_t row, std::uint32_t half) const {
+    return RasterGrid::innerTriangle(w, row, col, half);
+  }
   // The vertex index of a cell's first corner.
   std::uint64_t firstVertex(std::uint64_t col, std::uint64_t row) const { return row * w + col; }
 
   // The shape: w x h vertices (w == 0: no grid), the inverse of the affine map (col, row) ->
-  // (u, v) about vertex 0, and per slot its triangle (kNone where the terrain has none).
+  // (u, v) about vertex 0, and per slot its triangle (kNoTriangle where the terrain has none).
   std::uint32_t w = 0, h = 0;
   double u0 = 0, v0 = 0, inv[4] = {0, 0, 0, 0};
   BigVector<std::uint32_t> cellTri;
@@ -132,7 +136,7 @@ class GridPath {
   // column fraction.
   const double xc = g.fc - static_cast<double>(col), xr = g.fr - static_cast<double>(row);
   g.half = xr > xc ? 0 : 1;
-  g.slot = 2 * (g.row * (w - 1) + g.col) + g.half;
+  g.slot = slotOf(g.col, g.row, g.half);
   // Clearly inside: farther than 1e-5 cell from the half's sides, with the vertices within 1e-6
   // cell of their grid positions (recognise), so no other triangle can hold the point.
   g.clear = std::min(std::min(std::min(xc, xr), 1 - std::max(xc, xr)), std::fabs(xr - xc)) > 1e-5;

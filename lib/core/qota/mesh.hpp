@@ -1,7 +1,7 @@
 // A terrain as a polygon soup: world-frame vertices and convex polygons given by vertex indices.
 // Polygons may overlap and need not be connected; gaps between them are holes. Winding does not
-// matter. This is what every terrain source (rasters, mesh files) produces and what CartesianIndex
-// builds from.
+// matter. This is what every terrain source (rasters, mesh files) produces and what every index
+// (index.hpp) builds from.
 #pragma once
 
 #include <Eigen/Core>

@@ -64,6 +64,13 @@ class RasterGrid {
   std::size_t triangleCount() const { return innerTriangleCount() + extraTriangles_.size(); }
   const std::vector<ExtraVertex>& extraVertices() const { return extraVertices_; }
 
+  // The rule's numbering, written here only: the inner triangle in half `half` (0: the one with
+  // corner (col, row + 1), 1: with (col + 1, row)) of the square whose top-left centre is (col,
+  // row), on a grid `width` centres wide. The planar index's grid path calls it a slot.
+  static constexpr std::uint64_t innerTriangle(std::uint64_t width, std::uint64_t row, std::uint64_t col,
+                                               std::uint32_t half) {
+    return 2 * (row * (width - 1) + col) + half;
+  }
   // The corners of triangle t, inner ones first, in the order described above.
   std::array<std::uint32_t, 3> triangle(std::size_t t) const;
   // The rule read backwards: the inner triangle whose corners are {a, b, c} in any order (the

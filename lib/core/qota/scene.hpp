@@ -27,6 +27,7 @@
 
 #include "qota/any_mapping.hpp"
 #include "qota/curved.hpp"
+#include "qota/index.hpp"
 #include "qota/terrain.hpp"
 
 namespace qota {
@@ -42,7 +43,7 @@ class Scene {
   explicit Scene(const AnyMapping& world = CartesianMapping()) : world_(world) {}
 
   // Adds a part; the index must outlive the scene. Returns the part's number.
-  template <class Index>
+  template <TerrainQuery Index>
   std::size_t add(const Index& index, const Eigen::Isometry3d& partToWorld = Eigen::Isometry3d::Identity(),
                   std::string name = {}) {
     parts_.push_back({&index, partToWorld, partToWorld.inverse(), std::move(name)});

@@ -4,11 +4,19 @@
 // Build: every vertex is mapped once to (u, v, h) (so polygons sharing a vertex share its mapped
 // coordinates bit for bit); every convex polygon is split into a fan of triangles in the mapped
 // frame; triangles are stored once, in Morton order of their centroids, as packed 128-byte records
-// (bbox, edge line equations Au + Bv + C >= 0, height plane h = a u + b v + c) with their source
-// polygon id kept apart; the quadtree references them from every leaf their projection meets.
+// (edge line equations Au + Bv + C >= 0 with their error bound, and the height plane solved from
+// corner 0; no separate bbox: the three edge tests cost about what four bbox compares do) with
+// their corners and source polygon kept apart; the quadtree references them from every leaf their
+// projection meets. On a regular grid (a raster's triangles) the grid path finds the triangle
+// under a point by arithmetic instead (grid_path.hpp), and the quadtree is built on first need.
 //
 // Query: descend to the leaf of (u, v) (two compares a level), then for each referenced
-// triangle a bbox check, three edge checks and one plane solve.
+// triangle three edge checks and one plane solve; on the grid path, the cell and its half, then
+// the plane of its three corners.
+//
+// Files: planar_build.cpp (the build), planar_query.cpp (single queries), planar_batch.cpp
+// (batches), planar_lines.cpp (alongLine), planar_edits.cpp (edits); the plane arithmetic they
+// share in planar_arith.hpp, the hot answers in planar_answers.hpp.
 //
 // Boundary rule (watertight): triangles are closed. A point is inside a triangle when the exact
 // orientation of the point against each of its edges is >= 0. The edge equations are evaluated in
@@ -21,7 +29,7 @@
 // Polygon rules: 3 or more vertex indices, all in range, all finite (else qota::Error naming the
 // polygon). Polygons are tested for convexity as seen along gravity, exactly; a non-convex one is
 // an error naming it. A polygon whose projection has zero area (a vertical wall, or a degenerate
-// one) is left out of the query structure and counted in Stats::walls. A polygon of more than 3
+// one) is left out of the query structure and counted in IndexStats::leftOut. A polygon of more than 3
 // vertices is fanned from its first vertex; each fan triangle carries its own plane, so a
 // slightly non-planar polygon is followed exactly through its fan.
 //
@@ -47,9 +55,11 @@
 #include "qota/cartesian.hpp"
 #include "qota/enu.hpp"
 #include "qota/grid_path.hpp"
+#include "qota/index_face.hpp"
 #include "qota/memory.hpp"
 #include "qota/mesh.hpp"
 #include "qota/planar.hpp"
+#include "qota/polygon_ledger.hpp"
 #include "qota/predicates.hpp"
 #include "qota/quadtree.hpp"
 #include "qota/vocabulary.hpp"
@@ -58,7 +68,7 @@ namespace qota {
 
 // The planar index's work, written once over the frame of any planar mapping (planar.hpp);
 // PlanarIndex<M> below adds the mapping itself.
-class PlanarCore {
+class PlanarCore : public IndexFace<PlanarCore> {
  public:
   // Throws qota::Error for invalid polygons (see the rules above).
   PlanarCore(const Mesh& mesh, const PlanarFrame& frame, const IndexOptions& options = {});
@@ -66,54 +76,11 @@ class PlanarCore {
   // no search for the grid in it).
   PlanarCore(const GridMesh& grid, const PlanarFrame& frame, const IndexOptions& options = {});
 
-  // Queries at a point (u, v) of the mapped frame.
-  std::optional<Hit> below(double u, double v, double h) const;  // nearest with height <= h
-  std::optional<Hit> above(double u, double v, double h) const;  // nearest with height >= h
-  Bracket bracket(double u, double v, double h) const;
-  std::optional<Hit> top(double u, double v) const;  // highest hit
-  std::vector<Hit> all(double u, double v) const;    // every polygon, top to bottom
-
-  // The same at a world point: the line through it along gravity, "below" meaning further along
-  // gravity.
-  std::optional<Hit> belowWorld(const Eigen::Vector3d& p) const;
-  std::optional<Hit> aboveWorld(const Eigen::Vector3d& p) const;
-  Bracket bracketWorld(const Eigen::Vector3d& p) const;
-  std::optional<Hit> topWorld(const Eigen::Vector3d& p) const;
-  std::vector<Hit> allWorld(const Eigen::Vector3d& p) const;
-
-  // Height only, the fast path: the highest terrain height at (u, v) with h <= z (height: any
-  // h), or std::nullopt for no terrain. For samplers and benchmarks that need no normal or polygon.
-  std::optional<double> heightBelow(double u, double v, double z) const {
-    return unlessNaN(heightAt(u, v, z, nullptr));
-  }
-  std::optional<double> height(double u, double v) const { return heightBelow(u, v, kTop); }
-  // Heights for many points at once (out[i] for points[i]), below one z or below zs[i]: the same
-  // answers, with the memory latency of the points overlapped (several times faster on terrains
-  // larger than the cache). out (and zs) must have room for every point.
-  void heights(std::span<const Point2> points, std::span<std::optional<double>> out) const;
-  void heightsBelow(std::span<const Point2> points, double z, std::span<std::optional<double>> out) const;
-  void heightsBelow(std::span<const Point2> points, std::span<const double> zs,
-                    std::span<std::optional<double>> out) const;
-  // The same on several threads (0: one per hardware thread), each taking an equal slice of the
-  // points; worth it from some ten thousand points. The answers do not depend on the threads.
-  void heightsParallel(std::span<const Point2> points, std::span<std::optional<double>> out,
-                       unsigned threads = 0) const;
-  void heightsBelowParallel(std::span<const Point2> points, double z, std::span<std::optional<double>> out,
-                            unsigned threads = 0) const;
-  void heightsBelowParallel(std::span<const Point2> points, std::span<const double> zs,
-                            std::span<std::optional<double>> out, unsigned threads = 0) const;
-
-  // Temporal coherence: the same queries starting from a per-object cursor, which remembers the
-  // last leaf so that a query a small step from the last one skips the tree descent. Answers are
-  // identical to the plain queries. A cursor belongs to one object (and one thread).
-  std::optional<Hit> below(Quadtree::Cursor& cursor, double u, double v, double h) const;
-  std::optional<Hit> above(Quadtree::Cursor& cursor, double u, double v, double h) const;
-  std::optional<double> heightBelow(Quadtree::Cursor& cursor, double u, double v, double z) const {
-    return unlessNaN(heightAt(u, v, z, &cursor));
-  }
-  std::optional<double> height(Quadtree::Cursor& cursor, double u, double v) const {
-    return heightBelow(cursor, u, v, kTop);
-  }
+  // The face (index_face.hpp): below, above, bracket, top, height, heightBelow at (u, v) of the
+  // mapped frame, from a cursor, at a world point (the line through it along gravity, "below"
+  // meaning further along gravity) and in batches; and here every polygon at (u, v), top to
+  // bottom.
+  std::vector<Hit> all(double u, double v) const;
 
   // Every crossing of an arbitrary world line origin + t * direction, t in [tmin, tmax], nearest
   // t first (equal t: smaller polygon id): for lines not along gravity, such as the world's
@@ -175,8 +142,26 @@ class PlanarCore {
 
  private:
   friend struct TreeFileAccess;                                            // the on-disk format (treefile.hpp)
+  friend class IndexFace<PlanarCore>;                                      // the face's primitives:
   static constexpr double kTop = std::numeric_limits<double>::infinity();  // "below" any terrain
-  template <class ZOf>                                                     // z of point i: zOf(i)
+  std::optional<Hit> hitBelow(double u, double v, double h, Quadtree::Cursor* cursor) const;
+  std::optional<Hit> hitAbove(double u, double v, double h, Quadtree::Cursor* cursor) const;
+  std::optional<double> heightQuery(double u, double v, double z, Quadtree::Cursor* cursor) const {
+    return unlessNaN(heightAt(u, v, z, cursor));
+  }
+  bool toQuery(const Eigen::Vector3d& world, Eigen::Vector3d& m) const {
+    m = frame_.toMapped(world);
+    return true;
+  }
+  void batchBelow(std::span<const Point2> points, double z, std::span<std::optional<double>> out) const;
+  void batchBelow(std::span<const Point2> points, std::span<const double> zs,
+                  std::span<std::optional<double>> out) const;
+  // The tree built once before the slices run, not raced for by the workers; the grid fast
+  // path never needs it (off the grid and in holes it answers no terrain itself).
+  void beforeParallel() const {
+    if (!grid_.on()) ensureTree();
+  }
+  template <class ZOf>  // z of point i: zOf(i)
   void heightsBelowBatch(std::span<const Point2> points, const ZOf& zOf, std::span<std::optional<double>> out) const;
   // Hot per-triangle record, one per triangle, 128 bytes (two cache lines), in Morton order.
   // The plane is solved from corner 0 (h0 + a (u - u0) + b (v - v0)) rather than as a u + b v + c:
@@ -231,7 +216,6 @@ class PlanarCore {
     if (h != h) return std::nullopt;
     return h;
   }
-  static constexpr std::uint32_t kNone = 0xffffffffu;
   template <bool Below>
   std::uint32_t nearest(double u, double v, double z, double& h, Quadtree::Cursor* cursor = nullptr) const;
   template <bool Below>
@@ -248,14 +232,12 @@ class PlanarCore {
   BigVector<double> cornerH_;                  // mapped h of each vertex (for lines not along gravity)
   double hmin_ = INFINITY, hmax_ = -INFINITY;  // the triangles' height range
   double umax_ = 0, vmax_ = 0;                 // largest |u|, |v| of the domain: sets the edge tolerances
-  // Edits: the triangles of each polygon (built on the first removal) and the removed polygons.
-  std::unordered_multimap<std::uint32_t, std::uint32_t> trianglesOf_;
-  std::vector<std::uint8_t> removed_;
+  PolygonLedger ledger_;                       // edits: the removed polygons, each polygon's triangles
   void rebuildTree(const Box2& domain);
   // The grid fast path (IndexOptions::gridFastPath, grid_path.hpp): where a point falls on a
   // regular grid and which triangle is there; the plane arithmetic below stays here.
   detail::GridPath grid_;
-  // The triangle holding (u, v) by the grid's rule, with its record, or kOffGrid for none (a
+  // The triangle holding (u, v) by the grid's rule, with its record, or kNoTriangle for none (a
   // hole, off the grid).
   // `record` points at the stored record, or at `scratch` where it was computed.
   std::uint32_t gridTriangle(double u, double v, Tri& scratch, const Tri*& record) const;
@@ -269,7 +251,7 @@ class PlanarCore {
   Tri computeRecord(const std::uint32_t corner[3]) const;
   void edgeRecord(const std::uint32_t corner[3], Tri& r) const;
   void planeRecord(const std::uint32_t corner[3], Tri& r) const;
-  // The lean grid's answer at (u, v): the height, and the triangle (kOffGrid: none; with
+  // The lean grid's answer at (u, v): the height, and the triangle (kNoTriangle: none; with
   // NeedId false, kFound stands for any triangle, whose id is not looked up).
   static constexpr std::uint32_t kFound = 0xfffffffdu;
   // A cursor remembers the last triangle's plane (Quadtree::Cursor::memo).
@@ -289,7 +271,6 @@ class PlanarCore {
   void leanCorner(std::uint64_t col, std::uint64_t row, std::uint32_t half, int k, double& u, double& v,
                   double& h) const;
   static double leanHeight(const LeanPlane& p, double u, double v);
-  static constexpr std::uint32_t kOffGrid = 0xfffffffeu;
   std::uint64_t generation_ = 0;  // edits so far (invalidates cursors' memos)
   // The quadtree. On a regular grid the fast path answers every height query without it, so it
   // is built on first need (statistics, all(), edits, shadows, tree files), once, thread-safely.

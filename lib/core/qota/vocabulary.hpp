@@ -10,6 +10,10 @@
 
 namespace qota {
 
+/// The one "no triangle" value: a grid slot without a triangle, a search that found none, a
+/// padding entry. (Triangle numbers are 32-bit; an index holds fewer than this many.)
+inline constexpr std::uint32_t kNoTriangle = 0xffffffffu;
+
 /// A point of the mapped plane.
 struct Point2 {
   double u = 0, v = 0;

@@ -24,7 +24,7 @@ struct SourceOptions {
   /// enu: the frame's origin (latitude, longitude degrees, height metres over the ellipsoid);
   /// none: the raster's centre at height 0 (a mesh: the centre of its box, at its height).
   std::optional<std::array<double, 3>> origin = {};
-  IndexOptions terrain = {};
+  IndexOptions index = {};  ///< the index's options: the quadtree's Maxpoly and Maxdepth, the grid path
 };
 
 /// A tree file is loaded as it is (its own mapping; asking for another is an error). A raster

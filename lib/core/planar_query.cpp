@@ -1,0 +1,237 @@
+// The planar index's single queries (terrain.hpp): the grid path's answers and the quadtree's,
+// the hits they make, every polygon at a point, and the shadow test.
+#include "qota/terrain.hpp"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <numeric>
+#include <string>
+#include <thread>
+
+#include "planar_answers.hpp"
+#include "qota/error.hpp"
+
+namespace qota {
+
+const PlanarCore::Tri& PlanarCore::gridRecord(std::uint32_t t, Tri& scratch) const {
+  // A lean grid never reads the records, not even once the tree has made them: they may be
+  // being made on another thread.
+  if (!grid_.lean) return tris_[t];
+  scratch = computeRecord(cold_[t].corner);
+  return scratch;
+}
+
+PlanarCore::Tri PlanarCore::recordOf(std::uint32_t t) const {
+  return grid_.lean || t >= tris_.size() ? computeRecord(cold_[t].corner) : tris_[t];
+}
+
+[[gnu::noinline]] std::uint32_t PlanarCore::gridAnswerFromRecords(double u, double v, double& h) const {
+  Tri scratch;
+  const Tri* rec = nullptr;
+  const std::uint32_t t = gridTriangle(u, v, scratch, rec);
+  if (t != kNoTriangle) h = heightOf(*rec, u, v);
+  return t;
+}
+
+[[gnu::noinline]] std::uint32_t PlanarCore::gridAnswerNearEdge(double u, double v, double fc, double fr,
+                                                               double& h) const {
+  Tri scratch;
+  const Tri* rec = nullptr;
+  const std::uint32_t t = gridTriangleNearEdge(u, v, fc, fr, scratch, rec);
+  if (t != kNoTriangle) h = heightOf(*rec, u, v);
+  return t;
+}
+
+std::uint32_t PlanarCore::gridTriangle(double u, double v, Tri& scratch, const Tri*& rec) const {
+  const double du = u - grid_.u0, dv = v - grid_.v0;
+  const double fc = grid_.inv[0] * du + grid_.inv[1] * dv, fr = grid_.inv[2] * du + grid_.inv[3] * dv;
+  if (fc >= 0 && fr >= 0 && fc < grid_.w - 1 && fr < grid_.h - 1) [[likely]] {
+    const auto col = static_cast<std::uint32_t>(fc), row = static_cast<std::uint32_t>(fr);
+    // The half of the cell with corner (col, row + 1) lies where the row fraction exceeds the
+    // column fraction.
+    const std::uint32_t half = fr - row > fc - col ? 0 : 1;
+    const std::uint64_t slot = grid_.slotOf(col, row, half);
+    const std::uint32_t t = grid_.cellTri[slot];
+    if (t != kNoTriangle) {
+      // Clearly inside, beyond twice the edge tests' error bound: no other triangle of a grid
+      // can hold the point.
+      const Tri& r = gridRecord(t, scratch);
+      rec = &r;
+      if (r.A[0] * u + r.B[0] * v + r.C[0] > 2 * r.tol && r.A[1] * u + r.B[1] * v + r.C[1] > 2 * r.tol &&
+          r.A[2] * u + r.B[2] * v + r.C[2] > 2 * r.tol) {
+        return t;
+      }
+    }
+  }
+  return gridTriangleNearEdge(u, v, fc, fr, scratch, rec);
+}
+
+std::uint32_t PlanarCore::gridTriangleNearEdge(double u, double v, double fc, double fr, Tri& scratch,
+                                               const Tri*& rec) const {
+  // Beyond a cell off the grid nothing can hold the point; NaN lands here too.
+  if (!(fc >= -1 && fr >= -1 && fc <= grid_.w && fr <= grid_.h)) return kNoTriangle;
+  const double cellsU = grid_.w - 1, cellsV = grid_.h - 1;
+  const auto col = static_cast<std::int64_t>(std::floor(std::clamp(fc, 0.0, cellsU - 0.5)));
+  const auto row = static_cast<std::int64_t>(std::floor(std::clamp(fr, 0.0, cellsV - 0.5)));
+  // On or near an edge (a pixel centre, a cell side), in a hole, or just off the grid: every
+  // triangle that can hold the point is in the estimated cell or in a neighbour across a side the
+  // point is within 1e-5 cell of (the vertices lie on the affine grid to within 1e-6 of a cell).
+  // The exact closed test decides, and the smallest polygon id among those holding the point
+  // answers, as in the quadtree's single-layer leaves.
+  constexpr double kNear = 1e-5;
+  const std::int64_t c0 = col - (fc - col < kNear), c1 = col + (col + 1 - fc < kNear);
+  const std::int64_t r0 = row - (fr - row < kNear), r1 = row + (row + 1 - fr < kNear);
+  std::uint32_t best = kNoTriangle;
+  for (std::int64_t r = std::max<std::int64_t>(r0, 0); r <= std::min<std::int64_t>(r1, grid_.h - 2); ++r) {
+    for (std::int64_t c = std::max<std::int64_t>(c0, 0); c <= std::min<std::int64_t>(c1, grid_.w - 2); ++c) {
+      for (int half = 0; half < 2; ++half) {
+        const std::uint64_t slot = grid_.slotOf(c, r, half);
+        const std::uint32_t t = grid_.cellTri[slot];
+        if (t == kNoTriangle) continue;
+        Tri candidateScratch;
+        const Tri& candidate = gridRecord(t, candidateScratch);
+        if (!contains(candidate, t, u, v)) continue;
+        if (best == kNoTriangle || cold_[t].polygon < cold_[best].polygon) best = t, scratch = candidate;
+      }
+    }
+  }
+  rec = &scratch;
+  return best;
+}
+
+bool PlanarCore::inside(std::uint32_t t, double u, double v) const {
+  const Cold& c = cold_[t];
+  const Point2 p{u, v};
+  for (int k = 0; k < 3; ++k) {
+    if (orient2dSign(corners2_[c.corner[k]], corners2_[c.corner[(k + 1) % 3]], p) < 0) return false;
+  }
+  return true;
+}
+
+// The nearest triangle at (u, v) on one side of z: Below = true finds the highest with h <= z,
+// false the lowest with h >= z; equal heights go to the smaller polygon id.
+//
+// This is the hot loop. The leaf's triangle records are prefetched first, so their cache misses
+// overlap instead of waiting on each other behind mispredicted branches; the per-triangle test
+// then selects without branching on the data, except for the rare point within rounding of an
+// edge, which takes the exact predicate.
+template <bool Below>
+std::uint32_t PlanarCore::nearest(double u, double v, double z, double& h, Quadtree::Cursor* cursor) const {
+  if (grid_.on()) {
+    const std::uint32_t t = gridAnswer<true>(u, v, h, cursor);
+    return (Below ? h <= z : h >= z) ? t : kNoTriangle;
+  }
+  ensureTree();
+  if (!tree_.contains(u, v)) return kNoTriangle;  // also rejects NaN
+  const Quadtree::Node leaf = cursor ? tree_.leafNode(u, v, *cursor) : tree_.leafNode(u, v);
+  const auto items = tree_.leafRange(leaf);
+  prefetchTriangles(items);
+  return nearestIn<Below>(items, Quadtree::singleLayer(leaf), u, v, z, h);
+}
+
+Hit PlanarCore::makeHit(std::uint32_t t, double u, double v, double h) const {
+  const Tri r = recordOf(t);
+  Hit hit;
+  hit.height = h;
+  hit.world = frame_.toWorld(Eigen::Vector3d(u, v, h));
+  hit.normal = frame_.directionToWorld(Eigen::Vector3d(-r.a, -r.b, 1.0).normalized());
+  hit.polygon = cold_[t].polygon;
+  return hit;
+}
+
+template <bool Below>
+std::optional<Hit> PlanarCore::hitAt(double u, double v, double z, Quadtree::Cursor* cursor) const {
+  double h = 0;
+  const std::uint32_t t = nearest<Below>(u, v, z, h, cursor);
+  if (t == kNoTriangle) return std::nullopt;
+  return makeHit(t, u, v, h);
+}
+
+std::optional<Hit> PlanarCore::hitBelow(double u, double v, double z, Quadtree::Cursor* cursor) const {
+  return hitAt<true>(u, v, z, cursor);
+}
+
+std::optional<Hit> PlanarCore::hitAbove(double u, double v, double z, Quadtree::Cursor* cursor) const {
+  return hitAt<false>(u, v, z, cursor);
+}
+
+double PlanarCore::heightAt(double u, double v, double z, Quadtree::Cursor* cursor) const {
+  if (!grid_.on()) return heightFromTree(u, v, z, cursor);
+  double h = 0;  // no need for the triangle's id
+  if (gridAnswer<false>(u, v, h, cursor) == kNoTriangle || !(h <= z)) return NAN;
+  return h;
+}
+
+[[gnu::noinline]] double PlanarCore::heightFromTree(double u, double v, double z, Quadtree::Cursor* cursor) const {
+  double h = 0;
+  if (nearest<true>(u, v, z, h, cursor) == kNoTriangle) return NAN;
+  return h;
+}
+
+std::vector<Hit> PlanarCore::all(double u, double v) const {
+  ensureTree();
+  std::vector<Hit> hits;
+  if (!tree_.contains(u, v)) return hits;
+  for (std::uint32_t t : tree_.leafItems(u, v)) {
+    const Tri& r = tris_[t];
+    if (!inside(t, u, v)) continue;  // rare call: the exact test alone is fine here
+    hits.push_back(makeHit(t, u, v, heightOf(r, u, v)));
+  }
+  std::sort(hits.begin(), hits.end(), [](const Hit& a, const Hit& b) {
+    return a.height != b.height ? a.height > b.height : a.polygon < b.polygon;
+  });
+  // A fanned polygon is met once: drop repeats from its fan triangles (on their shared diagonal).
+  std::vector<Hit> unique;
+  for (Hit& h : hits) {
+    const bool seen = std::any_of(unique.begin(), unique.end(), [&](const Hit& k) { return k.polygon == h.polygon; });
+    if (!seen) unique.push_back(std::move(h));
+  }
+  return unique;
+}
+
+bool PlanarCore::occludedAbove(double u, double v, double h, std::uint32_t vertex) const {
+  ensureTree();
+  if (!tree_.contains(u, v)) return false;
+  for (std::uint32_t t : tree_.leafItems(u, v)) {
+    if (triangleOccludesAbove(t, u, v, h, vertex)) return true;
+  }
+  return false;
+}
+
+bool PlanarCore::triangleOccludesAbove(std::uint32_t t, double u, double v, double h, std::uint32_t vertex) const {
+  const Cold& c = cold_[t];
+  if (c.corner[0] == vertex || c.corner[1] == vertex || c.corner[2] == vertex) return false;
+  if (ledger_.removed(c.polygon)) return false;
+  Tri scratch;
+  const Tri& r = grid_.lean ? (scratch = computeRecord(c.corner)) : tris_[t];
+  return contains(r, t, u, v) && heightOf(r, u, v) > h;
+}
+
+bool mappedTriangleAbove(const Eigen::Vector3d& c0, const Eigen::Vector3d& c1, const Eigen::Vector3d& c2, double u,
+                         double v, double h) {
+  // The corners counter-clockwise from the first, as fanPolygon orders them; inside() and
+  // computeRecord's plane and height range, as heightOf uses them.
+  const Point2 p0{c0.x(), c0.y()};
+  Point2 p1{c1.x(), c1.y()}, p2{c2.x(), c2.y()};
+  double h1 = c1.z(), h2 = c2.z();
+  const int sign = orient2dSign(p0, p1, p2);
+  if (sign == 0) return false;
+  if (sign < 0) std::swap(p1, p2), std::swap(h1, h2);
+  const Point2 q{u, v};
+  if (orient2dSign(p0, p1, q) < 0 || orient2dSign(p1, p2, q) < 0 || orient2dSign(p2, p0, q) < 0) return false;
+  const planar::PlaneFit f = planar::cornerPlane(p0.u, p0.v, c0.z(), p1.u, p1.v, h1, p2.u, p2.v, h2);
+  const auto lo = static_cast<double>(floatBelow(std::min(c0.z(), std::min(h1, h2))));
+  const auto hi = static_cast<double>(floatAbove(std::max(c0.z(), std::max(h1, h2))));
+  return std::clamp(f.h0 + f.a * (u - p0.u) + f.b * (v - p0.v), lo, hi) > h;
+}
+
+std::uint32_t PlanarCore::testsAt(double u, double v) const {
+  ensureTree();
+  if (!tree_.contains(u, v)) return 0;
+  return static_cast<std::uint32_t>(tree_.leafItems(u, v).size());
+}
+
+}  // namespace qota
