@@ -247,7 +247,7 @@ void run(const Terrain& t, std::size_t n) {
   const Timing qm = timeQueries(miss, qotaOne), em = timeQueries(miss, embreeOneF);
   const Timing qw = timeQueries(walk, qotaOne), ew = timeQueries(walk, embreeOneF);
   // The same walk through a cursor, qota's way of following a moving object (temporal coherence).
-  qota::Quadtree::Cursor cursor;
+  qota::Cursor cursor;
   const Timing qwc = timeQueries(walk, [&](double u, double v) {
     const auto h = index.heightBelow(cursor, u, v, INFINITY);
     return h ? static_cast<float>(*h) : NAN;

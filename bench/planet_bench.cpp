@@ -83,7 +83,7 @@ double nsPerBatch(const std::vector<Query>& points, Batch&& batch, One&& one, in
 // Disagreements between the cursor and the plain query along a track (every 13th point).
 template <class WithCursor, class Plain>
 int checkCursor(const std::vector<Query>& track, WithCursor&& withCursor, Plain&& plain) {
-  qota::Quadtree::Cursor cursor;
+  qota::Cursor cursor;
   int bad = 0;
   for (std::size_t i = 0; i < track.size(); ++i) {
     const auto a = withCursor(cursor, track[i].u, track[i].v);
@@ -151,11 +151,11 @@ Row measure(const std::string& mapping, const std::string& terrain, const qota::
       [&](double u, double v) { return index.height(u, v); }, row.disagreements);
   row.track = nsPerQuery(track, height, misses);
   row.misses += misses;
-  qota::Quadtree::Cursor cursor;
+  qota::Cursor cursor;
   row.cursor = nsPerQuery(
       track, [&](double u, double v) { return index.height(cursor, u, v); }, misses);
   row.disagreements += checkCursor(
-      track, [&](qota::Quadtree::Cursor& c, double u, double v) { return index.height(c, u, v); }, height);
+      track, [&](qota::Cursor& c, double u, double v) { return index.height(c, u, v); }, height);
   const auto b0 = Clock::now();
   for (int i = 0; i < bruteCount; ++i) {
     const auto [o, d, offset] = lineOf(random[i].u, random[i].v);

@@ -32,7 +32,7 @@ MappedLine lineOf(const AnyMapping& mapping, double u, double v) {
 Eigen::Vector3d MappingParameters::vector(const char* key, const Eigen::Vector3d& fallback) {
   const auto it = words_.find(key);
   if (it == words_.end()) return fallback;
-  const Eigen::Vector3d v = detail::parseVector(it->second, "mapping " + mapping_ + " " + key);
+  Eigen::Vector3d v = detail::parseVector(it->second, "mapping " + mapping_ + " " + key);
   words_.erase(it);
   return v;
 }
@@ -82,7 +82,9 @@ AnyMapping parseMapping(const std::string& text) {
   while (in >> word) {
     const auto eq = word.find('=');
     if (eq == std::string::npos || eq == 0) {
-      throw Error("mapping '" + text + "': '" + word + "' is not key=value");
+      std::string message = "mapping '";
+      message.append(text).append("': '").append(word).append("' is not key=value");
+      throw Error(message);
     }
     words[word.substr(0, eq)] = word.substr(eq + 1);
   }

@@ -33,12 +33,24 @@ cmake --build "$work/consumer" -j2 > /dev/null
 "$work/consumer/core_only"
 "$work/consumer/with_rasters" "$data/mt_rainier_90m.tif"
 PKG_CONFIG_PATH=$(dirname "$pc") pkg-config --modversion qota
+"$work/prefix/bin/qota" --version | head -1
+# The examples as a project of their own against the installed package, built and run.
+cmake -S "$here/../examples" -B "$work/examples" -DCMAKE_PREFIX_PATH="$work/prefix" -DCMAKE_BUILD_TYPE=Release "${flags[@]}" > /dev/null
+cmake --build "$work/examples" -j2 > /dev/null
+ctest --test-dir "$work/examples" -j2 --output-on-failure | grep "tests passed"
+# As a subproject: configured only (the build is the one above), no build type forced.
+cmake -S "$here/package/parent" -B "$work/parent" -DQOTA_SOURCE="$here/.." > /dev/null
+if grep -q '^CMAKE_BUILD_TYPE:STRING=.' "$work/parent/CMakeCache.txt"; then
+  echo "the subproject set the parent's build type"; exit 1
+fi
+grep -q '^QOTA_BUILD_TESTS:BOOL=OFF' "$work/parent/CMakeCache.txt" || { echo "tests on in a subproject"; exit 1; }
+echo "installed: $(dirname "$config")"
 # COMPONENTS core: configured, built and run with the full library's dependencies hidden from
 # find_package; an unknown component is refused.
 hide=()
 for p in GDAL PROJ glm assimp date; do hide+=(-DCMAKE_DISABLE_FIND_PACKAGE_$p=ON); done
 cmake -S "$here/package/core" -B "$work/core" -DCMAKE_PREFIX_PATH="$work/prefix" -DCMAKE_BUILD_TYPE=Release \
-  "${hide[@]}" "${flags[@]}" > /dev/null
+  --no-warn-unused-cli "${hide[@]}" "${flags[@]}" > /dev/null
 cmake --build "$work/core" -j2 > /dev/null
 "$work/core/core_component"
 mkdir -p "$work/nosuch"
@@ -61,15 +73,3 @@ if [ "${QOTA_CONSUMER_FLAGS:-}" = "" ]; then
   "$work/pc_core"
   echo "qota.pc, qota-core.pc: a moved install's paths; qota-core builds a program"
 fi
-"$work/prefix/bin/qota" --version | head -1
-# The examples as a project of their own against the installed package, built and run.
-cmake -S "$here/../examples" -B "$work/examples" -DCMAKE_PREFIX_PATH="$work/prefix" -DCMAKE_BUILD_TYPE=Release "${flags[@]}" > /dev/null
-cmake --build "$work/examples" -j2 > /dev/null
-ctest --test-dir "$work/examples" -j2 --output-on-failure | grep "tests passed"
-# As a subproject: configured only (the build is the one above), no build type forced.
-cmake -S "$here/package/parent" -B "$work/parent" -DQOTA_SOURCE="$here/.." > /dev/null
-if grep -q '^CMAKE_BUILD_TYPE:STRING=.' "$work/parent/CMakeCache.txt"; then
-  echo "the subproject set the parent's build type"; exit 1
-fi
-grep -q '^QOTA_BUILD_TESTS:BOOL=OFF' "$work/parent/CMakeCache.txt" || { echo "tests on in a subproject"; exit 1; }
-echo "installed: $(dirname "$config")"

@@ -28,7 +28,7 @@ double uniform(std::mt19937_64& rng, double lo, double hi) {
 template <class Query, class Plain>
 void expectCursorMatches(Box2 domain, Query&& withCursor, Plain&& plain, const Quadtree& tree, std::uint64_t seed) {
   std::mt19937_64 rng(seed);
-  Quadtree::Cursor cursor;
+  Cursor cursor;
   double u = 0.5 * (domain.ulo + domain.uhi), v = 0.5 * (domain.vlo + domain.vhi);
   const double step = 1e-3 * (domain.uhi - domain.ulo);
   for (int i = 0; i < 200000; ++i) {
@@ -46,7 +46,7 @@ void expectCursorMatches(Box2 domain, Query&& withCursor, Plain&& plain, const Q
     ASSERT_EQ(withCursor(cursor, u, v), plain(u, v)) << i << " at " << u << " " << v;
     if (tree.contains(u, v)) {
       const Quadtree::Node a = tree.leafNode(u, v);
-      Quadtree::Cursor fresh;
+      Cursor fresh;
       const Quadtree::Node b = tree.leafNode(u, v, fresh);
       ASSERT_EQ(a.first, b.first);
       ASSERT_EQ(a.count, b.count);
@@ -65,13 +65,13 @@ TEST(Cursor, CartesianMatchesPlainQueries) {
   const CartesianIndex index(mesh, CartesianMapping());
   const Box2 d = index.stats().domain;
   expectCursorMatches(
-      d, [&](Quadtree::Cursor& c, double u, double v) { return polygonOf(index.below(c, u, v, 5.0)); },
+      d, [&](Cursor& c, double u, double v) { return polygonOf(index.below(c, u, v, 5.0)); },
       [&](double u, double v) { return polygonOf(index.below(u, v, 5.0)); }, index.tree(), 1);
   expectCursorMatches(
-      d, [&](Quadtree::Cursor& c, double u, double v) { return polygonOf(index.above(c, u, v, 0.0)); },
+      d, [&](Cursor& c, double u, double v) { return polygonOf(index.above(c, u, v, 0.0)); },
       [&](double u, double v) { return polygonOf(index.above(u, v, 0.0)); }, index.tree(), 2);
   expectCursorMatches(
-      d, [&](Quadtree::Cursor& c, double u, double v) { return index.heightBelow(c, u, v, 1e9); },
+      d, [&](Cursor& c, double u, double v) { return index.heightBelow(c, u, v, 1e9); },
       [&](double u, double v) { return index.heightBelow(u, v, 1e9); }, index.tree(), 3);
 }
 
@@ -79,13 +79,12 @@ TEST(Cursor, CurvedMatchesPlainQueries) {
   const PlanetTerrain planet = loadPlanet(QOTA_DATA_DIR "/etopo20.tif");
   const SphericalIndex sphere(planet.dem.mesh, planet.mapping);
   expectCursorMatches(
-      sphere.stats().domain, [&](Quadtree::Cursor& c, double u, double v) { return sphere.height(c, u, v); },
+      sphere.stats().domain, [&](Cursor& c, double u, double v) { return sphere.height(c, u, v); },
       [&](double u, double v) { return sphere.height(u, v); }, sphere.tree(), 4);
   const Mesh station = stationMesh(fractalHeightfield(200, 60, 1.0, 8.0, 3), {250, 1000});
   const CylindricalIndex tube(station, CylindricalMapping());
   expectCursorMatches(
-      tube.stats().domain,
-      [&](Quadtree::Cursor& c, double u, double v) { return polygonOf(tube.below(c, u, v, 100.0)); },
+      tube.stats().domain, [&](Cursor& c, double u, double v) { return polygonOf(tube.below(c, u, v, 100.0)); },
       [&](double u, double v) { return polygonOf(tube.below(u, v, 100.0)); }, tube.tree(), 5);
 }
 

@@ -163,7 +163,7 @@ TEST(GridFastPath, CursorMemoAnswersAsPlainQueries) {
   const Heightfield g = fractalHeightfield(40, 40, 1.0, 8.0, 10);
   CartesianIndex a(f.toMesh(), CartesianMapping()), b(g.toMesh(), CartesianMapping());
   ASSERT_TRUE(a.gridFastPath());
-  Quadtree::Cursor cursor;
+  Cursor cursor;
   std::mt19937_64 rng(11);
   double u = 3.3, v = 4.1;
   for (int i = 0; i < 20000; ++i) {

@@ -952,7 +952,7 @@ TYPED_TEST(IndexFace, InvalidInputIsNoTerrainNotAnError) {
       bad.push_back({u0, v});
     }
   }
-  Quadtree::Cursor cursor;
+  Cursor cursor;
   for (const Point2& p : bad) {
     const At at{p.u, p.v, h0};
     EXPECT_NO_THROW({
@@ -1052,7 +1052,7 @@ TYPED_TEST(IndexFace, CursorWalksAnswerAsPlainQueries) {
   std::mt19937_64 rng(6);
   const double stepU = w.domain.periodicU ? 0.4 : 0.004 * (w.box.uhi - w.box.ulo);
   const double stepV = w.latitudes() ? 0.4 : 0.004 * (w.box.vhi - w.box.vlo);
-  Quadtree::Cursor cursor;
+  Cursor cursor;
   Point2 p = w.drawUV(rng);
   int queries = 0;
   for (int i = 0; i < 8000; ++i) {

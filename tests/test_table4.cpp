@@ -68,7 +68,7 @@ TEST(Table4, CostModelCutsAnswerAsMidpointCuts) {
       points.push_back({u.x(), u.y()});
       points.push_back({0.5 * (u.x() + v.x()), 0.5 * (u.y() + v.y())});
     }
-    qota::Quadtree::Cursor cursor;
+    qota::Cursor cursor;
     for (const qota::Point2& p : points) {
       const auto x = a.below(p.u, p.v, 1e300), y = b.below(p.u, p.v, 1e300), z = b.below(cursor, p.u, p.v, 1e300);
       ASSERT_EQ(x.has_value(), y.has_value()) << p.u << " " << p.v;

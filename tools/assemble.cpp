@@ -283,6 +283,7 @@ int assemble(const AssembleOptions& o, std::ostream& out, std::ostream& err) {
     if (format == "VRT") {
       std::vector<std::string> absolute;
       std::vector<const char*> names;
+      absolute.reserve(tiles.size()), names.reserve(tiles.size());
       for (const Tile& t : tiles) absolute.push_back(std::filesystem::absolute(t.path).string());
       for (const auto& a : absolute) names.push_back(a.c_str());
       const std::filesystem::path staged = stage.stage(o.output);

@@ -277,6 +277,7 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
   try {
     const std::vector<std::string> args = gdalStyleArguments(argc, argv);
     std::vector<const char*> cargs;
+    cargs.reserve(args.size());
     for (const auto& a : args) cargs.push_back(a.c_str());
     app.parse(static_cast<int>(cargs.size()), const_cast<char**>(cargs.data()));
   } catch (const CLI::ParseError& e) {

@@ -100,7 +100,7 @@ bool onSurface(const DemTerrain* grid, double& x, double& y, std::string& proble
 
 // A raster in the Cartesian mapping, read tile by tile (RasterSampler): memory bounded by the
 // tile cache, never the whole raster; the same answers as its whole terrain.
-Surface rasterSurface(std::shared_ptr<RasterSampler> sampler) {
+Surface rasterSurface(const std::shared_ptr<RasterSampler>& sampler) {
   return [sampler](std::span<const Query> q, bool hasZ, std::span<Answer> out) {
     const DemTerrain& dem = sampler->dem();
     const std::array<double, 6> inverse = dem.inverseGeotransform();
@@ -189,7 +189,7 @@ Surface openSurface(const SampleOptions& options, TreeSource& source, std::ostre
       auto sampler = std::make_shared<RasterSampler>(options.source, so);
       const DemTerrain& dem = sampler->dem();
       source.path = dem.path, source.crsWkt = dem.crsWkt;
-      return rasterSurface(std::move(sampler));
+      return rasterSurface(sampler);
     }
   }
   SourceOptions so = options;  // (the source's part of the options)

@@ -354,6 +354,7 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
     };
     // The memory estimate, from the windows the tiles to do will read.
     std::vector<CellWindow> planned;
+    planned.reserve(todo.size());
     for (const auto& t : todo) planned.push_back(tileOf(t));
     const std::uint64_t largest = tiles.largestWindowCells(planned, lights);
     const std::uint64_t passRows = std::clamp<std::uint64_t>(passBytes / ShadowTiles::kPassBytesPerCell / dem.width, 1,

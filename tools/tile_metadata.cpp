@@ -24,7 +24,9 @@ std::string sealedText(MetadataItems items, const TileGrid& grid) {
               items.end());
   std::sort(items.begin(), items.end());
   std::string text;
-  for (const auto& [name, value] : items) text += name + "=" + std::to_string(value.size()) + ":" + value + "\n";
+  for (const auto& [name, value] : items) {
+    text.append(name).append("=").append(std::to_string(value.size())).append(":").append(value).append("\n");
+  }
   text += "size=" + std::to_string(grid.width) + "," + std::to_string(grid.height) + "\ngeotransform=";
   for (double g : grid.geotransform) text += bits(g) + ",";
   text += "\ntype=" + grid.dataType + "\nnodata=" + (grid.nodata ? bits(*grid.nodata) : std::string("none")) + "\n";

@@ -392,7 +392,7 @@ void CurvedIndex<M>::batchBelow(std::span<const Point2> points, std::span<const 
 template <AxialMapping M>
 template <bool Below>
 std::uint32_t CurvedIndex<M>::nearest(double u, double v, double h, double& hOut, Line& line, double& tOut,
-                                      Quadtree::Cursor* cursor) const {
+                                      Cursor* cursor) const {
   // Outside the domain (a latitude beyond the poles) or not finite: no terrain (index.hpp).
   if (!validQuery(u, v) || std::isnan(h)) return kNoTriangle;
   u = normalizeU(u);
@@ -425,7 +425,7 @@ Hit CurvedIndex<M>::makeHit(std::uint32_t i, const Line& line, double tHit) cons
 
 template <AxialMapping M>
 template <bool Below>
-std::optional<Hit> CurvedIndex<M>::hitAt(double u, double v, double h, Quadtree::Cursor* cursor) const {
+std::optional<Hit> CurvedIndex<M>::hitAt(double u, double v, double h, Cursor* cursor) const {
   double hh, t;
   Line line;
   const std::uint32_t i = nearest<Below>(u, v, h, hh, line, t, cursor);
@@ -434,7 +434,7 @@ std::optional<Hit> CurvedIndex<M>::hitAt(double u, double v, double h, Quadtree:
 }
 
 template <AxialMapping M>
-std::optional<double> CurvedIndex<M>::heightAt(double u, double v, double z, Quadtree::Cursor* cursor) const {
+std::optional<double> CurvedIndex<M>::heightAt(double u, double v, double z, Cursor* cursor) const {
   double hh, t;
   Line line;
   if (nearest<true>(u, v, z, hh, line, t, cursor) == kNoTriangle) return std::nullopt;
@@ -442,12 +442,12 @@ std::optional<double> CurvedIndex<M>::heightAt(double u, double v, double z, Qua
 }
 
 template <AxialMapping M>
-std::optional<Hit> CurvedIndex<M>::hitBelow(double u, double v, double h, Quadtree::Cursor* cursor) const {
+std::optional<Hit> CurvedIndex<M>::hitBelow(double u, double v, double h, Cursor* cursor) const {
   return hitAt<true>(u, v, h, cursor);
 }
 
 template <AxialMapping M>
-std::optional<Hit> CurvedIndex<M>::hitAbove(double u, double v, double h, Quadtree::Cursor* cursor) const {
+std::optional<Hit> CurvedIndex<M>::hitAbove(double u, double v, double h, Cursor* cursor) const {
   return hitAt<false>(u, v, h, cursor);
 }
 

@@ -53,7 +53,7 @@ namespace qota {
 
 template <bool NeedId>
 [[gnu::always_inline]] inline std::uint32_t PlanarCore::gridAnswer(double u, double v, double& h,
-                                                                   Quadtree::Cursor* cursor) const {
+                                                                   Cursor* cursor) const {
   if (grid_.lean) {
     const detail::GridPath::Cell g = grid_.cell(u, v);
     if (g.inGrid && g.clear) [[likely]] {

@@ -119,7 +119,7 @@ bool PlanarCore::inside(std::uint32_t t, double u, double v) const {
 // then selects without branching on the data, except for the rare point within rounding of an
 // edge, which takes the exact predicate.
 template <bool Below>
-std::uint32_t PlanarCore::nearest(double u, double v, double z, double& h, Quadtree::Cursor* cursor) const {
+std::uint32_t PlanarCore::nearest(double u, double v, double z, double& h, Cursor* cursor) const {
   if (grid_.on()) {
     const std::uint32_t t = gridAnswer<true>(u, v, h, cursor);
     return (Below ? h <= z : h >= z) ? t : kNoTriangle;
@@ -143,29 +143,29 @@ Hit PlanarCore::makeHit(std::uint32_t t, double u, double v, double h) const {
 }
 
 template <bool Below>
-std::optional<Hit> PlanarCore::hitAt(double u, double v, double z, Quadtree::Cursor* cursor) const {
+std::optional<Hit> PlanarCore::hitAt(double u, double v, double z, Cursor* cursor) const {
   double h = 0;
   const std::uint32_t t = nearest<Below>(u, v, z, h, cursor);
   if (t == kNoTriangle) return std::nullopt;
   return makeHit(t, u, v, h);
 }
 
-std::optional<Hit> PlanarCore::hitBelow(double u, double v, double z, Quadtree::Cursor* cursor) const {
+std::optional<Hit> PlanarCore::hitBelow(double u, double v, double z, Cursor* cursor) const {
   return hitAt<true>(u, v, z, cursor);
 }
 
-std::optional<Hit> PlanarCore::hitAbove(double u, double v, double z, Quadtree::Cursor* cursor) const {
+std::optional<Hit> PlanarCore::hitAbove(double u, double v, double z, Cursor* cursor) const {
   return hitAt<false>(u, v, z, cursor);
 }
 
-double PlanarCore::heightAt(double u, double v, double z, Quadtree::Cursor* cursor) const {
+double PlanarCore::heightAt(double u, double v, double z, Cursor* cursor) const {
   if (!grid_.on()) return heightFromTree(u, v, z, cursor);
   double h = 0;  // no need for the triangle's id
   if (gridAnswer<false>(u, v, h, cursor) == kNoTriangle || !(h <= z)) return NAN;
   return h;
 }
 
-[[gnu::noinline]] double PlanarCore::heightFromTree(double u, double v, double z, Quadtree::Cursor* cursor) const {
+[[gnu::noinline]] double PlanarCore::heightFromTree(double u, double v, double z, Cursor* cursor) const {
   double h = 0;
   if (nearest<true>(u, v, z, h, cursor) == kNoTriangle) return NAN;
   return h;

@@ -20,10 +20,11 @@ RasterGrid::RasterGrid(int width, int height, Closure closure) : width_(width), 
   std::vector<std::uint32_t> topRow, bottomRow, leftCol, rightCol;
   const int cFirst = sides ? -1 : 0, cLast = sides ? w : w - 1;  // lattice columns
   const auto edgeRowVertices = [&](std::vector<std::uint32_t>& out, double row, int cellRow) {
-    out.assign(static_cast<std::size_t>(w + 2), 0);
+    out.assign(static_cast<std::size_t>(w) + 2, 0);
     for (int c = cFirst; c <= cLast; ++c) {
       const double col = c < 0 ? 0.0 : c >= w ? static_cast<double>(w) : c + 0.5;
-      out[static_cast<std::size_t>(c + 1)] = addExtra(col, row, cell(cellRow, c < 0 ? 0 : c >= w ? w - 1 : c));
+      const int slot = c + 1;  // (column -1, the left border, at 0)
+      out[static_cast<std::size_t>(slot)] = addExtra(col, row, cell(cellRow, c < 0 ? 0 : c >= w ? w - 1 : c));
     }
   };
   if (top) edgeRowVertices(topRow, 0.0, 0);
@@ -38,8 +39,9 @@ RasterGrid::RasterGrid(int width, int height, Closure closure) : width_(width), 
   }
   // The vertex at lattice (r, c): a cell, or a border vertex.
   const auto vertex = [&](int r, int c) -> std::uint32_t {
-    if (r < 0) return topRow[static_cast<std::size_t>(c + 1)];
-    if (r >= h) return bottomRow[static_cast<std::size_t>(c + 1)];
+    const int slot = c + 1;  // in a border row (column -1 at 0)
+    if (r < 0) return topRow[static_cast<std::size_t>(slot)];
+    if (r >= h) return bottomRow[static_cast<std::size_t>(slot)];
     if (c < 0) return leftCol[static_cast<std::size_t>(r)];
     if (c >= w) return rightCol[static_cast<std::size_t>(r)];
     return cell(r, c);

@@ -38,7 +38,7 @@ struct StateWriter {
     out << name << ' ' << std::string(buffer, end) << '\n';
   }
   void text(const char* name, const std::string& v) { out << name << ' ' << v.size() << ' ' << v << '\n'; }
-  std::string finish() {
+  std::string finish() const {
     std::string body = out.str();
     return body + "checksum " + checksumOf(body) + "\n";
   }
@@ -93,7 +93,7 @@ std::string checkedStateBody(const std::string& state) {
     }
     throw Error("a shadow tiles state that was edited, damaged or cut short (no checksum line); make it again");
   }
-  const std::string body = state.substr(0, line + 1);
+  std::string body = state.substr(0, line + 1);
   std::string sum = state.substr(line + 10);
   if (!sum.empty() && sum.back() == '\n') sum.pop_back();
   if (sum != checksumOf(body)) {

@@ -30,7 +30,7 @@ namespace isolated {
 class Pipe {
  public:
   explicit Pipe(int fd) : fd_(fd) {}
-  bool write(const void* p, std::size_t n) {
+  bool write(const void* p, std::size_t n) const {
     const char* c = static_cast<const char*>(p);
     while (n > 0) {
       const ssize_t k = ::write(fd_, c, n);

@@ -70,6 +70,7 @@ const MappingEntry& mappingEntry(std::string_view name) {
 
 std::vector<std::string> mappingNameList() {
   std::vector<std::string> names;
+  names.reserve(kMappingEntries.size());
   for (const MappingEntry& e : kMappingEntries) names.emplace_back(e.name);
   return names;
 }

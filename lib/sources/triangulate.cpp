@@ -36,7 +36,7 @@ struct Projection {
 // normal can cancel out) still gets a plane in which the crossing shows.
 Projection projectionFor(std::span<const std::uint32_t> ring, const std::vector<Eigen::Vector3d>& v) {
   Eigen::Vector3d n = Eigen::Vector3d::Zero();
-  const Eigen::Vector3d o = v[ring[0]];
+  const Eigen::Vector3d& o = v[ring[0]];
   for (std::size_t i = 1; i + 1 < ring.size(); ++i) {
     n += (v[ring[i]] - o).cross(v[ring[i + 1]] - o).cwiseAbs();
   }
@@ -329,6 +329,7 @@ bool coversArea(const std::vector<std::array<std::uint32_t, 3>>& tris, const std
                 const std::vector<Eigen::Vector3d>& v) {
   auto area = [&](const std::vector<std::uint32_t>& ring) {
     std::vector<Point2> pts;
+    pts.reserve(ring.size());
     for (std::uint32_t id : ring) pts.push_back(proj(v[id]));
     return std::fabs(signedArea2(pts));
   };
@@ -376,11 +377,13 @@ FaceCut cutFace(const std::vector<std::uint32_t>& outline, const std::vector<std
   std::vector<Node> outer = nodes(outline, true);
   if (holes.empty() && keepConvex) {
     std::vector<Point2> pts;
+    pts.reserve(outer.size());
     for (const Node& node : outer) pts.push_back(node.p);
     if (convexCcw(pts)) return {FaceCut::whole, {}};
   }
 
   std::vector<std::vector<Node>> holeNodes;
+  holeNodes.reserve(holes.size());
   for (const auto& h : holes) holeNodes.push_back(nodes(h, false));
   if (!holeNodes.empty() && !joinHoles(outer, std::move(holeNodes))) {
     return {FaceCut::holesNotJoined, {}};

@@ -121,9 +121,9 @@ class CurvedIndex : public IndexFace<CurvedIndex<M>> {
   friend class IndexFace<CurvedIndex>;
   CurvedIndex() = default;
   // The face's primitives (index_face.hpp).
-  std::optional<Hit> hitBelow(double u, double v, double h, Quadtree::Cursor* cursor) const;
-  std::optional<Hit> hitAbove(double u, double v, double h, Quadtree::Cursor* cursor) const;
-  std::optional<double> heightQuery(double u, double v, double z, Quadtree::Cursor* cursor) const {
+  std::optional<Hit> hitBelow(double u, double v, double h, Cursor* cursor) const;
+  std::optional<Hit> hitAbove(double u, double v, double h, Cursor* cursor) const;
+  std::optional<double> heightQuery(double u, double v, double z, Cursor* cursor) const {
     return heightAt(u, v, z, cursor);
   }
   bool toQuery(const Eigen::Vector3d& world, Eigen::Vector3d& m) const { return mapped(world, m); }
@@ -181,12 +181,12 @@ class CurvedIndex : public IndexFace<CurvedIndex<M>> {
                           double ez, double& hOut, double& tOut) const;
   template <bool Below>
   std::uint32_t nearest(double u, double v, double h, double& hOut, Line& line, double& tOut,
-                        Quadtree::Cursor* cursor = nullptr) const;
+                        Cursor* cursor = nullptr) const;
   Hit makeHit(std::uint32_t t, const Line& line, double tHit) const;
   // below/above/height with or without a cursor.
   template <bool Below>
-  std::optional<Hit> hitAt(double u, double v, double h, Quadtree::Cursor* cursor) const;
-  std::optional<double> heightAt(double u, double v, double z, Quadtree::Cursor* cursor) const;
+  std::optional<Hit> hitAt(double u, double v, double h, Cursor* cursor) const;
+  std::optional<double> heightAt(double u, double v, double z, Cursor* cursor) const;
   template <class ZOf>  // z of point i: zOf(i)
   void heightsBelowBatch(std::span<const Point2> points, const ZOf& zOf, std::span<std::optional<double>> out) const;
   // The top of the mapping's h ("below" any terrain) in the direction of up.

@@ -17,6 +17,7 @@
 #include <span>
 #include <vector>
 
+#include "qota/index_face.hpp"
 #include "qota/quadtree.hpp"
 #include "qota/vocabulary.hpp"
 
@@ -31,9 +32,9 @@ namespace qota {
 /// the grid path and the quadtree answer the same bits.
 inline constexpr double kAnswerAccuracy = 1e-10;
 
-// A query's memory of the last leaf (and, on a grid, the last triangle): a query a small step
-// from the last one skips the descent. One per moving object and thread.
-using Cursor = Quadtree::Cursor;
+// Cursor (index_face.hpp): a query's memory of the last leaf (and, on a grid, the last
+// triangle): a query a small step from the last one skips the descent. One per moving object
+// and thread.
 
 template <class I>
 concept TerrainQuery = requires(const I& index, double u, double v, double h, const Eigen::Vector3d& p, Cursor& cursor,

@@ -21,6 +21,7 @@
 #include <Eigen/Core>
 #include <algorithm>
 #include <cstddef>
+#include <cstdint>
 #include <optional>
 #include <span>
 #include <vector>
@@ -31,11 +32,22 @@
 
 namespace qota {
 
+/// A moving object's memory for coherent queries, one per object and thread: the quadtree's last
+/// leaf (Quadtree::Cursor), and the index's memo of its last answer (the grid path keeps the
+/// last triangle's plane there, so that a walk within one triangle solves no plane), valid only
+/// for that index (owner), unedited since (generation), at that key.
+struct Cursor : Quadtree::Cursor {
+  struct Memo {
+    const void* owner = nullptr;
+    std::uint64_t generation = 0, key = 0;
+    std::uint32_t item = 0;
+    double value[7] = {};
+  } memo;
+};
+
 template <class I>
 class IndexFace {
  public:
-  using Cursor = Quadtree::Cursor;
-
   /// Nearest terrain at (u, v) with height <= h (below) or >= h (above); nullopt for none.
   std::optional<Hit> below(double u, double v, double h) const { return self().hitBelow(u, v, h, nullptr); }
   std::optional<Hit> above(double u, double v, double h) const { return self().hitAbove(u, v, h, nullptr); }

@@ -115,15 +115,6 @@ class Quadtree {
   struct Cursor {
     Node leaf{0, 0};
     Box2 box;
-    // The index's memo of its last answer (the grid fast path keeps the last triangle's plane
-    // here, so that a walk within one triangle solves no plane): valid only for that index
-    // (owner), unedited since (generation), at that key.
-    struct Memo {
-      const void* owner = nullptr;
-      std::uint64_t generation = 0, key = 0;
-      std::uint32_t item = 0;
-      double value[7] = {};
-    } memo;
   };
   // leafNode(u, v), starting from the cursor when (u, v) is in its box, and updating it. The
   // answer is the same leaf as leafNode(u, v). Precondition: contains(u, v).

@@ -144,9 +144,9 @@ class PlanarCore : public IndexFace<PlanarCore> {
   friend struct TreeFileAccess;                                            // the on-disk format (treefile.hpp)
   friend class IndexFace<PlanarCore>;                                      // the face's primitives:
   static constexpr double kTop = std::numeric_limits<double>::infinity();  // "below" any terrain
-  std::optional<Hit> hitBelow(double u, double v, double h, Quadtree::Cursor* cursor) const;
-  std::optional<Hit> hitAbove(double u, double v, double h, Quadtree::Cursor* cursor) const;
-  std::optional<double> heightQuery(double u, double v, double z, Quadtree::Cursor* cursor) const {
+  std::optional<Hit> hitBelow(double u, double v, double h, Cursor* cursor) const;
+  std::optional<Hit> hitAbove(double u, double v, double h, Cursor* cursor) const;
+  std::optional<double> heightQuery(double u, double v, double z, Cursor* cursor) const {
     return unlessNaN(heightAt(u, v, z, cursor));
   }
   bool toQuery(const Eigen::Vector3d& world, Eigen::Vector3d& m) const {
@@ -206,18 +206,18 @@ class PlanarCore : public IndexFace<PlanarCore> {
   Hit makeHit(std::uint32_t t, double u, double v, double h) const;
   // below/above/heightBelow with or without a cursor.
   template <bool Below>
-  std::optional<Hit> hitAt(double u, double v, double z, Quadtree::Cursor* cursor) const;
+  std::optional<Hit> hitAt(double u, double v, double z, Cursor* cursor) const;
   // NaN for no terrain (a height is never NaN). heightBelow wraps it inline: an optional made
   // in the caller dissolves into its branch, one returned from a call goes through memory, where
   // its flag byte stalls the load of the whole (a store-forwarding failure, a third of a walk).
-  double heightAt(double u, double v, double z, Quadtree::Cursor* cursor) const;
-  double heightFromTree(double u, double v, double z, Quadtree::Cursor* cursor) const;
+  double heightAt(double u, double v, double z, Cursor* cursor) const;
+  double heightFromTree(double u, double v, double z, Cursor* cursor) const;
   static std::optional<double> unlessNaN(double h) {
     if (h != h) return std::nullopt;
     return h;
   }
   template <bool Below>
-  std::uint32_t nearest(double u, double v, double z, double& h, Quadtree::Cursor* cursor = nullptr) const;
+  std::uint32_t nearest(double u, double v, double z, double& h, Cursor* cursor = nullptr) const;
   template <bool Below>
   std::uint32_t nearestIn(std::span<const std::uint32_t> items, bool singleLayer, double u, double v, double z,
                           double& h) const;
@@ -254,9 +254,9 @@ class PlanarCore : public IndexFace<PlanarCore> {
   // The lean grid's answer at (u, v): the height, and the triangle (kNoTriangle: none; with
   // NeedId false, kFound stands for any triangle, whose id is not looked up).
   static constexpr std::uint32_t kFound = 0xfffffffdu;
-  // A cursor remembers the last triangle's plane (Quadtree::Cursor::memo).
+  // A cursor remembers the last triangle's plane (Cursor::memo).
   template <bool NeedId>
-  std::uint32_t gridAnswer(double u, double v, double& h, Quadtree::Cursor* cursor = nullptr) const;
+  std::uint32_t gridAnswer(double u, double v, double& h, Cursor* cursor = nullptr) const;
   // Its answer near a triangle's side or off the lean grid (out of line: the hot path keeps a
   // small frame).
   std::uint32_t gridAnswerNearEdge(double u, double v, double fc, double fr, double& h) const;
