@@ -66,10 +66,10 @@ cp -r "$work/prefix" "$work/moved"
 moved_pc=$(ls "$work"/moved/lib*/pkgconfig/qota.pc)
 inc=$(PKG_CONFIG_PATH=$(dirname "$moved_pc") pkg-config --variable=includedir qota)
 [ -e "$inc/qota/terrain.hpp" ] || { echo "qota.pc of a moved install names $inc"; exit 1; }
-if [ "${QOTA_CONSUMER_FLAGS:-}" = "" ]; then
-  # shellcheck disable=SC2046
-  c++ -std=c++20 -O1 "$here/package/core_only.cpp" -o "$work/pc_core" \
-    $(PKG_CONFIG_PATH=$(dirname "$moved_pc") pkg-config --cflags --libs qota-core)
-  "$work/pc_core"
-  echo "qota.pc, qota-core.pc: a moved install's paths; qota-core builds a program"
-fi
+libdir=$(PKG_CONFIG_PATH=$(dirname "$moved_pc") pkg-config --variable=libdir qota-core)
+# (the consumer flags: a sanitizer build's runtime; the run path: a shared build's libraries)
+# shellcheck disable=SC2046,SC2086
+c++ ${QOTA_CONSUMER_FLAGS:-} -std=c++20 -O1 "$here/package/core_only.cpp" -o "$work/pc_core" -Wl,-rpath,"$libdir" \
+  $(PKG_CONFIG_PATH=$(dirname "$moved_pc") pkg-config --cflags --libs qota-core)
+"$work/pc_core"
+echo "qota.pc, qota-core.pc: a moved install's paths; qota-core builds a program"
