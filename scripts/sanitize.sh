@@ -29,7 +29,7 @@ if [ "$which" = all ] || [ "$which" = tsan ]; then
   # Line tables only: the stacks of a report, without the full debug information's build time.
   cmake -S . -B build-tsan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -g1 -DNDEBUG" \
     -DQOTA_SANITIZE=thread -DQOTA_BUILD_TESTS=ON -DQOTA_BUILD_EXAMPLES=OFF -DQOTA_BUILD_BENCH=OFF > /dev/null
-  cmake --build build-tsan -j2 --target qota_tests
+  cmake --build build-tsan -j2 --target qota_tsan_tests  # (the test files that run threads)
   # The tests whose code runs threads: shadows (the strips and cell passes), parallel batches,
   # the deferred quadtree, statistics read while others query. Not the memory budgets (TSan's
   # shadow memory makes the process itself hundreds of MiB), nor the largest repeats of threaded
@@ -38,5 +38,5 @@ if [ "$which" = all ] || [ "$which" = tsan ]; then
   slow=ShadowTool.MemoryLimitsAndTileOptionsAreChecked:GridFastPath.RainierMatchesTheQuadtree
   slow+=:ShadowTiles.EqualTheWholeRasterOnAProjectedGrid:ShadowTiles.EqualTheWholeRasterOnTheEllipsoid
   slow+=:ShadowTiles.EqualTheWholeRasterWithoutCrs
-  build-tsan/tests/qota_tests --gtest_filter="*Thread*:*Parallel*:*Concurren*:Shadow*:*Deferred*:GridFast*:*Batch*:RasterSampler.*:SampleTool.*-$slow"
+  build-tsan/tests/qota_tsan_tests --gtest_filter="*Thread*:*Parallel*:*Concurren*:Shadow*:*Deferred*:GridFast*:*Batch*:RasterSampler.*:SampleTool.*-$slow"
 fi

@@ -14,6 +14,7 @@
 #include <cerrno>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <iostream>
 #include <memory>
@@ -130,7 +131,14 @@ int renderTree(const RenderTreeOptions& o, std::ostream& out, std::ostream& err)
     std::optional<DemTerrain> dem;
     std::optional<CartesianIndex> built;
     const Quadtree* treePtr = nullptr;
-    const CartesianMapping* mapping = nullptr;
+    // A raster's map coordinates (x, y) to the tree's (u, v): the index's mapping of (x, y, 0).
+    std::function<Point2(double, double)> toTree;
+    const auto mapsFrom = [&toTree](const auto& index) {
+      toTree = [&index](double x, double y) {
+        const Eigen::Vector3d m = index.mapping().toMapped(Eigen::Vector3d(x, y, 0));
+        return Point2{m.x(), m.y()};
+      };
+    };
     const SourceOptions& so = o.source;
     std::uint32_t maxPoly = so.index.tree.maxPoly, maxDepth = so.index.tree.maxDepth;
     requireSource(so.source);
@@ -141,17 +149,16 @@ int renderTree(const RenderTreeOptions& o, std::ostream& out, std::ostream& err)
       std::visit([&](const auto& index) { treePtr = &index.tree(); }, treeFile->index);
       maxPoly = treePtr->options().maxPoly, maxDepth = treePtr->options().maxDepth;
       const TreeSource& from = treeFile->source;
-      if (const auto* index = std::get_if<CartesianIndex>(&treeFile->index);
-          index && from.width > 0 && std::filesystem::exists(from.path)) {
+      if (mappingEntry(mappingNameOf(treeFile->index)).map && from.width > 0 && std::filesystem::exists(from.path)) {
         dem.emplace(loadDem(from.path, {.band = from.band, .lonLatAsCartesian = true}));
-        mapping = &index->mapping();
+        std::visit(mapsFrom, treeFile->index);
       }
     } else {
       // Drawn on the raster's own grid: a lon/lat raster's degrees are fine here.
       dem.emplace(loadDem(so.source, {.band = so.band, .lonLatAsCartesian = true}));
       built.emplace(dem->mesh, dem->mapping, so.index);
       treePtr = &built->tree();
-      mapping = &built->mapping();
+      mapsFrom(*built);
     }
     const Quadtree& tree = *treePtr;
     const Box2 box = tree.box();
@@ -179,8 +186,8 @@ int renderTree(const RenderTreeOptions& o, std::ostream& out, std::ostream& err)
         if (dem) {
           const auto [col, row] = rasterAt(i, j);
           const auto world = dem->pixelCentre(col - 0.5, row - 0.5);
-          const Eigen::Vector3d m = mapping->toMapped(Eigen::Vector3d(world[0], world[1], 0));
-          ids[i] = leafAt(tree, m.x(), m.y());
+          const Point2 m = toTree(world[0], world[1]);
+          ids[i] = leafAt(tree, m.u, m.v);
         } else {
           ids[i] = box.empty() ? -1 : leafAt(tree, box.ulo + (i + 0.5) * boxW / iw, box.vhi - (j + 0.5) * boxH / ih);
         }

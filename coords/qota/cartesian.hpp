@@ -1,7 +1,7 @@
 // Cartesian mapping: a flat world with one constant gravity direction.
 //
 // World frame: right-handed x, y, z in any linear unit (metres, or a raster CRS's units).
-// Mapped frame: u, v horizontal and h "up", i.e. against gravity, in the same units:
+// Mapped coordinates: u, v horizontal and h "up", i.e. against gravity, in the same units:
 //
 //     (u, v, h) = R * (p - origin)
 //
@@ -38,7 +38,7 @@ class CartesianMapping {
 
   Eigen::Vector3d toMapped(const Eigen::Vector3d& world) const { return frame_.toMapped(world); }
   Eigen::Vector3d toWorld(const Eigen::Vector3d& mapped) const { return frame_.toWorld(mapped); }
-  // A direction (e.g. a surface normal) from the mapped frame to the world frame.
+  // A direction (e.g. a surface normal) from mapped coordinates to the world frame.
   Eigen::Vector3d directionToWorld(const Eigen::Vector3d& mapped) const { return frame_.directionToWorld(mapped); }
   MappedLine line(double u, double v) const { return {toWorld({u, v, 0.0}), gravity_}; }
   MappedDomain domain() const {

@@ -2,7 +2,7 @@
 // over an area small enough to be flat (a city, an airfield, a vehicle's surroundings).
 //
 // World frame: ECEF x, y, z in metres on the ellipsoid (a, f), as GeographicLib::Geocentric.
-// Mapped frame: u east, v north, h up, in metres, from the origin point (lat0, lon0, h0):
+// Mapped coordinates: u east, v north, h up, in metres, from the origin point (lat0, lon0, h0):
 //
 //     (u, v, h) = R (p - origin),   R's rows the unit east, north and up at (lat0, lon0)
 //

@@ -87,6 +87,7 @@ bool GridPath::fitLattice(std::span<const Point2> corners, std::uint64_t nw, std
   }
   w = static_cast<std::uint32_t>(nw);
   h = static_cast<std::uint32_t>(nh);
+  cellsU = w - 1.0, cellsV = h - 1.0;
   u0 = o.u, v0 = o.v;
   for (int k = 0; k < 4; ++k) inv[k] = inverse[k];
   return true;

@@ -54,7 +54,7 @@ namespace qota {
 template <bool NeedId>
 [[gnu::always_inline]] inline std::uint32_t PlanarCore::gridAnswer(double u, double v, double& h,
                                                                    Cursor* cursor) const {
-  if (grid_.lean) {
+  if (grid_.isLean()) {
     const detail::GridPath::Cell g = grid_.cell(u, v);
     if (g.inGrid && g.clear) [[likely]] {
       const std::uint64_t slot = g.slot;
@@ -66,7 +66,7 @@ template <bool NeedId>
       std::uint32_t t = kFound;
       bool present;
       if constexpr (NeedId) {
-        t = grid_.cellTri[slot];
+        t = grid_.triangleIn(slot);
         present = t != kNoTriangle;
       } else {
         present = grid_.slotPresent(slot);
@@ -77,7 +77,7 @@ template <bool NeedId>
         if (cursor) {
           auto& m = cursor->memo;
           m.owner = this, m.generation = generation_, m.key = slot;
-          m.item = NeedId ? t : grid_.cellTri[slot];
+          m.item = NeedId ? t : grid_.triangleIn(slot);
           // One store each: a copy through a local array made the compiler store it in halves and
           // reload it whole, a store-forwarding stall on every query of a walk.
           m.value[0] = p.a, m.value[1] = p.b, m.value[2] = p.h0, m.value[3] = p.u0;

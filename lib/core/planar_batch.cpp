@@ -86,21 +86,6 @@ const PlaneHeights planeHeights = choosePlaneHeights();
 // it lies clearly inside a slot without a triangle, where the exact path finds none (its cell
 // alone is tested, and the cell's other half cannot hold it). Unused lanes, and lanes without a
 // triangle, compute on the corners of cell 0 and are thrown away.
-// The cache lines a lean answer at cell c reads.
-[[gnu::always_inline]] inline void prefetchLean(const detail::GridPath& grid, std::span<const Point2> corners,
-                                                std::span<const double> heights, const detail::GridPath::Cell& c) {
-  const std::uint64_t x = c.row * grid.w + c.col;
-  if (!grid.presentBits.empty()) __builtin_prefetch(&grid.presentBits[c.slot >> 6]);
-  if (!grid.h32.empty()) {
-    __builtin_prefetch(&grid.h32[x]), __builtin_prefetch(&grid.h32[x + 1]);
-    __builtin_prefetch(&grid.h32[x + grid.w]), __builtin_prefetch(&grid.h32[x + grid.w + 1]);
-  } else {
-    __builtin_prefetch(&heights[x]), __builtin_prefetch(&heights[x + 1]);
-    __builtin_prefetch(&heights[x + grid.w]), __builtin_prefetch(&heights[x + grid.w + 1]);
-  }
-  if (grid.colU.empty()) __builtin_prefetch(&corners[x]), __builtin_prefetch(&corners[x + grid.w + 1]);
-}
-
 // ahead, aheadN: the next group's points, whose corners are fetched meanwhile (their loads
 // overlap this group's work instead of waiting at its start): for points scattered over a
 // grid's cells (a sampler's tile; the index's own batches measured no gain).
@@ -120,11 +105,11 @@ const PlaneHeights planeHeights = choosePlaneHeights();
     cellCol[i] = c.col, cellRow[i] = c.row, cellHalf[i] = c.half, cellSlot[i] = c.slot;
     if (!c.inGrid) continue;
     lane[i] = c.clear;  // its slot's presence is checked below
-    prefetchLean(grid, corners, heights, c);
+    grid.prefetchLean(c, corners, heights);
   }
   for (std::size_t i = 0; i < aheadN; ++i) {
     const detail::GridPath::Cell c = grid.cell(ahead[i].u, ahead[i].v);
-    if (c.inGrid) prefetchLean(grid, corners, heights, c);
+    if (c.inGrid) grid.prefetchLean(c, corners, heights);
   }
   for (std::size_t i = 0; i < kLanes; ++i) {
     if (i < n && lane[i]) {
@@ -154,7 +139,7 @@ void detail::GridPath::leanHeights(std::span<const Point2> corners, std::span<co
   bool ok[kLanes], hole[kLanes];
   for (std::size_t g = 0; g < points.size(); g += kLanes) {
     const std::size_t n = std::min<std::size_t>(kLanes, points.size() - g);
-    if (!lean) {
+    if (!isLean()) {
       for (std::size_t i = 0; i < n; ++i) decided[g + i] = kUndecided;
       continue;
     }
@@ -177,7 +162,7 @@ void PlanarCore::heightsBelowBatch(std::span<const Point2> points, const ZOf& zO
   constexpr std::size_t kGroup = 16;
   Quadtree::Node leaf[kGroup];
   bool on[kGroup];
-  if (grid_.lean) {
+  if (grid_.isLean()) {
     // The lean grid: the points clearly inside a triangle get their planes and heights in SIMD,
     // sixteen at a time (leanGroup), the rest one by one.
     static_assert(kGroup == kLanes);
@@ -209,13 +194,13 @@ void PlanarCore::heightsBelowBatch(std::span<const Point2> points, const ZOf& zO
         const detail::GridPath::Cell c = grid_.cell(p.u, p.v);
         inGrid[i] = c.inGrid, cellHalf[i] = c.half, cellSlot[i] = c.slot;
         if (!c.inGrid) continue;
-        __builtin_prefetch(&grid_.cellTri[grid_.slotOf(c.col, c.row, 0)]);
+        grid_.prefetchSlots(c);
       }
       for (std::size_t i = 0; i < n; ++i) {
         if (!inGrid[i]) continue;
         const std::uint64_t first = cellSlot[i] - cellHalf[i];  // the cell's two halves
         for (int half = 0; half < 2; ++half) {
-          const std::uint32_t t = grid_.cellTri[first + half];
+          const std::uint32_t t = grid_.triangleIn(first + half);
           if (t == kNoTriangle) continue;
           __builtin_prefetch(&tris_[t]);
           __builtin_prefetch(reinterpret_cast<const char*>(&tris_[t]) + 64);

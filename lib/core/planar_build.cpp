@@ -197,7 +197,7 @@ void PlanarCore::checkCorners(std::span<const std::uint32_t> idx, std::size_t p,
 void PlanarCore::finishBuild(std::vector<Pending>& pending, const Lattice* lattice, const IndexOptions& options) {
   stats_.triangles = pending.size();
 
-  // The domain: the bounding box of every triangle, in the mapped frame.
+  // The domain: the bounding box of every triangle, in mapped coordinates.
   Box2 domain{std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity(),
               -std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()};
   for (const auto& q : pending) {
@@ -269,7 +269,7 @@ void PlanarCore::finishBuild(std::vector<Pending>& pending, const Lattice* latti
   if (grid_.on()) grid_.setUpLean(cold_, corners2_, cornerH_);
   const bool deferred = grid_.on();
   std::vector<Box2> boxes(deferred ? 0 : pending.size());  // build only: bboxes for the overlap test
-  if (!grid_.lean) {
+  if (!grid_.isLean()) {
     tris_.resize(pending.size());
     for (std::size_t t = 0; t < pending.size(); ++t) {
       const Box2 box = makeRecord(static_cast<std::uint32_t>(t), pending[t]);

@@ -19,7 +19,7 @@ std::vector<LineHit> PlanarCore::alongLine(const Eigen::Vector3d& origin, const 
   ensureTree();
   std::vector<LineHit> out;
   if (!origin.allFinite() || !direction.allFinite() || direction.squaredNorm() == 0) return out;  // no line
-  // The line in the mapped frame: O + t d.
+  // The line in mapped coordinates: O + t d.
   const Eigen::Vector3d O = frame_.toMapped(origin);
   const Eigen::Vector3d dn = frame_.directionToMapped(direction);
   // Only the part of the line inside the terrain's height slab can meet it.

@@ -19,13 +19,13 @@ namespace qota {
 const PlanarCore::Tri& PlanarCore::gridRecord(std::uint32_t t, Tri& scratch) const {
   // A lean grid never reads the records, not even once the tree has made them: they may be
   // being made on another thread.
-  if (!grid_.lean) return tris_[t];
+  if (!grid_.isLean()) return tris_[t];
   scratch = computeRecord(cold_[t].corner);
   return scratch;
 }
 
 PlanarCore::Tri PlanarCore::recordOf(std::uint32_t t) const {
-  return grid_.lean || t >= tris_.size() ? computeRecord(cold_[t].corner) : tris_[t];
+  return grid_.isLean() || t >= tris_.size() ? computeRecord(cold_[t].corner) : tris_[t];
 }
 
 [[gnu::noinline]] std::uint32_t PlanarCore::gridAnswerFromRecords(double u, double v, double& h) const {
@@ -46,15 +46,9 @@ PlanarCore::Tri PlanarCore::recordOf(std::uint32_t t) const {
 }
 
 std::uint32_t PlanarCore::gridTriangle(double u, double v, Tri& scratch, const Tri*& rec) const {
-  const double du = u - grid_.u0, dv = v - grid_.v0;
-  const double fc = grid_.inv[0] * du + grid_.inv[1] * dv, fr = grid_.inv[2] * du + grid_.inv[3] * dv;
-  if (fc >= 0 && fr >= 0 && fc < grid_.w - 1 && fr < grid_.h - 1) [[likely]] {
-    const auto col = static_cast<std::uint32_t>(fc), row = static_cast<std::uint32_t>(fr);
-    // The half of the cell with corner (col, row + 1) lies where the row fraction exceeds the
-    // column fraction.
-    const std::uint32_t half = fr - row > fc - col ? 0 : 1;
-    const std::uint64_t slot = grid_.slotOf(col, row, half);
-    const std::uint32_t t = grid_.cellTri[slot];
+  const detail::GridPath::Cell g = grid_.cell(u, v);
+  if (g.inGrid) [[likely]] {
+    const std::uint32_t t = grid_.triangleIn(g.slot);
     if (t != kNoTriangle) {
       // Clearly inside, beyond twice the edge tests' error bound: no other triangle of a grid
       // can hold the point.
@@ -66,38 +60,20 @@ std::uint32_t PlanarCore::gridTriangle(double u, double v, Tri& scratch, const T
       }
     }
   }
-  return gridTriangleNearEdge(u, v, fc, fr, scratch, rec);
+  return gridTriangleNearEdge(u, v, g.fc, g.fr, scratch, rec);
 }
 
 std::uint32_t PlanarCore::gridTriangleNearEdge(double u, double v, double fc, double fr, Tri& scratch,
                                                const Tri*& rec) const {
-  // Beyond a cell off the grid nothing can hold the point; NaN lands here too.
-  if (!(fc >= -1 && fr >= -1 && fc <= grid_.w && fr <= grid_.h)) return kNoTriangle;
-  const double cellsU = grid_.w - 1, cellsV = grid_.h - 1;
-  const auto col = static_cast<std::int64_t>(std::floor(std::clamp(fc, 0.0, cellsU - 0.5)));
-  const auto row = static_cast<std::int64_t>(std::floor(std::clamp(fr, 0.0, cellsV - 0.5)));
-  // On or near an edge (a pixel centre, a cell side), in a hole, or just off the grid: every
-  // triangle that can hold the point is in the estimated cell or in a neighbour across a side the
-  // point is within 1e-5 cell of (the vertices lie on the affine grid to within 1e-6 of a cell).
-  // The exact closed test decides, and the smallest polygon id among those holding the point
-  // answers, as in the quadtree's single-layer leaves.
-  constexpr double kNear = 1e-5;
-  const std::int64_t c0 = col - (fc - col < kNear), c1 = col + (col + 1 - fc < kNear);
-  const std::int64_t r0 = row - (fr - row < kNear), r1 = row + (row + 1 - fr < kNear);
+  // The exact closed test decides among the triangles the grid says may hold the point, and the
+  // smallest polygon id among those holding it answers, as in the quadtree's single-layer leaves.
   std::uint32_t best = kNoTriangle;
-  for (std::int64_t r = std::max<std::int64_t>(r0, 0); r <= std::min<std::int64_t>(r1, grid_.h - 2); ++r) {
-    for (std::int64_t c = std::max<std::int64_t>(c0, 0); c <= std::min<std::int64_t>(c1, grid_.w - 2); ++c) {
-      for (int half = 0; half < 2; ++half) {
-        const std::uint64_t slot = grid_.slotOf(c, r, half);
-        const std::uint32_t t = grid_.cellTri[slot];
-        if (t == kNoTriangle) continue;
-        Tri candidateScratch;
-        const Tri& candidate = gridRecord(t, candidateScratch);
-        if (!contains(candidate, t, u, v)) continue;
-        if (best == kNoTriangle || cold_[t].polygon < cold_[best].polygon) best = t, scratch = candidate;
-      }
-    }
-  }
+  grid_.forTrianglesNear(fc, fr, [&](std::uint32_t t) {
+    Tri candidateScratch;
+    const Tri& candidate = gridRecord(t, candidateScratch);
+    if (!contains(candidate, t, u, v)) return;
+    if (best == kNoTriangle || cold_[t].polygon < cold_[best].polygon) best = t, scratch = candidate;
+  });
   rec = &scratch;
   return best;
 }
@@ -206,7 +182,7 @@ bool PlanarCore::triangleOccludesAbove(std::uint32_t t, double u, double v, doub
   if (c.corner[0] == vertex || c.corner[1] == vertex || c.corner[2] == vertex) return false;
   if (ledger_.removed(c.polygon)) return false;
   Tri scratch;
-  const Tri& r = grid_.lean ? (scratch = computeRecord(c.corner)) : tris_[t];
+  const Tri& r = grid_.isLean() ? (scratch = computeRecord(c.corner)) : tris_[t];
   return contains(r, t, u, v) && heightOf(r, u, v) > h;
 }
 

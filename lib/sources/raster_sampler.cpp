@@ -87,8 +87,8 @@ RasterSampler::Tile RasterSampler::build(std::uint64_t key, std::vector<double>&
       return tile;
     }
     if (tile.lean.setUpLattice(static_cast<std::uint64_t>(w), static_cast<std::uint64_t>(h), corners, heights)) {
-      if (tile.lean.colU.empty()) tile.corners = std::move(corners);
-      if (tile.lean.h32.empty()) tile.heights = std::move(heights);
+      if (tile.lean.readsVertexCoordinates()) tile.corners = std::move(corners);
+      if (tile.lean.readsVertexHeights()) tile.heights = std::move(heights);
       tile.bytes = sizeof(Tile) + 64 + tile.lean.memoryBytes() + tile.corners.size() * sizeof(Point2) +
                    tile.heights.size() * sizeof(double);
       return tile;
@@ -120,7 +120,7 @@ const RasterSampler::Tile* RasterSampler::cached(std::uint64_t key) {
 
 void RasterSampler::keep(Tile tile) {
   ++tilesBuilt_;
-  leanTilesBuilt_ += tile.lean.lean;
+  leanTilesBuilt_ += tile.lean.isLean();
   cachedBytes_ += tile.bytes;
   tiles_.push_front(std::move(tile));
   byKey_[tiles_.front().key] = tiles_.begin();

@@ -6,6 +6,7 @@
 
 #include "qota/batch.hpp"
 #include "qota/error.hpp"
+#include "qota/mapping_registry.hpp"
 
 namespace qota {
 namespace {
@@ -24,30 +25,36 @@ Terrain::Terrain(TreeFile tree) : index_(std::move(tree.index)), source_(std::mo
   //   geodetic: the index's h is metres along the normal over the ellipsoid; the source's are in
   //     its vertical unit over its reference (a geoid's undulation added);
   //   spherical, cylindrical: metres (the radius, the distance from the axis) on both sides.
-  if (const auto* cartesian = std::get_if<CartesianIndex>(&index_)) {
-    if (!cartesian->mapping().vertical()) {
-      throw Error(where + ": a Cartesian terrain with tilted gravity has no map coordinates (query its index)");
-    }
-    const Eigen::Vector3d o = cartesian->mapping().origin();
-    du_ = o.x(), dv_ = o.y(), dh_ = o.z();
-  } else if (std::holds_alternative<GeodeticIndex>(index_)) {
+  //   enu: metres in the frame on both sides.
+  // The registry's entry says which (a type test here would miss a new mapping).
+  const MappingEntry& entry = mappingEntry(mappingNameOf(index_));
+  if (entry.map) {
+    std::visit(
+        [&](const auto& index) {
+          if constexpr (requires {
+                          index.mapping().origin().x();
+                          index.mapping().vertical();
+                        }) {
+            if (!index.mapping().vertical()) {
+              throw Error(where + ": a Cartesian terrain with tilted gravity has no map coordinates (query its index)");
+            }
+            const Eigen::Vector3d o = index.mapping().origin();
+            du_ = o.x(), dv_ = o.y(), dh_ = o.z();
+          }
+        },
+        index_);
+  }
+  if (entry.ellipsoidHeights) {
     const double m = source_.metresPerUnit;
     scale_ = m > 0 && std::isfinite(m) ? m : 1.0;
-    longitudes_ = true;
     if (!source_.geoidGrid.empty()) {
       geoid_ = std::make_shared<const Geoid>(storedHeightReference(source_.heightRef, source_.geoidGrid));
     }
-  } else if (std::holds_alternative<SphericalIndex>(index_)) {
-    longitudes_ = true;
-  } else if (std::holds_alternative<EnuIndex>(index_)) {
-    // (east, north, up) metres in the frame: the index's own
-  } else if (!std::holds_alternative<CylindricalIndex>(index_)) {
-    throw Error(where + ": a terrain in the " + std::string(mappingNameOf(index_)) +
-                " mapping has no source coordinates here (query its index)");
   }
-  // A raster's footprint in the cartesian and geodetic mappings (a map; lon/lat on the
-  // ellipsoid): the outer half-pixel rule, as `qota sample` keeps it.
-  const bool map = std::holds_alternative<CartesianIndex>(index_) || std::holds_alternative<GeodeticIndex>(index_);
+  longitudes_ = entry.lonLat;
+  // A raster's footprint where a query's (x, y) are the raster's own coordinates (a map; lon/lat
+  // on the ellipsoid): the outer half-pixel rule, as `qota sample` keeps it.
+  const bool map = entry.map || (entry.lonLat && entry.ellipsoid);
   if (map && source_.width > 0 && source_.height > 0) {
     DemTerrain grid;
     grid.width = source_.width, grid.height = source_.height;
@@ -59,7 +66,7 @@ Terrain::Terrain(TreeFile tree) : index_(std::move(tree.index)), source_(std::mo
 }
 
 std::string Terrain::heightRef() const {
-  if (!std::holds_alternative<GeodeticIndex>(index_)) return "";
+  if (!mappingEntry(mappingNameOf(index_)).ellipsoidHeights) return "";
   return source_.geoidGrid.empty() && source_.heightRef.empty() ? "ellipsoid" : source_.heightRef;
 }
 

@@ -76,8 +76,8 @@ class PlanarCore : public IndexFace<PlanarCore> {
   // no search for the grid in it).
   PlanarCore(const GridMesh& grid, const PlanarFrame& frame, const IndexOptions& options = {});
 
-  // The face (index_face.hpp): below, above, bracket, top, height, heightBelow at (u, v) of the
-  // mapped frame, from a cursor, at a world point (the line through it along gravity, "below"
+  // The face (index_face.hpp): below, above, bracket, top, height, heightBelow at mapped (u, v),
+  // from a cursor, at a world point (the line through it along gravity, "below"
   // meaning further along gravity) and in batches; and here every polygon at (u, v), top to
   // bottom.
   std::vector<Hit> all(double u, double v) const;

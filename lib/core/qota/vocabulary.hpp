@@ -84,7 +84,7 @@ using TerrainOptions [[deprecated("use qota::IndexOptions")]] = IndexOptions;
 
 /// Where a line of the mapping meets the terrain.
 struct Hit {
-  double height = 0;          ///< h in the mapped frame (up = against down)
+  double height = 0;          ///< h in mapped coordinates (up = against down)
   Eigen::Vector3d world;      ///< the point in the world frame
   Eigen::Vector3d normal;     ///< unit surface normal in the world frame, pointing up (against down)
   std::uint32_t polygon = 0;  ///< index of the source polygon in the Mesh

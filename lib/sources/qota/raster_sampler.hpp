@@ -75,7 +75,7 @@ class RasterSampler {
     std::vector<double> heights;  // and their mapped h
     std::uint64_t bytes = 0;
     std::uint64_t key = 0;
-    bool empty() const { return !index && !lean.lean; }  // no terrain in the tile
+    bool empty() const { return !index && !lean.isLean(); }  // no terrain in the tile
   };
   // A tile's key: its index at `level` (0: tileSize cells a side, 1: small tiles) and the level;
   // kOff for a point off the cells.

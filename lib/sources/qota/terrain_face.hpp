@@ -1,6 +1,6 @@
 // A terrain as users hold it: made from a raster, a mesh or a tree file in any mapping, answering
 // points in the source's own coordinates, single and batched, with the index underneath for
-// those who want the mapped frame.
+// those who want mapped coordinates.
 //
 // The index works in its mapping's (u, v, h): a raster in the Cartesian mapping is indexed
 // relative to its centre (so that UTM coordinates in the millions keep every digit), heights on
