@@ -25,6 +25,7 @@
 #include <string>
 #include <vector>
 
+#include "embree_rays.hpp"
 #include "qota/dem.hpp"
 #include "qota/synthetic.hpp"
 #include "qota/terrain.hpp"
@@ -115,44 +116,15 @@ Timing timeQueries(const std::vector<Query>& q, F&& f) {
   return t;
 }
 
-float embreeOne(const Embree& e, double u, double v, float top) {
-  RTCIntersectContext ctx;
-  rtcInitIntersectContext(&ctx);
-  RTCRayHit rh{};
-  rh.ray.org_x = static_cast<float>(u), rh.ray.org_y = static_cast<float>(v), rh.ray.org_z = top;
-  rh.ray.dir_z = -1.0f;
-  rh.ray.tnear = 0, rh.ray.tfar = INFINITY;
-  rh.ray.mask = 0xffffffffu;
-  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-  rtcIntersect1(e.scene, &ctx, &rh);
-  return rh.hit.geomID == RTC_INVALID_GEOMETRY_ID ? NAN : top - rh.ray.tfar;
-}
+float embreeOne(const Embree& e, double u, double v, float top) { return bench::rayDown(e.scene, u, v, top); }
 
 Timing embree16(const Embree& e, const std::vector<Query>& q, float top) {
   Timing t;
   t.heights.resize(q.size());
   const auto t0 = Clock::now();
-  alignas(64) RTCRayHit16 rh;
-  alignas(64) int valid[16];
-  for (std::size_t g = 0; g < q.size(); g += 16) {
-    const std::size_t n = std::min<std::size_t>(16, q.size() - g);
-    for (std::size_t i = 0; i < 16; ++i) {
-      valid[i] = i < n ? -1 : 0;
-      const Query& p = q[g + std::min(i, n - 1)];
-      rh.ray.org_x[i] = static_cast<float>(p.u), rh.ray.org_y[i] = static_cast<float>(p.v);
-      rh.ray.org_z[i] = top;
-      rh.ray.dir_x[i] = 0, rh.ray.dir_y[i] = 0, rh.ray.dir_z[i] = -1;
-      rh.ray.tnear[i] = 0, rh.ray.tfar[i] = INFINITY, rh.ray.mask[i] = 0xffffffffu;
-      rh.ray.time[i] = 0, rh.ray.flags[i] = 0;
-      rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
-    }
-    RTCIntersectContext ctx;
-    rtcInitIntersectContext(&ctx);
-    rtcIntersect16(valid, e.scene, &ctx, &rh);
-    for (std::size_t i = 0; i < n; ++i) {
-      t.heights[g + i] = rh.hit.geomID[i] == RTC_INVALID_GEOMETRY_ID ? NAN : top - rh.ray.tfar[i];
-    }
-  }
+  bench::raysDown16(
+      e.scene, q.size(), [&](std::size_t i) { return q[i].u; }, [&](std::size_t i) { return q[i].v; },
+      [&](std::size_t) { return top; }, [&](std::size_t i, float h) { t.heights[i] = h; });
   t.ns = seconds(t0, Clock::now()) * 1e9 / static_cast<double>(q.size());
   return t;
 }

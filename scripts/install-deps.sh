@@ -21,6 +21,7 @@ packages=(
   libhowardhinnant-date-dev tzdata  # dates and IANA time zones for qota shadow --time/--tz
   libassimp-dev                 # mesh files (OBJ, PLY, glTF, STL, ...)
   libembree-dev                 # bench/embree_bench: the general ray tracer qota is measured against
+  libcgal-dev                   # bench/tin_bench: Delaunay TINs and exact predicates for its oracle
   pybind11-dev python3-dev python3-numpy python3-venv python3-pip python3-setuptools python3-wheel python3-pytest python3-gdal
                                 # the Python package (python/) and its tests
   python3-rasterio python3-xarray python3-rioxarray python3-affine

@@ -224,19 +224,22 @@ void checkOptions(const ShadowOptions& o, const std::string& format) {
 
 namespace {
 
-// The options with --mapping read: "cartesian" is --flat, "geodetic" the ellipsoid (which --flat
-// contradicts); the axial mappings cast no parallel light on a DEM's grid.
+// The options with --mapping read, by the registry's flags: a map mapping (cartesian) is --flat,
+// one whose heights are over the ellipsoid (geodetic) the default (which --flat contradicts); the
+// others cast no parallel light on a DEM's grid.
 ShadowOptions withMappingRead(const ShadowOptions& given) {
   ShadowOptions o = given;
   if (o.mapping.empty()) return o;
-  if (o.mapping == "cartesian") {
+  const MappingEntry& entry = mappingEntry(o.mapping);  // (an unknown name is refused with the list)
+  if (entry.map) {
     o.flat = true;
-  } else if (o.mapping == "geodetic") {
-    if (o.flat) throw Error("--mapping geodetic puts the DEM on its ellipsoid; --flat keeps it flat: give one");
+  } else if (entry.ellipsoidHeights) {
+    if (o.flat)
+      throw Error("--mapping " + o.mapping + " puts the DEM on its ellipsoid; --flat keeps it flat: give one");
   } else {
-    mappingEntry(o.mapping);  // (an unknown name is refused with the list)
-    throw Error("--mapping " + o.mapping +
-                ": qota shadow places a DEM on its ellipsoid (geodetic, the default) or flat (cartesian)");
+    throw Error("--mapping " + o.mapping + ": qota shadow places a DEM on its ellipsoid (" +
+                mappingsWith(&MappingEntry::ellipsoidHeights) + ", the default) or flat (" +
+                mappingsWith(&MappingEntry::map) + ")");
   }
   return o;
 }
