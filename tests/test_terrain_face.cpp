@@ -47,6 +47,17 @@ TEST(TerrainFace, AnswersInTheSourcesOwnCoordinates) {
   }
   EXPECT_FALSE(dem.height(0, 0).has_value());  // off the raster
   EXPECT_STREQ(dem.mapping(), "cartesian");
+  EXPECT_TRUE(dem.normalsMetric());  // UTM metres and heights in metres
+}
+
+TEST(TerrainFace, SaysWhenItsNormalsAreNotMetric) {
+  // A lon/lat raster in the cartesian mapping: x, y in degrees, heights in metres, so a normal
+  // is a unit vector of that mixed frame; on the ellipsoid the frame is ECEF metres.
+  qota::SourceOptions o;
+  o.source = QOTA_DATA_DIR "/mt_rainier_90m.tif";
+  EXPECT_FALSE(qota::Terrain::open(o).normalsMetric());
+  o.mapping = "geodetic";
+  EXPECT_TRUE(qota::Terrain::open(o).normalsMetric());
 }
 
 TEST(TerrainFace, LonLatOnTheEllipsoidOverItsGeoid) {

@@ -350,7 +350,7 @@ void PlanarCore::edgeRecord(const std::uint32_t corner[3], Tri& r) const {
   r.u0 = corners2_[corner[0]].u, r.v0 = corners2_[corner[0]].v, r.h0 = cornerH_[corner[0]];
 }
 
-// The plane's slopes and the height range: two divisions, kept per triangle on a compact grid.
+// The plane's slopes and the height range: two divisions, kept per triangle unless the grid is lean.
 void PlanarCore::planeRecord(const std::uint32_t corner[3], Tri& r) const {
   double u[3], v[3], h[3];
   for (int k = 0; k < 3; ++k) {

@@ -108,6 +108,10 @@ std::optional<double> Terrain::above(double x, double y, double z) const {
   return hit ? std::optional(fromIndex(hit->height, q)) : std::nullopt;
 }
 
+bool Terrain::normalsMetric() const {
+  return !(mappingEntry(mappingNameOf(index_)).map && crsIsGeographic(source_.crsWkt));
+}
+
 std::vector<Hit> Terrain::all(double x, double y) const {
   const Point2 q = mapped(x, y);
   std::vector<Hit> hits = std::visit([&](const auto& index) { return index.all(q.u, q.v); }, index_);

@@ -131,7 +131,7 @@ class Terrain {
   std::string heightRef() const { return t_.heightRef(); }
   // A lon/lat raster in the cartesian mapping: x, y in degrees, z in metres (heights are right,
   // normals are not).
-  bool lonLatMap() const { return qota::mappingEntry(t_.mapping()).map && qota::crsIsGeographic(t_.source().crsWkt); }
+  bool lonLatMap() const { return !t_.normalsMetric(); }
 
  private:
   static void requireFlat(const Array& x, const Array& y, const Array* z) {

@@ -226,7 +226,7 @@ class PlanarCore : public IndexFace<PlanarCore> {
   void prefetchTriangles(std::span<const std::uint32_t> items) const;
 
   PlanarFrame frame_;
-  mutable BigVector<Tri> tris_;  // empty for a compact grid until the tree is built
+  mutable BigVector<Tri> tris_;  // empty for a lean grid until the tree is built
   BigVector<Cold> cold_;
   BigVector<Point2> corners2_;                 // mapped (u, v) of each vertex, for the exact predicate
   BigVector<double> cornerH_;                  // mapped h of each vertex (for lines not along gravity)

@@ -35,7 +35,7 @@ class Terrain {
   static Terrain open(const SourceOptions& options);
   /// From an index and where it came from (a tree file, or what openIndex gave). Throws
   /// qota::Error for an index the face has no source coordinates for (a Cartesian frame whose
-  /// gravity is not vertical; east-north-up).
+  /// gravity is not vertical).
   explicit Terrain(TreeFile tree);
 
   /// The topmost terrain at (x, y); the nearest at or below z; at or above z.
@@ -43,8 +43,12 @@ class Terrain {
   std::optional<double> below(double x, double y, double z) const;
   std::optional<double> above(double x, double y, double z) const;
   /// Every surface on the line of (x, y), topmost first: heights in the source's terms, the rest as
-  /// the index gives it (polygon id, unit normal in the world frame).
+  /// the index gives it (polygon id, unit normal in the world frame; see normalsMetric).
   std::vector<Hit> all(double x, double y) const;
+  /// Whether the world frame's axes share one unit, so that a normal is a direction in space: false
+  /// for a lon/lat raster in the cartesian mapping (x, y in degrees, heights in metres), whose
+  /// normals are unit vectors of that mixed frame (Python refuses them there).
+  bool normalsMetric() const;
   /// The same in batches, on every core: out[i] for (x[i], y[i] (, z[i])), NaN for no terrain.
   void heights(std::span<const double> x, std::span<const double> y, std::span<double> out) const;
   void below(std::span<const double> x, std::span<const double> y, std::span<const double> z,
