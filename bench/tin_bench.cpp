@@ -41,6 +41,7 @@
 #include <random>
 #include <span>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "embree_rays.hpp"
@@ -342,13 +343,20 @@ Check check(const Oracle& oracle, const Set& s, std::span<const std::optional<do
 
 bool run(const Terrain& t, std::size_t n, double latencyNs) {
   const auto tris = trianglesOf(t.mesh);
-  // Builds: the fastest of three each (a build's time varies by a tenth or more here).
-  double qotaBuild = kInf, embreeBuild = kInf;
+  // Builds: the fastest of three each (a build's time varies by a tenth or more here), qota on
+  // one thread as Embree, and on every core.
+  double qotaBuild = kInf, qotaBuildAll = kInf, embreeBuild = kInf;
   std::optional<qota::CartesianIndex> built;
+  qota::IndexOptions oneThread;
+  oneThread.buildThreads = 1;
   for (int round = 0; round < 3; ++round) {
     built.reset();
-    const auto q0 = Clock::now();
+    auto q0 = Clock::now();
     built.emplace(t.mesh, qota::CartesianMapping());
+    qotaBuildAll = std::min(qotaBuildAll, seconds(q0, Clock::now()));
+    built.reset();
+    q0 = Clock::now();
+    built.emplace(t.mesh, qota::CartesianMapping(), oneThread);
     qotaBuild = std::min(qotaBuild, seconds(q0, Clock::now()));
     if (round < 2) embreeBuild = std::min(embreeBuild, Embree(t.mesh, tris).buildSeconds);
   }
@@ -387,8 +395,10 @@ bool run(const Terrain& t, std::size_t n, double latencyNs) {
   }
 
   std::printf("\n%s: %zu triangles\n", t.name.c_str(), tris.size());
-  std::printf("  build (1 thread):    qota %.3f s   embree %.3f s   (qota/embree %.2f; fastest of 3)\n", qotaBuild,
-              embreeBuild, qotaBuild / embreeBuild);
+  std::printf(
+      "  build (1 thread):    qota %.3f s   embree %.3f s   (qota/embree %.2f; fastest of 3)"
+      "   qota on %u threads %.3f s\n",
+      qotaBuild, embreeBuild, qotaBuild / embreeBuild, std::max(1u, std::thread::hardware_concurrency()), qotaBuildAll);
   const double nt = static_cast<double>(tris.size());
   std::printf("  bytes per triangle:  qota %.0f   embree %.0f   (qota/embree %.2f)\n",
               static_cast<double>(index.stats().memoryBytes) / nt, static_cast<double>(e.bytes) / nt,

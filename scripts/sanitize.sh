@@ -30,7 +30,8 @@ if [ "$which" = all ] || [ "$which" = tsan ]; then
   cmake -S . -B build-tsan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -g1 -DNDEBUG" \
     -DQOTA_SANITIZE=thread -DQOTA_BUILD_TESTS=ON -DQOTA_BUILD_EXAMPLES=OFF -DQOTA_BUILD_BENCH=OFF > /dev/null
   cmake --build build-tsan -j2 --target qota_tsan_tests  # (the test files that run threads)
-  # The tests whose code runs threads: shadows (the strips and cell passes), parallel batches,
+  # The tests whose code runs threads: shadows (the strips and cell passes), parallel batches and
+  # builds,
   # the deferred quadtree, statistics read while others query. Not the memory budgets (TSan's
   # shadow memory makes the process itself hundreds of MiB), nor the largest repeats of threaded
   # code other tests run (Rainier's whole grid against the quadtree; tiles on a projected grid,
@@ -38,5 +39,22 @@ if [ "$which" = all ] || [ "$which" = tsan ]; then
   slow=ShadowTool.MemoryLimitsAndTileOptionsAreChecked:GridFastPath.RainierMatchesTheQuadtree
   slow+=:ShadowTiles.EqualTheWholeRasterOnAProjectedGrid:ShadowTiles.EqualTheWholeRasterOnTheEllipsoid
   slow+=:ShadowTiles.EqualTheWholeRasterWithoutCrs
-  build-tsan/tests/qota_tsan_tests --gtest_filter="*Thread*:*Parallel*:*Concurren*:Shadow*:*Deferred*:GridFast*:*Batch*:RasterSampler.*:SampleTool.*-$slow"
+  # In two shards at once (GoogleTest's own sharding), one a core.
+  filter="*Thread*:*Parallel*:*Concurren*:Shadow*:*Deferred*:GridFast*:*Batch*:RasterSampler.*:SampleTool.*-$slow"
+  pids=()
+  for shard in 0 1; do
+    GTEST_TOTAL_SHARDS=2 GTEST_SHARD_INDEX=$shard build-tsan/tests/qota_tsan_tests --gtest_filter="$filter" \
+      > "build-tsan/shard$shard.log" 2>&1 &
+    pids+=($!)
+  done
+  failed=0
+  for shard in 0 1; do
+    wait "${pids[$shard]}" || failed=1
+    tail -n 3 "build-tsan/shard$shard.log"
+  done
+  if [ "$failed" -ne 0 ]; then
+    cat build-tsan/shard0.log build-tsan/shard1.log
+    echo "ThreadSanitizer: a shard failed (its log is above)"
+    exit 1
+  fi
 fi

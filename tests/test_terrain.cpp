@@ -1,6 +1,7 @@
 // CartesianIndex against the brute-force oracle, and its query semantics and input rules.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <random>
 #include <type_traits>
 
@@ -293,6 +294,31 @@ TEST(TerrainQueries, ATreeOutgrowingTheMemoryLeftStopsWithAnError) {
 }
 
 // --- Input rules -----------------------------------------------------------------------------
+
+TEST(TerrainQueries, ParallelBuildIsTheSerialBuild) {
+  // The build's parts split by triangle and by leaf on two threads make the same index, node for
+  // node and reference for reference, as one thread; so the same answers.
+  const Mesh mesh = qota::test::randomTerrain({.grid = 200, .plates = 300, .walls = 20}, 17);
+  qota::IndexOptions one, two;
+  one.buildThreads = 1, two.buildThreads = 2;
+  const CartesianIndex serial(mesh, CartesianMapping(), one), parallel(mesh, CartesianMapping(), two);
+  ASSERT_FALSE(serial.gridFastPath());
+  const auto a = serial.tree().nodes(), b = parallel.tree().nodes();
+  ASSERT_EQ(a.size(), b.size());
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    ASSERT_EQ(a[i].first, b[i].first) << i;
+    ASSERT_EQ(a[i].count, b[i].count) << i;
+  }
+  const auto ra = serial.tree().references(), rb = parallel.tree().references();
+  ASSERT_TRUE(std::equal(ra.begin(), ra.end(), rb.begin(), rb.end()));
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> at(-1, 200);
+  for (int k = 0; k < 20000; ++k) {
+    const double u = at(rng), v = at(rng);
+    const auto hs = serial.heightBelow(u, v, 30), hp = parallel.heightBelow(u, v, 30);
+    ASSERT_EQ(hs, hp) << u << " " << v;
+  }
+}
 
 TEST(TerrainInput, WallsAreLeftOutAndCounted) {
   Mesh m = twoFloors();

@@ -1,9 +1,12 @@
 // qota build: a terrain's index, built once and written as a tree file (see qota_tools.hpp).
+#include <unistd.h>
+
 #include <chrono>
 #include <filesystem>
 #include <iostream>
 
 #include "index_source.hpp"
+#include "qota/atomic_file.hpp"
 #include "qota/error.hpp"
 #include "qota/memory_budget.hpp"
 #include "qota_tools.hpp"
@@ -14,6 +17,17 @@ namespace qota::tools {
 int build(const BuildOptions& options, std::ostream& out, std::ostream& err) {
   try {
     if (options.output.empty()) throw Error("no output file (-o)");
+    // Before the build, which can take minutes: a folder that is not there or not writable.
+    OutputStage::checkTarget(options.output);
+    const std::filesystem::path target(options.output);
+    const std::filesystem::path folder = target.has_parent_path() ? target.parent_path() : ".";
+    if (!std::filesystem::is_directory(folder)) {
+      throw Error(options.output + ": cannot write (no folder " + folder.string() + "); nothing was built");
+    }
+    if (access(folder.c_str(), W_OK) != 0) {
+      throw Error(options.output + ": cannot write (the folder " + folder.string() +
+                  " is not writable); nothing was built");
+    }
     const auto t0 = std::chrono::steady_clock::now();
     const TreeFile tree = openIndex(options.source);
     const std::uint64_t triangles = std::visit([](const auto& index) { return index.stats().triangles; }, tree.index);

@@ -14,6 +14,7 @@
 
 #include "float_bounds.hpp"
 #include "planar_arith.hpp"
+#include "qota/batch.hpp"
 #include "qota/error.hpp"
 #include "qota/index.hpp"
 #include "qota/memory_budget.hpp"
@@ -171,11 +172,13 @@ void PlanarCore::startBuild(std::span<const Eigen::Vector3d> vertices, std::uint
   // Map every vertex once, so that polygons sharing a vertex share its mapped coordinates exactly.
   corners2_.resize(nv);
   cornerH_.resize(nv);
-  for (std::size_t i = 0; i < nv; ++i) {
-    const Eigen::Vector3d m = frame_.toMapped(vertices[i]);
-    corners2_[i] = {m.x(), m.y()};
-    cornerH_[i] = m.z();
-  }
+  batch::inSlices(nv, options.buildThreads, 1u << 16, [&](std::size_t lo, std::size_t hi) {
+    for (std::size_t i = lo; i < hi; ++i) {
+      const Eigen::Vector3d m = frame_.toMapped(vertices[i]);
+      corners2_[i] = {m.x(), m.y()};
+      cornerH_[i] = m.z();
+    }
+  });
 }
 
 void PlanarCore::checkCorners(std::span<const std::uint32_t> idx, std::size_t p,
@@ -271,12 +274,15 @@ void PlanarCore::finishBuild(std::vector<Pending>& pending, const Lattice* latti
   std::vector<Box2> boxes(deferred ? 0 : pending.size());  // build only: bboxes for the overlap test
   if (!grid_.isLean()) {
     tris_.resize(pending.size());
-    for (std::size_t t = 0; t < pending.size(); ++t) {
-      const Box2 box = makeRecord(static_cast<std::uint32_t>(t), pending[t]);
-      if (!deferred) boxes[t] = box;
-    }
+    batch::inSlices(pending.size(), options.buildThreads, 1u << 15, [&](std::size_t lo, std::size_t hi) {
+      for (std::size_t t = lo; t < hi; ++t) {
+        const Box2 box = makeRecord(static_cast<std::uint32_t>(t), pending[t]);
+        if (!deferred) boxes[t] = box;
+      }
+    });
   }
   deferredOptions_ = options.tree;
+  buildThreads_ = options.buildThreads;
   baseMemoryBytes_ =
       cold_.size() * sizeof(Cold) + corners2_.size() * (sizeof(Point2) + sizeof(double)) + grid_.memoryBytes();
   if (deferred) {
@@ -289,8 +295,8 @@ void PlanarCore::finishBuild(std::vector<Pending>& pending, const Lattice* latti
     tree_.build(
         static_cast<std::uint32_t>(cold_.size()), domain, options.tree,
         [this, &boxes](std::uint32_t t, const Box2& b) { return overlaps(t, boxes[t], b); }, floorU_, floorV_,
-        [&boxes](std::uint32_t t) { return boxes[t]; });
-    tree_.markLeaves([this](std::span<std::uint32_t> items) { return prepareLeaf(items); });
+        [&boxes](std::uint32_t t) { return boxes[t]; }, options.buildThreads);
+    tree_.markLeaves([this](std::span<std::uint32_t> items) { return prepareLeaf(items); }, options.buildThreads);
     stats_.tree = tree_.stats();
     stats_.memoryBytes = baseMemoryBytes_ + tris_.size() * sizeof(Tri) + stats_.tree.memoryBytes;
   }
@@ -423,7 +429,9 @@ void PlanarCore::setTreeFloor(const std::vector<Box2>& boxes) const {
 void PlanarCore::buildDeferredTree() const {
   if (tris_.size() != cold_.size()) {
     tris_.resize(cold_.size());
-    for (std::uint32_t t = 0; t < cold_.size(); ++t) tris_[t] = computeRecord(cold_[t].corner);
+    batch::inSlices(cold_.size(), buildThreads_, 1u << 15, [this](std::size_t lo, std::size_t hi) {
+      for (std::size_t t = lo; t < hi; ++t) tris_[t] = computeRecord(cold_[t].corner);
+    });
   }
   {
     std::vector<Box2> boxes(cold_.size());
@@ -433,8 +441,8 @@ void PlanarCore::buildDeferredTree() const {
   tree_.build(
       static_cast<std::uint32_t>(cold_.size()), stats_.domain, deferredOptions_,
       [this](std::uint32_t t, const Box2& b) { return !ledger_.removed(cold_[t].polygon) && overlaps(t, boxOf(t), b); },
-      floorU_, floorV_, [this](std::uint32_t t) { return boxOf(t); });
-  tree_.markLeaves([this](std::span<std::uint32_t> items) { return prepareLeaf(items); });
+      floorU_, floorV_, [this](std::uint32_t t) { return boxOf(t); }, buildThreads_);
+  tree_.markLeaves([this](std::span<std::uint32_t> items) { return prepareLeaf(items); }, buildThreads_);
   treeStatsStale_ = true;
   deferred_->built = true;
 }

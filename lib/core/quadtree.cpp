@@ -10,6 +10,14 @@
 
 namespace qota {
 
+void Quadtree::tooManyReferences() const {
+  throw Error("quadtree: more than " + std::to_string(refBudget_) + " leaf references for " +
+              std::to_string(itemCount_) + " polygons; Maxpoly " + std::to_string(options_.maxPoly) +
+              " is smaller than the number of polygons that share an edge or overlap here, so "
+              "leaves split down to Maxdepth " +
+              std::to_string(options_.maxDepth) + ": raise Maxpoly or lower Maxdepth");
+}
+
 void Quadtree::checkMemoryLeft() const {
   // Enough for the rest of a level's lists and the final copies of the node and reference arrays.
   const std::uint64_t reserve = 128ull * (1ull << 20) + 12ull * nodes_.size();

@@ -23,11 +23,13 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <exception>
 #include <functional>
 #include <span>
 #include <string>
 #include <vector>
 
+#include "qota/batch.hpp"
 #include "qota/error.hpp"
 #include "qota/memory.hpp"
 #include "qota/predicates.hpp"
@@ -58,9 +60,13 @@ class Quadtree {
   // larger than the node; see CartesianIndex). 0: no floor.
   // boxOf(item): the item's bounding box, for the cost-model cuts (QuadtreeOptions::cuts); empty:
   // midpoint cuts.
+  // threads: with midpoint cuts, the root's four subtrees are built on up to this many threads
+  // (batch::inSlices: 0, one per hardware thread; overlaps is then called from several at once)
+  // and joined in the one thread's layout: the same tree for any count.
   template <class Overlaps>
   void build(std::uint32_t itemCount, Box2 root, const QuadtreeOptions& options, Overlaps&& overlaps,
-             double minSizeU = 0, double minSizeV = 0, const std::function<Box2(std::uint32_t)>& boxOf = {});
+             double minSizeU = 0, double minSizeV = 0, const std::function<Box2(std::uint32_t)>& boxOf = {},
+             unsigned threads = 1);
   // Whether the cuts are stored per node (cost model) rather than at the midpoints.
   bool storedCuts() const { return !cut_.empty(); }
   // The index into nodes() of the leaf containing (u, v). Precondition: contains(u, v).
@@ -147,14 +153,19 @@ class Quadtree {
   void compact();
 
   // Lets the owner reorder each leaf's items and flag it single-layer: visit(items) may permute
-  // the span and returns whether to set kSingleLayer.
+  // the span and returns whether to set kSingleLayer. On `threads` threads (batch::inSlices: 0,
+  // one per hardware thread) when visit may run on several leaves at once (each leaf's items are
+  // its own): the same tree for any count.
   template <class Visit>
-  void markLeaves(Visit&& visit) {
-    for (Node& n : nodes_) {
-      if (n.count == kInner) continue;
-      const std::span<std::uint32_t> items(refs_.data() + n.first, leafSize(n));
-      n.count = leafSize(n) | (visit(items) ? kSingleLayer : 0u);
-    }
+  void markLeaves(Visit&& visit, unsigned threads = 1) {
+    batch::inSlices(nodes_.size(), threads, 1u << 14, [&](std::size_t lo, std::size_t hi) {
+      for (std::size_t i = lo; i < hi; ++i) {
+        Node& n = nodes_[i];
+        if (n.count == kInner) continue;
+        const std::span<std::uint32_t> items(refs_.data() + n.first, leafSize(n));
+        n.count = leafSize(n) | (visit(items) ? kSingleLayer : 0u);
+      }
+    });
     buildJumpTable();  // the table holds copies of the leaves
   }
 
@@ -188,6 +199,17 @@ class Quadtree {
   template <class Overlaps>
   void buildNode(std::uint32_t node, const Box2& box, std::uint32_t depth, std::vector<std::uint32_t>& items,
                  Overlaps& overlaps);
+  // buildNode's own step: node becomes a leaf of items (false), or an inner node whose four
+  // children are allocated, with their boxes and items in child and sub (true).
+  template <class Overlaps>
+  bool splitNode(std::uint32_t node, const Box2& box, std::uint32_t depth, std::vector<std::uint32_t>& items,
+                 Overlaps& overlaps, Box2 (&child)[4], std::vector<std::uint32_t> (&sub)[4]);
+  // The root split as buildNode splits it, then each child's subtree built apart on threads and
+  // appended in child order, as the recursion lays them out.
+  template <class Overlaps>
+  void buildFromTheRootInParallel(const Box2& root, std::vector<std::uint32_t>& items, Overlaps& overlaps,
+                                  unsigned threads);
+  [[noreturn]] void tooManyReferences() const;
 
   Box2 root_;
   QuadtreeOptions options_;
@@ -217,6 +239,7 @@ class Quadtree {
   std::uint64_t abandoned_ = 0;  // references left behind by edits (see compact)
   std::uint32_t itemCount_ = 0;
   double minSizeU_ = 0, minSizeV_ = 0;
+  std::uint32_t memoryCheckShift_ = 20;  // the build checks the memory left every 2^this nodes
 };
 
 template <class Visit>
@@ -333,7 +356,8 @@ void Quadtree::remove(std::uint32_t item, Overlaps&& overlaps) {
 
 template <class Overlaps>
 void Quadtree::build(std::uint32_t itemCount, Box2 root, const QuadtreeOptions& options, Overlaps&& overlaps,
-                     double minSizeU, double minSizeV, const std::function<Box2(std::uint32_t)>& boxOf) {
+                     double minSizeU, double minSizeV, const std::function<Box2(std::uint32_t)>& boxOf,
+                     unsigned threads) {
   // A root much longer than it is wide would cut its short side into cells far thinner than the
   // items, each item referenced by thousands of them (a raster two pixels by five thousand). So
   // the short side is widened, about its centre, to at least half the long one.
@@ -372,7 +396,14 @@ void Quadtree::build(std::uint32_t itemCount, Box2 root, const QuadtreeOptions& 
   std::vector<std::uint32_t> items(itemCount);
   for (std::uint32_t i = 0; i < itemCount; ++i) items[i] = i;
   if (boxOf_) cut_.assign(1, Point2{});
-  buildNode(0, root, 0, items, overlaps);
+  // (A parallel build pays from about this many items: below, the threads cost more than they
+  // save.)
+  constexpr std::uint32_t kParallelItems = 1u << 15;
+  if (threads != 1 && !boxOf_ && itemCount >= kParallelItems) {
+    buildFromTheRootInParallel(root, items, overlaps, threads);
+  } else {
+    buildNode(0, root, 0, items, overlaps);
+  }
   boxOf_ = nullptr;
   nodes_.shrink_to_fit();
   cut_.shrink_to_fit();
@@ -383,11 +414,21 @@ void Quadtree::build(std::uint32_t itemCount, Box2 root, const QuadtreeOptions& 
 template <class Overlaps>
 void Quadtree::buildNode(std::uint32_t node, const Box2& box, std::uint32_t depth, std::vector<std::uint32_t>& items,
                          Overlaps& overlaps) {
+  Box2 child[4];
+  std::vector<std::uint32_t> sub[4];
+  if (!splitNode(node, box, depth, items, overlaps, child, sub)) return;
+  const std::uint32_t first = nodes_[node].first;
+  for (int c = 0; c < 4; ++c) buildNode(first + c, child[c], depth + 1, sub[c], overlaps);
+}
+
+template <class Overlaps>
+bool Quadtree::splitNode(std::uint32_t node, const Box2& box, std::uint32_t depth, std::vector<std::uint32_t>& items,
+                         Overlaps& overlaps, Box2 (&child)[4], std::vector<std::uint32_t> (&sub)[4]) {
   if (items.size() <= options_.maxPoly || depth >= options_.maxDepth ||
       (box.uhi - box.ulo < minSizeU_ && box.vhi - box.vlo < minSizeV_)) {
     nodes_[node] = {static_cast<std::uint32_t>(refs_.size()), static_cast<std::uint32_t>(items.size())};
     refs_.insert(refs_.end(), items.begin(), items.end());
-    return;
+    return false;
   }
   const auto first = static_cast<std::uint32_t>(nodes_.size());
   nodes_[node] = {first, kInner};
@@ -401,10 +442,10 @@ void Quadtree::buildNode(std::uint32_t node, const Box2& box, std::uint32_t dept
     cut_[node] = cut;
   }
   const double mu = cut.u, mv = cut.v;
-  const Box2 child[4] = {
-      {box.ulo, box.vlo, mu, mv}, {mu, box.vlo, box.uhi, mv}, {box.ulo, mv, mu, box.vhi}, {mu, mv, box.uhi, box.vhi}};
-  std::vector<std::uint32_t> sub[4];
+  child[0] = {box.ulo, box.vlo, mu, mv}, child[1] = {mu, box.vlo, box.uhi, mv};
+  child[2] = {box.ulo, mv, mu, box.vhi}, child[3] = {mu, mv, box.uhi, box.vhi};
   for (int c = 0; c < 4; ++c) {
+    sub[c].clear();
     sub[c].reserve(items.size() / 2);
     for (std::uint32_t it : items) {
       if (overlaps(it, child[c])) sub[c].push_back(it);
@@ -426,18 +467,67 @@ void Quadtree::buildNode(std::uint32_t node, const Box2& box, std::uint32_t dept
     if (!cut_.empty()) cut_.resize(first);
     nodes_[node] = {static_cast<std::uint32_t>(refs_.size()), static_cast<std::uint32_t>(items.size())};
     refs_.insert(refs_.end(), items.begin(), items.end());
-    return;
+    return false;
   }
-  if (refs_.size() + items.size() > refBudget_ || nodes_.size() > refBudget_) {
-    throw Error("quadtree: more than " + std::to_string(refBudget_) + " leaf references for " +
-                std::to_string(itemCount_) + " polygons; Maxpoly " + std::to_string(options_.maxPoly) +
-                " is smaller than the number of polygons that share an edge or overlap here, so "
-                "leaves split down to Maxdepth " +
-                std::to_string(options_.maxDepth) + ": raise Maxpoly or lower Maxdepth");
-  }
-  if ((first >> 20) != ((first + 4) >> 20)) checkMemoryLeft();
+  if (refs_.size() + items.size() > refBudget_ || nodes_.size() > refBudget_) tooManyReferences();
+  if ((first >> memoryCheckShift_) != ((first + 4) >> memoryCheckShift_)) checkMemoryLeft();
   std::vector<std::uint32_t>().swap(items);  // free the parent's list before descending
-  for (int c = 0; c < 4; ++c) buildNode(first + c, child[c], depth + 1, sub[c], overlaps);
+  return true;
+}
+
+template <class Overlaps>
+void Quadtree::buildFromTheRootInParallel(const Box2& root, std::vector<std::uint32_t>& items, Overlaps& overlaps,
+                                          unsigned threads) {
+  Box2 child[4];
+  std::vector<std::uint32_t> sub[4];
+  if (!splitNode(0, root, 0, items, overlaps, child, sub)) return;
+  // Each subtree in a tree of its own, its node 0 the child: the recursion's steps on its part,
+  // with the whole tree's options and budget.
+  Quadtree part[4];
+  for (Quadtree& q : part) {
+    q.root_ = root_, q.options_ = options_, q.half_ = half_;
+    q.minSizeU_ = minSizeU_, q.minSizeV_ = minSizeV_;
+    q.refBudget_ = refBudget_, q.itemCount_ = itemCount_;
+    q.nodes_.assign(1, Node{0, 0});
+  }
+  // A part checks the memory left four times as often as a whole tree would (it sees a quarter
+  // of the nodes), and its error stops the build on this thread, the first part's first.
+  std::exception_ptr failed[4];
+  for (Quadtree& q : part) q.memoryCheckShift_ = memoryCheckShift_ - 2;
+  batch::inSlices(4, threads, 1, [&](std::size_t lo, std::size_t hi) {
+    for (std::size_t c = lo; c < hi; ++c) {
+      try {
+        part[c].buildNode(0, child[c], 1, sub[c], overlaps);
+      } catch (...) {
+        failed[c] = std::current_exception();
+      }
+    }
+  });
+  for (const std::exception_ptr& e : failed) {
+    if (e) std::rethrow_exception(e);
+  }
+  // The recursion's layout: child c at node 1 + c, then the subtrees below the children one after
+  // another (child 0's first), their leaves' references likewise.
+  for (int c = 0; c < 4; ++c) {
+    const auto base = static_cast<std::uint32_t>(nodes_.size());
+    const auto refBase = static_cast<std::uint32_t>(refs_.size());
+    if (std::uint64_t{base} + part[c].nodes_.size() > refBudget_ || refs_.size() + part[c].refs_.size() > refBudget_) {
+      tooManyReferences();
+    }
+    const auto placed = [&](Node n) {
+      if (n.count == kInner) {
+        n.first = n.first - 1 + base;
+      } else {
+        n.first += refBase;
+      }
+      return n;
+    };
+    nodes_[1 + c] = placed(part[c].nodes_[0]);
+    for (std::size_t k = 1; k < part[c].nodes_.size(); ++k) nodes_.push_back(placed(part[c].nodes_[k]));
+    refs_.insert(refs_.end(), part[c].refs_.begin(), part[c].refs_.end());
+    BigVector<Node>().swap(part[c].nodes_);
+    BigVector<std::uint32_t>().swap(part[c].refs_);
+  }
 }
 
 }  // namespace qota

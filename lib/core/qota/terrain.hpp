@@ -288,6 +288,7 @@ class PlanarCore : public IndexFace<PlanarCore> {
   std::uint64_t recordBytesBeforeTree_ = 0;  // tris_ before a deferred build (it may add them)
   std::unique_ptr<Deferred> deferred_ = std::make_unique<Deferred>();
   QuadtreeOptions deferredOptions_;
+  unsigned buildThreads_ = 0;               // IndexOptions::buildThreads, for the deferred tree too
   mutable double floorU_ = 0, floorV_ = 0;  // the tree's node size floor (setTreeFloor)
   void setTreeFloor(const std::vector<Box2>& boxes) const;
   std::uint64_t baseMemoryBytes_ = 0;  // everything but the tree and the triangle records

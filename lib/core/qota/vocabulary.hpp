@@ -78,6 +78,10 @@ struct IndexOptions {
   /// from a float copy. The records and the quadtree are made when something needs them (edits,
   /// shadows, statistics, tree files).
   std::optional<bool> gridFastPath = std::nullopt;
+  /// Threads for the build's parts that split by triangle or by leaf (the triangles' records,
+  /// the leaves' single-layer test): 0, one per hardware thread; 1, the calling thread alone.
+  /// The index is the same, bit for bit, for any count.
+  unsigned buildThreads = 0;
 };
 /// The names before every index shared one, kept for one release (0.2); to be removed in 0.3.
 using TerrainOptions [[deprecated("use qota::IndexOptions")]] = IndexOptions;
