@@ -1,9 +1,9 @@
 // shadow_bench: the shadow mask of a 2000 x 2000 DEM at sun altitudes 30 and 10 degrees, with the
 // strip walk (the default) and with the QOTA shadow quadtree, next to the naive ray march measured
-// in the same run (from each cell, step toward the sun one pixel at a time until the ray is
-// blocked or leaves the grid). Reports seconds, cells per second and the ratio, checks that both
-// methods give the same mask on every cell, and checks it against the brute-force oracle on a
-// sample of cells. Flags: --size N (default 2000), --oracle-cells K (default 60).
+// in the same run (from each pixel, step toward the sun one pixel at a time until the ray is
+// blocked or leaves the grid). Reports seconds, pixels per second and the ratio, checks that both
+// methods give the same mask on every pixel, and checks it against the brute-force oracle on a
+// sample of pixels. Flags: --size N (default 2000), --oracle-pixels K (default 60).
 #include <Eigen/Geometry>
 #include <chrono>
 #include <cmath>
@@ -38,7 +38,7 @@ qota::DemTerrain syntheticDem(int n) {
 
 // The naive baseline, single-threaded: one-pixel steps along the sun's direction, the terrain
 // height from the same two triangles per cell, read from a plain row-major array of heights (the
-// leanest form of the march: nothing but the loop and the heights, 8 bytes a cell).
+// leanest form of the march: nothing but the loop and the heights, 8 bytes a pixel).
 // maxHeight: stop a ray once it is above every height (the usual early exit); +inf: none.
 std::vector<Light> rayMarch(const qota::LocalFrame& f, const std::vector<double>& heights, const Eigen::Vector3d& d,
                             double maxHeight) {
@@ -70,7 +70,7 @@ std::vector<Light> rayMarch(const qota::LocalFrame& f, const std::vector<double>
   return out;
 }
 
-// The oracle for one cell: attached shadow from its own triangles (a point a millionth of a pixel
+// The oracle for one pixel: attached shadow from its own triangles (a point a millionth of a pixel
 // toward the light below the surface), cast shadow from any other triangle the ray meets.
 bool oracleShadow(const qota::LocalFrame& f, std::size_t i, const Eigen::Vector3d& light) {
   const auto& v = f.mesh.vertices;
@@ -100,21 +100,30 @@ bool oracleShadow(const qota::LocalFrame& f, std::size_t i, const Eigen::Vector3
 }  // namespace
 
 int main(int argc, char** argv) {
-  int n = 2000, oracleCells = 60;
-  for (int i = 1; i + 1 < argc; ++i) {
-    if (!std::strcmp(argv[i], "--size"))
+  int n = 2000, oraclePixels = 60;
+  for (int i = 1; i < argc; ++i) {
+    const bool valued = i + 1 < argc;
+    if (valued && !std::strcmp(argv[i], "--size")) {
       n = std::atoi(argv[++i]);
-    else if (!std::strcmp(argv[i], "--oracle-cells"))
-      oracleCells = std::atoi(argv[++i]);
+    } else if (valued && (!std::strcmp(argv[i], "--oracle-pixels") || !std::strcmp(argv[i], "--oracle-cells"))) {
+      oraclePixels = std::atoi(argv[++i]);
+    } else {
+      std::fprintf(stderr, "shadow_bench: unknown argument %s (--size N, --oracle-pixels N)\n", argv[i]);
+      return 2;
+    }
+  }
+  if (n < 16 || oraclePixels < 0) {
+    std::fprintf(stderr, "shadow_bench: --size at least 16, --oracle-pixels at least 0\n");
+    return 2;
   }
   const qota::DemTerrain dem = syntheticDem(n);
   const qota::LocalFrame frame = qota::localFrame(dem, false, 10.0);
-  std::vector<double> heights(frame.cellCount());
+  std::vector<double> heights(frame.pixelCount());
   for (std::size_t i = 0; i < heights.size(); ++i) heights[i] = frame.mesh.vertices[i].z();
-  const double cells = static_cast<double>(n) * n;
-  std::printf("shadow_bench: %d x %d DEM (%.0f cells, %zu triangles), relief %.0f m, %u cores\n", n, n, cells,
+  const double pixels = static_cast<double>(n) * n;
+  std::printf("shadow_bench: %d x %d DEM (%.0f pixels, %zu triangles), relief %.0f m, %u cores\n", n, n, pixels,
               dem.mesh.polygonCount(), frame.maxHeight - frame.minHeight, std::thread::hardware_concurrency());
-  std::printf("%-6s %-22s %10s %14s %9s %10s %12s\n", "alt", "method", "seconds", "cells/s", "vs march", "shadow %",
+  std::printf("%-6s %-22s %10s %14s %9s %10s %12s\n", "alt", "method", "seconds", "pixels/s", "vs march", "shadow %",
               "agree march");
   std::printf(
       "(vs march: the naive march's time over this method's; the march with the max-height\n"
@@ -132,12 +141,12 @@ int main(int argc, char** argv) {
     t1 = Clock::now();
     const double marchS = seconds(t0, t1);
     if (capped != march) std::printf("warning: the two ray marches disagree\n");
-    std::printf("%-6.0f %-22s %10.3f %14.0f %9.2f %10s %12s\n", alt, "march, max-height exit", cappedS, cells / cappedS,
-                marchS / cappedS, "", "");
+    std::printf("%-6.0f %-22s %10.3f %14.0f %9.2f %10s %12s\n", alt, "march, max-height exit", cappedS,
+                pixels / cappedS, marchS / cappedS, "", "");
     std::size_t marchShadow = 0;
     for (Light l : march) marchShadow += l == Light::Shadow;
-    std::printf("%-6.0f %-22s %10.3f %14.0f %9s %10.2f %12s\n", alt, "naive ray march (1 th)", marchS, cells / marchS,
-                "1.00", 100.0 * marchShadow / cells, "-");
+    std::printf("%-6.0f %-22s %10.3f %14.0f %9s %10.2f %12s\n", alt, "naive ray march (1 th)", marchS, pixels / marchS,
+                "1.00", 100.0 * marchShadow / pixels, "-");
     std::vector<Light> stripsMask;
     for (const auto search : {qota::ShadowSearch::Strips, qota::ShadowSearch::Quadtree}) {
       for (unsigned threads : {1u, 0u}) {
@@ -153,29 +162,30 @@ int main(int argc, char** argv) {
         const bool walk = search == qota::ShadowSearch::Strips;
         const std::string name =
             std::string(walk ? "qota strips" : "qota quadtree") + (threads == 1 ? " (1 thread)" : " (all cores)");
-        std::printf("%-6.0f %-22s %10.3f %14.0f %9.2f %10.2f %11.3f%%\n", alt, name.c_str(), s, cells / s, marchS / s,
-                    100.0 * shadow / cells, 100.0 * agree / cells);
+        std::printf("%-6.0f %-22s %10.3f %14.0f %9.2f %10.2f %11.3f%%\n", alt, name.c_str(), s, pixels / s, marchS / s,
+                    100.0 * shadow / pixels, 100.0 * agree / pixels);
         if (walk && threads == 0) stripsMask = mask;
         if (!walk && threads == 0) {
-          std::printf("%-6.0f strips and quadtree masks identical on every cell: %s\n", alt,
+          std::printf("%-6.0f strips and quadtree masks identical on every pixel: %s\n", alt,
                       mask == stripsMask ? "yes" : "NO");
         }
       }
     }
-    if (oracleCells > 0) {
+    if (oraclePixels > 0) {
       std::mt19937_64 rng(static_cast<std::uint64_t>(alt));
       std::uniform_int_distribution<std::size_t> pick(0, stripsMask.size() - 1);
       int same = 0;
-      for (int k = 0; k < oracleCells; ++k) {
+      for (int k = 0; k < oraclePixels; ++k) {
         const std::size_t i = pick(rng);
         const bool ok = (stripsMask[i] == Light::Shadow) == oracleShadow(frame, i, light);
         same += ok;
         if (!ok) {
-          std::printf("  differs at cell %zu (col %zu, row %zu): qota %s\n", i, i % n, i / n,
+          std::printf("  differs at pixel %zu (col %zu, row %zu): qota %s\n", i, i % n, i / n,
                       stripsMask[i] == Light::Shadow ? "shadow" : "lit");
         }
       }
-      std::printf("%-6.0f oracle check: %d of %d random cells identical to the brute force\n", alt, same, oracleCells);
+      std::printf("%-6.0f oracle check: %d of %d random pixels identical to the brute force\n", alt, same,
+                  oraclePixels);
     }
   }
   return 0;

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <gdal_priv.h>
+#include <gdal_utils.h>
 #include <ogr_spatialref.h>
 
 #include <array>
@@ -59,6 +60,26 @@ inline void writeRaster(const std::filesystem::path& path, const RasterSpec& s) 
       throw std::runtime_error("cannot write " + path.string());
     }
   }
+}
+
+// The window of `width` x `height` pixels at (`col`, `row`) of `source`, written to `path` as a
+// GeoTIFF (gdal_translate -srcwin): its georeferencing, CRS, nodata and unit kept.
+inline void cropRaster(const std::string& source, const std::filesystem::path& path, int col, int row, int width,
+                       int height) {
+  ensureGdalRegistered();
+  std::unique_ptr<GDALDataset> in(GDALDataset::Open(source.c_str(), GDAL_OF_RASTER));
+  if (!in) throw std::runtime_error("cannot open " + source);
+  const std::string args[] = {
+      "-srcwin", std::to_string(col), std::to_string(row), std::to_string(width), std::to_string(height), "-of",
+      "GTiff"};
+  std::vector<char*> argv;
+  for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  GDALTranslateOptions* options = GDALTranslateOptionsNew(argv.data(), nullptr);
+  std::unique_ptr<GDALDataset> out(
+      GDALDataset::FromHandle(GDALTranslate(path.c_str(), GDALDataset::ToHandle(in.get()), options, nullptr)));
+  GDALTranslateOptionsFree(options);
+  if (!out) throw std::runtime_error("cannot crop " + source + " to " + path.string());
 }
 
 // Band `band` of a raster as doubles, row-major, with its size.

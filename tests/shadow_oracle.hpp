@@ -28,11 +28,11 @@ inline double surfaceAt(const qota::LocalFrame& f, double x, double y) {
   return NAN;
 }
 
-// The oracle for one valid cell i: attached shadow when a point a millionth of a pixel toward the
+// The oracle for one valid pixel i: attached shadow when a point a millionth of a pixel toward the
 // light lies below the surface there; cast shadow when the ray from the vertex toward the light
 // meets a triangle that does not have that vertex as a corner (Moller-Trumbore, t > 0). A flat
 // frame's rule ("up" is +z).
-inline qota::Light bruteForceCell(const qota::LocalFrame& f, std::size_t i, const Eigen::Vector3d& light) {
+inline qota::Light bruteForcePixel(const qota::LocalFrame& f, std::size_t i, const Eigen::Vector3d& light) {
   using qota::Light;
   const auto& v = f.mesh.vertices;
   const double eps = 1e-6 * f.pixelSizeX / std::max(1e-9, light.head<2>().norm());
@@ -56,22 +56,22 @@ inline qota::Light bruteForceCell(const qota::LocalFrame& f, std::size_t i, cons
 }
 
 // The oracle with the sun turned by 1e-7 degrees either way: its answer where the two agree,
-// else nothing (a cell on the knife edge). bruteForceCell's floating-point ray test is not
-// watertight: a sun along a grid axis or a cell diagonal sends its rays exactly along shared
+// else nothing (a pixel on the knife edge). bruteForcePixel's floating-point ray test is not
+// watertight: a sun along a grid axis or a pixel diagonal sends its rays exactly along shared
 // edges, where they can slip between the triangles; the answer at the sun itself lies between
 // the turned ones.
-inline std::optional<qota::Light> bruteForceCellTurned(const qota::LocalFrame& f, std::size_t i,
-                                                       const qota::SunPosition& sun) {
-  const qota::Light before = bruteForceCell(f, i, f.towardSun({sun.azimuth - 1e-7, sun.altitude}));
-  if (before != bruteForceCell(f, i, f.towardSun({sun.azimuth + 1e-7, sun.altitude}))) return std::nullopt;
+inline std::optional<qota::Light> bruteForcePixelTurned(const qota::LocalFrame& f, std::size_t i,
+                                                        const qota::SunPosition& sun) {
+  const qota::Light before = bruteForcePixel(f, i, f.towardSun({sun.azimuth - 1e-7, sun.altitude}));
+  if (before != bruteForcePixel(f, i, f.towardSun({sun.azimuth + 1e-7, sun.altitude}))) return std::nullopt;
   return before;
 }
 
-// The oracle on every cell (NoData where the frame has no data).
+// The oracle on every pixel (NoData where the frame has no data).
 inline std::vector<qota::Light> bruteForceMask(const qota::LocalFrame& f, const Eigen::Vector3d& light) {
-  std::vector<qota::Light> out(f.cellCount(), qota::Light::NoData);
-  for (std::size_t i = 0; i < f.cellCount(); ++i) {
-    if (f.valid[i]) out[i] = bruteForceCell(f, i, light);
+  std::vector<qota::Light> out(f.pixelCount(), qota::Light::NoData);
+  for (std::size_t i = 0; i < f.pixelCount(); ++i) {
+    if (f.valid[i]) out[i] = bruteForcePixel(f, i, light);
   }
   return out;
 }

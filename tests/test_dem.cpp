@@ -31,7 +31,7 @@ TEST(Dem, RainierPixelCentresAreRasterValues) {
   ASSERT_EQ(dem.height, 1201);
   ASSERT_TRUE(dem.nodata);
   EXPECT_EQ(*dem.nodata, -32768);
-  EXPECT_EQ(dem.nodataCells, 9033u);
+  EXPECT_EQ(dem.nodataPixels, 9033u);
   EXPECT_NE(dem.crsWkt.find("WGS 84"), std::string::npos);
   const CartesianIndex index(dem.mesh, dem.mapping);
 
@@ -69,7 +69,7 @@ TEST(Dem, BetweenCentresIsTheContainingTriangle) {
   EXPECT_EQ(dem.width, 327);
   EXPECT_EQ(dem.height, 468);
   const CartesianIndex index(dem.mesh, dem.mapping);
-  // Halfway between the centres of cell (c, r) and (c + 1, r + 1): on the documented diagonal,
+  // Halfway between the centres of pixel (c, r) and (c + 1, r + 1): on the documented diagonal,
   // so the mean of the two diagonal corners.
   const auto z = [&](int c, int r) { return dem.mesh.vertices[static_cast<std::size_t>(r) * dem.width + c].z(); };
   for (int r = 10; r < 460; r += 37) {
@@ -135,7 +135,7 @@ TEST(Dem, NodataMakesHoles) {
   const auto path = scratch("holes.tif");
   writeRaster(path, "GTiff", 10, 10, gt, values, -9999.0);
   const DemTerrain dem = qota::loadDem(path.string());
-  EXPECT_EQ(dem.nodataCells, 1u);
+  EXPECT_EQ(dem.nodataPixels, 1u);
   EXPECT_EQ(dem.mesh.polygonCount(), 2u * 81 - 6);  // the 6 triangles around the void vertex
   const CartesianIndex index(dem.mesh, dem.mapping);
   const auto centre = dem.pixelCentre(4, 4);

@@ -45,7 +45,7 @@ TEST(RasterGrid, BorderReachesTheEdgeWithTheNearestCentresHeights) {
   for (const auto& e : g.extraVertices()) {
     // On the raster's edge, beside the cell whose height it takes.
     EXPECT_TRUE(e.col == 0 || e.col == w || e.row == 0 || e.row == h);
-    const double cc = static_cast<double>(e.cell % w) + 0.5, cr = static_cast<double>(e.cell / w) + 0.5;
+    const double cc = static_cast<double>(e.pixel % w) + 0.5, cr = static_cast<double>(e.pixel / w) + 0.5;
     EXPECT_LE(std::fabs(e.col - cc), 0.5);
     EXPECT_LE(std::fabs(e.row - cr), 0.5);
   }

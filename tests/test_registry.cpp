@@ -132,7 +132,7 @@ TEST(MappingRegistry, EveryMappingIsReachedByTheToolTheFaceAndTreeFiles) {
   }
 }
 
-// A lon/lat raster of 10 x 10 cells at 500 m round 10.05 E, 44.95 N.
+// A lon/lat raster of 10 x 10 pixels of 500 m round 10.05 E, 44.95 N.
 std::string flatRaster(const std::string& name) {
   qota::test::RasterSpec s;
   s.width = s.height = 10;

@@ -123,7 +123,7 @@ TEST(RenderTree, WritesAPngOfTheRequestedSize) {
 
 TEST(RenderTree, EmptyLeavesAreWhiteAndFullLeavesGrey) {
   // Maxpoly 32 leaves empty leaves in the voids along the raster's edges; 2048 pixels make the
-  // leaves (about 40 x 55 m, 30 m cells) several pixels wide.
+  // leaves (about 40 x 55 m, 30 m pixels) several pixels wide.
   const RenderTreeOptions o = helens("leaves.png", 2048, 32);
   const ToolRun r = render(o);
   ASSERT_EQ(r.code, 0) << r.err;

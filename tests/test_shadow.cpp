@@ -56,7 +56,7 @@ TEST(Shadow, FlatTerrainHasNoShadow) {
 
 TEST(Shadow, StepCastsHOverTanAltitude) {
   // A 50 m step: the plateau (columns < 100) ends at column 99, the plain starts at column 100.
-  // Sun from the west: a plain cell at distance d = (col - 99) * 10 m from the plateau's edge is
+  // Sun from the west: a plain pixel at distance d = (col - 99) * 10 m from the plateau's edge is
   // in shadow exactly when 50 > d tan(alt).
   const int w = 200, h = 12;
   std::vector<double> z(w * h);
@@ -74,7 +74,7 @@ TEST(Shadow, StepCastsHOverTanAltitude) {
         ASSERT_EQ(m[r * w + c] == Light::Shadow, expectShadow) << "alt " << alt << " col " << c;
       }
     }
-    // Its length is H / tan(alt) to within a cell.
+    // Its length is H / tan(alt) to within a pixel.
     const double length = 50.0 / std::tan(alt * M_PI / 180);
     int shadowed = 0;
     for (int c = 100; c < w; ++c) shadowed += m[5 * w + c] == Light::Shadow;
@@ -104,15 +104,15 @@ TEST(Shadow, IdenticalToBruteForceOnSmallDems) {
     const auto fast = qota::shadowMask(f, light, {{k % 2 ? 3u : 8u, 16}});
     const auto slow = bruteForceMask(f, light);
     for (std::size_t i = 0; i < fast.size(); ++i) {
-      ASSERT_EQ(fast[i], slow[i]) << "case " << k << " cell " << i << " (col " << i % 28 << ", row " << i / 28
+      ASSERT_EQ(fast[i], slow[i]) << "case " << k << " pixel " << i << " (col " << i % 28 << ", row " << i / 28
                                   << ") light " << light.transpose();
     }
     EXPECT_GT(count(fast, Light::Shadow), 0u);
   }
 }
 
-// Suns along the grid's axes and its cells' diagonals send rays exactly along shared edges and
-// through vertices: every cell against the oracle turned a hair either way (where the two agree).
+// Suns along the grid's axes and its pixels' diagonals send rays exactly along shared edges and
+// through vertices: every pixel against the oracle turned a hair either way (where the two agree).
 TEST(Shadow, AxisAndDiagonalSunsAgreeWithTheOracle) {
   std::size_t checked = 0, knifeEdges = 0;
   int k = 0;
@@ -121,18 +121,18 @@ TEST(Shadow, AxisAndDiagonalSunsAgreeWithTheOracle) {
       qota::Heightfield hf = qota::fractalHeightfield(26, 22, 1.0, 90.0 + 15 * k, 700 + k);
       if (k % 3 == 0) hf.z[7 * 26 + 9] = NAN;
       ++k;
-      // Square cells, so that the diagonal suns run along the cells' diagonals.
+      // Square pixels, so that the diagonal suns run along the cells' diagonals.
       const LocalFrame f = qota::localFrame(gridDem(26, 22, hf.z), false, 10);
       const auto fast = qota::shadowMask(f, f.towardSun({azimuth, altitude}));
       for (std::size_t i = 0; i < fast.size(); ++i) {
         if (!f.valid[i]) continue;
-        const std::optional<Light> oracle = qota::test::bruteForceCellTurned(f, i, {azimuth, altitude});
+        const std::optional<Light> oracle = qota::test::bruteForcePixelTurned(f, i, {azimuth, altitude});
         if (!oracle) {
           ++knifeEdges;
           continue;
         }
         ++checked;
-        ASSERT_EQ(fast[i], *oracle) << "sun " << azimuth << "/" << altitude << " cell " << i << " (col " << i % 26
+        ASSERT_EQ(fast[i], *oracle) << "sun " << azimuth << "/" << altitude << " pixel " << i << " (col " << i % 26
                                     << ", row " << i / 26 << ")";
       }
     }
@@ -141,8 +141,8 @@ TEST(Shadow, AxisAndDiagonalSunsAgreeWithTheOracle) {
   EXPECT_LT(knifeEdges, checked / 100);
 }
 
-// The strip walk (the default) against the light-frame quadtree, on every cell: random suns,
-// suns along the grid's axes and diagonals (strips parallel to rows, columns or cell diagonals),
+// The strip walk (the default) against the light-frame quadtree, on every pixel: random suns,
+// suns along the grid's axes and diagonals (strips parallel to rows, columns or pixel diagonals),
 // grazing and steep suns, voids, and a frame whose triangles are found through the vertex table
 // instead of the grid's arithmetic.
 TEST(Shadow, StripWalkIdenticalToQuadtree) {
@@ -151,7 +151,7 @@ TEST(Shadow, StripWalkIdenticalToQuadtree) {
   std::vector<qota::SunPosition> suns = {{0, 10},   {90, 10},   {180, 25}, {270, 3},    {45, 15},
                                          {135, 30}, {225, 0.5}, {315, 60}, {137.3, 10}, {10, 89}};
   for (int k = 0; k < 10; ++k) suns.push_back({az(rng), alt(rng)});
-  std::size_t shadowed = 0, cells = 0;
+  std::size_t shadowed = 0, pixels = 0;
   for (int k = 0; k < static_cast<int>(suns.size()); ++k) {
     qota::Heightfield hf = qota::fractalHeightfield(41, 37, 1.0, 80.0 + 10 * k, 300 + k);
     if (k % 4 == 1) hf.z[9 * 41 + 11] = hf.z[9 * 41 + 12] = NAN;
@@ -162,20 +162,20 @@ TEST(Shadow, StripWalkIdenticalToQuadtree) {
     const auto tree = qota::shadowMask(f, light, {}, {}, 1, qota::ShadowSearch::Quadtree);
     ASSERT_EQ(walk.size(), tree.size());
     for (std::size_t i = 0; i < walk.size(); ++i) {
-      ASSERT_EQ(walk[i], tree[i]) << "sun " << suns[k].azimuth << "/" << suns[k].altitude << " cell " << i;
+      ASSERT_EQ(walk[i], tree[i]) << "sun " << suns[k].azimuth << "/" << suns[k].altitude << " pixel " << i;
     }
     shadowed += count(walk, Light::Shadow);
-    cells += walk.size();
+    pixels += walk.size();
   }
-  EXPECT_GT(shadowed, cells / 10);
-  EXPECT_LT(shadowed, cells);
+  EXPECT_GT(shadowed, pixels / 10);
+  EXPECT_LT(shadowed, pixels);
 }
 
-// Cells a thousand times taller than wide, the sun across their tall side: every occluder spans
+// Pixels a thousand times taller than wide, the sun across their tall side: every occluder spans
 // a thousand pixel-wide strips, and went into each (19 million entries here, and gigabytes on
 // larger rasters with absurd geotransforms). The strips widen instead, within a bounded number
 // of copies, and the mask is still the quadtree's.
-TEST(Shadow, StripsOfCellsFarTallerThanWideStayBoundedAndExact) {
+TEST(Shadow, StripsOfPixelsFarTallerThanWideStayBoundedAndExact) {
   const qota::Heightfield hf = qota::fractalHeightfield(300, 60, 1.0, 3000.0, 404);
   LocalFrame f = qota::localFrame(gridDem(300, 60, hf.z), false, 10);
   for (Eigen::Vector3d& v : f.mesh.vertices) v.y() *= 1000;
@@ -187,7 +187,7 @@ TEST(Shadow, StripsOfCellsFarTallerThanWideStayBoundedAndExact) {
   const auto walk = qota::shadowMask(f, light, {}, {}, 2, qota::ShadowSearch::Strips);
   const auto tree = qota::shadowMask(f, light, {}, {}, 2, qota::ShadowSearch::Quadtree);
   ASSERT_EQ(walk.size(), tree.size());
-  for (std::size_t i = 0; i < walk.size(); ++i) ASSERT_EQ(walk[i], tree[i]) << "cell " << i;
+  for (std::size_t i = 0; i < walk.size(); ++i) ASSERT_EQ(walk[i], tree[i]) << "pixel " << i;
   EXPECT_GT(count(walk, Light::Shadow), walk.size() / 10);
   EXPECT_GT(count(walk, Light::Lit), walk.size() / 20);
 }
@@ -257,7 +257,7 @@ TEST(Shadow, MappedTriangleTestIsTheIndexs) {
   }
 }
 
-// The naive baseline: from each cell, step toward the sun half a pixel at a time until the ray
+// The naive baseline: from each pixel, step toward the sun half a pixel at a time until the ray
 // leaves the grid; shadowed when the terrain (the same triangles, voids filled) rises above it.
 std::vector<Light> rayMarch(const LocalFrame& f, const qota::SunPosition& sun, int rowStep) {
   const int w = f.width, h = f.height;
@@ -277,7 +277,7 @@ std::vector<Light> rayMarch(const LocalFrame& f, const qota::SunPosition& sun, i
                 : Z(c0, r0) + fc * (Z(c0 + 1, r0) - Z(c0, r0)) + fr * (Z(c0 + 1, r0 + 1) - Z(c0 + 1, r0));
     return true;
   };
-  std::vector<Light> out(f.cellCount(), Light::NoData);
+  std::vector<Light> out(f.pixelCount(), Light::NoData);
   for (int r = 0; r < h; r += rowStep) {
     for (int c = 0; c < w; ++c) {
       const std::size_t i = static_cast<std::size_t>(r) * w + c;
@@ -318,7 +318,7 @@ TEST(Shadow, AgreesWithRayMarchOnTheRealDem) {
     }
     RecordProperty("compared", static_cast<int>(compared));
     std::printf(
-        "sun %g/%g: %zu cells compared, %zu differ (%.4f %%), %zu of them shadows the "
+        "sun %g/%g: %zu pixels compared, %zu differ (%.4f %%), %zu of them shadows the "
         "march missed\n",
         sun.azimuth, sun.altitude, compared, differ, 100.0 * differ / compared, marchMissed);
     EXPECT_GT(compared, 200000u);
@@ -328,7 +328,7 @@ TEST(Shadow, AgreesWithRayMarchOnTheRealDem) {
 
 TEST(Shadow, CurvatureLowersDistantTerrain) {
   // On the ellipsoid, terrain far away drops below the tangent plane (about 8 m at 10 km), so
-  // fewer cells are shaded at a low sun than on the flat frame.
+  // fewer pixels are shaded at a low sun than on the flat frame.
   const qota::DemTerrain dem = qota::loadDem(QOTA_DATA_DIR "/mt_rainier_90m.tif", {.lonLatAsCartesian = true});
   qota::FrameOptions overEllipsoid;  // (the curvature alone: no geoid's undulation)
   overEllipsoid.heightRef = "ellipsoid";
@@ -452,7 +452,7 @@ TEST(ShadowTool, BadInputIsAClearErrorAndLeavesNoFile) {
   EXPECT_NE(err.str().find("give one light"), std::string::npos);
   EXPECT_FALSE(std::filesystem::exists(o.output));
 
-  // Below the horizon: documented, every cell dark, success.
+  // Below the horizon: documented, every pixel dark, success.
   o.time.clear();
   o.altitude = -5;
   o.quiet = true;

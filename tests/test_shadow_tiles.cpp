@@ -1,5 +1,5 @@
 // Shadows by tiles equal the whole raster's shadow (shadowMask and sunlightHours over
-// localFrame, themselves held to brute force in test_shadow.cpp) cell for cell: several tile
+// localFrame, themselves held to brute force in test_shadow.cpp) pixel for pixel: several tile
 // sizes, suns low and high from every side, voids and nodata across tile edges, on the ellipsoid,
 // flat, projected (north up and rotated) and without CRS.
 #include <gtest/gtest.h>
@@ -18,14 +18,14 @@
 
 namespace {
 
-using qota::CellWindow;
 using qota::Light;
+using qota::PixelWindow;
 namespace test = qota::test;
 
 constexpr double kNodata = -9999;
 
 // A part of the Rainier DEM (real relief: the summit and its valleys), with voids: a round one
-// and a long thin one across where tiles meet, and scattered nodata cells. In `crs` with the
+// and a long thin one across where tiles meet, and scattered nodata pixels. In `crs` with the
 // geotransform `gt` (the Rainier pixel's own when empty).
 std::string rainierPart(const std::string& name, const std::string& crs, std::array<double, 6> gt = {}) {
   const test::RasterValues all = test::readRaster(QOTA_DATA_DIR "/mt_rainier_90m.tif");
@@ -46,7 +46,7 @@ std::string rainierPart(const std::string& name, const std::string& crs, std::ar
       if (v < -1000) v = kNodata;                          // the DEM's own voids
       if (std::hypot(c - 64, r - 48) < 7) v = kNodata;     // round void on tile corners
       if (r == 75 && c > 20 && c < 140) v = kNodata;       // a thin one along a row
-      if ((c * 7919 + r * 104729) % 97 == 0) v = kNodata;  // scattered cells
+      if ((c * 7919 + r * 104729) % 97 == 0) v = kNodata;  // scattered pixels
       z[static_cast<std::size_t>(r) * w + c] = v;
     }
   }
@@ -56,7 +56,7 @@ std::string rainierPart(const std::string& name, const std::string& crs, std::ar
   return path.string();
 }
 
-// Every cell of the whole raster's mask against the tiles', for several tile sizes.
+// Every pixel of the whole raster's mask against the tiles', for several tile sizes.
 void expectTilesEqualWhole(const std::string& path, const qota::FrameOptions& frameOptions,
                            const std::vector<std::pair<double, double>>& suns, const std::vector<int>& sides) {
   const qota::DemTerrain dem = qota::loadDem(path, {.lonLatAsCartesian = true});
@@ -75,7 +75,7 @@ void expectTilesEqualWhole(const std::string& path, const qota::FrameOptions& fr
       std::size_t differ = 0;
       for (int row = 0; row < dem.height; row += side) {
         for (int col = 0; col < dem.width; col += side) {
-          const CellWindow tile{col, row, std::min(side, dem.width - col), std::min(side, dem.height - row)};
+          const PixelWindow tile{col, row, std::min(side, dem.width - col), std::min(side, dem.height - row)};
           const std::vector<Light> got = tiles.mask(tile, light);
           for (int r = 0; r < tile.height; ++r) {
             for (int c = 0; c < tile.width; ++c) {
@@ -87,29 +87,29 @@ void expectTilesEqualWhole(const std::string& path, const qota::FrameOptions& fr
       }
       EXPECT_EQ(differ, 0u) << path << ": sun " << azimuth << "/" << altitude << ", tiles of " << side;
     }
-    // In a flat frame, cells spread over the raster also against the brute-force oracle
+    // In a flat frame, pixels spread over the raster also against the brute-force oracle
     // (shadow_oracle.hpp: every triangle, no qota shadow code), through the tiles of the last size.
-    // The oracle is asked with the sun turned by 1e-7 degrees either way (bruteForceCellTurned:
+    // The oracle is asked with the sun turned by 1e-7 degrees either way (bruteForcePixelTurned:
     // at azimuth 90 its rays run exactly along the rows' edges and slip between the triangles of
-    // 183 cells of the raster without CRS), and a cell is checked where both answers agree.
+    // 183 pixels of the raster without CRS), and a pixel is checked where both answers agree.
     if (!whole.body.ellipsoid) {
       const int side = sides.back();
       std::size_t checked = 0, sampled = 0;
       for (std::size_t i = 7; i < expected.size(); i += expected.size() / 97) {
         if (!whole.valid[i]) continue;
         ++sampled;
-        const std::optional<Light> oracle = qota::test::bruteForceCellTurned(whole, i, {azimuth, altitude});
+        const std::optional<Light> oracle = qota::test::bruteForcePixelTurned(whole, i, {azimuth, altitude});
         if (!oracle) continue;
         const int col = static_cast<int>(i % dem.width), row = static_cast<int>(i / dem.width);
-        const CellWindow tile{col / side * side, row / side * side, std::min(side, dem.width - col / side * side),
-                              std::min(side, dem.height - row / side * side)};
+        const PixelWindow tile{col / side * side, row / side * side, std::min(side, dem.width - col / side * side),
+                               std::min(side, dem.height - row / side * side)};
         const std::vector<Light> got = tiles.mask(tile, light);
         EXPECT_EQ(got[static_cast<std::size_t>(row - tile.row) * tile.width + (col - tile.col)], *oracle)
-            << path << ": sun " << azimuth << "/" << altitude << ", cell " << col << ", " << row;
+            << path << ": sun " << azimuth << "/" << altitude << ", pixel " << col << ", " << row;
         ++checked;
       }
       EXPECT_GT(checked, 30u);
-      EXPECT_GE(checked + 2, sampled);  // (a knife-edge cell or two at most)
+      EXPECT_GE(checked + 2, sampled);  // (a knife-edge pixel or two at most)
     }
     // Neither all lit nor all dark: the comparison means something.
     EXPECT_GT(lit, 0u);
@@ -127,7 +127,7 @@ TEST(ShadowTiles, EqualTheWholeRasterOnTheEllipsoid) {
 
 // Suns at, just above and just below the horizon on the ellipsoid: their shadows reach past the
 // tiles' tangent planes, but not past the body's curve (the ball bound in the header); a sun far
-// enough below every tile's horizon needs no halo at all (the body shades every cell).
+// enough below every tile's horizon needs no halo at all (the body shades every pixel).
 TEST(ShadowTiles, LowSunsOnTheEllipsoid) {
   const std::string path = rainierPart("tiles_low.tif", "EPSG:4326");
   expectTilesEqualWhole(path, {}, {{270, 0.3}, {95, 0.6}}, {40});
@@ -141,7 +141,7 @@ TEST(ShadowTiles, LowSunsOnTheEllipsoid) {
     std::size_t differ = 0, lit = 0;
     for (int row = 0; row < dem.height; row += 50) {
       for (int col = 0; col < dem.width; col += 50) {
-        const CellWindow tile{col, row, std::min(50, dem.width - col), std::min(50, dem.height - row)};
+        const PixelWindow tile{col, row, std::min(50, dem.width - col), std::min(50, dem.height - row)};
         const std::vector<Light> got = tiles.mask(tile, light);
         for (int r = 0; r < tile.height; ++r) {
           for (int c = 0; c < tile.width; ++c) {
@@ -152,7 +152,7 @@ TEST(ShadowTiles, LowSunsOnTheEllipsoid) {
         }
       }
     }
-    EXPECT_EQ(differ, 0u) << "sun " << sun.azimuth << "/" << sun.altitude << " (" << lit << " cells lit)";
+    EXPECT_EQ(differ, 0u) << "sun " << sun.azimuth << "/" << sun.altitude << " (" << lit << " pixels lit)";
   }
 }
 
@@ -191,7 +191,7 @@ TEST(ShadowTiles, SunlightHoursEqualTheWholeRasters) {
     std::size_t differ = 0;
     for (int row = 0; row < dem.height; row += side) {
       for (int col = 0; col < dem.width; col += side) {
-        const CellWindow tile{col, row, std::min(side, dem.width - col), std::min(side, dem.height - row)};
+        const PixelWindow tile{col, row, std::min(side, dem.width - col), std::min(side, dem.height - row)};
         const qota::SunlightHours got = tiles.hours(tile, start, end, 1.5);
         EXPECT_EQ(got.steps, expected.steps);
         for (int r = 0; r < tile.height; ++r) {
@@ -209,7 +209,7 @@ TEST(ShadowTiles, SunlightHoursEqualTheWholeRasters) {
 // Steps the tiles skip and the whole raster computes: on a raster 30 degrees of longitude wide
 // at sunset the Sun sets two hours earlier over its east than over its west, so a tile's window
 // (a smaller slack, sunCanLight) skips steps at which the whole raster still makes masks. The
-// skipped steps must be night over the tile in those masks too (the Sun below every cell's
+// skipped steps must be night over the tile in those masks too (the Sun below every pixel's
 // horizon by more than the dip: the body shades them), and the hours equal.
 TEST(ShadowTiles, HoursAtSunsetSkipNoStepTheWholeRasterLights) {
   const int w = 60, h = 24;
@@ -236,7 +236,7 @@ TEST(ShadowTiles, HoursAtSunsetSkipNoStepTheWholeRasterLights) {
   const qota::LocalSpan span = qota::localSpan("2024-03-20", "America/Chicago", 19.75, 23);
   const double start = span.start.julianDayUT, end = span.end.julianDayUT, step = 0.25;
   const qota::SunlightHours expected = qota::sunlightHours(whole, path, start, end, step);
-  // The whole raster lights more steps than its east tiles' windows do, and some cells get
+  // The whole raster lights more steps than its east tiles' windows do, and some pixels get
   // hours, others none.
   std::size_t someHours = 0, none = 0;
   for (std::size_t i = 0; i < expected.hours.size(); ++i) {
@@ -250,7 +250,7 @@ TEST(ShadowTiles, HoursAtSunsetSkipNoStepTheWholeRasterLights) {
     std::size_t differ = 0;
     for (int row = 0; row < h; row += side) {
       for (int col = 0; col < w; col += side) {
-        const CellWindow tile{col, row, std::min(side, w - col), std::min(side, h - row)};
+        const PixelWindow tile{col, row, std::min(side, w - col), std::min(side, h - row)};
         const qota::SunlightHours got = tiles.hours(tile, start, end, step);
         EXPECT_EQ(got.steps, expected.steps);
         for (int r = 0; r < tile.height; ++r) {
@@ -284,7 +284,7 @@ TEST(ShadowTiles, BlocksWithTheirOverlapFromARestoredState) {
   EXPECT_EQ(restored.frame().body.lowest, whole.body.lowest);
   test::RasterValues raw = test::readRaster(path);
   for (double& v : raw.values) v = v == kNodata ? NAN : v;
-  const auto heightsOf = [&](const CellWindow& w) {
+  const auto heightsOf = [&](const PixelWindow& w) {
     std::vector<double> heights;
     for (int r = w.row; r < w.row + w.height; ++r) {
       for (int c = w.col; c < w.col + w.width; ++c) heights.push_back(raw.at(c, r));
@@ -300,8 +300,8 @@ TEST(ShadowTiles, BlocksWithTheirOverlapFromARestoredState) {
     std::size_t differ = 0;
     for (int row = 0; row < dem.height; row += side) {
       for (int col = 0; col < dem.width; col += side) {
-        const CellWindow tile{col, row, std::min(side, dem.width - col), std::min(side, dem.height - row)};
-        const CellWindow block =
+        const PixelWindow tile{col, row, std::min(side, dem.width - col), std::min(side, dem.height - row)};
+        const PixelWindow block =
             restored.checkableWindow({std::max(0, col - overlap), std::max(0, row - overlap),
                                       std::min(dem.width, col + tile.width + overlap) - std::max(0, col - overlap),
                                       std::min(dem.height, row + tile.height + overlap) - std::max(0, row - overlap)});
@@ -317,9 +317,9 @@ TEST(ShadowTiles, BlocksWithTheirOverlapFromARestoredState) {
     EXPECT_EQ(differ, 0u) << azimuth << "/" << altitude;
   }
   // Too little overlap is an error naming what the tile needs.
-  const CellWindow tile{70, 70, 20, 20};
-  const CellWindow around = restored.checkableWindow(tile);
-  const auto refused = [&](const CellWindow& window, const std::vector<double>& heights, const std::string& why) {
+  const PixelWindow tile{70, 70, 20, 20};
+  const PixelWindow around = restored.checkableWindow(tile);
+  const auto refused = [&](const PixelWindow& window, const std::vector<double>& heights, const std::string& why) {
     try {
       (void)restored.maskFromHeights(window, heights, tile, whole.towardSun({315, 6}));
       ADD_FAILURE() << "no error: " << why;
@@ -328,12 +328,12 @@ TEST(ShadowTiles, BlocksWithTheirOverlapFromARestoredState) {
     }
   };
   refused(around, heightsOf(around), "larger overlap");
-  // Heights that are not the raster's (another raster on the same grid, one cell changed), or a
+  // Heights that are not the raster's (another raster on the same grid, one pixel changed), or a
   // window that is not whole hash blocks, are refused: they cannot be checked.
   std::vector<double> changed = heightsOf(around);
   changed[changed.size() / 2] += 0.5;
   refused(around, changed, "are not those the shadow tiles were made from");
-  refused(around, std::vector<double>(around.cellCount(), 1500.0), "are not those the shadow tiles were made from");
+  refused(around, std::vector<double>(around.pixelCount(), 1500.0), "are not those the shadow tiles were made from");
   refused(tile, heightsOf(tile), "not whole hash blocks");
   EXPECT_THROW(qota::ShadowTiles::restore("qota-shadow-tiles 1\npath 3 abc\nwidth zz\n"), qota::Error);
 }
@@ -341,7 +341,7 @@ TEST(ShadowTiles, BlocksWithTheirOverlapFromARestoredState) {
 TEST(ShadowTiles, RefusesWhatCannotBeTiledExactly) {
   const std::string path = rainierPart("tiles_refused.tif", "EPSG:4326");
   const qota::ShadowTiles tiles(path, {.lonLatAsCartesian = true}, {});
-  const CellWindow tile{0, 0, 30, 30};
+  const PixelWindow tile{0, 0, 30, 30};
   // (A sun at or below the centre's horizon on the ellipsoid is tiled: LowSunsOnTheEllipsoid.)
   // A window over the memory allowed, naming both.
   try {
@@ -352,12 +352,12 @@ TEST(ShadowTiles, RefusesWhatCannotBeTiledExactly) {
   }
   // Tiles that fit a budget: their worst window fits it, a larger side's does not.
   const std::vector<Eigen::Vector3d> lights{tiles.frame().towardSun({135, 60})};
-  const std::uint64_t budget = 8000 * qota::ShadowTiles::bytesPerWindowCell(lights);
+  const std::uint64_t budget = 8000 * qota::ShadowTiles::bytesPerWindowPixel(lights);
   const int side = tiles.tileSideFor(budget, lights, 16);
   EXPECT_GE(side, 16);
   EXPECT_LT(side, 90);
-  const CellWindow centre{(150 - side) / 2, (130 - side) / 2, side, std::min(side, 130)};
-  EXPECT_LE(tiles.windowOf(centre, tiles.halo(centre, lights, tiles.frame().minHeight)).cellCount(), 8000u);
+  const PixelWindow centre{(150 - side) / 2, (130 - side) / 2, side, std::min(side, 130)};
+  EXPECT_LE(tiles.windowOf(centre, tiles.halo(centre, lights, tiles.frame().minHeight)).pixelCount(), 8000u);
   EXPECT_EQ(tiles.tileSideFor(1000, lights, 16), 0);
 }
 

@@ -78,19 +78,19 @@ std::string crop(const RasterValues& r, const std::string& crs, int c0, int c1, 
 // Checks a shadow mask of a lon/lat grid against the independent solar formula: dark where the
 // sun is farther below the horizon than the dip of the horizon from the highest terrain (plus
 // half a degree for refraction and the formula), lit where it is higher than 20 degrees (no
-// slope of these cells can hide it); with polarDay (a June solstice), lit everywhere north of
+// slope of these pixels can hide it); with polarDay (a June solstice), lit everywhere north of
 // 80 N, where the sun stays more than 13 degrees up all day.
 void checkAgainstSolarFormula(const std::string& mask, double julianDayUT, double highest, const std::string& what,
                               bool polarDay) {
   const RasterValues m = qota::test::readRaster(mask);
   const double dip = std::acos(6371000.0 / (6371000.0 + highest)) / kDeg + 0.5;
-  std::size_t dark = 0, lit = 0, night = 0, day = 0, polar = 0, cells = 0;
+  std::size_t dark = 0, lit = 0, night = 0, day = 0, polar = 0, pixels = 0;
   for (int r = 0; r < m.height; ++r) {
     for (int c = 0; c < m.width; ++c) {
       const double lon = m.geotransform[0] + (c + 0.5) * m.geotransform[1];
       const double lat = m.geotransform[3] + (r + 0.5) * m.geotransform[5];
       const double alt = usnoAltitude(julianDayUT, lon, lat), v = m.at(c, r);
-      ++cells;
+      ++pixels;
       lit += v == 255, dark += v == 0;
       if (alt < -dip) {
         ++night;
@@ -107,9 +107,9 @@ void checkAgainstSolarFormula(const std::string& mask, double julianDayUT, doubl
       }
     }
   }
-  EXPECT_EQ(lit + dark, cells) << what;
-  EXPECT_GT(night, cells / 20) << what;
-  EXPECT_GT(day, cells / 20) << what;
+  EXPECT_EQ(lit + dark, pixels) << what;
+  EXPECT_GT(night, pixels / 20) << what;
+  EXPECT_GT(day, pixels / 20) << what;
   if (polarDay && m.geotransform[3] > 85) {
     EXPECT_GT(polar, 0u) << what;
   }
@@ -129,7 +129,7 @@ TEST(ShadowTool, WholeGlobeAtOneInstant) {
   // highest terrain sees past it).
   const RasterValues m = qota::test::readRaster(o.output);
   const double litShare = static_cast<double>(std::count(m.values.begin(), m.values.end(), 255.0)) / m.values.size();
-  double expected = 0, total = 0;  // the share of cells under a sun above the horizon
+  double expected = 0, total = 0;  // the share of pixels under a sun above the horizon
   for (int r = 0; r < m.height; ++r) {
     const double lat = m.geotransform[3] + (r + 0.5) * m.geotransform[5];
     for (int c = 0; c < m.width; ++c) {
@@ -162,7 +162,7 @@ TEST(ShadowTool, ContinentalCropsAndOtherInstants) {
 
 TEST(ShadowTool, ProjectedContinentIsPutOnTheEllipsoid) {
   // The globe between 80 S and 80 N in Web Mercator: a projected DEM is placed on the ellipsoid
-  // too, cell by cell, so the terminator falls where the sun sets.
+  // too, pixel by pixel, so the terminator falls where the sun sets.
   if (std::system("gdalwarp --version > /dev/null 2>&1") != 0) GTEST_SKIP() << "no gdalwarp";
   const auto merc = scratchPath("mercator.tif");
   std::filesystem::remove(merc);
@@ -239,7 +239,7 @@ std::vector<double> maskOf(ShadowOptions o) {
 
 TEST(ShadowTool, HeightsInFeetCastTheShadowsOfMetres) {
   // The same terrain in metres and in feet (band unit type, or a vertical CRS in US survey feet,
-  // or no unit and -z): the same mask, cell for cell, at a low sun. Heights are whole feet, so
+  // or no unit and -z): the same mask, pixel for pixel, at a low sun. Heights are whole feet, so
   // the metres are exactly the feet times the foot.
   for (const auto& [foot, unit, crs] :
        {std::tuple{0.3048, std::string("ft"), std::string("EPSG:4326")},
@@ -323,7 +323,7 @@ std::pair<double, double> lightOf(const std::string& out) {
 
 TEST(ShadowTool, MarsTakesTheSunFromMars24) {
   // Mars24's worked example B (the Spirit landing, 2004-01-03 13:46:31 UTC, at 184.702 W,
-  // 14.640 S): the Sun 151.93895 degrees from the zenith, azimuth 179.99225; every cell dark.
+  // 14.640 S): the Sun 151.93895 degrees from the zenith, azimuth 179.99225; every pixel dark.
   ShadowOptions o = options(bodyDem("spirit.tif", kMarsWkt, 360 - 184.702, -14.640), "spirit_mask.tif");
   o.quiet = false;
   o.time = "2004-01-03T13:46:31Z";
@@ -335,7 +335,7 @@ TEST(ShadowTool, MarsTakesTheSunFromMars24) {
   EXPECT_NE(run.out.find("on Mars"), std::string::npos) << run.out;
   EXPECT_NE(run.out.find("lit: 0.00 %"), std::string::npos) << run.out;
   // Example A's subsolar point (2000-01-06 00:00 UTC: 174.72703 W, 25.22838 S): the Sun overhead,
-  // every cell lit (the DEM is gentle).
+  // every pixel lit (the DEM is gentle).
   o.source = bodyDem("subsolar.tif", kMarsWkt, 360 - 174.72703, -25.22838);
   o.time = "2000-01-06T00:00:00Z";
   run = shadow(o);
@@ -356,7 +356,7 @@ TEST(ShadowTool, MarsTakesTheSunFromMars24) {
 }
 
 TEST(ShadowTool, HoursCountTheDay) {
-  // A flat DEM: every cell is lit while the sun is up, so the hours of sunlight over the whole
+  // A flat DEM: every pixel is lit while the sun is up, so the hours of sunlight over the whole
   // local day are the day's length, from the independent formula (sunrise and sunset where the
   // sun's centre is 0.5 degree below the horizon: refraction), to within a step.
   RasterSpec s;
@@ -439,7 +439,7 @@ TEST(ShadowTool, TinyAltitudePrintsNumbers) {
   EXPECT_TRUE(std::regex_search(run.out, std::regex("shadow reach: [0-9.]+e\\+[0-9]+ m"))) << run.out;
 }
 
-// By tiles: every cell as the whole raster's run, the mask and the hours, for tile sizes that do
+// By tiles: every pixel as the whole raster's run, the mask and the hours, for tile sizes that do
 // and do not divide the raster, with the DEM's own voids across tile edges.
 TEST(ShadowTool, TilesEqualTheWholeRaster) {
   const RasterValues rainier = qota::test::readRaster(QOTA_DATA_DIR "/mt_rainier_90m.tif");

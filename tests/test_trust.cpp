@@ -169,7 +169,7 @@ TEST(TrustState, EditedOrImpossibleStatesAreRefused) {
                                                {"maxHeight", "nan", "height range"},
                                                {"winding", "0p+0", "height range or winding"},
                                                {"winding", "1p+1", "'winding'"},
-                                               {"validCells", "1p+60", "'validCells'"}}) {
+                                               {"validPixels", "1p+60", "'validPixels'"}}) {
     writeFile(bad,
               resealed(std::regex_replace(state, std::regex("\n" + field + " [^\n]*"), "\n" + field + " " + value)));
     fs::remove(o.output);
@@ -282,7 +282,7 @@ TEST(TrustAssemble, ForgedGridsAreAnErrorAtOnce) {
   // Sealed again: the grid does not match the raster and tile sizes.
   for (const std::string& t : tiles) editTile(t, {}, true);
   expectRefused(assemble(tiles, out), "is not the grid of its QOTA_RASTER_SIZE", out);
-  // A consistent forgery of a raster of 10^9 x 10^9 cells: the edge tiles are not the size it
+  // A consistent forgery of a raster of 10^9 x 10^9 pixels: the edge tiles are not the size it
   // says; the full ones are where it says, and the missing tiles are counted, not walked.
   for (const std::string& t : tiles) {
     editTile(t, {{"QOTA_RASTER_SIZE", "1000000000,1000000000"}, {"QOTA_TILES", "7812500,7812500"}}, true);
@@ -301,7 +301,7 @@ TEST(TrustAssemble, DamagedTilesAreNamedSo) {
   fs::remove(state);
   std::vector<std::string> tiles = runTiles("trust/damaged", state);
   const std::string out = scratchPath("trust/damaged.tif").string();
-  // One cell changed (its metadata untouched).
+  // One pixel changed (its metadata untouched).
   {
     std::unique_ptr<GDALDataset> ds(GDALDataset::Open(tiles[5].c_str(), GDAL_OF_RASTER | GDAL_OF_UPDATE));
     ASSERT_TRUE(ds);
@@ -310,7 +310,7 @@ TEST(TrustAssemble, DamagedTilesAreNamedSo) {
     v = v == 255 ? 0 : 255;
     ASSERT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Write, 10, 10, 1, 1, &v, 1, 1, GDT_Byte, 0, 0), CE_None);
   }
-  expectRefused(assemble(tiles, out), "its cells are not those qota wrote", out);
+  expectRefused(assemble(tiles, out), "its pixels are not those qota wrote", out);
   // Cut short (a copy interrupted).
   tiles = runTiles("trust/damaged", state);
   fs::resize_file(tiles[7], fs::file_size(tiles[7]) / 2);
@@ -427,7 +427,7 @@ TEST(TrustInput, AByteOrderMarkAndCarriageReturnLinesAreRead) {
 }
 
 TEST(TrustWork, AHugeRasterIsRefusedAtOnceWithItsEstimate) {
-  // A VRT declaring 10^6 x 10^6 cells over a small file: before, a pass over 10^12 heights
+  // A VRT declaring 10^6 x 10^6 pixels over a small file: before, a pass over 10^12 heights
   // started with no estimate and no progress after minutes.
   const std::string vrt = scratchPath("trust/huge.vrt").string();
   std::ofstream(vrt) << "<VRTDataset rasterXSize=\"1000000\" rasterYSize=\"1000000\"><GeoTransform>500000, 30, 0, "
@@ -439,7 +439,7 @@ TEST(TrustWork, AHugeRasterIsRefusedAtOnceWithItsEstimate) {
   ShadowOptions o = at(vrt, "trust/huge.tif");
   o.pixelSize = 30;
   expectRefused(shadow(o),
-                "more than --max-cells 4294967296 allows: at the measured rates, reading its heights takes about",
+                "more than --max-pixels 4294967296 allows: at the measured rates, reading its heights takes about",
                 o.output);
   // --max-memory below a byte is no budget (it ran whole with the default before).
   EXPECT_THROW(qota::tools::parseByteSize("0.5"), qota::Error);

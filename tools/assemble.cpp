@@ -231,7 +231,7 @@ void checkComplete(const std::vector<Tile>& tiles, long long width, long long he
   }
   if (area != width * height) {
     throw Error("the tiles leave " + std::to_string(width * height - area) + " of the " +
-                std::to_string(width * height) + " cells of their extent uncovered; nothing is assembled");
+                std::to_string(width * height) + " pixels of their extent uncovered; nothing is assembled");
   }
 }
 
@@ -264,7 +264,7 @@ int assemble(const AssembleOptions& o, std::ostream& out, std::ostream& err) {
       c0 = std::min(c0, t.col), r0 = std::min(r0, t.row);
       c1 = std::max(c1, t.col + t.width), r1 = std::max(r1, t.row + t.height);
     }
-    if (c1 - c0 > (1 << 30) || r1 - r0 > (1 << 30)) throw Error("the tiles span more than 2^30 cells a side");
+    if (c1 - c0 > (1 << 30) || r1 - r0 > (1 << 30)) throw Error("the tiles span more than 2^30 pixels a side");
     checkComplete(tiles, c1 - c0, r1 - r0);
     for (Tile& t : tiles) t.col -= c0, t.row -= r0;
     const auto& g = tiles[0].gt;
@@ -308,7 +308,9 @@ int assemble(const AssembleOptions& o, std::ostream& out, std::ostream& err) {
       if (tiles[0].qota.count("QOTA_TILE_SIZE")) {
         block = StreamedRaster::blockFor(std::atoi(tiles[0].qota.at("QOTA_TILE_SIZE").c_str()));
         for (const auto& [key, value] : tiles[0].qota) {
-          if (key != "QOTA_TILE" && key != "QOTA_CELLS" && key != "QOTA_CHECKSUM") fingerprint.push_back({key, value});
+          if (key != "QOTA_TILE" && key != "QOTA_PIXELS" && key != "QOTA_CELLS" && key != "QOTA_CHECKSUM") {
+            fingerprint.push_back({key, value});
+          }
         }
       }
       grid.blockSize = block;
@@ -322,8 +324,10 @@ int assemble(const AssembleOptions& o, std::ostream& out, std::ostream& err) {
         detail::GdalErrorLog errors;
         std::unique_ptr<GDALDataset> ds(GDALDataset::Open(t.path.c_str(), GDAL_OF_RASTER));
         if (!ds) throw Error(t.path + ": cannot open as a raster (" + errors.reason() + ")");
-        const auto cells = t.qota.find("QOTA_CELLS");
-        CellsHash read(t.type == GDT_Byte);
+        // (QOTA_CELLS: the same hash in tiles of qota 0.2)
+        auto pixels = t.qota.find("QOTA_PIXELS");
+        if (pixels == t.qota.end()) pixels = t.qota.find("QOTA_CELLS");
+        PixelsHash read(t.type == GDT_Byte);
         for (int r = 0; r < t.height; r += block) {
           const int n = std::min(block, t.height - r);
           rows.resize(static_cast<std::size_t>(t.width) * n);
@@ -333,11 +337,11 @@ int assemble(const AssembleOptions& o, std::ostream& out, std::ostream& err) {
             throw Error(t.path + ": damaged: cannot read rows " + std::to_string(r) + ".." + std::to_string(r + n - 1) +
                         " (" + errors.reason() + ")");
           }
-          if (cells != t.qota.end()) read.add(rows);
+          if (pixels != t.qota.end()) read.add(rows);
           output.write(static_cast<int>(t.col), static_cast<int>(t.row) + r, t.width, n, rows);
         }
-        if (cells != t.qota.end() && read.hex() != cells->second) {
-          throw Error(t.path + ": damaged: its cells are not those qota wrote (QOTA_CELLS); compute the tile again");
+        if (pixels != t.qota.end() && read.hex() != pixels->second) {
+          throw Error(t.path + ": damaged: its pixels are not those qota wrote (QOTA_PIXELS); compute the tile again");
         }
         if (!o.quiet) out << "\rtile " << k + 1 << "/" << tiles.size() << std::flush;
       }
@@ -350,7 +354,7 @@ int assemble(const AssembleOptions& o, std::ostream& out, std::ostream& err) {
     }
     stage.commit();
     if (!o.quiet) {
-      out << "assembled: " << tiles.size() << " tiles, " << (c1 - c0) << " x " << (r1 - r0) << " cells -> " << o.output
+      out << "assembled: " << tiles.size() << " tiles, " << (c1 - c0) << " x " << (r1 - r0) << " pixels -> " << o.output
           << '\n';
     }
     return 0;

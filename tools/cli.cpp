@@ -123,7 +123,7 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
                          "direct sunlight (Float32, nodata -1) with --hours. Terrain outside the raster is not seen: "
                          "shadows cast from beyond the edge are missing, up to the 'shadow reach' the tool prints "
                          "(relief / tan(altitude)); pad tiles by that much. A DEM with a CRS is placed on its "
-                         "ellipsoid (curvature included, the sun's direction right at every cell) unless --flat. "
+                         "ellipsoid (curvature included, the sun's direction right at every pixel) unless --flat. "
                          "Heights are converted to metres from the raster's vertical unit (-z and -s as gdaldem's).");
   shadowCmd->add_option("source", shadow.source, "Elevation raster (any GDAL format)")->required();
   shadowCmd->add_option("-o,--output", shadow.output, "Output raster")->required();
@@ -164,7 +164,7 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
       ->add_option("--hours", hours,
                    "START END STEP: hours of direct sunlight between these local clock hours "
                    "(0 to 48) of --time's date, in steps of STEP hours (at least 1/60); a "
-                   "cell lit at a step's middle counts the whole step")
+                   "pixel lit at a step's middle counts the whole step")
       ->expected(3);
   shadowCmd->add_flag("--flat", shadow.flat,
                       "No curvature: a geographic DEM's lon/lat scaled linearly, a projected "
@@ -189,9 +189,9 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
                         "geoid grid's path; default: the raster's vertical CRS, else EGM96 on the Earth and "
                         "the ellipsoid elsewhere (said in the frame line, recorded in the output)");
   shadowCmd->add_option("--png", shadow.png, "Also write a PNG preview: the shadows over a hillshade");
-  shadowCmd->add_option("--lit-value", shadow.litValue, "Output value of lit cells")->capture_default_str();
-  shadowCmd->add_option("--shadow-value", shadow.shadowValue, "Output value of shadowed cells")->capture_default_str();
-  shadowCmd->add_option("--nodata-value", shadow.nodataValue, "Output value (and nodata) of cells without data")
+  shadowCmd->add_option("--lit-value", shadow.litValue, "Output value of lit pixels")->capture_default_str();
+  shadowCmd->add_option("--shadow-value", shadow.shadowValue, "Output value of shadowed pixels")->capture_default_str();
+  shadowCmd->add_option("--nodata-value", shadow.nodataValue, "Output value (and nodata) of pixels without data")
       ->capture_default_str();
   std::string maxMemory;
   shadowCmd->add_option("--max-memory", maxMemory,
@@ -199,14 +199,14 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
                         "is shadowed by tiles with halos (the same values), streamed into a tiled GeoTIFF "
                         "or COG. Default: three quarters of the memory available");
   shadowCmd
-      ->add_option("--max-cells", shadow.maxCells,
-                   "Refuse a raster of more cells than this (with the time it would take), before "
-                   "any work: raise it to run one that large")
+      ->add_option("--max-pixels,--max-cells", shadow.maxPixels,
+                   "Refuse a raster of more pixels than this (with the time it would take), before "
+                   "any work: raise it to run one that large (--max-cells: its older name)")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
   shadowCmd
       ->add_option("--tile-size", shadow.tileSize,
-                   "Shadow by tiles of N x N cells (a multiple of 16), whatever the raster's size")
+                   "Shadow by tiles of N x N pixels (a multiple of 16), whatever the raster's size")
       ->check(CLI::Range(16, 1 << 20));
   std::vector<int> tileAt;
   shadowCmd
@@ -221,7 +221,7 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
   addTreeOptions(shadowCmd, shadow.index);
   shadowCmd
       ->add_option("--search", shadow.search,
-                   "How each cell's light ray finds the terrain it may meet (the same mask): 'strips' "
+                   "How each pixel's light ray finds the terrain it may meet (the same mask): 'strips' "
                    "(default; strips of the DEM along the sun's azimuth, sorted by distance) or "
                    "'quadtree' (the paper's shadow quadtree in the light's frame)")
       ->transform(

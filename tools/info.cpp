@@ -31,7 +31,7 @@ void printCrs(const DemTerrain& dem, std::ostream& out) {
   if (auth && code) out << " (" << auth << ':' << code << ')';
   out << '\n';
   if (srs.IsGeographic()) {
-    // Cell size on the ground at the raster's centre, on the CRS's own ellipsoid.
+    // Pixel size on the ground at the raster's centre, on the CRS's own ellipsoid.
     OGRErr e1 = OGRERR_NONE, e2 = OGRERR_NONE;
     const double a = srs.GetSemiMajor(&e1), invf = srs.GetInvFlattening(&e2);
     if (e1 != OGRERR_NONE || e2 != OGRERR_NONE) return;
@@ -116,8 +116,8 @@ int info(const InfoOptions& options, std::ostream& out, std::ostream& err) {
     out << "geotransform:";
     for (double g : dem.geotransform) out << ' ' << formatNumber(g);
     out << '\n';
-    out << "nodata: " << (dem.nodata ? formatNumber(*dem.nodata) : std::string("none")) << " (" << dem.nodataCells
-        << " cells)\n";
+    out << "nodata: " << (dem.nodata ? formatNumber(*dem.nodata) : std::string("none")) << " (" << dem.nodataPixels
+        << " pixels)\n";
     out << "mapping: " << index.mapping().describe() << '\n';
     out << "polygons: " << s.polygons << '\n';
     out << "triangles: " << s.triangles << '\n';

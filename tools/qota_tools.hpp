@@ -83,7 +83,7 @@ int info(const InfoOptions& options, std::ostream& out, std::ostream& err);
 // Output: Byte, litValue where lit, shadowValue in shadow, nodataValue (also set as the band's
 // nodata) where the DEM has none (three different values); or, with hours, Float32 hours of
 // direct sunlight (nodata -1): the elapsed time between the local clock times START and END of
-// the date, in steps of STEP hours (at least a minute; the last may be shorter), a cell lit at a
+// the date, in steps of STEP hours (at least a minute; the last may be shorter), a pixel lit at a
 // step's middle counting the whole step. Written to a temporary file and renamed into place, so a
 // failed or cancelled run never leaves a partial raster under the requested name; an output that
 // is the input, or a format that stores no pixels (VRT), is refused. Exit code 0 on success, 2 on
@@ -123,13 +123,13 @@ struct ShadowOptions {
   // By tiles (qota/shadow_tiles.hpp; the same values as the whole raster's): memory bounded by
   // maxMemory bytes (0: three quarters of what is available), output streamed into a tiled
   // GeoTIFF or COG. Taken when the whole raster does not fit, or when tileSize is given: tiles
-  // of tileSize cells a side (0: the largest that fit), a multiple of 16. tile: only this tile
+  // of tileSize pixels a side (0: the largest that fit), a multiple of 16. tile: only this tile
   // (column, row of the tile grid, from 0), written as a raster of its own, for batch
   // schedulers; qota assemble joins such tiles.
   std::uint64_t maxMemory = 0;
-  // A raster of more cells is refused before any work, with the time it would take (the pass
+  // A raster of more pixels is refused before any work, with the time it would take (the pass
   // over 10^12 heights alone takes hours): raise it to run one that large.
-  std::uint64_t maxCells = 1ull << 32;
+  std::uint64_t maxPixels = 1ull << 32;
   int tileSize = 0;
   std::optional<std::array<int, 2>> tile;
   // By tiles: the pass over the heights (the height range and the frame, ShadowTiles::state)
@@ -167,7 +167,7 @@ std::uint64_t parseByteSize(const std::string& text);
 // darker on a log scale, 255 - 95 log(1 + n) / log(1 + Maxpoly), down to 160 at Maxpoly
 // polygons; leaves holding more (at Maxdepth, or where no cut parts the polygons) stay at 160.
 // The terrain shows through as a faint hillshade (Lambert, light from azimuth 315, altitude 45),
-// which scales a fill by 0.65 (facing away) to 1 (facing the light); nodata cells are not shaded.
+// which scales a fill by 0.65 (facing away) to 1 (facing the light); nodata pixels are not shaded.
 // Leaf edges (and the edge of the tree's root box) are 1 pixel wide, grey 40, darker than any
 // fill, so leaves smaller than a pixel merge into that grey. Written to a temporary file and
 // renamed into place. Exit code 0 on success, 2 on error (unreadable DEM, output folder missing

@@ -105,7 +105,7 @@ void writeRaster(const RasterWrite& w, const DemTerrain& grid, const std::vector
     throw Error("-of " + format + ": GDAL cannot write this format");
   }
   if (values.size() < static_cast<std::size_t>(grid.width) * grid.height) {
-    throw Error(w.path + ": fewer values than cells");
+    throw Error(w.path + ": fewer values than pixels");
   }
   CPLStringList co;
   for (const auto& o : w.creationOptions) {
@@ -179,7 +179,7 @@ StreamedRaster::StreamedRaster(const RasterWrite& w, const Grid& grid, OutputSta
                 format);
   }
   if (grid.blockSize < 16 || grid.blockSize % 16 != 0) {
-    throw Error(w.path + ": blocks of " + std::to_string(grid.blockSize) + " cells; a GeoTIFF's are a multiple of 16");
+    throw Error(w.path + ": blocks of " + std::to_string(grid.blockSize) + " pixels; a GeoTIFF's are a multiple of 16");
   }
   Open& o = *open_;
   o.cog = format == "COG";

@@ -58,13 +58,13 @@ class StreamedRaster {
     std::vector<std::pair<std::string, std::string>> metadata;  // NAME, VALUE items of the dataset
   };
   StreamedRaster(const RasterWrite& w, const Grid& grid, OutputStage& stage);
-  // The largest block size (at most 256) that tiles of `side` cells are made of, so that every
+  // The largest block size (at most 256) that tiles of `side` pixels are made of, so that every
   // block is written once; 16 when none divides it.
   static int blockFor(int side);
   ~StreamedRaster();
   StreamedRaster(const StreamedRaster&) = delete;
   StreamedRaster& operator=(const StreamedRaster&) = delete;
-  // Values of the cells [col, col + width) x [row, row + height), row-major.
+  // Values of the pixels [col, col + width) x [row, row + height), row-major.
   void write(int col, int row, int width, int height, const std::vector<double>& values);
   // More NAME, VALUE items of the dataset (or new values for them), before finish().
   void setMetadata(const std::vector<std::pair<std::string, std::string>>& items);

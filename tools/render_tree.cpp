@@ -48,7 +48,7 @@ double leafGrey(std::uint32_t polygons, std::uint32_t maxPoly) {
   return kEmptyGrey - (kEmptyGrey - kFullGrey) * t;
 }
 
-// Lambert shading in [0, 1] at a DEM cell under `light` (unit, frame coordinates), from the
+// Lambert shading in [0, 1] at a DEM pixel under `light` (unit, frame coordinates), from the
 // central differences of its neighbours' positions in the frame's metres.
 double lambert(const LocalFrame& f, int c, int r, const Eigen::Vector3d& light) {
   const auto at = [&](int cc, int rr) -> const Eigen::Vector3d& {

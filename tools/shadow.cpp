@@ -145,7 +145,7 @@ LightChoice chooseLight(const ShadowOptions& o, const LocalFrame& frame, std::os
 
 LocalSpan hoursSpan(const ShadowOptions& o) {
   // Hours of direct sunlight: the elapsed time between the local clock times START and END of
-  // the date, in steps of STEP hours; a cell lit at a step's middle counts the whole step.
+  // the date, in steps of STEP hours; a pixel lit at a step's middle counts the whole step.
   const auto [start, end, step] = *o.hours;
   checkHoursWindow(start, end, step, "--hours");
   return localSpan(o.time, o.tz, start, end);
@@ -157,7 +157,7 @@ namespace {
 std::vector<double> preview(const LocalFrame& f, const Eigen::Vector3d& light, const std::vector<Light>& mask,
                             const std::vector<double>* hours) {
   const int w = f.width, h = f.height;
-  std::vector<double> grey(f.cellCount(), 0.0);
+  std::vector<double> grey(f.pixelCount(), 0.0);
   double maxHours = 0;
   if (hours) {
     for (double x : *hours) maxHours = std::max(maxHours, x);
@@ -207,7 +207,7 @@ void checkOptions(const ShadowOptions& o, const std::string& format) {
   if (!o.hours && (o.litValue == o.shadowValue || o.litValue == o.nodataValue || o.shadowValue == o.nodataValue)) {
     throw Error("--lit-value " + std::to_string(o.litValue) + ", --shadow-value " + std::to_string(o.shadowValue) +
                 " and --nodata-value " + std::to_string(o.nodataValue) +
-                " must differ, or lit, shadow and nodata cells could not be told apart");
+                " must differ, or lit, shadow and nodata pixels could not be told apart");
   }
   if (format == "VRT" || format == "MEM") {
     throw Error(o.output + ": the " + format +
@@ -284,8 +284,8 @@ int shadow(const ShadowOptions& given, std::ostream& out, std::ostream& err) {
       }
     }
 
-    const std::size_t cells = frame.cellCount();
-    std::vector<double> values(cells);
+    const std::size_t pixels = frame.pixelCount();
+    std::vector<double> values(pixels);
     std::vector<Light> mask;
     Eigen::Vector3d shownLight;
     std::vector<double> hoursLit;
@@ -295,7 +295,7 @@ int shadow(const ShadowOptions& given, std::ostream& out, std::ostream& err) {
       const SunlightHours sunlight = sunlightHours(frame, o.source, span.start.julianDayUT, span.end.julianDayUT, step,
                                                    o.index, termProgress(o.quiet, 0, 1), o.search);
       hoursLit = sunlight.hours;
-      for (std::size_t i = 0; i < cells; ++i) values[i] = frame.valid[i] ? hoursLit[i] : -1.0;
+      for (std::size_t i = 0; i < pixels; ++i) values[i] = frame.valid[i] ? hoursLit[i] : -1.0;
       shownLight = frame.towardSun(sunOverFrame(frame, (span.start.julianDayUT + span.end.julianDayUT) / 2, o.source));
       const int steps = sunlight.steps;
       const double elapsed = sunlight.elapsedHours;
@@ -311,23 +311,23 @@ int shadow(const ShadowOptions& given, std::ostream& out, std::ostream& err) {
       if (!o.quiet) out << "light: " << light.description << '\n';
       if (light.toward.z() <= 0) {
         err << "qota shadow: the light is at or below the horizon at the centre"
-            << (frame.body.ellipsoid ? "" : ": every cell is in shadow") << '\n';
+            << (frame.body.ellipsoid ? "" : ": every pixel is in shadow") << '\n';
       }
       mask = shadowMask(frame, light.toward, o.index, termProgress(o.quiet, 0, 1), 0, o.search);
-      for (std::size_t i = 0; i < cells; ++i) {
+      for (std::size_t i = 0; i < pixels; ++i) {
         values[i] = mask[i] == Light::Lit ? o.litValue : mask[i] == Light::Shadow ? o.shadowValue : o.nodataValue;
       }
       if (!o.quiet) {
         std::size_t lit = 0, valid = 0;
         for (Light l : mask) lit += l == Light::Lit, valid += l != Light::NoData;
         const double reach = shadowReach(frame, light.toward);
-        out << "lit: " << formatNumber(valid ? 100.0 * lit / valid : 0.0, 2) << " % of " << valid << " cells\n";
+        out << "lit: " << formatNumber(valid ? 100.0 * lit / valid : 0.0, 2) << " % of " << valid << " pixels\n";
         out << "shadow reach: "
             << (std::isfinite(reach)
                     ? formatReadable(reach, 0) + " m (" +
                           formatReadable(reach / std::min(frame.pixelSizeX, frame.pixelSizeY), 0) + " pixels)"
                     : std::string("unbounded"))
-            << ": terrain outside the raster can shade cells this far inside it; pad tiles by that much\n";
+            << ": terrain outside the raster can shade pixels this far inside it; pad tiles by that much\n";
       }
     }
 

@@ -29,7 +29,7 @@ Progress termProgress(bool quiet, double lo, double hi);
 // Everything that can be refused before any work: the light, the values, the outputs.
 void checkOptions(const ShadowOptions& o, const std::string& format);
 // The most memory (bytes) the whole raster's shadows take in this process, from its resident
-// memory now (measured rates per cell, ShadowTiles::bytesPerWholeCell).
+// memory now (measured rates per pixel, ShadowTiles::bytesPerWholePixel).
 std::uint64_t wholeEstimate(const ShadowOptions& o, std::uint64_t resident);
 // Whether the run goes by tiles: asked for (--tile-size, --tile), or the whole raster would not
 // fit in o.maxMemory (or, without it, in the memory available).

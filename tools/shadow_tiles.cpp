@@ -31,7 +31,7 @@ namespace {
 // (a thirty-second of the budget, 2 to 64 MiB: it holds the blocks read and the output's blocks
 // until written) and the tile's values.
 constexpr std::uint64_t kLater = 8ull << 20;
-constexpr std::uint64_t kTileBytesPerCell = 16;  // the values written and the tile's lights
+constexpr std::uint64_t kTileBytesPerPixel = 16;  // the values written and the tile's lights
 
 std::uint64_t gdalCacheFor(std::uint64_t allowed) {
   return std::clamp<std::uint64_t>(allowed / 32, 2ull << 20, 64ull << 20);
@@ -40,10 +40,10 @@ std::uint64_t gdalCacheFor(std::uint64_t allowed) {
 constexpr std::uint64_t kWholeLater = 12ull << 20;
 
 // Measured rates on one core of this project's reference machine (bench/shadow_tiles.sh): the
-// pass over the heights reads 60 M cells a second or more, and shadows by tiles take about 0.4 us
-// a cell at mid suns (more at low ones). For estimates printed before long work, not promises.
-constexpr double kPassCellsPerSecond = 60e6;
-constexpr double kShadowCellsPerSecond = 2.5e6;
+// pass over the heights reads 60 M pixels a second or more, and shadows by tiles take about 0.4 us
+// a pixel at mid suns (more at low ones). For estimates printed before long work, not promises.
+constexpr double kPassPixelsPerSecond = 60e6;
+constexpr double kShadowPixelsPerSecond = 2.5e6;
 
 std::uint64_t memoryAllowed(const ShadowOptions& o) {
   if (o.maxMemory) return o.maxMemory;
@@ -140,7 +140,7 @@ std::vector<Eigen::Vector3d> lightsForEstimate(const ShadowOptions& o) {
     const DemTerrain dem = describeDem(o.source, demOptions);
     const FrameBasis basis = frameBasis(dem, frameOptions);
     const LocalFrame& f = basis.shared;
-    // A light below every cell's horizon by more than the horizon's dip shades the whole raster
+    // A light below every pixel's horizon by more than the horizon's dip shades the whole raster
     // without a mask (shadowMask's shortcut): a bound of that slack from the raster's extent (the
     // angle from its centre to its corners) and the dip from 9 km of relief, a degree more.
     double slack = 0;
@@ -189,11 +189,11 @@ std::uint64_t wholeEstimate(const ShadowOptions& o, std::uint64_t resident) {
   demOptions.band = o.band;
   demOptions.lonLatAsCartesian = true;
   const DemTerrain d = describeDem(o.source, demOptions);
-  const std::uint64_t cells = static_cast<std::uint64_t>(d.width) * static_cast<std::uint64_t>(d.height);
+  const std::uint64_t pixels = static_cast<std::uint64_t>(d.width) * static_cast<std::uint64_t>(d.height);
   // The process, what its libraries add, the raster's and the output's blocks in GDAL's cache,
   // the terrain, its frame and the mask (or the hours and their step's mask).
-  return resident + kWholeLater + geoidBytes(o, d) + cells * (pixelBytes(o.source, o.band) + (o.hours ? 4 + 16 : 1)) +
-         cells * ShadowTiles::bytesPerWholeCell(lightsForEstimate(o));
+  return resident + kWholeLater + geoidBytes(o, d) + pixels * (pixelBytes(o.source, o.band) + (o.hours ? 4 + 16 : 1)) +
+         pixels * ShadowTiles::bytesPerWholePixel(lightsForEstimate(o));
 }
 
 bool runsByTiles(const ShadowOptions& o) {
@@ -220,11 +220,11 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
     demOptions.band = o.band;
     demOptions.lonLatAsCartesian = true;
     const DemTerrain described = describeDem(o.source, demOptions);
-    const double cells = static_cast<double>(described.width) * static_cast<double>(described.height);
+    const double pixels = static_cast<double>(described.width) * static_cast<double>(described.height);
     // GDAL's cache need hold no more than the raster's blocks and the output's.
     const std::uint64_t cache = std::min<std::uint64_t>(
         gdalCacheFor(allowed),
-        std::max<double>(1 << 20, cells * static_cast<double>(pixelBytes(o.source, o.band) + (o.hours ? 4 : 1))));
+        std::max<double>(1 << 20, pixels * static_cast<double>(pixelBytes(o.source, o.band) + (o.hours ? 4 : 1))));
     const std::uint64_t fixed = memory::residentBytes() + kLater + cache + geoidBytes(o, described);
     if (allowed <= fixed + (1ull << 20)) {
       throw Error("--max-memory " + mib(allowed) + ": the process itself takes " + mib(fixed - cache) +
@@ -243,21 +243,21 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
     frameOptions.zFactor = o.zFactor;
     frameOptions.scale = o.scale;
     frameOptions.heightRef = o.heightRef;
-    // Work sized before it starts: the pass over the heights reads every cell, and the shadows
-    // take each about a microsecond; a raster beyond --max-cells is refused with the estimate.
-    const double passSeconds = o.tilesState.empty() ? cells / kPassCellsPerSecond : 0;
-    const double shadowSeconds = (o.tile ? std::min(cells, double(o.tileSize) * o.tileSize) : cells) /
-                                 kShadowCellsPerSecond * (o.hours ? 10.0 : 1.0);
-    if (cells > static_cast<double>(o.maxCells)) {
+    // Work sized before it starts: the pass over the heights reads every pixel, and the shadows
+    // take each about a microsecond; a raster beyond --max-pixels is refused with the estimate.
+    const double passSeconds = o.tilesState.empty() ? pixels / kPassPixelsPerSecond : 0;
+    const double shadowSeconds = (o.tile ? std::min(pixels, double(o.tileSize) * o.tileSize) : pixels) /
+                                 kShadowPixelsPerSecond * (o.hours ? 10.0 : 1.0);
+    if (pixels > static_cast<double>(o.maxPixels)) {
       throw Error(o.source + ": " + std::to_string(described.width) + " x " + std::to_string(described.height) +
-                  " cells (" + formatReadable(cells, 0) + "), more than --max-cells " + std::to_string(o.maxCells) +
+                  " pixels (" + formatReadable(pixels, 0) + "), more than --max-pixels " + std::to_string(o.maxPixels) +
                   " allows: at the measured rates, reading its heights takes about " +
-                  clock(cells / kPassCellsPerSecond) + " and its shadows about " +
-                  clock(cells / kShadowCellsPerSecond) + (o.hours ? " a step" : "") + "; give --max-cells " +
-                  std::to_string(static_cast<std::uint64_t>(cells)) + " to run it");
+                  clock(pixels / kPassPixelsPerSecond) + " and its shadows about " +
+                  clock(pixels / kShadowPixelsPerSecond) + (o.hours ? " a step" : "") + "; give --max-pixels " +
+                  std::to_string(static_cast<std::uint64_t>(pixels)) + " to run it");
     }
     if (!o.quiet) {
-      out << "estimate: " << formatReadable(cells, 0) << " cells; "
+      out << "estimate: " << formatReadable(pixels, 0) << " pixels; "
           << (passSeconds > 0 ? "reading the heights about " + clock(passSeconds) + ", " : std::string())
           << "the shadows about " << clock(shadowSeconds) << (o.hours ? " (hours: more at many steps)" : "") << '\n';
     }
@@ -268,7 +268,8 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
       if (c < 0 || r < 0 || c >= across || r >= down) {
         throw Error("--tile " + std::to_string(c) + "," + std::to_string(r) + ": the raster has " +
                     std::to_string(across) + " x " + std::to_string(down) + " tiles of " + std::to_string(o.tileSize) +
-                    " cells (columns 0.." + std::to_string(across - 1) + ", rows 0.." + std::to_string(down - 1) + ")");
+                    " pixels (columns 0.." + std::to_string(across - 1) + ", rows 0.." + std::to_string(down - 1) +
+                    ")");
       }
     }
     if (!o.quiet) out << "qota shadow: " << o.source << " -> " << o.output << " (" << format << ", by tiles)\n";
@@ -303,23 +304,23 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
                   formatNumber(light.toward.y()) + "," + formatNumber(light.toward.z()) + " in the frame";
       if (light.toward.z() <= 0) {
         err << "qota shadow: the light is at or below the horizon at the centre"
-            << (frame.body.ellipsoid ? "" : ": every cell is in shadow") << '\n';
+            << (frame.body.ellipsoid ? "" : ": every pixel is in shadow") << '\n';
       }
       lights = {light.toward};
     }
 
-    // The tile grid: the largest tiles (a multiple of 256 cells a side, or of 16 below that)
+    // The tile grid: the largest tiles (a multiple of 256 pixels a side, or of 16 below that)
     // whose windows, planned from the heights' block ranges, fit the budget.
-    const std::uint64_t perCell = ShadowTiles::bytesPerWindowCell(lights) + kTileBytesPerCell;
+    const std::uint64_t perPixel = ShadowTiles::bytesPerWindowPixel(lights) + kTileBytesPerPixel;
     const auto gridOf = [&](int s) {
-      std::vector<CellWindow> all;
+      std::vector<PixelWindow> all;
       for (int r = 0; r < dem.height; r += s) {
         for (int c = 0; c < dem.width; c += s)
           all.push_back({c, r, std::min(s, dem.width - c), std::min(s, dem.height - r)});
       }
       return all;
     };
-    const auto fits = [&](int s) { return tiles.largestWindowCells(gridOf(s), lights) * perCell <= windowBytes; };
+    const auto fits = [&](int s) { return tiles.largestWindowPixels(gridOf(s), lights) * perPixel <= windowBytes; };
     int side = o.tileSize;
     if (side <= 0) {
       for (const int multiple : {256, 16}) {
@@ -334,8 +335,8 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
       }
     }
     if (side == 0) {
-      const std::uint64_t need = tiles.largestWindowCells(gridOf(16), lights) * perCell;
-      throw Error("--max-memory " + mib(allowed) + ": even tiles of 16 cells need windows of up to " + mib(need) +
+      const std::uint64_t need = tiles.largestWindowPixels(gridOf(16), lights) * perPixel;
+      throw Error("--max-memory " + mib(allowed) + ": even tiles of 16 pixels need windows of up to " + mib(need) +
                   " to hold every triangle that can shade them (a low sun's reach), so the run takes about " +
                   mib(fixed + need) + "; allow that much, or use a higher sun");
     }
@@ -350,27 +351,27 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
     }
     const auto tileOf = [&](const std::array<int, 2>& t) {
       const int col = t[0] * side, row = t[1] * side;
-      return CellWindow{col, row, std::min(side, dem.width - col), std::min(side, dem.height - row)};
+      return PixelWindow{col, row, std::min(side, dem.width - col), std::min(side, dem.height - row)};
     };
     // The memory estimate, from the windows the tiles to do will read.
-    std::vector<CellWindow> planned;
+    std::vector<PixelWindow> planned;
     planned.reserve(todo.size());
     for (const auto& t : todo) planned.push_back(tileOf(t));
-    const std::uint64_t largest = tiles.largestWindowCells(planned, lights);
-    const std::uint64_t passRows = std::clamp<std::uint64_t>(passBytes / ShadowTiles::kPassBytesPerCell / dem.width, 1,
+    const std::uint64_t largest = tiles.largestWindowPixels(planned, lights);
+    const std::uint64_t passRows = std::clamp<std::uint64_t>(passBytes / ShadowTiles::kPassBytesPerPixel / dem.width, 1,
                                                              static_cast<std::uint64_t>(dem.height));
-    const std::uint64_t passHeld = restoring ? 0 : passRows * dem.width * ShadowTiles::kPassBytesPerCell;
-    const std::uint64_t estimate = fixed + std::max(passHeld, largest * perCell);
+    const std::uint64_t passHeld = restoring ? 0 : passRows * dem.width * ShadowTiles::kPassBytesPerPixel;
+    const std::uint64_t estimate = fixed + std::max(passHeld, largest * perPixel);
     if (!o.quiet) {
-      out << "tiles: " << todo.size() << " of " << side << " x " << side << " cells (" << across << " x " << down
+      out << "tiles: " << todo.size() << " of " << side << " x " << side << " pixels (" << across << " x " << down
           << " over the raster); memory estimated " << mib(estimate) << " of " << mib(allowed)
           << " allowed (the process " << mib(fixed - cache) << ", GDAL's cache " << mib(cache) << ", windows of up to "
-          << largest << " cells)\n";
+          << largest << " pixels)\n";
     }
 
-    // The output: the whole raster, or the one tile's cells, on the DEM's grid.
+    // The output: the whole raster, or the one tile's pixels, on the DEM's grid.
     StreamedRaster::Grid grid;
-    const CellWindow extent = o.tile ? tileOf(*o.tile) : CellWindow{0, 0, dem.width, dem.height};
+    const PixelWindow extent = o.tile ? tileOf(*o.tile) : PixelWindow{0, 0, dem.width, dem.height};
     grid.width = extent.width, grid.height = extent.height;
     grid.geotransform = dem.geotransform;
     grid.geotransform[0] += extent.col * dem.geotransform[1] + extent.row * dem.geotransform[2];
@@ -378,12 +379,12 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
     grid.crsWkt = dem.crsWkt;
     grid.blockSize = StreamedRaster::blockFor(side);
     grid.nodata = o.hours ? -1.0 : double(o.nodataValue);
-    // The run's grid and everything the cells depend on (tile_metadata.hpp), sealed when written.
+    // The run's grid and everything the pixels depend on (tile_metadata.hpp), sealed when written.
     MetadataItems fingerprint{
         {"QOTA_VERSION", QOTA_VERSION_STRING},
         {"QOTA_SOURCE", std::filesystem::path(o.source).filename().string()},
         {"QOTA_HEIGHTS", "band " + std::to_string(dem.band) + ", hash " + hexOf(tiles.heightBlocks().whole()) +
-                             " (blocks of " + std::to_string(tiles.heightBlocks().side()) + " cells)"},
+                             " (blocks of " + std::to_string(tiles.heightBlocks().side()) + " pixels)"},
         {"QOTA_RASTER_SIZE", std::to_string(dem.width) + "," + std::to_string(dem.height)},
         {"QOTA_TILE_SIZE", std::to_string(side)},
         {"QOTA_TILES", std::to_string(across) + "," + std::to_string(down)},
@@ -404,13 +405,13 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
     std::vector<double> values;
     for (std::size_t k = 0; k < todo.size(); ++k) {
       throwIfCancelled();
-      const CellWindow tile = tileOf(todo[k]);
-      values.resize(tile.cellCount());
+      const PixelWindow tile = tileOf(todo[k]);
+      values.resize(tile.pixelCount());
       if (o.hours) {
         const SunlightHours h = tiles.hours(tile, span->start.julianDayUT, span->end.julianDayUT, (*o.hours)[2],
                                             o.index, o.search, windowBytes);
-        // Cells without data: nodata (-1); the others their hours, 0 included.
-        for (std::size_t i = 0; i < tile.cellCount(); ++i) values[i] = h.valid[i] ? h.hours[i] : -1.0;
+        // Pixels without data: nodata (-1); the others their hours, 0 included.
+        for (std::size_t i = 0; i < tile.pixelCount(); ++i) values[i] = h.valid[i] ? h.hours[i] : -1.0;
       } else {
         const std::vector<Light> mask = tiles.mask(tile, lights[0], o.index, 0, o.search, windowBytes);
         for (std::size_t i = 0; i < mask.size(); ++i) {
@@ -426,10 +427,10 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
       }
     }
     if (!o.quiet) out << '\n';
-    if (o.tile) {  // the one tile's cells
-      CellsHash cells(!o.hours);
-      cells.add(values);
-      fingerprint.push_back({"QOTA_CELLS", cells.hex()});
+    if (o.tile) {  // the one tile's pixels
+      PixelsHash pixels(!o.hours);
+      pixels.add(values);
+      fingerprint.push_back({"QOTA_PIXELS", pixels.hex()});
     }
     output.setMetadata(
         sealTile(fingerprint, {grid.width, grid.height, grid.geotransform, o.hours ? "Float32" : "Byte", grid.nodata}));
@@ -437,7 +438,7 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
     stage.commit();
     if (!o.quiet) {
       if (!o.hours) {
-        out << "lit: " << formatNumber(valid ? 100.0 * lit / valid : 0.0, 2) << " % of " << valid << " cells\n";
+        out << "lit: " << formatNumber(valid ? 100.0 * lit / valid : 0.0, 2) << " % of " << valid << " pixels\n";
       }
       out << "written: " << o.output << '\n'
           << "memory: peak " << memory::peakBytes() / (1 << 20) << " MiB (estimated " << estimate / (1 << 20)

@@ -81,7 +81,7 @@ bool sealHolds(const MetadataItems& items, const TileGrid& grid) {
   return sum != items.end() && sum->second == checksumOf(sealedText(items, grid));
 }
 
-void CellsHash::add(const std::vector<double>& values) {
+void PixelsHash::add(const std::vector<double>& values) {
   if (byteData_) {
     std::vector<std::uint8_t> stored(values.size());
     for (std::size_t i = 0; i < values.size(); ++i) stored[i] = static_cast<std::uint8_t>(values[i]);

@@ -1,14 +1,14 @@
 // What a raster written by tiles says of itself, so that `qota assemble` joins only tiles of one
-// run and refuses the rest by name: the run's tile grid and a fingerprint of everything the cells
+// run and refuses the rest by name: the run's tile grid and a fingerprint of everything the pixels
 // depend on, as QOTA_* metadata items of the dataset, sealed by a checksum over them and the
 // tile's own grid (size, geotransform, data type, nodata). Internal to the tool.
 //
-//   QOTA_RASTER_SIZE  W,H of the whole raster      QOTA_TILE_SIZE  cells a side of a tile
+//   QOTA_RASTER_SIZE  W,H of the whole raster      QOTA_TILE_SIZE  pixels a side of a tile
 //   QOTA_TILES        columns,rows of tiles         QOTA_TILE       col,row of this tile (--tile)
 //   QOTA_SOURCE       the source's file name        QOTA_HEIGHTS    band, hash of its heights
 //   QOTA_FRAME        --flat, --pixel-size, -z, -s  QOTA_LIGHT      the light, or the hours' span
 //   QOTA_VALUES       the values written            QOTA_VERSION    qota's version
-//   QOTA_CELLS        hash of this tile's cells as stored (--tile)
+//   QOTA_PIXELS       hash of this tile's pixels as stored (--tile; QOTA_CELLS in qota 0.2)
 //   QOTA_CHECKSUM     of all the above and the grid
 #pragma once
 
@@ -26,7 +26,7 @@ namespace qota::tools {
 
 using MetadataItems = std::vector<std::pair<std::string, std::string>>;
 
-// The fields every tile of one run must share (all but QOTA_TILE, QOTA_CELLS and QOTA_CHECKSUM),
+// The fields every tile of one run must share (all but QOTA_TILE, QOTA_PIXELS and QOTA_CHECKSUM),
 // in the order they are compared.
 const std::vector<std::string>& runFields();
 
@@ -48,11 +48,11 @@ MetadataItems sealTile(MetadataItems items, const TileGrid& grid);
 // Whether `items` (a dataset's QOTA_* items, QOTA_CHECKSUM among them) are what sealTile made for
 // this grid.
 bool sealHolds(const MetadataItems& items, const TileGrid& grid);
-// The hash of a tile's cells as stored (QOTA_CELLS): Byte or Float32 values, row-major, given
+// The hash of a tile's pixels as stored (QOTA_PIXELS): Byte or Float32 values, row-major, given
 // whole or a band of rows at a time.
-class CellsHash {
+class PixelsHash {
  public:
-  explicit CellsHash(bool byteData) : byteData_(byteData) {}
+  explicit PixelsHash(bool byteData) : byteData_(byteData) {}
   void add(const std::vector<double>& values);
   std::string hex() const { return hash_.hex(); }
 

@@ -11,7 +11,7 @@ RasterGrid::RasterGrid(int width, int height, Closure closure) : width_(width), 
   if (w < 3) closure_.wrapsColumns = false;
   if (!closure_.wrapsColumns) closure_.northCap = closure_.southCap = false;
   const Closure& k = closure_;
-  const auto cell = [w](int r, int c) { return static_cast<std::uint32_t>(r * w + c); };
+  const auto pixel = [w](int r, int c) { return static_cast<std::uint32_t>(r * w + c); };
 
   // The border's vertices: edge rows above and below (lattice columns -1 .. w, or 0 .. w - 1
   // round a seam), edge columns left and right (rows 0 .. h - 1). edgeRow[c + 1], edgeCol[r].
@@ -19,12 +19,12 @@ RasterGrid::RasterGrid(int width, int height, Closure closure) : width_(width), 
   const bool sides = k.border && !k.wrapsColumns;
   std::vector<std::uint32_t> topRow, bottomRow, leftCol, rightCol;
   const int cFirst = sides ? -1 : 0, cLast = sides ? w : w - 1;  // lattice columns
-  const auto edgeRowVertices = [&](std::vector<std::uint32_t>& out, double row, int cellRow) {
+  const auto edgeRowVertices = [&](std::vector<std::uint32_t>& out, double row, int pixelRow) {
     out.assign(static_cast<std::size_t>(w) + 2, 0);
     for (int c = cFirst; c <= cLast; ++c) {
       const double col = c < 0 ? 0.0 : c >= w ? static_cast<double>(w) : c + 0.5;
       const int slot = c + 1;  // (column -1, the left border, at 0)
-      out[static_cast<std::size_t>(slot)] = addExtra(col, row, cell(cellRow, c < 0 ? 0 : c >= w ? w - 1 : c));
+      out[static_cast<std::size_t>(slot)] = addExtra(col, row, pixel(pixelRow, c < 0 ? 0 : c >= w ? w - 1 : c));
     }
   };
   if (top) edgeRowVertices(topRow, 0.0, 0);
@@ -32,19 +32,19 @@ RasterGrid::RasterGrid(int width, int height, Closure closure) : width_(width), 
   if (sides) {
     leftCol.resize(static_cast<std::size_t>(h));
     rightCol.resize(static_cast<std::size_t>(h));
-    for (int r = 0; r < h; ++r) leftCol[static_cast<std::size_t>(r)] = addExtra(0.0, r + 0.5, cell(r, 0));
+    for (int r = 0; r < h; ++r) leftCol[static_cast<std::size_t>(r)] = addExtra(0.0, r + 0.5, pixel(r, 0));
     for (int r = 0; r < h; ++r) {
-      rightCol[static_cast<std::size_t>(r)] = addExtra(static_cast<double>(w), r + 0.5, cell(r, w - 1));
+      rightCol[static_cast<std::size_t>(r)] = addExtra(static_cast<double>(w), r + 0.5, pixel(r, w - 1));
     }
   }
-  // The vertex at lattice (r, c): a cell, or a border vertex.
+  // The vertex at lattice (r, c): a pixel centre, or a border vertex.
   const auto vertex = [&](int r, int c) -> std::uint32_t {
     const int slot = c + 1;  // in a border row (column -1 at 0)
     if (r < 0) return topRow[static_cast<std::size_t>(slot)];
     if (r >= h) return bottomRow[static_cast<std::size_t>(slot)];
     if (c < 0) return leftCol[static_cast<std::size_t>(r)];
     if (c >= w) return rightCol[static_cast<std::size_t>(r)];
-    return cell(r, c);
+    return pixel(r, c);
   };
 
   // Every lattice square that is not an inner one, split as the inner ones (none without a
@@ -63,24 +63,24 @@ RasterGrid::RasterGrid(int width, int height, Closure closure) : width_(width), 
   // Caps: the pole fanned to its row, with the inner triangles' turn.
   if (k.northCap) {
     const std::uint32_t pole = addExtra(0.0, -0.5, 0, +1);
-    for (int c = 0; c < w; ++c) extraTriangles_.push_back({cell(0, c), cell(0, (c + 1) % w), pole});
+    for (int c = 0; c < w; ++c) extraTriangles_.push_back({pixel(0, c), pixel(0, (c + 1) % w), pole});
   }
   if (k.southCap) {
-    const std::uint32_t pole = addExtra(0.0, h + 0.5, cell(h - 1, 0), -1);
-    for (int c = 0; c < w; ++c) extraTriangles_.push_back({cell(h - 1, (c + 1) % w), cell(h - 1, c), pole});
+    const std::uint32_t pole = addExtra(0.0, h + 0.5, pixel(h - 1, 0), -1);
+    for (int c = 0; c < w; ++c) extraTriangles_.push_back({pixel(h - 1, (c + 1) % w), pixel(h - 1, c), pole});
   }
 
-  const std::size_t cells = cellCount(), inner = innerTriangleCount();
+  const std::size_t pixels = pixelCount(), inner = innerTriangleCount();
   for (std::size_t t = 0; t < extraTriangles_.size(); ++t) {
     for (const std::uint32_t v : extraTriangles_[t]) {
-      if (v < cells) extraRing_[v].push_back(static_cast<std::uint32_t>(inner + t));
+      if (v < pixels) extraRing_[v].push_back(static_cast<std::uint32_t>(inner + t));
     }
   }
 }
 
-std::uint32_t RasterGrid::addExtra(double col, double row, std::uint32_t cell, int pole) {
-  extraVertices_.push_back({col, row, cell, pole});
-  return static_cast<std::uint32_t>(cellCount() + extraVertices_.size() - 1);
+std::uint32_t RasterGrid::addExtra(double col, double row, std::uint32_t pixel, int pole) {
+  extraVertices_.push_back({col, row, pixel, pole});
+  return static_cast<std::uint32_t>(pixelCount() + extraVertices_.size() - 1);
 }
 
 std::array<std::uint32_t, 3> RasterGrid::triangle(std::size_t t) const {

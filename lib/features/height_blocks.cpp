@@ -25,7 +25,7 @@ void canonicalCopy(const double* from, std::size_t n, double* to) {
   for (std::size_t i = 0; i < n; ++i) to[i] = canonical(from[i]);
 }
 
-std::string cellsText(int col, int row, int width, int height) {
+std::string pixelsText(int col, int row, int width, int height) {
   return "(" + std::to_string(col) + ", " + std::to_string(row) + ") + " + std::to_string(width) + " x " +
          std::to_string(height);
 }
@@ -44,17 +44,17 @@ XXH3_state_t* stateAt(std::vector<std::uint64_t>& words, std::size_t k) {
 HeightBlocks::HeightBlocks(int width, int height) : width_(width), height_(height) {
   if (width < 1 || height < 1)
     throw Error("heights of a raster of " + std::to_string(width) + " x " + std::to_string(height) +
-                " cells cannot be hashed");
-  const double cells = static_cast<double>(width) * static_cast<double>(height);
-  side_ = std::max(64, 16 * static_cast<int>(std::ceil(std::sqrt(cells / kMostBlocks) / 16)));
+                " pixels cannot be hashed");
+  const double pixels = static_cast<double>(width) * static_cast<double>(height);
+  side_ = std::max(64, 16 * static_cast<int>(std::ceil(std::sqrt(pixels / kMostBlocks) / 16)));
   while (static_cast<std::int64_t>(across()) * down() > kMostBlocks) side_ += 16;
 }
 
 HeightBlocks::HeightBlocks(int width, int height, int side, std::vector<std::uint64_t> hashes)
     : width_(width), height_(height), side_(side), rowsAdded_(height), hashes_(std::move(hashes)) {
   if (width < 1 || height < 1 || side < 64 || side % 16 != 0) {
-    throw Error("height blocks of " + std::to_string(side) + " cells over " + std::to_string(width) + " x " +
-                std::to_string(height) + " cells: not a raster's blocks");
+    throw Error("height blocks of " + std::to_string(side) + " pixels over " + std::to_string(width) + " x " +
+                std::to_string(height) + " pixels: not a raster's blocks");
   }
   if (hashes_.size() != static_cast<std::size_t>(across()) * static_cast<std::size_t>(down())) {
     throw Error(std::to_string(hashes_.size()) + " block hashes for " + std::to_string(across()) + " x " +
@@ -112,10 +112,10 @@ void HeightBlocks::addRows(int row, int count, const std::vector<double>& height
   if (complete()) open_ = {};
 }
 
-std::pair<double, double> HeightBlocks::rangeOver(const CellWindow& w) const {
+std::pair<double, double> HeightBlocks::rangeOver(const PixelWindow& w) const {
   double lo = INFINITY, hi = -INFINITY;
   if (lows_.size() != hashes_.size() || !complete()) return {-INFINITY, INFINITY};  // nothing known
-  const CellWindow a = alignedOut(w);
+  const PixelWindow a = alignedOut(w);
   for (int r = a.row / side_; r < (a.row + a.height + side_ - 1) / side_; ++r) {
     for (int c = a.col / side_; c < (a.col + a.width + side_ - 1) / side_; ++c) {
       const std::size_t k = static_cast<std::size_t>(r) * across() + c;
@@ -138,18 +138,18 @@ void HeightBlocks::setRanges(std::vector<double> lows, std::vector<double> highs
   lows_ = std::move(lows), highs_ = std::move(highs);
 }
 
-CellWindow HeightBlocks::alignedOut(const CellWindow& w) const {
+PixelWindow HeightBlocks::alignedOut(const PixelWindow& w) const {
   const int c0 = w.col / side_ * side_, r0 = w.row / side_ * side_;
   const int c1 = std::min(width_, (w.col + w.width + side_ - 1) / side_ * side_);
   const int r1 = std::min(height_, (w.row + w.height + side_ - 1) / side_ * side_);
   return {c0, r0, c1 - c0, r1 - r0};
 }
 
-void HeightBlocks::check(const CellWindow& window, const std::vector<double>& heights, const std::string& what) const {
+void HeightBlocks::check(const PixelWindow& window, const std::vector<double>& heights, const std::string& what) const {
   if (!complete()) throw Error(what + ": its heights were not all hashed");
-  if (!aligned(window) || heights.size() != window.cellCount()) {
-    throw Error(what + ": heights of cells " + cellsText(window.col, window.row, window.width, window.height) +
-                " cannot be checked: not whole blocks of " + std::to_string(side_) + " cells");
+  if (!aligned(window) || heights.size() != window.pixelCount()) {
+    throw Error(what + ": heights of pixels " + pixelsText(window.col, window.row, window.width, window.height) +
+                " cannot be checked: not whole blocks of " + std::to_string(side_) + " pixels");
   }
   std::vector<double> block;
   for (int r0 = window.row; r0 < window.row + window.height; r0 += side_) {
@@ -165,7 +165,7 @@ void HeightBlocks::check(const CellWindow& window, const std::vector<double>& he
       const std::uint64_t got = XXH3_64bits(block.data(), block.size() * sizeof(double));
       const std::size_t k = static_cast<std::size_t>(r0 / side_) * across() + c0 / side_;
       if (got != hashes_[k]) {
-        throw Error(what + ": the heights of cells " + cellsText(c0, r0, w, h) +
+        throw Error(what + ": the heights of pixels " + pixelsText(c0, r0, w, h) +
                     " are not those the shadow tiles were made from (their hash differs): another raster, band, "
                     "scale, offset or nodata value, or a file changed since");
       }

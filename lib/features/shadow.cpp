@@ -31,23 +31,23 @@ double shadowReach(const LocalFrame& frame, const Eigen::Vector3d& towardLight) 
 
 std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& towardLight, const IndexOptions& options,
                               const Progress& progress, unsigned threadCount, ShadowSearch search,
-                              std::optional<CellWindow> testOnly) {
+                              std::optional<PixelWindow> testOnly) {
   const auto& vertices = frame.mesh.vertices;
-  const std::size_t cellCount = frame.cellCount();
-  if (frame.valid.size() != cellCount || vertices.size() < cellCount) {
-    throw Error("shadow mask: the frame's cells and vertices do not match its size");
+  const std::size_t pixelCount = frame.pixelCount();
+  if (frame.valid.size() != pixelCount || vertices.size() < pixelCount) {
+    throw Error("shadow mask: the frame's pixels and vertices do not match its size");
   }
-  const CellWindow test = testOnly.value_or(CellWindow{0, 0, frame.width, frame.height});
+  const PixelWindow test = testOnly.value_or(PixelWindow{0, 0, frame.width, frame.height});
   if (test.col < 0 || test.row < 0 || test.width < 0 || test.height < 0 || test.col + test.width > frame.width ||
       test.row + test.height > frame.height) {
-    throw Error("shadow mask: the cells to test are not all in the frame");
+    throw Error("shadow mask: the pixels to test are not all in the frame");
   }
-  const std::size_t testCount = test.cellCount();
+  const std::size_t testCount = test.pixelCount();
   const auto tested = [&](std::size_t i) {
     const auto c = static_cast<int>(i % frame.width), r = static_cast<int>(i / frame.width);
     return c >= test.col && c < test.col + test.width && r >= test.row && r < test.row + test.height;
   };
-  std::vector<Light> out(cellCount, Light::NoData);
+  std::vector<Light> out(pixelCount, Light::NoData);
   const auto report = [&](double done, const char* message) {
     if (progress && !progress(done, message)) throw Error("shadow computation cancelled");
   };
@@ -57,19 +57,19 @@ std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& to
   const Eigen::Vector3d light = towardLight.normalized();
   if (!frame.body.ellipsoid && light.z() <= 0) {
     // A flat frame with the light at or below the horizon: no direct light anywhere.
-    for (std::size_t i = 0; i < cellCount; ++i) {
+    for (std::size_t i = 0; i < pixelCount; ++i) {
       if (frame.valid[i] && tested(i)) out[i] = Light::Shadow;
     }
     report(1.0, "light below the horizon");
     return out;
   }
   if (frame.body.ellipsoid && std::asin(std::clamp(light.z(), -1.0, 1.0)) * 180 / M_PI < -frame.horizonSlack()) {
-    // Below every cell's horizon by more than the dip from the highest terrain: every ray enters
-    // the body, which shades the cell whatever the terrain (sunCanLight's argument, sunlight.hpp).
-    for (std::size_t i = 0; i < cellCount; ++i) {
+    // Below every pixel's horizon by more than the dip from the highest terrain: every ray enters
+    // the body, which shades the pixel whatever the terrain (sunCanLight's argument, sunlight.hpp).
+    for (std::size_t i = 0; i < pixelCount; ++i) {
       if (frame.valid[i] && tested(i)) out[i] = Light::Shadow;
     }
-    report(1.0, "light below every cell's horizon");
+    report(1.0, "light below every pixel's horizon");
     return out;
   }
 
@@ -92,35 +92,35 @@ std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& to
   // On an ellipsoid a grid's triangles all turn alike (facingOf); else each is looked at.
   const int winding = frame.body.ellipsoid && gridMesh ? frame.gridWinding : 0;
 
-  // Two passes over the cells, each shared out to `workers` threads in groups (the calling thread
+  // Two passes over the pixels, each shared out to `workers` threads in groups (the calling thread
   // reports progress), after every triangle's facing is known: attached shadow (and the body's
   // own shadow) by rows, reading each vertex's ring in memory order; then cast shadow for the
-  // cells still lit, by rows through the quadtree or by strips through the strips (each strip's
-  // cells in row order, so nearly in order of a: consecutive searches read the same few cache
+  // pixels still lit, by rows through the quadtree or by strips through the strips (each strip's
+  // pixels in row order, so nearly in order of a: consecutive searches read the same few cache
   // lines of the same strip).
   const auto width = static_cast<std::size_t>(frame.width);
-  std::atomic<std::size_t> cellsDone{0};
+  std::atomic<std::size_t> pixelsDone{0};
   std::atomic<bool> stop{false};
-  const auto inParallel = [&](unsigned workers, std::size_t groups, const auto& cellsOf, const auto& body) {
+  const auto inParallel = [&](unsigned workers, std::size_t groups, const auto& pixelsOf, const auto& body) {
     std::atomic<std::size_t> next{0};
     const auto work = [&](bool reporter) {
       for (std::size_t g; !stop && (g = next++) < groups;) {
         body(g);
-        const std::size_t done = cellsDone += cellsOf(g);
+        const std::size_t done = pixelsDone += pixelsOf(g);
         const double fraction =
             static_cast<double>(done) / static_cast<double>(2 * std::max<std::size_t>(1, testCount));
-        if (reporter && progress && !progress(0.3 + 0.7 * fraction, "testing cells")) stop = true;
+        if (reporter && progress && !progress(0.3 + 0.7 * fraction, "testing pixels")) stop = true;
       }
     };
     inThreads(workers, [&](unsigned k) { work(k == 0); });
   };
-  // Rows of the cells tested: test.row + r, columns [first, last).
+  // Rows of the pixels tested: test.row + r, columns [first, last).
   const std::size_t first = static_cast<std::size_t>(test.col), last = first + static_cast<std::size_t>(test.width);
-  const auto rowCells = [&](std::size_t) { return last - first; };
+  const auto rowPixels = [&](std::size_t) { return last - first; };
   std::vector<std::uint8_t> facing;  // facingOf every triangle
   const BodyRays bodyRays(frame, light);
   const auto attachedPass = [&](unsigned workers) {
-    inParallel(workers, static_cast<std::size_t>(test.height), rowCells, [&](std::size_t k) {
+    inParallel(workers, static_cast<std::size_t>(test.height), rowPixels, [&](std::size_t k) {
       const std::size_t r = k + static_cast<std::size_t>(test.row);
       for (std::size_t i = r * width + first; i < r * width + last; ++i) {
         if (!frame.valid[i]) continue;
@@ -149,11 +149,11 @@ std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& to
       facing[t] = facingOf(frame, c, light, winding);
       if (facing[t] & kOccluder) occluders.addTriangle(c[0], c[1], c[2]);
     }
-    report(0.3, "testing cells");
+    report(0.3, "testing pixels");
     attachedPass(threads);
     if (occluders.polygonCount() > 0) {
       const CartesianIndex index(occluders, mapping, options);
-      inParallel(threads, static_cast<std::size_t>(test.height), rowCells, [&](std::size_t k) {
+      inParallel(threads, static_cast<std::size_t>(test.height), rowPixels, [&](std::size_t k) {
         const std::size_t r = k + static_cast<std::size_t>(test.row);
         for (std::size_t i = r * width + first; i < r * width + last; ++i) {
           if (out[i] != Light::Lit) continue;
@@ -165,27 +165,27 @@ std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& to
   } else {
     report(0.0, "sorting the occluders into strips");
     const HorizonStrips strips(frame, light, std::min(frame.pixelSizeX, frame.pixelSizeY), facing, threads, winding);
-    report(0.3, "testing cells");
+    report(0.3, "testing pixels");
     attachedPass(threads);
-    // The tested cells (k-th in row order: cell testCell(k)) by strip.
-    const auto testCell = [&](std::size_t k) {
+    // The tested pixels (k-th in row order: pixel testPixel(k)) by strip.
+    const auto testPixel = [&](std::size_t k) {
       return (k / (last - first) + static_cast<std::size_t>(test.row)) * width + first + k % (last - first);
     };
     std::vector<std::uint32_t> stripOf(testCount), order(testCount);
-    std::vector<std::uint64_t> start(strips.stripCount() + 2, 0);  // the last: cells in none
+    std::vector<std::uint64_t> start(strips.stripCount() + 2, 0);  // the last: pixels in none
     for (std::size_t k = 0; k < testCount; ++k) {
-      stripOf[k] = static_cast<std::uint32_t>(strips.stripOf(vertices[testCell(k)]));
+      stripOf[k] = static_cast<std::uint32_t>(strips.stripOf(vertices[testPixel(k)]));
       ++start[stripOf[k] + 1];
     }
     for (std::size_t g = 1; g < start.size(); ++g) start[g] += start[g - 1];
     std::vector<std::uint64_t> fill(start.begin(), start.end() - 1);
-    for (std::size_t k = 0; k < testCount; ++k) order[fill[stripOf[k]]++] = static_cast<std::uint32_t>(testCell(k));
+    for (std::size_t k = 0; k < testCount; ++k) order[fill[stripOf[k]]++] = static_cast<std::uint32_t>(testPixel(k));
     inParallel(
         threads, start.size() - 1, [&](std::size_t g) { return start[g + 1] - start[g]; },
         [&](std::size_t g) {
           std::uint64_t hint = 0;
           for (std::uint64_t k = start[g]; k < start[g + 1]; ++k) {
-            if (k + 8 < start[g + 1]) {  // a strip's cells are a row apart in memory
+            if (k + 8 < start[g + 1]) {  // a strip's pixels are a row apart in memory
               __builtin_prefetch(&vertices[order[k + 8]]);
               __builtin_prefetch(&out[order[k + 8]]);
             }
@@ -193,7 +193,7 @@ std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& to
             if (out[i] != Light::Lit) continue;
             const Eigen::Vector3d m = mapping.toMapped(vertices[i]);
             const auto occludes = [&](std::uint32_t t) {
-              // A cell's own triangles meet its ray at the cell itself: never an occluder.
+              // A pixel's own triangles meet its ray at the pixel itself: never an occluder.
               const auto c = frame.mesh.polygon(t);
               if (c[0] == i || c[1] == i || c[2] == i) return false;
               return mappedTriangleAbove(mapping.toMapped(vertices[c[0]]), mapping.toMapped(vertices[c[1]]),

@@ -1,4 +1,4 @@
-// How the triangles of a shadow frame face a light, and which cells the light reaches from below
+// How the triangles of a shadow frame face a light, and which pixels the light reaches from below
 // their own surface (attached shadow). Internal to the shadow code (shadow.cpp, shadow_strips.cpp).
 #pragma once
 
@@ -28,8 +28,8 @@ struct VertexStar {
   }
 };
 
-// How a triangle faces the light (facingOf): kOccluder when it can cast a shadow on a cell that
-// is not in attached shadow. Such a cell's ray starts into the open air, so the first terrain it
+// How a triangle faces the light (facingOf): kOccluder when it can cast a shadow on a pixel that
+// is not in attached shadow. Such a pixel's ray starts into the open air, so the first terrain it
 // meets, it enters, and it enters through a triangle whose normal points away from the light. Both
 // searches take these alone (and, to stay on the safe side of rounding, those within 1e-9 of
 // edge-on): the same answers as with every triangle, for a fraction of the work. kFacesAway: the

@@ -129,10 +129,10 @@ bool LocalFrame::rayEntersBody(const Eigen::Vector3d& p, const Eigen::Vector3d& 
 
 double LocalFrame::horizonSlack() const {
   if (!body.ellipsoid) return 0;
-  // The largest angle between the centre's up (the frame's z) and a cell's.
+  // The largest angle between the centre's up (the frame's z) and a pixel's.
   double cosTilt = 1;
   const Eigen::RowVector3d upRow = body.rotation.row(2);
-  for (std::size_t i = 0; i < cellCount(); ++i) {
+  for (std::size_t i = 0; i < pixelCount(); ++i) {
     const Eigen::Vector3d x = body.rotation.transpose() * mesh.vertices[i] + body.origin;
     const Eigen::Vector3d g(x.x() / (body.a * body.a), x.y() / (body.a * body.a), x.z() / (body.b * body.b));
     cosTilt = std::min(cosTilt, upRow.dot(g) / g.norm());
@@ -275,7 +275,7 @@ FrameBasis frameBasis(const DemTerrain& dem, const FrameOptions& o) {
   f.height = dem.height;
   const int w = dem.width, h = dem.height;
   if (w < 1 || h < 1)
-    throw Error(dem.path + ": a raster of " + std::to_string(w) + " x " + std::to_string(h) + " cells");
+    throw Error(dem.path + ": a raster of " + std::to_string(w) + " x " + std::to_string(h) + " pixels");
   std::optional<OGRSpatialReference> srs;
   if (!dem.crsWkt.empty()) srs = rasterCrs(dem);
   f.metresPerUnit = heightMetres(dem, o, srs ? &*srs : nullptr);
@@ -346,7 +346,7 @@ FrameBasis frameBasis(const DemTerrain& dem, const FrameOptions& o) {
   return b;
 }
 
-void heightsInMetres(const FrameBasis& b, const CellWindow& window, std::vector<double>& z,
+void heightsInMetres(const FrameBasis& b, const PixelWindow& window, std::vector<double>& z,
                      std::vector<std::uint8_t>& valid) {
   const std::size_t n = static_cast<std::size_t>(window.width) * window.height;
   if (z.size() != n) throw Error(b.raster.path + ": a window of heights of the wrong size");
@@ -363,7 +363,7 @@ void heightsInMetres(const FrameBasis& b, const CellWindow& window, std::vector<
   }
 }
 
-LocalFrame windowFrame(const FrameBasis& b, const CellWindow& window, std::vector<double> z,
+LocalFrame windowFrame(const FrameBasis& b, const PixelWindow& window, std::vector<double> z,
                        std::vector<std::uint8_t> valid) {
   const DemTerrain& dem = b.raster;
   const int w = window.width, h = window.height;
@@ -371,7 +371,7 @@ LocalFrame windowFrame(const FrameBasis& b, const CellWindow& window, std::vecto
   if (w < 1 || h < 1 || window.col < 0 || window.row < 0 || window.col + w > dem.width || window.row + h > dem.height ||
       z.size() != n || valid.size() != n) {
     throw Error(dem.path + ": window (" + std::to_string(window.col) + ", " + std::to_string(window.row) + ") of " +
-                std::to_string(w) + " x " + std::to_string(h) + " cells is not on the raster or not its heights");
+                std::to_string(w) + " x " + std::to_string(h) + " pixels is not on the raster or not its heights");
   }
   LocalFrame f = b.shared;
   f.width = w;
@@ -400,7 +400,7 @@ LocalFrame windowFrame(const FrameBasis& b, const CellWindow& window, std::vecto
     const std::size_t i = n + k;
     col[i] = e.col + window.col, row[i] = e.row + window.row, pole[i] = e.pole;
     if (e.pole == 0) {
-      height[i] = z[e.cell];
+      height[i] = z[e.pixel];
       continue;
     }
     const std::size_t r = e.pole > 0 ? 0 : static_cast<std::size_t>(h - 1);  // the pole's row
@@ -497,7 +497,7 @@ void completeBasis(FrameBasis& b, double minHeight, double maxHeight, const Loca
   // Over the ellipsoid: the heights over the geoid plus its undulation, which lies in this range.
   f.minHeight += b.geoidLow, f.maxHeight += b.geoidHigh;
   const int w = b.raster.width, h = b.raster.height;
-  // The centre square's top-left cell, in the centre frame's own numbering.
+  // The centre square's top-left pixel, in the centre frame's own numbering.
   const int cc = (w - 1) / 2 - centre.window.col, cr = (h - 1) / 2 - centre.window.row;
   if (w > 1 && h > 1) {
     if (cc < 0 || cr < 0 || cc + 1 >= centre.width || cr + 1 >= centre.height) {
@@ -538,11 +538,11 @@ LocalFrame localFrame(const DemTerrain& dem, const FrameOptions& o) {
   const std::size_t n = static_cast<std::size_t>(std::max(w, 0)) * static_cast<std::size_t>(std::max(h, 0));
   if (w < 1 || h < 1 || dem.mesh.vertices.size() != n) {
     throw Error(dem.path + ": not a raster grid (" + std::to_string(dem.mesh.vertices.size()) + " vertices for " +
-                std::to_string(w) + " x " + std::to_string(h) + " cells)");
+                std::to_string(w) + " x " + std::to_string(h) + " pixels)");
   }
   FrameBasis basis = frameBasis(dem, o);
-  const CellWindow whole{0, 0, w, h};
-  // Heights in metres with the voids filled (for occlusion only), and which cells have data.
+  const PixelWindow whole{0, 0, w, h};
+  // Heights in metres with the voids filled (for occlusion only), and which pixels have data.
   std::vector<double> z(n);
   std::vector<std::uint8_t> valid;
   for (std::size_t i = 0; i < n; ++i) z[i] = dem.mesh.vertices[i].z();

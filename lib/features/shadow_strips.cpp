@@ -45,7 +45,7 @@ HorizonStrips::HorizonStrips(const LocalFrame& frame, const Eigen::Vector3d& lig
     xyMax[part] = xy, zMax[part] = z;
   });
   // Margins: a millionth of the coordinates' size, where rounding is below a trillionth (the
-  // cells are the same grid's vertices, of the same size).
+  // pixels are the same grid's vertices, of the same size).
   const double xy = *std::max_element(xyMax.begin(), xyMax.end()), z = *std::max_element(zMax.begin(), zMax.end());
   marginA_ = 1e-6 * (2 * xy + 1);
   marginW_ = 1e-6 * (z + 2 * xy * tan_ + 1);
@@ -67,7 +67,7 @@ HorizonStrips::HorizonStrips(const LocalFrame& frame, const Eigen::Vector3d& lig
   // triangles wide across the whole raster) would otherwise make gigabytes of copies: at most
   // twice as many as occluders, beyond one each. And each strip is padded to 64 entries: no
   // more strips than one per 64 occluders (a raster's width in pixels is far fewer).
-  const double maxStrips = std::min(4.0 * static_cast<double>(frame.cellCount()), occluders / 64.0) + 1024;
+  const double maxStrips = std::min(4.0 * static_cast<double>(frame.pixelCount()), occluders / 64.0) + 1024;
   const double maxCopies = 2.0 * static_cast<double>(occluders) + 65536;
   perWidth_ = std::min({1 / stripWidth, maxStrips / (cHi - cLo_), maxCopies / widths});
   const std::size_t strips = strip(cHi) + 1;

@@ -56,7 +56,7 @@ class HorizonStrips {
     const Entry* E = entries_.get();
     const std::uint64_t end = start_[k + 1];
     // First entry with aHi >= aFrom: a few steps from the hint when it is in this strip (the
-    // cells of a strip come nearly in order of a, a pixel or so apart: one mispredicted branch
+    // pixels of a strip come nearly in order of a, a pixel or so apart: one mispredicted branch
     // where a binary search has several), else (or when that is far) a binary search.
     const auto before = [&](const Entry& x) { return x.aHi < aFrom; };
     std::uint64_t lo = start_[k], hi = end, e;

@@ -23,15 +23,15 @@ using tiles::localAt;
 
 namespace {
 
-std::string cells(const CellWindow& w) {
+std::string pixels(const PixelWindow& w) {
   return "(" + std::to_string(w.col) + ", " + std::to_string(w.row) + ") + " + std::to_string(w.width) + " x " +
          std::to_string(w.height);
 }
 
-// Whether the fill over `fill` (levels from fillVoids) is the whole raster's at every void cell of
+// Whether the fill over `fill` (levels from fillVoids) is the whole raster's at every void pixel of
 // `region` (inside `fill`): each has twice its level of room to the fill's sides inside the raster.
-bool filledAsWhole(const CellWindow& fill, const std::vector<std::uint8_t>& valid,
-                   const std::vector<std::uint32_t>& levels, const CellWindow& region, int rasterWidth,
+bool filledAsWhole(const PixelWindow& fill, const std::vector<std::uint8_t>& valid,
+                   const std::vector<std::uint32_t>& levels, const PixelWindow& region, int rasterWidth,
                    int rasterHeight) {
   constexpr std::int64_t kFree = std::int64_t{1} << 40;  // no side there: the raster's edge
   for (int r = region.row; r < region.row + region.height; ++r) {
@@ -49,10 +49,10 @@ bool filledAsWhole(const CellWindow& fill, const std::vector<std::uint8_t>& vali
   return true;
 }
 
-// The part `inner` of a window's cells.
+// The part `inner` of a window's pixels.
 template <class T>
-std::vector<T> crop(const std::vector<T>& all, const CellWindow& outer, const CellWindow& inner) {
-  std::vector<T> out(inner.cellCount());
+std::vector<T> crop(const std::vector<T>& all, const PixelWindow& outer, const PixelWindow& inner) {
+  std::vector<T> out(inner.pixelCount());
   for (int r = 0; r < inner.height; ++r) {
     const std::size_t from =
         static_cast<std::size_t>(r + inner.row - outer.row) * outer.width + (inner.col - outer.col);
@@ -62,13 +62,13 @@ std::vector<T> crop(const std::vector<T>& all, const CellWindow& outer, const Ce
   return out;
 }
 
-std::vector<Light> tileMask(const LocalFrame& frame, const CellWindow& tile, const Eigen::Vector3d& light,
+std::vector<Light> tileMask(const LocalFrame& frame, const PixelWindow& tile, const Eigen::Vector3d& light,
                             const IndexOptions& options, unsigned threads, ShadowSearch search) {
-  if (frame.cellCount() == 0) return std::vector<Light>(tile.cellCount(), Light::NoData);
-  const CellWindow& window = frame.window;
-  const CellWindow inside{tile.col - window.col, tile.row - window.row, tile.width, tile.height};
+  if (frame.pixelCount() == 0) return std::vector<Light>(tile.pixelCount(), Light::NoData);
+  const PixelWindow& window = frame.window;
+  const PixelWindow inside{tile.col - window.col, tile.row - window.row, tile.width, tile.height};
   return crop(shadowMask(frame, light, options, {}, threads, search, inside),
-              CellWindow{0, 0, window.width, window.height}, inside);
+              PixelWindow{0, 0, window.width, window.height}, inside);
 }
 
 }  // namespace
@@ -78,7 +78,7 @@ ShadowTiles::ShadowTiles(const std::string& path, const DemOptions& demOptions, 
     : source_(std::make_unique<Source>()) {
   source_->windows = std::make_unique<DemWindows>(path, demOptions);
   const DemWindows* windows = source_->windows.get();
-  source_->reader = [windows](const CellWindow& w, std::vector<double>& out) {
+  source_->reader = [windows](const PixelWindow& w, std::vector<double>& out) {
     windows->read(w.col, w.row, w.width, w.height, out);
   };
   basis_ = frameBasis(windows->dem(), frameOptions);
@@ -104,20 +104,20 @@ void ShadowTiles::passOverHeights(const Progress& progress, std::uint64_t bytes)
   if (closure.wrapsColumns || closure.northCap || closure.southCap) {
     throw Error(path + ": the raster is closed round the globe, so it is shadowed whole, not by tiles");
   }
-  // The height range: one pass by rows, a few million cells at a time.
+  // The height range: one pass by rows, a few million pixels at a time.
   double lo = INFINITY, hi = -INFINITY;
-  const std::uint64_t cellsAtOnce = std::max<std::uint64_t>(1, (bytes ? bytes : kPassBytes) / kPassBytesPerCell);
-  const int rowsAtOnce = static_cast<int>(std::clamp<std::uint64_t>(cellsAtOnce / std::max(1, w), 1, h));
+  const std::uint64_t pixelsAtOnce = std::max<std::uint64_t>(1, (bytes ? bytes : kPassBytes) / kPassBytesPerPixel);
+  const int rowsAtOnce = static_cast<int>(std::clamp<std::uint64_t>(pixelsAtOnce / std::max(1, w), 1, h));
   std::vector<double> z;
   std::vector<std::uint8_t> valid;
   blocks_ = HeightBlocks(w, h);
   for (int r = 0; r < h; r += rowsAtOnce) {
-    const CellWindow rows{0, r, w, std::min(rowsAtOnce, h - r)};
+    const PixelWindow rows{0, r, w, std::min(rowsAtOnce, h - r)};
     source_->read(rows, z, nullptr, path);
     blocks_.addRows(rows.row, rows.height, z);
     heightsInMetres(basis_, rows, z, valid);
     for (std::size_t i = 0; i < z.size(); ++i) {
-      if (valid[i]) lo = std::min(lo, z[i]), hi = std::max(hi, z[i]), ++validCells_;
+      if (valid[i]) lo = std::min(lo, z[i]), hi = std::max(hi, z[i]), ++validPixels_;
     }
     if (progress && !progress(static_cast<double>(r + rows.height) / h, "reading the height range")) {
       throw Error("shadow computation cancelled");
@@ -125,26 +125,26 @@ void ShadowTiles::passOverHeights(const Progress& progress, std::uint64_t bytes)
   }
   // The centre square, for the pixel size and the triangles' turn (its fill, in a void, read
   // within a bound: a void half the raster wide is refused rather than read whole).
-  const CellWindow centre{std::max(0, (w - 1) / 2), std::max(0, (h - 1) / 2), std::min(2, w), std::min(2, h)};
+  const PixelWindow centre{std::max(0, (w - 1) / 2), std::max(0, (h - 1) / 2), std::min(2, w), std::min(2, h)};
   readFilled(centre, z, valid, 512ull << 20);
   const LocalFrame centreFrame = windowFrame(basis_, centre, std::move(z), std::move(valid));
   completeBasis(basis_, lo, hi, centreFrame);
 
-  // The horizon slack (LocalFrame::horizonSlack) from the rim's cells: the tilt between the
-  // centre's up and a cell's grows with the angle between them, largest on the rim of a raster
-  // not reaching round the globe. Up from the cells at height 0 and at the highest cell's height
+  // The horizon slack (LocalFrame::horizonSlack) from the rim's pixels: the tilt between the
+  // centre's up and a pixel's grows with the angle between them, largest on the rim of a raster
+  // not reaching round the globe. Up from the pixels at height 0 and at the highest pixel's height
   // (the up of the frame's formula moves a little with the height), and a hundredth of a degree
   // more for the in-between.
   if (basis_.shared.body.ellipsoid) {
     double cosTilt = 1;
     const LocalFrame& f = basis_.shared;
     const Eigen::RowVector3d upRow = f.body.rotation.row(2);
-    for (const CellWindow& rim :
-         {CellWindow{0, 0, w, 1}, CellWindow{0, h - 1, w, 1}, CellWindow{0, 0, 1, h}, CellWindow{w - 1, 0, 1, h}}) {
+    for (const PixelWindow& rim :
+         {PixelWindow{0, 0, w, 1}, PixelWindow{0, h - 1, w, 1}, PixelWindow{0, 0, 1, h}, PixelWindow{w - 1, 0, 1, h}}) {
       for (const double height : {0.0, f.maxHeight, f.minHeight}) {
-        const LocalFrame edge = windowFrame(basis_, rim, std::vector<double>(rim.cellCount(), height),
-                                            std::vector<std::uint8_t>(rim.cellCount(), 1));
-        for (std::size_t i = 0; i < rim.cellCount(); ++i) {
+        const LocalFrame edge = windowFrame(basis_, rim, std::vector<double>(rim.pixelCount(), height),
+                                            std::vector<std::uint8_t>(rim.pixelCount(), 1));
+        for (std::size_t i = 0; i < rim.pixelCount(); ++i) {
           const Eigen::Vector3d x = f.body.rotation.transpose() * edge.mesh.vertices[i] + f.body.origin;
           const Eigen::Vector3d g(x.x() / (f.body.a * f.body.a), x.y() / (f.body.a * f.body.a),
                                   x.z() / (f.body.b * f.body.b));
@@ -160,7 +160,7 @@ void ShadowTiles::passOverHeights(const Progress& progress, std::uint64_t bytes)
 
 ShadowTiles::~ShadowTiles() = default;
 
-void ShadowTiles::readFilled(const CellWindow& window, std::vector<double>& heights, std::vector<std::uint8_t>& valid,
+void ShadowTiles::readFilled(const PixelWindow& window, std::vector<double>& heights, std::vector<std::uint8_t>& valid,
                              std::uint64_t bytes) const {
   if (!source_) throw Error(basis_.raster.path + ": tiles restored from a state read no heights; give them");
   const int rw = basis_.raster.width, rh = basis_.raster.height;
@@ -168,11 +168,11 @@ void ShadowTiles::readFilled(const CellWindow& window, std::vector<double>& heig
   std::vector<std::uint8_t> ok;
   std::vector<std::uint32_t> levels;
   for (int margin = 16;; margin *= 2) {
-    const CellWindow fill{std::max(0, window.col - margin), std::max(0, window.row - margin),
-                          std::min(rw, window.col + window.width + margin) - std::max(0, window.col - margin),
-                          std::min(rh, window.row + window.height + margin) - std::max(0, window.row - margin)};
-    if (bytes && fill.cellCount() * 16 > bytes) {
-      throw Error(basis_.raster.path + ": a void (cells without data) around cells " + cells(window) +
+    const PixelWindow fill{std::max(0, window.col - margin), std::max(0, window.row - margin),
+                           std::min(rw, window.col + window.width + margin) - std::max(0, window.col - margin),
+                           std::min(rh, window.row + window.height + margin) - std::max(0, window.row - margin)};
+    if (bytes && fill.pixelCount() * 16 > bytes) {
+      throw Error(basis_.raster.path + ": a void (pixels without data) around pixels " + pixels(window) +
                   " is too wide to fill the same way as over the whole raster within the memory allowed (" +
                   memory::gib(bytes) + "); fill it first (gdal_fillnodata) or allow more memory");
     }
@@ -186,20 +186,20 @@ void ShadowTiles::readFilled(const CellWindow& window, std::vector<double>& heig
   }
 }
 
-double ShadowTiles::lowestOf(const CellWindow& tile, std::vector<double> z,
+double ShadowTiles::lowestOf(const PixelWindow& tile, std::vector<double> z,
                              const std::vector<std::uint8_t>& valid) const {
   if (std::find(valid.begin(), valid.end(), 1) == valid.end()) return INFINITY;
   const Local here = localAt(basis_, tile.col + tile.width / 2, tile.row + tile.height / 2);
-  fillVoids(z, tile.width, tile.height);  // positions only: the valid cells' do not depend on it
+  fillVoids(z, tile.width, tile.height);  // positions only: the valid pixels' do not depend on it
   const LocalFrame alone = windowFrame(basis_, tile, std::move(z), valid);
   double lowest = INFINITY;
-  for (std::size_t i = 0; i < tile.cellCount(); ++i) {
+  for (std::size_t i = 0; i < tile.pixelCount(); ++i) {
     if (valid[i]) lowest = std::min(lowest, (alone.mesh.vertices[i] - here.origin).dot(here.up));
   }
   return lowest;
 }
 
-double ShadowTiles::lowestIn(const CellWindow& tile) const {
+double ShadowTiles::lowestIn(const PixelWindow& tile) const {
   if (!source_) throw Error(basis_.raster.path + ": tiles restored from a state read no heights; give them");
   std::vector<double> z;
   std::vector<std::uint8_t> valid;
@@ -208,11 +208,11 @@ double ShadowTiles::lowestIn(const CellWindow& tile) const {
   return lowestOf(tile, std::move(z), valid);
 }
 
-LocalFrame ShadowTiles::frameOver(const CellWindow& tile, const CellWindow& window, std::uint64_t bytes,
+LocalFrame ShadowTiles::frameOver(const PixelWindow& tile, const PixelWindow& window, std::uint64_t bytes,
                                   const std::vector<Eigen::Vector3d>& lights) const {
-  if (bytes && window.cellCount() * bytesPerWindowCell(lights) > bytes) {
-    throw Error(basis_.raster.path + ": cells " + cells(tile) + " need a window of " + cells(window) + " (" +
-                memory::gib(window.cellCount() * bytesPerWindowCell(lights)) +
+  if (bytes && window.pixelCount() * bytesPerWindowPixel(lights) > bytes) {
+    throw Error(basis_.raster.path + ": pixels " + pixels(tile) + " need a window of " + pixels(window) + " (" +
+                memory::gib(window.pixelCount() * bytesPerWindowPixel(lights)) +
                 ") to hold every triangle that can shade them, over the " + memory::gib(bytes) +
                 " allowed; use smaller tiles or allow more memory");
   }
@@ -222,8 +222,8 @@ LocalFrame ShadowTiles::frameOver(const CellWindow& tile, const CellWindow& wind
   return windowFrame(basis_, window, std::move(z), std::move(valid));
 }
 
-LocalFrame ShadowTiles::windowOfTile(const CellWindow& tile, const std::vector<Eigen::Vector3d>& lights,
-                                     std::uint64_t bytes, CellWindow& window) const {
+LocalFrame ShadowTiles::windowOfTile(const PixelWindow& tile, const std::vector<Eigen::Vector3d>& lights,
+                                     std::uint64_t bytes, PixelWindow& window) const {
   const double lowest = lowestIn(tile);
   if (!std::isfinite(lowest)) {  // no data: nothing to test
     window = tile;
@@ -233,51 +233,51 @@ LocalFrame ShadowTiles::windowOfTile(const CellWindow& tile, const std::vector<E
   return frameOver(tile, window, bytes, lights);
 }
 
-LocalFrame ShadowTiles::givenWindow(const CellWindow& given, std::vector<double> z, const CellWindow& tile,
+LocalFrame ShadowTiles::givenWindow(const PixelWindow& given, std::vector<double> z, const PixelWindow& tile,
                                     const std::vector<Eigen::Vector3d>& lights) const {
   const int rw = basis_.raster.width, rh = basis_.raster.height;
-  const auto inside = [](const CellWindow& in, const CellWindow& out) {
+  const auto inside = [](const PixelWindow& in, const PixelWindow& out) {
     return in.col >= out.col && in.row >= out.row && in.col + in.width <= out.col + out.width &&
            in.row + in.height <= out.row + out.height;
   };
   if (given.col < 0 || given.row < 0 || given.col + given.width > rw || given.row + given.height > rh ||
-      z.size() != given.cellCount() || !inside(tile, given) || tile.width < 1 || tile.height < 1) {
-    throw Error(basis_.raster.path + ": heights of cells " + cells(given) + " (" + std::to_string(z.size()) +
-                " given) for the tile " + cells(tile) + ": not on the raster or not around the tile");
+      z.size() != given.pixelCount() || !inside(tile, given) || tile.width < 1 || tile.height < 1) {
+    throw Error(basis_.raster.path + ": heights of pixels " + pixels(given) + " (" + std::to_string(z.size()) +
+                " given) for the tile " + pixels(tile) + ": not on the raster or not around the tile");
   }
   if (!blocks_.aligned(given)) {
-    throw Error(basis_.raster.path + ": heights of cells " + cells(given) + " given: not whole hash blocks of " +
-                std::to_string(blocks_.side()) + " cells, so they cannot be checked (give checkableWindow's " +
-                cells(blocks_.alignedOut(given)) + ")");
+    throw Error(basis_.raster.path + ": heights of pixels " + pixels(given) + " given: not whole hash blocks of " +
+                std::to_string(blocks_.side()) + " pixels, so they cannot be checked (give checkableWindow's " +
+                pixels(blocks_.alignedOut(given)) + ")");
   }
   blocks_.check(given, z, basis_.raster.path);
   std::vector<std::uint8_t> valid;
   heightsInMetres(basis_, given, z, valid);
   const double lowest = lowestOf(tile, crop(z, given, tile), crop(valid, given, tile));
   if (!std::isfinite(lowest)) return {};
-  const CellWindow window = windowOf(tile, halo(tile, lights, lowest));
+  const PixelWindow window = windowOf(tile, halo(tile, lights, lowest));
   if (!inside(window, given)) {
-    throw Error(basis_.raster.path + ": the tile " + cells(tile) + " needs the cells " + cells(window) +
-                " around it (its halo), but only " + cells(given) + " are given; give a larger overlap (haloFor)");
+    throw Error(basis_.raster.path + ": the tile " + pixels(tile) + " needs the pixels " + pixels(window) +
+                " around it (its halo), but only " + pixels(given) + " are given; give a larger overlap (haloFor)");
   }
   std::vector<std::uint32_t> levels;
   fillVoids(z, given.width, given.height, &levels);
   if (!filledAsWhole(given, valid, levels, window, rw, rh)) {
-    throw Error(basis_.raster.path + ": a void (cells without data) near the tile " + cells(tile) +
-                " is too wide to fill the same way as over the whole raster from the cells " + cells(given) +
+    throw Error(basis_.raster.path + ": a void (pixels without data) near the tile " + pixels(tile) +
+                " is too wide to fill the same way as over the whole raster from the pixels " + pixels(given) +
                 "; give a larger overlap or fill the voids first (gdal_fillnodata)");
   }
   return windowFrame(basis_, window, crop(z, given, window), crop(valid, given, window));
 }
 
-std::vector<Light> ShadowTiles::mask(const CellWindow& tile, const Eigen::Vector3d& light, const IndexOptions& options,
+std::vector<Light> ShadowTiles::mask(const PixelWindow& tile, const Eigen::Vector3d& light, const IndexOptions& options,
                                      unsigned threads, ShadowSearch search, std::uint64_t bytes) const {
-  CellWindow window;
+  PixelWindow window;
   return tileMask(windowOfTile(tile, {light}, bytes, window), tile, light, options, threads, search);
 }
 
-std::vector<Light> ShadowTiles::maskFromHeights(const CellWindow& window, std::vector<double> heights,
-                                                const CellWindow& tile, const Eigen::Vector3d& light,
+std::vector<Light> ShadowTiles::maskFromHeights(const PixelWindow& window, std::vector<double> heights,
+                                                const PixelWindow& tile, const Eigen::Vector3d& light,
                                                 const IndexOptions& options, unsigned threads,
                                                 ShadowSearch search) const {
   return tileMask(givenWindow(window, std::move(heights), tile, {light}), tile, light, options, threads, search);
@@ -294,33 +294,33 @@ std::vector<Eigen::Vector3d> ShadowTiles::sunlightSteps(double startJulianDay, d
   return out;
 }
 
-SunlightHours ShadowTiles::tileHours(const LocalFrame& frame, const CellWindow& tile, double startJulianDay,
+SunlightHours ShadowTiles::tileHours(const LocalFrame& frame, const PixelWindow& tile, double startJulianDay,
                                      double endJulianDay, double stepHours, const IndexOptions& options,
                                      ShadowSearch search, unsigned threads) const {
-  if (frame.cellCount() == 0) {  // no data: no hours (sunlightHours's zeros), its steps counted alike
+  if (frame.pixelCount() == 0) {  // no data: no hours (sunlightHours's zeros), its steps counted alike
     SunlightHours none;
     none.elapsedHours = (endJulianDay - startJulianDay) * 24.0;
     none.steps = static_cast<int>(qota::sunlightSteps(startJulianDay, endJulianDay, stepHours).size());
-    none.hours.assign(tile.cellCount(), 0.0);
-    none.valid.assign(tile.cellCount(), 0);
+    none.hours.assign(tile.pixelCount(), 0.0);
+    none.valid.assign(tile.pixelCount(), 0);
     return none;
   }
   // Every step the window's own sunlightHours computes is among the halo's lights when its slack
   // is within the bound they were chosen with.
   if (frame.body.ellipsoid && frame.horizonSlack() > slack_ + 1e-9) {
-    throw Error(basis_.raster.path + ": the horizon slack of cells " + cells(frame.window) +
+    throw Error(basis_.raster.path + ": the horizon slack of pixels " + pixels(frame.window) +
                 " exceeds the raster's bound");
   }
-  const CellWindow& window = frame.window;
-  const CellWindow inside{tile.col - window.col, tile.row - window.row, tile.width, tile.height};
+  const PixelWindow& window = frame.window;
+  const PixelWindow inside{tile.col - window.col, tile.row - window.row, tile.width, tile.height};
   SunlightHours all = sunlightHours(frame, basis_.raster.path, startJulianDay, endJulianDay, stepHours, options, {},
                                     search, inside, threads);
-  all.hours = crop(all.hours, CellWindow{0, 0, window.width, window.height}, inside);
-  all.valid = crop(frame.valid, CellWindow{0, 0, window.width, window.height}, inside);
+  all.hours = crop(all.hours, PixelWindow{0, 0, window.width, window.height}, inside);
+  all.valid = crop(frame.valid, PixelWindow{0, 0, window.width, window.height}, inside);
   return all;
 }
 
-SunlightHours ShadowTiles::hours(const CellWindow& tile, double startJulianDay, double endJulianDay, double stepHours,
+SunlightHours ShadowTiles::hours(const PixelWindow& tile, double startJulianDay, double endJulianDay, double stepHours,
                                  const IndexOptions& options, ShadowSearch search, std::uint64_t bytes,
                                  unsigned threads) const {
   const double lowest = lowestIn(tile);
@@ -329,47 +329,47 @@ SunlightHours ShadowTiles::hours(const CellWindow& tile, double startJulianDay, 
   // A low sun's halo is long, a high sun's short: a window for every light of the day would be a
   // sunrise's for the noon steps too. So the steps whose own window is at most twice the smallest
   // share one window, the others (the low suns) another, loaded as the steps come, in order; the
-  // lit cells are summed in step order, as sunlightHours sums them.
+  // lit pixels are summed in step order, as sunlightHours sums them.
   const std::vector<SunlightStep> steps = qota::sunlightSteps(startJulianDay, endJulianDay, stepHours);
   const LocalFrame& f = basis_.shared;
   std::vector<int> group(steps.size(), -1);  // -1: night over the whole raster (skipped there too)
   std::vector<Eigen::Vector3d> stepLight(steps.size());
-  std::vector<std::uint64_t> windowCells(steps.size(), 0);
+  std::vector<std::uint64_t> windowPixels(steps.size(), 0);
   std::uint64_t smallest = ~std::uint64_t{0};
   for (std::size_t k = 0; k < steps.size(); ++k) {
     const SunPosition sun = sunOverFrame(f, steps[k].middleJulianDay, basis_.raster.path);
     if (!sunCanLight(f, sun, slack_)) continue;
     stepLight[k] = f.towardSun(sun);
-    windowCells[k] = windowOf(tile, halo(tile, {stepLight[k]}, lowest)).cellCount();
-    smallest = std::min(smallest, windowCells[k]);
+    windowPixels[k] = windowOf(tile, halo(tile, {stepLight[k]}, lowest)).pixelCount();
+    smallest = std::min(smallest, windowPixels[k]);
     group[k] = 0;
   }
   std::vector<Eigen::Vector3d> groupLights[2];
   for (std::size_t k = 0; k < steps.size(); ++k) {
     if (group[k] < 0) continue;
-    group[k] = windowCells[k] <= 2 * smallest ? 0 : 1;
+    group[k] = windowPixels[k] <= 2 * smallest ? 0 : 1;
     groupLights[group[k]].push_back(stepLight[k]);
   }
   SunlightHours out;
   out.elapsedHours = (endJulianDay - startJulianDay) * 24.0;
   out.steps = static_cast<int>(steps.size());
-  out.hours.assign(tile.cellCount(), 0.0);
+  out.hours.assign(tile.pixelCount(), 0.0);
   LocalFrame frame;
   int loaded = -1;
   double frameSlack = 0;
-  CellWindow inside;
+  PixelWindow inside;
   const auto load = [&](int g) {
     frame = frameOver(tile, windowOf(tile, halo(tile, groupLights[g], lowest)), bytes, groupLights[g]);
     // Every step the window computes is among its lights when its slack is within the bound
     // they were chosen with (sunlightHours's skip, for the window).
     if (frame.body.ellipsoid && frame.horizonSlack() > slack_ + 1e-9) {
-      throw Error(basis_.raster.path + ": the horizon slack of cells " + cells(frame.window) +
+      throw Error(basis_.raster.path + ": the horizon slack of pixels " + pixels(frame.window) +
                   " exceeds the raster's bound");
     }
     frameSlack = frame.horizonSlack();
-    inside = CellWindow{tile.col - frame.window.col, tile.row - frame.window.row, tile.width, tile.height};
+    inside = PixelWindow{tile.col - frame.window.col, tile.row - frame.window.row, tile.width, tile.height};
     if (out.valid.empty())
-      out.valid = crop(frame.valid, CellWindow{0, 0, frame.window.width, frame.window.height}, inside);
+      out.valid = crop(frame.valid, PixelWindow{0, 0, frame.window.width, frame.window.height}, inside);
     loaded = g;
   };
   for (std::size_t k = 0; k < steps.size(); ++k) {
@@ -390,8 +390,8 @@ SunlightHours ShadowTiles::hours(const CellWindow& tile, double startJulianDay, 
   return out;
 }
 
-SunlightHours ShadowTiles::hoursFromHeights(const CellWindow& window, std::vector<double> heights,
-                                            const CellWindow& tile, double startJulianDay, double endJulianDay,
+SunlightHours ShadowTiles::hoursFromHeights(const PixelWindow& window, std::vector<double> heights,
+                                            const PixelWindow& tile, double startJulianDay, double endJulianDay,
                                             double stepHours, const std::vector<Eigen::Vector3d>& lights,
                                             const IndexOptions& options, ShadowSearch search, unsigned threads) const {
   return tileHours(givenWindow(window, std::move(heights), tile, lights), tile, startJulianDay, endJulianDay, stepHours,

@@ -18,7 +18,7 @@ namespace qota::tiles {
 
 inline constexpr double kDeg = M_PI / 180.0;
 
-// The grid's local geometry at a cell: the frame points of the cell and its east and south
+// The grid's local geometry at a pixel: the frame points of the pixel and its east and south
 // neighbours at height 0, and the body's up there.
 struct Local {
   Eigen::Vector3d origin, up, east, south;  // east, south: one column, one row on
@@ -27,9 +27,9 @@ struct Local {
 inline Local localAt(const FrameBasis& basis, int col, int row) {
   const int w = basis.raster.width, h = basis.raster.height;
   const int c = std::clamp(col, 0, std::max(0, w - 2)), r = std::clamp(row, 0, std::max(0, h - 2));
-  const CellWindow square{c, r, std::min(2, w), std::min(2, h)};
-  const LocalFrame f = windowFrame(basis, square, std::vector<double>(square.cellCount(), 0.0),
-                                   std::vector<std::uint8_t>(square.cellCount(), 1));
+  const PixelWindow square{c, r, std::min(2, w), std::min(2, h)};
+  const LocalFrame f = windowFrame(basis, square, std::vector<double>(square.pixelCount(), 0.0),
+                                   std::vector<std::uint8_t>(square.pixelCount(), 1));
   const auto& v = f.mesh.vertices;
   Local l;
   l.origin = v[0];
@@ -49,20 +49,20 @@ struct ShadowTiles::Source {
   mutable std::mutex lock;  // one read at a time
   // The heights of w; with `blocks`, read by whole blocks and checked against their hashes (the
   // raster may not be the one the hashes were made from: a restored state's, or a file changed).
-  void read(const CellWindow& w, std::vector<double>& out, const HeightBlocks* blocks, const std::string& path) const {
+  void read(const PixelWindow& w, std::vector<double>& out, const HeightBlocks* blocks, const std::string& path) const {
     const std::lock_guard<std::mutex> guard(lock);
-    const CellWindow cover = blocks ? blocks->alignedOut(w) : w;
+    const PixelWindow cover = blocks ? blocks->alignedOut(w) : w;
     std::vector<double> all;
     std::vector<double>& into = cover == w ? out : all;
-    into.resize(cover.cellCount());
+    into.resize(cover.pixelCount());
     reader(cover, into);
-    if (into.size() != cover.cellCount()) {
+    if (into.size() != cover.pixelCount()) {
       throw Error("a height reader gave " + std::to_string(into.size()) + " heights for " +
-                  std::to_string(cover.cellCount()) + " cells");
+                  std::to_string(cover.pixelCount()) + " pixels");
     }
     if (blocks) blocks->check(cover, into, path);
     if (cover == w) return;
-    out.resize(w.cellCount());
+    out.resize(w.pixelCount());
     for (int r = 0; r < w.height; ++r) {
       const std::size_t from = static_cast<std::size_t>(r + w.row - cover.row) * cover.width + (w.col - cover.col);
       std::copy_n(all.begin() + static_cast<std::ptrdiff_t>(from), w.width,

@@ -23,13 +23,13 @@ using tiles::localAt;
 
 namespace {
 
-// Cells of halo on every side beyond the reach (see the header): the meeting point's triangle,
-// the tile cells' rings, the window's own outer half pixel.
-constexpr int kHaloCells = 3;
+// Pixels of halo on every side beyond the reach (see the header): the meeting point's triangle,
+// the tile pixels' rings, the window's own outer half pixel.
+constexpr int kHaloPixels = 3;
 
 // The pixel displacement (columns, rows) of a frame displacement d along the surface at l: d in
 // the tangent plane, in the basis of one column and one row (least squares: they are not
-// orthogonal on a sheared grid). Zero for a raster one cell wide or high in that direction.
+// orthogonal on a sheared grid). Zero for a raster one pixel wide or high in that direction.
 Eigen::Vector2d pixelsOf(const Local& l, const Eigen::Vector3d& d) {
   const Eigen::Vector3d t = d - d.dot(l.up) * l.up;
   Eigen::Matrix<double, 3, 2> j;
@@ -60,11 +60,11 @@ double lowLightShare(const std::vector<Eigen::Vector3d>& lights) {
 
 }  // namespace
 
-std::uint64_t ShadowTiles::bytesPerWindowCell() { return bytesPerWindowCell({}); }
+std::uint64_t ShadowTiles::bytesPerWindowPixel() { return bytesPerWindowPixel({}); }
 
 // How much more a light below the horizon takes (its rays' strips cross every triangle facing
 // away, which is most of them): 0 at the horizon and above, 1 below it. Measured on the Rainier
-// tile: already some 25 bytes a cell more at 1.3 to 2.6 degrees below (the Sun before sunrise),
+// tile: already some 25 bytes a pixel more at 1.3 to 2.6 degrees below (the Sun before sunrise),
 // up to 34 at 20 degrees below and beyond; so no ramp, the whole of it from the horizon down.
 double belowShare(const std::vector<Eigen::Vector3d>& lights) {
   double share = lights.empty() ? 1.0 : 0.0;
@@ -72,27 +72,27 @@ double belowShare(const std::vector<Eigen::Vector3d>& lights) {
   return share;
 }
 
-std::uint64_t ShadowTiles::bytesPerWindowCell(const std::vector<Eigen::Vector3d>& lights) {
+std::uint64_t ShadowTiles::bytesPerWindowPixel(const std::vector<Eigen::Vector3d>& lights) {
   // A window's frame at the mask's peak: vertices (24), validity and light (2), the triangles'
-  // corners (24) and facing (2), the strips (24 a triangle entry, up to about 2 entries a cell at
-  // a low sun), the cell order (8); before them, the heights read and filled. Measured on the
-  // Rainier DEM (bench/shadow_memory.sh: single tiles of 16 to 1024 cells from a state, peak RSS
-  // less the process's, over the window's planned cells): 92 to 101 bytes at altitudes 30 and
+  // corners (24) and facing (2), the strips (24 a triangle entry, up to about 2 entries a pixel at
+  // a low sun), the pixel order (8); before them, the heights read and filled. Measured on the
+  // Rainier DEM (bench/shadow_memory.sh: single tiles of 16 to 1024 pixels from a state, peak RSS
+  // less the process's, over the window's planned pixels): 92 to 101 bytes at altitudes 30 and
   // 60, 129 to 138 at 10, 142 to 144 at 5, 149 to 155 at 2; taken with a tenth more.
-  // Below the horizon (a tile whose cells still see the Sun): up to 40 more (measured: whole
+  // Below the horizon (a tile whose pixels still see the Sun): up to 40 more (measured: whole
   // rasters take up to 34 more at 20 degrees below and beyond).
   return static_cast<std::uint64_t>(std::ceil(105 + 66 * lowLightShare(lights) + 40 * belowShare(lights)));
 }
 
-std::uint64_t ShadowTiles::bytesPerWholeCell(const std::vector<Eigen::Vector3d>& lights) {
+std::uint64_t ShadowTiles::bytesPerWholePixel(const std::vector<Eigen::Vector3d>& lights) {
   // The whole raster in memory (loadDem's mesh, then the frame and the mask): measured on the
-  // Rainier DEM 128 to 134 bytes a cell at altitudes 30 and 60, 157 at 10, 171 at 5, 184 at 2
+  // Rainier DEM 128 to 134 bytes a pixel at altitudes 30 and 60, 157 at 10, 171 at 5, 184 at 2
   // (peak RSS less the process's); taken with a tenth more.
-  // Below the horizon: up to 40 more (250 a cell measured at 45 degrees below on Rainier).
+  // Below the horizon: up to 40 more (250 a pixel measured at 45 degrees below on Rainier).
   return static_cast<std::uint64_t>(std::ceil(150 + 66 * lowLightShare(lights) + 40 * belowShare(lights)));
 }
 
-std::array<int, 4> ShadowTiles::halo(const CellWindow& tile, const std::vector<Eigen::Vector3d>& lights,
+std::array<int, 4> ShadowTiles::halo(const PixelWindow& tile, const std::vector<Eigen::Vector3d>& lights,
                                      double tileLowest) const {
   std::array<int, 4> out = reach(tile, lights, tileLowest);
   out[0] = std::min(out[0], tile.col), out[1] = std::min(out[1], basis_.raster.width - tile.col - tile.width);
@@ -100,7 +100,7 @@ std::array<int, 4> ShadowTiles::halo(const CellWindow& tile, const std::vector<E
   return out;
 }
 
-std::array<int, 4> ShadowTiles::reach(const CellWindow& tile, const std::vector<Eigen::Vector3d>& lights,
+std::array<int, 4> ShadowTiles::reach(const PixelWindow& tile, const std::vector<Eigen::Vector3d>& lights,
                                       double tileLowest) const {
   std::array<int, 4> out{0, 0, 0, 0};
   const LocalFrame& f = basis_.shared;
@@ -108,7 +108,7 @@ std::array<int, 4> ShadowTiles::reach(const CellWindow& tile, const std::vector<
   // Above the tile centre's tangent plane (see the header).
   const double top = f.body.ellipsoid ? std::max(f.maxHeight, 0.0) : f.maxHeight;
   // On an ellipsoid (see the header): the ball of radius rM + top that holds all terrain, the
-  // tile's cells within d of its centre cell across, and the slack below which every cell's ray
+  // tile's pixels within d of its centre pixel across, and the slack below which every pixel's ray
   // enters the body.
   double d = 0, rM = 0, slack = 0;
   if (f.body.ellipsoid) {
@@ -125,14 +125,14 @@ std::array<int, 4> ShadowTiles::reach(const CellWindow& tile, const std::vector<
     const double rise = light.dot(here.up);
     double reach = 0;  // along the ray
     if (!f.body.ellipsoid) {
-      if (!(rise > 0)) continue;  // a flat frame's cells are all in shadow: nothing to reach
+      if (!(rise > 0)) continue;  // a flat frame's pixels are all in shadow: nothing to reach
       reach = std::max(0.0, top - tileLowest) / rise;
     } else {
-      // Below every cell's horizon by more than the dip: every ray enters the body, which shades
-      // the cell whatever the terrain (sunCanLight's argument, for the tile).
+      // Below every pixel's horizon by more than the dip: every ray enters the body, which shades
+      // the pixel whatever the terrain (sunCanLight's argument, for the tile).
       if (rise <= -std::sin(slack)) continue;
       // The ray leaves the ball B(O - rM up, rM + top) after at most t = -q + sqrt(q^2 + k), for
-      // q >= -d + (rM + z) rise (its cell at height z in [lowest, top] above the tangent plane,
+      // q >= -d + (rM + z) rise (its pixel at height z in [lowest, top] above the tangent plane,
       // within d across) and k <= (rM + top)^2 - (rM + lowest)^2: t falls with q and grows with k.
       const double lo = std::min(tileLowest, top);
       const double q = -d + (rM + (rise >= 0 ? lo : top)) * rise;
@@ -152,17 +152,17 @@ std::array<int, 4> ShadowTiles::reach(const CellWindow& tile, const std::vector<
     out[0] = std::max(out[0], side(-p.x())), out[1] = std::max(out[1], side(p.x()));
     out[2] = std::max(out[2], side(-p.y())), out[3] = std::max(out[3], side(p.y()));
   }
-  for (int& s : out) s += kHaloCells;
+  for (int& s : out) s += kHaloPixels;
   return out;
 }
 
-CellWindow ShadowTiles::windowOf(const CellWindow& tile, const std::array<int, 4>& h) const {
+PixelWindow ShadowTiles::windowOf(const PixelWindow& tile, const std::array<int, 4>& h) const {
   return {tile.col - h[0], tile.row - h[2], tile.width + h[0] + h[1], tile.height + h[2] + h[3]};
 }
 
 int ShadowTiles::tileSideFor(std::uint64_t bytes, const std::vector<Eigen::Vector3d>& lights, int multiple) const {
   const int w = basis_.raster.width, h = basis_.raster.height;
-  const std::uint64_t most = bytes / bytesPerWindowCell(lights);
+  const std::uint64_t most = bytes / bytesPerWindowPixel(lights);
   // Whether tiles of `side` fit; a larger side never takes a smaller window.
   const auto fits = [&](int side) {
     const std::array<int, 4> o = haloFor(side, side, lights);
@@ -184,13 +184,13 @@ std::array<int, 4> ShadowTiles::haloFor(int tileWidth, int tileHeight,
   return haloAtMost(tileWidth, tileHeight, lights, basis_.shared.minHeight);
 }
 
-std::uint64_t ShadowTiles::largestWindowCells(const std::vector<CellWindow>& tiles,
-                                              const std::vector<Eigen::Vector3d>& lights) const {
+std::uint64_t ShadowTiles::largestWindowPixels(const std::vector<PixelWindow>& tiles,
+                                               const std::vector<Eigen::Vector3d>& lights) const {
   const LocalFrame& f = basis_.shared;
   const int rw = basis_.raster.width, rh = basis_.raster.height;
   int tw = 1, th = 1;
-  for (const CellWindow& t : tiles) tw = std::max(tw, t.width), th = std::max(th, t.height);
-  // The halo falls as a tile's lowest cell rises: tiles take the halo of the level at or below
+  for (const PixelWindow& t : tiles) tw = std::max(tw, t.width), th = std::max(th, t.height);
+  // The halo falls as a tile's lowest pixel rises: tiles take the halo of the level at or below
   // their bound, one of kLevels between the raster's lowest and highest (a few dozen halos for any
   // number of tiles).
   constexpr int kLevels = 32;
@@ -198,12 +198,12 @@ std::uint64_t ShadowTiles::largestWindowCells(const std::vector<CellWindow>& til
   std::vector<std::optional<std::array<int, 4>>> halos(kLevels + 1);
   const double metres = f.metresPerUnit;
   std::uint64_t most = 0;
-  for (const CellWindow& t : tiles) {
+  for (const PixelWindow& t : tiles) {
     const auto [low, high] = blocks_.rangeOver(t);
     // The tile's lowest, at least (over the ellipsoid: with the geoid's least undulation).
     const double bound = (metres >= 0 ? low * metres : high * metres) + basis_.geoidLow;
     if (!std::isfinite(bound) && bound > 0) {  // no data: no window beyond the tile
-      most = std::max<std::uint64_t>(most, t.cellCount());
+      most = std::max<std::uint64_t>(most, t.pixelCount());
       continue;
     }
     const int level = hi > lo && std::isfinite(bound)
@@ -230,7 +230,7 @@ std::array<int, 4> ShadowTiles::haloAtMost(int tileWidth, int tileHeight, const 
   // the corners (on an ellipsoid the pixels' size changes across the raster).
   for (const auto& [c, r] :
        {std::pair{0.5, 0.5}, std::pair{0.0, 0.0}, std::pair{1.0, 0.0}, std::pair{0.0, 1.0}, std::pair{1.0, 1.0}}) {
-    const CellWindow tile{static_cast<int>(c * (w - tw)), static_cast<int>(r * (h - th)), tw, th};
+    const PixelWindow tile{static_cast<int>(c * (w - tw)), static_cast<int>(r * (h - th)), tw, th};
     double lowest = lowestHeight;
     if (f.body.ellipsoid) {
       // The surface falls below the tangent plane at the tile's centre by at most d^2 / 2R at a

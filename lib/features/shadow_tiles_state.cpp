@@ -28,7 +28,7 @@ namespace {
 // checksumOf everything before that line, so that an edit or damage anywhere is refused.
 constexpr const char* kStateMagic = "qota-shadow-tiles";
 
-constexpr int kStateFormat = 2;
+constexpr int kStateFormat = 3;  // (3: "validPixels", once "validCells")
 
 struct StateWriter {
   std::ostringstream out;
@@ -140,7 +140,7 @@ std::string ShadowTiles::state() const {
   w.number("minHeight", f.minHeight), w.number("maxHeight", f.maxHeight);
   w.number("pixelSizeX", f.pixelSizeX), w.number("pixelSizeY", f.pixelSizeY);
   w.number("lowest", f.body.lowest), w.number("winding", f.gridWinding);
-  w.number("slack", slack_), w.number("validCells", static_cast<double>(validCells_));
+  w.number("slack", slack_), w.number("validPixels", static_cast<double>(validPixels_));
   w.number("blockSide", blocks_.side());
   std::string hashes;
   hashes.reserve(blocks_.hashes().size() * 16);
@@ -218,11 +218,11 @@ ShadowTiles ShadowTiles::restore(const std::string& state) {
   f.body.lowest = r.bounded("lowest", -1e300, 1e300);
   f.gridWinding = static_cast<int>(r.bounded("winding", -1, 1, true));
   t.slack_ = r.bounded("slack", 0, 360);
-  const double cells = static_cast<double>(d.width) * d.height;
-  t.validCells_ = static_cast<std::uint64_t>(r.bounded("validCells", 0, cells, true));
+  const double pixels = static_cast<double>(d.width) * d.height;
+  t.validPixels_ = static_cast<std::uint64_t>(r.bounded("validPixels", 0, pixels, true));
   // The height range: finite and in order when the raster has data (the pass's +inf/-inf else).
-  if (f.gridWinding == 0 || (t.validCells_ > 0 && !(std::isfinite(f.minHeight) && std::isfinite(f.maxHeight) &&
-                                                    f.minHeight <= f.maxHeight))) {
+  if (f.gridWinding == 0 || (t.validPixels_ > 0 && !(std::isfinite(f.minHeight) && std::isfinite(f.maxHeight) &&
+                                                     f.minHeight <= f.maxHeight))) {
     StateReader::refuse("with a height range or winding that no raster gives");
   }
   const int side = static_cast<int>(r.bounded("blockSide", 64, kInt, true));
@@ -316,7 +316,7 @@ ShadowTiles ShadowTiles::restore(const std::string& state, const std::string& pa
       d.verticalReference.ellipsoidal != was.verticalReference.ellipsoidal) {
     refuse("vertical CRS", "'" + was.verticalReference.name + "'", "'" + d.verticalReference.name + "'");
   }
-  source->reader = [windows](const CellWindow& w, std::vector<double>& out) {
+  source->reader = [windows](const PixelWindow& w, std::vector<double>& out) {
     windows->read(w.col, w.row, w.width, w.height, out);
   };
   t.source_ = std::move(source);

@@ -70,13 +70,13 @@ bool sunCanLight(const LocalFrame& frame, const SunPosition& sun, double slack) 
 
 SunlightHours sunlightHours(const LocalFrame& frame, const std::string& source, double startJulianDay,
                             double endJulianDay, double stepHours, const IndexOptions& options,
-                            const Progress& progress, ShadowSearch search, std::optional<CellWindow> testOnly,
+                            const Progress& progress, ShadowSearch search, std::optional<PixelWindow> testOnly,
                             unsigned threads) {
   SunlightHours out;
   out.elapsedHours = (endJulianDay - startJulianDay) * 24.0;
   const std::vector<SunlightStep> steps = sunlightSteps(startJulianDay, endJulianDay, stepHours);
   out.steps = static_cast<int>(steps.size());
-  out.hours.assign(frame.cellCount(), 0.0);
+  out.hours.assign(frame.pixelCount(), 0.0);
   const double slack = frame.horizonSlack();
   for (int k = 0; k < out.steps; ++k) {
     const SunlightStep& step = steps[static_cast<std::size_t>(k)];

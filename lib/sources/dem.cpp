@@ -128,7 +128,7 @@ void checkGeotransform(const std::string& path, const std::array<double, 6>& g, 
   }
   // Pixels a million times longer one way than the other, or sheared flat, are a broken
   // geotransform (real rasters stay within a few hundred): their triangles would be slivers whose
-  // every overlap test falls to exact arithmetic (seconds a thousand cells).
+  // every overlap test falls to exact arithmetic (seconds a thousand pixels).
   const double stepCol = std::hypot(g[1], g[4]), stepRow = std::hypot(g[2], g[5]);
   const double aspect = std::max(stepCol, stepRow) / std::min(stepCol, stepRow);
   const double area = std::fabs(det) / (stepCol * stepRow);  // 1 for rectangular pixels
@@ -356,7 +356,7 @@ DemTerrain loadDem(const std::string& path, const DemOptions& options) {
     for (std::uint64_t c = 0; c < w; ++c) {
       const std::uint64_t i = r * w + c;
       valid[i] = !std::isnan(z[i]);
-      dem.nodataCells += !valid[i];
+      dem.nodataPixels += !valid[i];
       const auto xy = dem.pixelCentre(static_cast<double>(c), static_cast<double>(r));
       dem.mesh.vertices[i] = Eigen::Vector3d(xy[0], xy[1], z[i]);
     }

@@ -4,11 +4,11 @@ to one core).
 
     build-venv/bin/python python/bench/bench_dask.py [--size 4000] [--chunks 1000] [--runs 3]
 
-The raster: the Rainier tile mirrored into a mosaic of size x size cells (lon/lat, on the
+The raster: the Rainier tile mirrored into a mosaic of size x size pixels (lon/lat, on the
 ellipsoid; mirrored so the relief runs on across the seams), written once to a tiled GeoTIFF in
 the temporary folder. Each configuration runs `runs` times; the table gives the median and the
 spread (min to max: the run-to-run noise), the ratio to the baseline's median, and checks every
-result equal to the baseline's cell for cell. Dask's times include everything a user waits
+result equal to the baseline's pixel for pixel. Dask's times include everything a user waits
 for: the client's pass over the heights (also shown alone), the graph, the blocks, and the mask
 gathered on the client. Prints the halo of a block and the overlap's cost, ((b + overlap) / b)^2.
 """
@@ -29,7 +29,7 @@ import qota.dask
 
 
 def mosaic(size):
-    """The Rainier tile mirrored to size x size cells, in a GeoTIFF of 512-cell blocks."""
+    """The Rainier tile mirrored to size x size pixels, in a GeoTIFF of 512-pixel blocks."""
     path = Path(tempfile.gettempdir()) / f"qota_bench_dask_{size}.tif"
     if path.exists():
         return path
@@ -84,10 +84,10 @@ def main():
     tiles = qota.dask.tiles(dem).core
     halo = tiles.halo_for(a.chunks, a.chunks, [tiles.toward_sun(a.azimuth, a.altitude)])
     grown = [(a.chunks + h[0] + h[1] + 2 * qota.dask.VOID_MARGIN) / a.chunks for h in ((halo[0], halo[1]), (halo[2], halo[3]))]
-    print(f"{a.size} x {a.size} cells ({path}), blocks of {a.chunks}, sun {a.azimuth}/{a.altitude}, "
+    print(f"{a.size} x {a.size} pixels ({path}), blocks of {a.chunks}, sun {a.azimuth}/{a.altitude}, "
           f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f} (other work on the machine: noise)")
-    print(f"halo (west, east, north, south): {halo} cells, + {qota.dask.VOID_MARGIN} for voids; "
-          f"cells read per cell computed at most {grown[0] * grown[1]:.2f}")
+    print(f"halo (west, east, north, south): {halo} pixels, + {qota.dask.VOID_MARGIN} for voids; "
+          f"pixels read per pixel computed at most {grown[0] * grown[1]:.2f}")
     print()
     print(f"| {'run':<28} | median    | spread (min - max) | ratio |")
     print("|---|---|---|---|")

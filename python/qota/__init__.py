@@ -134,7 +134,7 @@ def _flat(a):
 
 
 def _heights_array(heights):
-    """A 2-D height grid as contiguous float64: masked cells (numpy.ma) become NaN, which are
+    """A 2-D height grid as contiguous float64: masked pixels (numpy.ma) become NaN, which are
     holes. One too large for memory is a MemoryError naming it (a broadcast view is made whole
     here)."""
     if isinstance(heights, _np.ma.MaskedArray):
@@ -188,7 +188,7 @@ class Terrain:
             MemoryFile, through rasterio: its band, transform, nodata, CRS and unit), or an
             xarray.DataArray with rioxarray's accessor (as from_xarray).
         band: 1-based band (for a DataArray: the position along its third dimension).
-        mapping: "cartesian": pixel centres joined into two triangles a cell, nodata cells holes,
+        mapping: "cartesian": pixel centres joined into two triangles a cell, nodata pixels holes,
             x and y in the raster's CRS (degrees for a lon/lat raster); "spherical": a lon/lat
             raster at radius + height along each (lon, lat) (a raster spanning 360 degrees is
             closed across the antimeridian and at the poles); "geodetic": a lon/lat raster at its
@@ -231,7 +231,7 @@ class Terrain:
                     height_ref=None, origin=None) -> "Terrain":
         """An xarray.DataArray with rioxarray's `rio` accessor (rioxarray.open_rasterio, or any
         array with x/y coordinates and a CRS written by rio.write_crs), as from_raster reads the
-        same raster: its values, rio.transform(), rio.nodata (NaN cells are holes too), rio.crs
+        same raster: its values, rio.transform(), rio.nodata (NaN pixels are holes too), rio.crs
         and the `units` attribute (the vertical unit). A 2-D (y, x) array is the band; a 3-D one
         gives band `band` (1-based) of its third dimension. mapping, radius, length and height_ref
         as for from_raster. Needs rioxarray (imported here, on first use)."""
@@ -251,7 +251,7 @@ class Terrain:
         """A 2-D array (rows, columns) of heights as from_raster would read the same raster.
 
         transform: a GDAL geotransform (6 numbers) or an affine.Affine (rasterio's).
-        nodata: cells with this value are holes (so are NaN cells, and masked cells of a
+        nodata: pixels with this value are holes (so are NaN pixels, and masked pixels of a
             numpy.ma array).
         crs: the CRS, as any text GDAL reads ("EPSG:4326", WKT, PROJ) or an object with to_wkt()
             (rasterio's or pyproj's CRS); sets the ellipsoid of "geodetic" and the default
@@ -456,14 +456,14 @@ def shadow(dem_path, azimuth=None, altitude=None, *, time=None, tz=None, hours=N
     The light from `azimuth` and `altitude` (degrees, gdaldem's -az and -alt), or the Sun at
     `time` (ISO 8601 with its offset, or `tz`: an offset or an IANA zone name) seen from the DEM's
     centre. Heights are put in metres by the raster's vertical unit (a DataArray's `units`
-    attribute), times z_factor. Returns uint8 cells on the DEM's grid: 255 lit, 0 shadow, 128
+    attribute), times z_factor. Returns uint8 pixels on the DEM's grid: 255 lit, 0 shadow, 128
     nodata; a numpy array (rows, columns) for a file, an xarray.DataArray for a DataArray or a
     rasterio dataset (its dimensions, coordinates and CRS, nodata 128; a 3-D DEM's band dimension
     kept with the one band used). With `output` the GeoTIFF (or any GDAL format by extension) is
     kept there too.
 
     hours: (start, end, step): instead, float32 hours of direct sunlight (nodata -1) between the
-    local clock times start and end (0 to 48) of `time`'s date, in steps of `step` hours, a cell
+    local clock times start and end (0 to 48) of `time`'s date, in steps of `step` hours, a pixel
     lit at a step's middle counting the whole step (`qota shadow --hours`).
 
     height_ref: on the ellipsoid, what the heights are over ("ellipsoid", "egm96", "egm2008", "crs",

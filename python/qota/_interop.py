@@ -73,7 +73,7 @@ def crs_text(crs) -> str:
 
 def _decoded(raw: np.ndarray, nodata, scale: float, offset: float):
     """Heights from a band's stored values: scaled and offset as GDAL's GetScale and GetOffset say
-    (so as loadDem reads a file), the nodata cells NaN. Returns (heights, nodata to declare)."""
+    (so as loadDem reads a file), the nodata pixels NaN. Returns (heights, nodata to declare)."""
     if scale == 1 and offset == 0:
         return np.asarray(raw, dtype=np.float64), nodata
     heights = np.asarray(raw, dtype=np.float64) * scale + offset
@@ -158,7 +158,7 @@ def dataarray_transform(da) -> list:
 
 def dataarray_grid(da, band: int) -> Grid:
     """One band of a DataArray with rioxarray's accessor: its values in (y, x) order, the
-    geotransform, `rio.nodata` (NaN cells are holes too), `rio.crs` and the `units` attribute.
+    geotransform, `rio.nodata` (NaN pixels are holes too), `rio.crs` and the `units` attribute.
     Raw values with `scale_factor`/`add_offset` attributes (open_rasterio without
     mask_and_scale) are decoded as GDAL would."""
     da = select_band(da, band)

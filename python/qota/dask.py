@@ -6,13 +6,13 @@
     >>> mask = qota.dask.shadow(dem, azimuth=135, altitude=20)   # lazy, on dem's blocks
     >>> qota.dask.to_geotiff(mask, "shadow.tif")                 # computed block by block
 
-Shadows: every block of the DataArray is one task, which computes the block's cells from the
-block's heights and an overlap around it (the halo: every cell whose triangles can shade the
-block, as ShadowTiles.haloFor bounds it for blocks of that size, plus `void_margin` cells for
+Shadows: every block of the DataArray is one task, which computes the block's pixels from the
+block's heights and an overlap around it (the halo: every pixel whose triangles can shade the
+block, as ShadowTiles.haloFor bounds it for blocks of that size, plus `void_margin` pixels for
 filling voids as over the whole raster). The tiles (the raster's height range and frame, which the
 halo and every block's frame need) are made once on the client, in one pass over the heights, and
 reach the workers as a small pickled text. Each task calls the C++ core with the GIL released. The
-result is the whole raster's, cell for cell: what qota.shadow gives for the same raster.
+result is the whole raster's, pixel for pixel: what qota.shadow gives for the same raster.
 
 Points: heights under (x, y) points given as a dask DataFrame or array, each partition answered
 by a sampler that reads the raster tile by tile (one per worker process and raster), bit for bit
@@ -34,9 +34,9 @@ from ._qota import Error
 
 __all__ = ["shadow", "tiles", "Tiles", "sample", "to_geotiff", "to_zarr"]
 
-#: Cells of overlap added to the halo for filling voids (cells without data) the same way as over
+#: Pixels of overlap added to the halo for filling voids (pixels without data) the same way as over
 #: the whole raster: a void up to about this wide fills alike; a wider one near a block edge is
-#: refused, naming the cells, and then a larger void_margin (or voids filled first) is needed.
+#: refused, naming the pixels, and then a larger void_margin (or voids filled first) is needed.
 VOID_MARGIN = 32
 
 
@@ -46,7 +46,7 @@ def _is_dask(data) -> bool:
 
 
 def _heights(raw, nodata, scale, offset):
-    """A window's stored values as heights: scaled and offset as GDAL would, nodata cells NaN."""
+    """A window's stored values as heights: scaled and offset as GDAL would, nodata pixels NaN."""
     heights, nodata = _interop._decoded(raw, nodata, scale, offset)
     heights = np.array(heights, dtype=np.float64)  # writable, its own
     if nodata is not None:
@@ -191,7 +191,7 @@ def _hours_block(tiles, raw, window, tile, decode, span, step, lights, threads, 
 def _by_blocks(data, overlap, tiles, task, dtype, *args):
     """A dask array on data's blocks: task(tiles, heights of the block and its overlap, window,
     tile, *args) for every block, the window being the block grown by overlap (west, east, north,
-    south) and clipped to the raster, in raster cells (col, row, width, height)."""
+    south) and clipped to the raster, in raster pixels (col, row, width, height)."""
     import dask
     import dask.array as dsa
     from dask.base import tokenize
@@ -202,11 +202,11 @@ def _by_blocks(data, overlap, tiles, task, dtype, *args):
     blocks = _blocks_of(data.chunks)
     # Whole hash blocks, so that the task can check the heights it is given.
     windows = _windows_of(tiles, blocks, overlap, rows, cols)
-    cells = [dsa.from_delayed(call(shared, data[r0:r0 + h, c0:c0 + w], (c0, r0, w, h), block, *args),
+    pixels = [dsa.from_delayed(call(shared, data[r0:r0 + h, c0:c0 + w], (c0, r0, w, h), block, *args),
                               shape=(block[3], block[2]), dtype=dtype)
              for block, (c0, r0, w, h) in zip(blocks, windows)]
     across = len(data.chunks[1])
-    return dsa.block([cells[k:k + across] for k in range(0, len(cells), across)])
+    return dsa.block([pixels[k:k + across] for k in range(0, len(pixels), across)])
 
 
 def shadow(da, azimuth=None, altitude=None, *, time=None, tz=None, hours=None, band=1, z_factor=1.0,
@@ -221,23 +221,23 @@ def shadow(da, azimuth=None, altitude=None, *, time=None, tz=None, hours=None, b
         times z_factor.
     hours: (start, end, step): hours of direct sunlight between the local clock times start and
         end (0 to 48) of `time`'s date, in steps of `step` hours (qota shadow --hours).
-    void_margin: cells of overlap beyond the halo for filling voids; a void too wide for it near a
+    void_margin: pixels of overlap beyond the halo for filling voids; a void too wide for it near a
         block edge is refused when that block is computed (qota.Error, "give a larger overlap").
     heights_from: where the client's one pass over the heights reads them (see qota.dask.tiles).
     tiles: qota.dask.tiles of this DataArray (its band and z_factor), made before: no pass. Tiles of
         another grid, band or z_factor are refused at once, and every block checks its heights
         against the tiles' block hashes (another raster's heights on the same grid are refused
         when computed).
-    threads: threads a block's cells are tested on (0: every core); 1 suits workers that each run
+    threads: threads a block's pixels are tested on (0: every core); 1 suits workers that each run
         one task per core.
     max_memory: the most a task may take, in bytes or as a size ("2G", "512M"; what a worker
         thread has): blocks whose task would take more are computed as smaller square blocks (the
-        result keeps da's chunks); refused when even blocks of 16 cells need more (a low sun's
+        result keeps da's chunks); refused when even blocks of 16 pixels need more (a low sun's
         halo). The estimate of a task's peak is the result's attrs["qota_task_memory"] (bytes),
         measured to bound the peak within 1.5 times.
 
     Chunks much smaller than the halo a block needs (a low sun's) are merged for the computation
-    into square blocks whose overlap is at most MOST_OVERLAP times their cells; the result is
+    into square blocks whose overlap is at most MOST_OVERLAP times their pixels; the result is
     given back on da's chunks.
 
     Returns a lazy DataArray on da's grid, dimensions, coordinates, CRS and chunks: uint8 255 lit,
@@ -252,7 +252,7 @@ def shadow(da, azimuth=None, altitude=None, *, time=None, tz=None, hours=None, b
     if not _interop.is_dataarray(da):
         raise Error(f"qota.dask.shadow takes an xarray.DataArray, got {type(da).__name__}")
     if int(void_margin) < 0:
-        raise Error(f"void_margin must be a number of cells (0 or more), got {void_margin}")
+        raise Error(f"void_margin must be a number of pixels (0 or more), got {void_margin}")
     template, plane = _plane(da, int(band))
     if not _is_dask(plane.data):
         raise Error("the DataArray is not chunked (not backed by a dask array): open it with chunks= "
@@ -272,12 +272,12 @@ def shadow(da, azimuth=None, altitude=None, *, time=None, tz=None, hours=None, b
     data, overlap, task_bytes = _blocks_for_halo(plane.data, core, lights, int(void_margin), max_memory)
     decode = _decoding(plane)
     if span_hours is None:
-        cells = _by_blocks(data, overlap, core, _mask_block, np.uint8, decode, lights[0], int(threads), tiles.source)
-        result = _interop.mask_like(template, cells.rechunk(plane.data.chunks), 128, "shadow")
+        pixels = _by_blocks(data, overlap, core, _mask_block, np.uint8, decode, lights[0], int(threads), tiles.source)
+        result = _interop.mask_like(template, pixels.rechunk(plane.data.chunks), 128, "shadow")
     else:
-        cells = _by_blocks(data, overlap, core, _hours_block, np.float32, decode, span, span_hours[2], lights,
+        pixels = _by_blocks(data, overlap, core, _hours_block, np.float32, decode, span, span_hours[2], lights,
                            int(threads), tiles.source)
-        result = _interop.mask_like(template, cells.rechunk(plane.data.chunks), -1.0, "sunlight_hours")
+        result = _interop.mask_like(template, pixels.rechunk(plane.data.chunks), -1.0, "sunlight_hours")
     result.attrs["qota_task_memory"] = int(task_bytes)
     return result
 
@@ -301,7 +301,7 @@ def _check_tiles(tiles, plane, band, z_factor, heights_from):
     if ((core.height, core.width) != plane.shape
             or not np.allclose(core.geotransform, _interop.dataarray_transform(plane), rtol=0,
                                atol=1e-6 * abs(core.geotransform[1]))):
-        raise Error(f"the tiles are those of another raster ({tiles.source}, {core.width} x {core.height} cells), "
+        raise Error(f"the tiles are those of another raster ({tiles.source}, {core.width} x {core.height} pixels), "
                     f"not of this {plane.shape[1]} x {plane.shape[0]} one")
     if core.band != int(band):
         raise Error(f"the tiles were made for band {core.band}, this call asks band={int(band)}")
@@ -310,18 +310,18 @@ def _check_tiles(tiles, plane, band, z_factor, heights_from):
                     f"make them with qota.dask.tiles(da, z_factor={float(z_factor)})")
 
 
-#: A block's window (the block and its overlap) is at most this many times the block's cells:
+#: A block's window (the block and its overlap) is at most this many times the block's pixels:
 #: chunks smaller than their halo (where each block would read hundreds of its neighbours) are
 #: merged for the computation.
 MOST_OVERLAP = 4.0
 
 
-#: What a task holds besides the core's frame: a cell of its given window as read, decoded to
+#: What a task holds besides the core's frame: a pixel of its given window as read, decoded to
 #: float64 and copied for the core (24 bytes), and its Python objects and output block
 #: (_TASK_FIXED). The core's frame of a window given whole holds less than qota shadow's tiles,
-#: which also read and fill it: _FRAME_SHARE of ShadowTiles.bytes_per_window_cell. Measured with
+#: which also read and fill it: _FRAME_SHARE of ShadowTiles.bytes_per_window_pixel. Measured with
 #: test_dask's task-memory test (one task's peak in a fresh process).
-_TASK_BYTES_PER_CELL = 24
+_TASK_BYTES_PER_PIXEL = 24
 _TASK_FIXED = 2 << 20
 _FRAME_SHARE = 0.86
 
@@ -351,13 +351,13 @@ def _windows_of(core, blocks, overlap, rows, cols):
 
 
 def _task_bytes(core, lights, blocks, overlap, rows, cols):
-    """The most memory a task of these blocks takes: its given window's cells as read and
+    """The most memory a task of these blocks takes: its given window's pixels as read and
     decoded, and the core's frame over the window it needs (planned from the heights' block
-    ranges), at the core's bytes a cell."""
+    ranges), at the core's bytes a pixel."""
     given = max(w * h for _, _, w, h in _windows_of(core, blocks, overlap, rows, cols))
-    frame = core.largest_window_cells(blocks, lights)
-    per_cell = _qota._ShadowTiles.bytes_per_window_cell(lights)
-    return int(_TASK_FIXED + given * _TASK_BYTES_PER_CELL + frame * _FRAME_SHARE * per_cell)
+    frame = core.largest_window_pixels(blocks, lights)
+    per_pixel = _qota._ShadowTiles.bytes_per_window_pixel(lights)
+    return int(_TASK_FIXED + given * _TASK_BYTES_PER_PIXEL + frame * _FRAME_SHARE * per_pixel)
 
 
 def _blocks_for_halo(data, core, lights, void_margin, max_memory):
@@ -399,7 +399,7 @@ def _blocks_for_halo(data, core, lights, void_margin, max_memory):
         mid = (lo + hi) // 32 * 16
         lo, hi = (mid, hi) if task(mid) <= max_memory else (lo, mid)
     if lo == 0:
-        raise Error(f"max_memory={max_memory}: even blocks of 16 cells take {task(16)} bytes a task at this light "
+        raise Error(f"max_memory={max_memory}: even blocks of 16 pixels take {task(16)} bytes a task at this light "
                     f"(the halo their shadows need); give more")
     data = data.rechunk((min(lo, rows), min(lo, cols)))
     return data, overlap_for(min(lo, cols), min(lo, rows)), task(lo)
@@ -423,7 +423,7 @@ def _remove(path):
 
 def _computed(result):
     """The result with every block computed (held where it was computed: the workers' memory on a
-    cluster, 1 byte a cell for masks, 4 for hours), so that a failing block fails before anything
+    cluster, 1 byte a pixel for masks, 4 for hours), so that a failing block fails before anything
     is written, and no block still running writes after a failure was reported."""
     from dask import persist
 
@@ -460,7 +460,7 @@ def _check_lossless(profile):
 def to_geotiff(result, path, *, lock=None, **profile):
     """Writes a (lazy) result as a tiled GeoTIFF (rioxarray's to_raster with tiled=True), with the
     source's geotransform as the result keeps it. Whole or not at all: every block is computed
-    first (held in the workers' memory: 1 byte a cell for masks, 4 for hours), then the file is
+    first (held in the workers' memory: 1 byte a pixel for masks, 4 for hours), then the file is
     written under a staging name beside `path` and renamed into place; a failed block leaves
     `path` as it was. lock: one
     writer at a time across the workers; by default a distributed.Lock when a distributed Client
@@ -543,7 +543,7 @@ def _sample_rows(points, path, band):
 
 
 def _block_keys(frame, x, y, inverse, size, across):
-    """The raster block of each point (blocks of size x size cells, numbered by rows; inverse:
+    """The raster block of each point (blocks of size x size pixels, numbered by rows; inverse:
     GDAL's inverse geotransform), for grouping points by where they read; points that are not
     finite share key -1."""
     px, py = frame[x].to_numpy(dtype=np.float64), frame[y].to_numpy(dtype=np.float64)
@@ -565,7 +565,7 @@ def sample(source, points, *, band=1, x="x", y="y", by_block=False, block=1024):
         dask array (n,) on the same row chunks. Each partition is answered in one batch by its
         process's sampler, which groups the batch's points by raster tile.
     by_block: for a DataFrame: shuffle the points first so that each partition holds the points
-        of whole raster blocks of `block` x `block` cells (where many random points fall on a
+        of whole raster blocks of `block` x `block` pixels (where many random points fall on a
         raster larger than a worker's tile cache, each tile is then built once, not once a
         partition), then put the heights back in the input's partitions and order, by each
         point's place there (whatever its index: repeated, unsorted or not numbers). Costs two
@@ -624,7 +624,7 @@ def _in_input_order(heights, points):
 
 def _sample_by_block(path, band, points, x, y, description, block):
     if block < 1:
-        raise Error(f"block must be a number of cells (1 or more), got {block}")
+        raise Error(f"block must be a number of pixels (1 or more), got {block}")
     import dask.dataframe as dd
 
     across = -(-description["width"] // block)

@@ -371,7 +371,7 @@ Terrain load(const std::string& path) {
   }
 }
 
-// qota shadow itself (the same cells, the same checks and messages), into `output`, read back:
+// qota shadow itself (the same pixels, the same checks and messages), into `output`, read back:
 // uint8 lit, shadow, nodata; with hours (start, end, step), float32 hours of sunlight.
 py::array shadow(const std::string& dem, const std::string& output, std::optional<double> azimuth,
                  std::optional<double> altitude, const std::string& time, const std::string& tz, int band,
@@ -409,12 +409,12 @@ py::array shadow(const std::string& dem, const std::string& output, std::optiona
   std::unique_ptr<GDALDataset> ds(GDALDataset::Open(output.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
   if (!ds) throw qota::Error(output + ": cannot read the shadow raster back");
   const int w = ds->GetRasterXSize(), h = ds->GetRasterYSize();
-  py::array cells = hours ? py::array(py::array_t<float>({h, w})) : py::array(py::array_t<std::uint8_t>({h, w}));
-  if (ds->GetRasterBand(1)->RasterIO(GF_Read, 0, 0, w, h, cells.mutable_data(), w, h, hours ? GDT_Float32 : GDT_Byte, 0,
-                                     0) != CE_None) {
+  py::array pixels = hours ? py::array(py::array_t<float>({h, w})) : py::array(py::array_t<std::uint8_t>({h, w}));
+  if (ds->GetRasterBand(1)->RasterIO(GF_Read, 0, 0, w, h, pixels.mutable_data(), w, h, hours ? GDT_Float32 : GDT_Byte,
+                                     0, 0) != CE_None) {
     throw qota::Error(output + ": cannot read the shadow raster back");
   }
-  return cells;
+  return pixels;
 }
 
 // The Sun's apparent azimuth and altitude (degrees) seen from (lon, lat) on the Earth.
@@ -431,19 +431,19 @@ py::tuple sunPosition(const std::string& time, double lon, double lat, const std
 // once on the client and shipped to the workers as their state (pickled); each block is computed
 // from its heights with its overlap, the GIL released.
 
-// The values of qota shadow's rasters (its defaults): lit, shadow and nodata cells; hours' nodata.
+// The values of qota shadow's rasters (its defaults): lit, shadow and nodata pixels; hours' nodata.
 const qota::tools::ShadowOptions kShadowDefaults{};
 const auto kLitValue = static_cast<std::uint8_t>(kShadowDefaults.litValue);
 const auto kShadowValue = static_cast<std::uint8_t>(kShadowDefaults.shadowValue);
 const auto kNoDataValue = static_cast<std::uint8_t>(kShadowDefaults.nodataValue);
 constexpr float kNoHours = -1;
 
-// A window of cells as Python gives it: (col, row, width, height).
-using Cells = std::array<int, 4>;
-qota::CellWindow cellsOf(const Cells& c) { return {c[0], c[1], c[2], c[3]}; }
+// A window of pixels as Python gives it: (col, row, width, height).
+using Pixels = std::array<int, 4>;
+qota::PixelWindow pixelsOf(const Pixels& c) { return {c[0], c[1], c[2], c[3]}; }
 
 // The heights of a window from a 2-D array of its shape (rows, columns).
-std::vector<double> heightsOf(const Array& a, const qota::CellWindow& w) {
+std::vector<double> heightsOf(const Array& a, const qota::PixelWindow& w) {
   if (a.ndim() != 2 || a.shape(0) != w.height || a.shape(1) != w.width) {
     throw qota::Error("heights must be a 2-D array of the window's " + std::to_string(w.height) + " rows and " +
                       std::to_string(w.width) + " columns");
@@ -480,7 +480,7 @@ qota::ShadowTiles tilesFromReader(int rows, int cols, const std::vector<double>&
   static std::atomic<unsigned> counter{0};
   const std::string path = "/vsimem/qota_python_grid_" + std::to_string(counter++) + ".tif";
   PyObject* function = read.ptr();  // borrowed: `read` outlives this call, and no copy is made without the GIL
-  const qota::ShadowTiles::HeightReader reader = [function](const qota::CellWindow& w, std::vector<double>& out) {
+  const qota::ShadowTiles::HeightReader reader = [function](const qota::PixelWindow& w, std::vector<double>& out) {
     py::gil_scoped_acquire acquire;
     const auto heights =
         py::cast<Array>(py::reinterpret_borrow<py::function>(function)(w.col, w.row, w.width, w.height));
@@ -509,11 +509,11 @@ qota::ShadowTiles tilesFromReader(int rows, int cols, const std::vector<double>&
   return qota::ShadowTiles::restore(state);
 }
 
-// The light of every cell of `tile` from the heights of `window` (the tile and its overlap), as
+// The light of every pixel of `tile` from the heights of `window` (the tile and its overlap), as
 // qota shadow's raster values.
-py::array_t<std::uint8_t> maskFromHeights(const qota::ShadowTiles& tiles, const Cells& window, const Array& heights,
-                                          const Cells& tile, const std::array<double, 3>& light, unsigned threads) {
-  const qota::CellWindow w = cellsOf(window), t = cellsOf(tile);
+py::array_t<std::uint8_t> maskFromHeights(const qota::ShadowTiles& tiles, const Pixels& window, const Array& heights,
+                                          const Pixels& tile, const std::array<double, 3>& light, unsigned threads) {
+  const qota::PixelWindow w = pixelsOf(window), t = pixelsOf(tile);
   std::vector<double> z = heightsOf(heights, w);
   std::vector<qota::Light> mask;
   {
@@ -528,12 +528,12 @@ py::array_t<std::uint8_t> maskFromHeights(const qota::ShadowTiles& tiles, const 
   return out;
 }
 
-// Hours of sunlight of every cell of `tile` (float32 with nodata, as qota shadow --hours writes
+// Hours of sunlight of every pixel of `tile` (float32 with nodata, as qota shadow --hours writes
 // them).
-py::array_t<float> hoursFromHeights(const qota::ShadowTiles& tiles, const Cells& window, const Array& heights,
-                                    const Cells& tile, double startJulianDay, double endJulianDay, double stepHours,
+py::array_t<float> hoursFromHeights(const qota::ShadowTiles& tiles, const Pixels& window, const Array& heights,
+                                    const Pixels& tile, double startJulianDay, double endJulianDay, double stepHours,
                                     const std::vector<std::array<double, 3>>& lights, unsigned threads) {
-  const qota::CellWindow w = cellsOf(window), t = cellsOf(tile);
+  const qota::PixelWindow w = pixelsOf(window), t = pixelsOf(tile);
   std::vector<double> z = heightsOf(heights, w);
   qota::SunlightHours hours;
   {
@@ -661,25 +661,25 @@ PYBIND11_MODULE(_qota, m) {
       .def_property_readonly("heights_hash",
                              [](const qota::ShadowTiles& t) { return qota::hexOf(t.heightBlocks().whole()); })
       .def_static(
-          "bytes_per_window_cell",
+          "bytes_per_window_pixel",
           [](const std::vector<std::array<double, 3>>& lights) {
-            return qota::ShadowTiles::bytesPerWindowCell(lightsOf(lights));
+            return qota::ShadowTiles::bytesPerWindowPixel(lightsOf(lights));
           },
           py::arg("lights"))
       .def(
-          "largest_window_cells",
-          [](const qota::ShadowTiles& t, const std::vector<Cells>& tiles,
+          "largest_window_pixels",
+          [](const qota::ShadowTiles& t, const std::vector<Pixels>& tiles,
              const std::vector<std::array<double, 3>>& lights) {
-            std::vector<qota::CellWindow> windows;
-            for (const Cells& c : tiles) windows.push_back(cellsOf(c));
-            return t.largestWindowCells(windows, lightsOf(lights));
+            std::vector<qota::PixelWindow> windows;
+            for (const Pixels& c : tiles) windows.push_back(pixelsOf(c));
+            return t.largestWindowPixels(windows, lightsOf(lights));
           },
           py::arg("tiles"), py::arg("lights"))
       .def(
           "checkable_window",
-          [](const qota::ShadowTiles& t, const Cells& w) {
-            const qota::CellWindow a = t.checkableWindow(cellsOf(w));
-            return Cells{a.col, a.row, a.width, a.height};
+          [](const qota::ShadowTiles& t, const Pixels& w) {
+            const qota::PixelWindow a = t.checkableWindow(pixelsOf(w));
+            return Pixels{a.col, a.row, a.width, a.height};
           },
           py::arg("window"))
       .def_property_readonly("height", [](const qota::ShadowTiles& t) { return t.dem().height; })

@@ -1,5 +1,5 @@
 """qota.dask on a LocalCluster of two worker processes: shadows and hours of sunlight computed
-block by block equal qota.shadow of the same raster cell for cell (suns low and high, blocks of
+block by block equal qota.shadow of the same raster pixel for pixel (suns low and high, blocks of
 two sizes, voids across block edges; the tiles made from the file and from the array), heights
 under points equal Terrain.from_raster's bit for bit, results written to GeoTIFF and Zarr read
 back the same, and what cannot be done exactly is refused with a clear qota.Error."""
@@ -38,8 +38,8 @@ def client():
 @pytest.fixture(scope="module")
 def part(tmp_path_factory):
     """A part of the Rainier DEM (ridges and valleys south-east of the summit) with voids across
-    where blocks of 64 and 100 cells meet: a round one, a long thin one along a row, and scattered
-    cells."""
+    where blocks of 64 and 100 pixels meet: a round one, a long thin one along a row, and scattered
+    pixels."""
     with rasterio.open(RAINIER) as ds:
         window = Window(400, 450, 300, 260)
         z = ds.read(1, window=window).astype(np.float32)
@@ -74,7 +74,7 @@ def test_suns_at_and_below_the_horizon_on_the_ellipsoid(client, part):
     dem = rioxarray.open_rasterio(part, chunks=100)
     for azimuth, altitude in ((270, 0.0), (280, -0.3)):
         want = qota.shadow(part, azimuth, altitude)
-        assert (want == 255).sum() > 100  # (high cells see a sun below the centre's horizon)
+        assert (want == 255).sum() > 100  # (high pixels see a sun below the centre's horizon)
         got = qota.dask.shadow(dem, azimuth=azimuth, altitude=altitude)
         np.testing.assert_array_equal(got.values[0], want, err_msg=f"sun {azimuth}/{altitude}")
 
@@ -99,7 +99,7 @@ def test_sunlight_hours_and_the_sun_at_a_time(client, part):
 def test_tiles_from_the_file_or_the_arrays_own_heights(client, part):
     # A masked DataArray still has the file's values, grid, nodata and unit: its tiles read the
     # file. One converted (astype) no longer names its file, and one given another unit is not
-    # the file's heights: the pass over the heights reads the array through Dask. The cells are
+    # the file's heights: the pass over the heights reads the array through Dask. The pixels are
     # qota.shadow's of the same DataArray either way.
     for dem, made_from in ((rioxarray.open_rasterio(part, chunks=100, masked=True), "file"),
                            (rioxarray.open_rasterio(part, chunks=64).astype("f8"), "array"),
@@ -190,7 +190,7 @@ def test_points_equal_the_whole_terrain(client):
 
 @pytest.fixture(scope="module")
 def wide_void(part, tmp_path_factory):
-    """The part with a void 120 cells across: its fill reaches 60 cells in, farther than a block's
+    """The part with a void 120 pixels across: its fill reaches 60 pixels in, farther than a block's
     window without a void margin."""
     with rasterio.open(part) as ds:
         z, profile = ds.read(1), ds.profile
@@ -233,7 +233,7 @@ def test_refusals(client, part, wide_void):
 
 def test_tiles_given_are_checked_against_the_call(client, part, tmp_path):
     # Tiles of another raster on the same grid, of another band or z_factor: refused (before, no
-    # error and thousands of cells wrong; z_factor was ignored).
+    # error and thousands of pixels wrong; z_factor was ignored).
     dem = rioxarray.open_rasterio(part, chunks=100)
     flat_path = tmp_path / "flat.tif"
     with rasterio.open(part) as ds:
@@ -262,8 +262,8 @@ def test_tiles_given_are_checked_against_the_call(client, part, tmp_path):
 
 
 def test_chunks_smaller_than_the_halo_are_merged(client):
-    # Chunks of 7 x 13 cells at a sun whose halo spans hundreds: before, no result in 150 s and a
-    # client of 4.7 GB; the blocks are now merged, and the cells are qota.shadow's.
+    # Chunks of 7 x 13 pixels at a sun whose halo spans hundreds: before, no result in 150 s and a
+    # client of 4.7 GB; the blocks are now merged, and the pixels are qota.shadow's.
     dem = rioxarray.open_rasterio(DATA / "SainteHelens.dem", chunks={"y": 7, "x": 13})
     mask = qota.dask.shadow(dem, 135, 20)
     assert mask.chunks == dem.chunks
@@ -272,14 +272,14 @@ def test_chunks_smaller_than_the_halo_are_merged(client):
 
 
 def test_max_memory_sizes_the_blocks(client, part):
-    # A budget smaller than the chunks' tasks: smaller blocks that fit, the same cells.
+    # A budget smaller than the chunks' tasks: smaller blocks that fit, the same pixels.
     dem = rioxarray.open_rasterio(part, chunks=300)
     whole = qota.dask.shadow(dem, azimuth=135, altitude=40)
     small = qota.dask.shadow(dem, azimuth=135, altitude=40, max_memory="4M")
     assert small.attrs["qota_task_memory"] <= 4 << 20 < whole.attrs["qota_task_memory"]
     assert small.chunks == dem.chunks
     np.testing.assert_array_equal(small.values[0], qota.shadow(part, azimuth=135, altitude=40))
-    with pytest.raises(qota.Error, match="even blocks of 16 cells"):
+    with pytest.raises(qota.Error, match="even blocks of 16 pixels"):
         qota.dask.shadow(dem, azimuth=135, altitude=2, max_memory=1 << 20)
     with pytest.raises(qota.Error, match="not a size"):
         qota.dask.shadow(dem, azimuth=135, altitude=40, max_memory="lots")

@@ -28,7 +28,7 @@ NODATA = -9999.0
 
 
 def utm_raster(rng, rows=30, cols=40):
-    """Float32 heights on a 30 m UTM grid, with nodata cells."""
+    """Float32 heights on a 30 m UTM grid, with nodata pixels."""
     heights = rng.uniform(100, 900, (rows, cols)).astype(np.float32)
     heights[4, 7] = heights[20, 31] = heights[12, 0] = NODATA
     return heights, Affine(30.0, 0.0, 500000.0, 0.0, -30.0, 5200000.0), "EPSG:32610"
@@ -207,7 +207,7 @@ def test_shadow_of_a_dataarray_is_the_files_mask(tmp_path, stack):
         got = qota.shadow(ds, azimuth=135, altitude=20)
         assert_same_grid(got, da)
         np.testing.assert_array_equal(got.values[0], want)
-    # The Sun at an instant, the GeoTIFF kept: the same cells in the file, with the CRS.
+    # The Sun at an instant, the GeoTIFF kept: the same pixels in the file, with the CRS.
     got = qota.shadow(da.squeeze("band"), time="2024-06-21T18:30", tz="America/Los_Angeles", output=tmp_path / "s.tif")
     kept = rioxarray.open_rasterio(tmp_path / "s.tif")
     np.testing.assert_array_equal(kept.values[0], got.values)

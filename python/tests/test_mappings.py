@@ -154,7 +154,7 @@ def assert_matches(got, want, near, atol=1e-6):
 # ---- spherical ------------------------------------------------------------------------------
 
 def global_raster(rng, nodata=-9999.0):
-    """A 10-degree global lon/lat raster (36 x 18 cells, centres 85 N to 85 S), with nodata cells,
+    """A 10-degree global lon/lat raster (36 x 18 pixels, centres 85 N to 85 S), with nodata pixels,
     one of them in the top row (the pole's height is the mean of the others)."""
     heights = rng.uniform(-4000, 6000, (18, 36))
     heights[7, 11] = heights[12, 30] = heights[0, 5] = nodata
@@ -210,7 +210,7 @@ def test_spherical_poles_seam_and_default_radius():
 # ---- geodetic -------------------------------------------------------------------------------
 
 def local_raster(rng, nodata=-32768.0):
-    """0.01-degree cells near Mt. Rainier, heights 200-4400, a nodata cell."""
+    """0.01-degree pixels near Mt. Rainier, heights 200-4400, a nodata pixel."""
     heights = rng.uniform(200, 4400, (12, 15))
     heights[5, 6] = nodata
     return heights, (-122.0, 0.01, 0.0, 47.0, 0.0, -0.01)
@@ -442,7 +442,7 @@ def test_bad_arrays_are_converted_or_refused():
         terrain.heights(np.zeros(3), np.zeros(4))
     with pytest.raises(qota.Error, match="do not broadcast"):
         terrain.hits(np.zeros(3), np.zeros(3), np.zeros(2), side="below")
-    # Heights: 2-D only; a masked array's masked cells are holes.
+    # Heights: 2-D only; a masked array's masked pixels are holes.
     with pytest.raises(qota.Error, match="2-D"):
         qota.Terrain.from_array(np.zeros((2, 3, 4)), (0, 1, 0, 0, 0, -1))
     with pytest.raises(qota.Error, match="heights must be real numbers"):

@@ -370,7 +370,7 @@ def test_heights_over_a_geoid_and_lights_of_the_body():
     assert geoid.heights(x, y) == pytest.approx(qota.Terrain.from_raster(rainier).heights(x, y), abs=1e-6)
     with pytest.raises(qota.Error, match="egm2008|us_nga_egm08_25"):
         qota.Terrain.from_raster(rainier, mapping="geodetic", height_ref="egm2008")
-    # Lights in the body's frame, as the tool takes them: the same cells from a vector and from
+    # Lights in the body's frame, as the tool takes them: the same pixels from a vector and from
     # its sub-solar point; refused where they do not apply.
     dem = DATA / "SainteHelens.dem"
     v = qota.shadow(dem, sun_vector_body=(0.3, -0.9, 0.2))

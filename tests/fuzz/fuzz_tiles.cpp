@@ -85,7 +85,7 @@ const Run& run() {
   return r;
 }
 
-// Assembles `tiles`: exit 0 only with the whole run's cells.
+// Assembles `tiles`: exit 0 only with the whole run's pixels.
 void assembleChecked(const std::vector<std::string>& tiles) {
   const std::string output = (qota::fuzz::scratch() / "assembled.tif").string();
   fs::remove(output);
@@ -101,12 +101,12 @@ void useState(const std::string& text) {
     const qota::ShadowTiles t = qota::ShadowTiles::restore(text);
     const Eigen::Vector3d light(0.7, 0.1, 0.3);
     const qota::DemTerrain& d = t.dem();
-    const qota::CellWindow tile{0, 0, std::min(d.width, 8), std::min(d.height, 8)};
+    const qota::PixelWindow tile{0, 0, std::min(d.width, 8), std::min(d.height, 8)};
     (void)t.haloFor(8, 8, {light});
-    (void)t.largestWindowCells({tile}, {light});
-    const qota::CellWindow window = t.checkableWindow(tile);
-    if (window.cellCount() <= 4096) {
-      (void)t.maskFromHeights(window, std::vector<double>(window.cellCount(), 500.0), tile, light);
+    (void)t.largestWindowPixels({tile}, {light});
+    const qota::PixelWindow window = t.checkableWindow(tile);
+    if (window.pixelCount() <= 4096) {
+      (void)t.maskFromHeights(window, std::vector<double>(window.pixelCount(), 500.0), tile, light);
     }
   } catch (const qota::Error&) {
   }

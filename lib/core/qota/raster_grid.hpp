@@ -6,7 +6,7 @@
 // bottom-right centre (col + 1, row + 1): (TL, BL, BR) then (TL, BR, TR), squares in row order,
 // so the square (row, col) holds triangles 2 (row (width - 1) + col) and the one after.
 //
-// Closure, optional, each adding vertices after the cells and triangles after the inner ones:
+// Closure, optional, each adding vertices after the pixel centres and triangles after the inner ones:
 // - border: the outer half pixel. A vertex on the raster's edge beside every outermost centre
 //   (and at the four corners), taking the height of the nearest centre, and the strips of squares
 //   between them and the outermost centres, split the same way. The surface so reaches the
@@ -40,11 +40,11 @@ class RasterGrid {
   };
 
   // A vertex added by the closure: where it stands in pixel coordinates (GDAL's: the raster's
-  // top-left corner is (0, 0), pixel centres at + 0.5) and which cell's height it takes, or the
+  // top-left corner is (0, 0), pixel centres at + 0.5) and which pixel's height it takes, or the
   // pole it is (+1 north, -1 south; its position and height are the caller's).
   struct ExtraVertex {
     double col = 0, row = 0;
-    std::uint32_t cell = 0;
+    std::uint32_t pixel = 0;
     int pole = 0;
   };
 
@@ -56,11 +56,11 @@ class RasterGrid {
   int width() const { return width_; }
   int height() const { return height_; }
   const Closure& closure() const { return closure_; }
-  std::size_t cellCount() const { return static_cast<std::size_t>(width_) * height_; }
+  std::size_t pixelCount() const { return static_cast<std::size_t>(width_) * height_; }
   std::size_t innerTriangleCount() const {
     return width_ > 1 && height_ > 1 ? 2 * static_cast<std::size_t>(width_ - 1) * (height_ - 1) : 0;
   }
-  std::size_t vertexCount() const { return cellCount() + extraVertices_.size(); }
+  std::size_t vertexCount() const { return pixelCount() + extraVertices_.size(); }
   std::size_t triangleCount() const { return innerTriangleCount() + extraTriangles_.size(); }
   const std::vector<ExtraVertex>& extraVertices() const { return extraVertices_; }
 
@@ -79,7 +79,7 @@ class RasterGrid {
   // Every triangle's corners, in order, three indices each (a Mesh's indices).
   std::vector<std::uint32_t> indices() const;
   // Adds to `mesh` the triangles from number `first` on whose three corners are valid
-  // (valid(vertex) is true; a nodata cell makes a hole), in the order above. The mesh's vertex
+  // (valid(vertex) is true; a nodata pixel makes a hole), in the order above. The mesh's vertex
   // k must be this grid's vertex k. reverse: each triangle's corners in the opposite turn, for a
   // grid whose rows run up the screen (y growing with the row), so that its triangles too are
   // counter-clockwise seen from above.
@@ -103,19 +103,19 @@ class RasterGrid {
     }
   }
 
-  // The triangles that have cell (row, col) as a corner, in increasing order; returns how many
+  // The triangles that have pixel centre (row, col) as a corner, in increasing order; returns how many
   // (at most kMaxRing). closed: they go all the way round it (no edge of the surface there).
   static constexpr int kMaxRing = 8;
   int ring(int row, int col, std::uint32_t out[kMaxRing], bool& closed) const;
 
  private:
-  std::uint32_t addExtra(double col, double row, std::uint32_t cell, int pole = 0);
+  std::uint32_t addExtra(double col, double row, std::uint32_t pixel, int pole = 0);
 
   int width_ = 0, height_ = 0;
   Closure closure_;
   std::vector<ExtraVertex> extraVertices_;
   std::vector<std::array<std::uint32_t, 3>> extraTriangles_;
-  // The closure's triangles around each cell on the raster's outermost rows and columns.
+  // The closure's triangles around each pixel centre on the raster's outermost rows and columns.
   std::unordered_map<std::uint32_t, std::vector<std::uint32_t>> extraRing_;
 };
 

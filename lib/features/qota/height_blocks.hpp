@@ -4,11 +4,11 @@
 // another raster under the same name, another band, scale, offset or nodata value gives other
 // heights, and so other hashes.
 //
-// The raster is cut into square blocks of side() cells from its top-left cell (the last column
+// The raster is cut into square blocks of side() pixels from its top-left pixel (the last column
 // and row of blocks cut by the raster's edges). A block's hash is XXH3 (64 bits) of its heights
 // row by row, as doubles in the raster's unit with its scale and offset applied and NaN where
 // there is no data (what DemWindows::read gives), every NaN written as one quiet NaN and -0 as
-// +0, so that equal heights always hash equally. A block that differs in any cell has another
+// +0, so that equal heights always hash equally. A block that differs in any pixel has another
 // hash except with a chance of about 2^-64. XXH3 is not a cryptographic hash: it tells a wrong
 // raster from the right one, not a forgery made to match.
 #pragma once
@@ -18,7 +18,7 @@
 #include <utility>
 #include <vector>
 
-#include "qota/cell_window.hpp"
+#include "qota/pixel_window.hpp"
 
 namespace qota {
 
@@ -54,7 +54,7 @@ class HeightBlocks {
 
   // The least and greatest heights with data (not NaN) in the blocks that meet `w`, in the
   // raster's unit: bounds of the heights in w ({+inf, -inf} where the blocks have no data).
-  std::pair<double, double> rangeOver(const CellWindow& w) const;
+  std::pair<double, double> rangeOver(const PixelWindow& w) const;
   // Every block's least and greatest height, as rangeOver gives them, row-major (restore: the
   // same, given back to setRanges).
   const std::vector<double>& lows() const { return lows_; }
@@ -65,18 +65,18 @@ class HeightBlocks {
 
   // The smallest window made of whole blocks (cut by the raster's edges) that holds `w` (a window
   // on the raster).
-  CellWindow alignedOut(const CellWindow& w) const;
-  bool aligned(const CellWindow& w) const { return alignedOut(w) == w; }
+  PixelWindow alignedOut(const PixelWindow& w) const;
+  bool aligned(const PixelWindow& w) const { return alignedOut(w) == w; }
   // Checks the heights of `window` (row-major, window made of whole blocks) against the hashes.
   // Throws qota::Error when a block differs, naming `what` (the raster, for the message) and the
-  // block's cells.
-  void check(const CellWindow& window, const std::vector<double>& heights, const std::string& what) const;
+  // block's pixels.
+  void check(const PixelWindow& window, const std::vector<double>& heights, const std::string& what) const;
 
  private:
   int width_ = 0, height_ = 0, side_ = 64;
   int rowsAdded_ = 0;
   std::vector<std::uint64_t> hashes_;
-  std::vector<double> lows_, highs_;  // per block, over its cells with data
+  std::vector<double> lows_, highs_;  // per block, over its pixels with data
   std::vector<std::uint64_t> open_;   // addRows: the current row of blocks' XXH3 states, as raw bytes
 };
 

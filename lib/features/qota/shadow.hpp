@@ -41,15 +41,15 @@ using Progress = std::function<bool(double, const char*)>;
 
 enum class Light : std::uint8_t { Shadow = 0, Lit = 1, NoData = 2 };
 
-// The light at every pixel centre of the frame's grid (cellCount() entries, row-major).
+// The light at every pixel centre of the frame's grid (pixelCount() entries, row-major).
 // towardLight: vector toward the light in the frame. In a flat frame a light at or below the
-// horizon (z <= 0) leaves every cell in shadow; on an ellipsoid each cell has its own horizon.
-// threads: how many to test cells with; 0 = one per core.
-// How shadowMask finds the triangles a cell's light ray may meet. Both give the same mask
-// (tested on every cell); each candidate passes the shadow quadtree's exact test.
+// horizon (z <= 0) leaves every pixel in shadow; on an ellipsoid each pixel has its own horizon.
+// threads: how many to test pixels with; 0 = one per core.
+// How shadowMask finds the triangles a pixel's light ray may meet. Both give the same mask
+// (tested on every pixel); each candidate passes the shadow quadtree's exact test.
 enum class ShadowSearch {
   // Strips one pixel wide along the sun's azimuth, each holding the occluding triangles it
-  // meets sorted by distance along the azimuth; a ray searches its strip from its own cell on,
+  // meets sorted by distance along the azimuth; a ray searches its strip from its own pixel on,
   // skipping blocks of triangles that cannot reach its height (shadow.cpp), and decides the rest
   // with mappedTriangleAbove (terrain.hpp), the index's test from the corners. No index and no
   // light-frame tree, whose build at a low sun (most of the terrain facing away from the light,
@@ -59,12 +59,12 @@ enum class ShadowSearch {
   // The paper's shadow quadtree, built in the light's frame.
   Quadtree,
 };
-// testOnly: the cells to test, in the frame's own columns and rows (the others are left NoData);
+// testOnly: the pixels to test, in the frame's own columns and rows (the others are left NoData);
 // all of them when not given. The others still occlude.
 std::vector<Light> shadowMask(const LocalFrame& frame, const Eigen::Vector3d& towardLight,
                               const IndexOptions& options = {}, const Progress& progress = {}, unsigned threads = 0,
                               ShadowSearch search = ShadowSearch::Strips,
-                              std::optional<CellWindow> testOnly = std::nullopt);
+                              std::optional<PixelWindow> testOnly = std::nullopt);
 
 // How far (metres) a shadow can reach across the raster's edge: relief / tan(altitude).
 double shadowReach(const LocalFrame& frame, const Eigen::Vector3d& towardLight);

@@ -6,7 +6,7 @@
 // at its longitude, latitude (through PROJ for a projected CRS) and height, in geocentric
 // coordinates turned to east-north-up at the centre. So the Earth's curvature lowers distant
 // terrain as it should, and the light, one direction in that frame (parallel rays: the sun is far
-// away), meets each cell at the sun's own azimuth and altitude there: on a continent or the whole
+// away), meets each pixel at the sun's own azimuth and altitude there: on a continent or the whole
 // globe the terminator falls where it is. Rays are straight lines in that frame. A raster that
 // spans 360 degrees of longitude is closed at the antimeridian, and at the poles when its rows
 // reach within a pixel of them (raster_grid.hpp), so no ray slips through a seam. `flat` maps a
@@ -16,9 +16,9 @@
 // (dem.hpp), times `zFactor`.
 //
 // The outer half pixel: the frame's surface reaches the raster's edge, flat across it (the same
-// rule as sampling, raster_grid.hpp), so that terrain occludes. Cells are still the pixel centres.
+// rule as sampling, raster_grid.hpp), so that terrain occludes. Pixels are still the pixel centres.
 //
-// The body: a cell whose ray toward the light passes below the lowest terrain of the DEM (less a
+// The body: a pixel whose ray toward the light passes below the lowest terrain of the DEM (less a
 // margin for the chords between pixel centres), on the ellipsoid, is in shadow: the planet itself
 // is in the way, whatever lies beyond the raster. In a flat frame that is a light at or below the
 // horizon.
@@ -30,7 +30,7 @@
 #include <string>
 #include <vector>
 
-#include "qota/cell_window.hpp"
+#include "qota/pixel_window.hpp"
 #include "qota/dem.hpp"
 #include "qota/geoid.hpp"
 #include "qota/mesh.hpp"
@@ -54,20 +54,20 @@ struct FrameOptions {
 };
 
 // The DEM's vertices in a local metric east-north-up frame (same vertex indices as dem.mesh for
-// the cells), with every cell's two triangles and the closure's (border, seam, caps). Voids are
+// the pixels), with every cell's two triangles and the closure's (border, seam, caps). Voids are
 // filled from their rims for occlusion: light cannot pass under the terrain through missing data,
-// and every vertex has a full ring of triangles. Their cells stay nodata (valid = 0) in every
+// and every vertex has a full ring of triangles. Their pixels stay nodata (valid = 0) in every
 // output.
 struct LocalFrame {
-  Mesh mesh;                        // cells first (vertex i = cell i), then grid's extra vertices
-  std::vector<std::uint8_t> valid;  // per cell: the DEM has a height here
+  Mesh mesh;                        // pixels first (vertex i = pixel i), then grid's extra vertices
+  std::vector<std::uint8_t> valid;  // per pixel: the DEM has a height here
   int width = 0, height = 0;
   bool geographicLocation = false;  // centreLon/Lat are known (the DEM has a CRS)
   double centreLon = 0, centreLat = 0;
   // Clockwise angle (degrees) from the frame's +y axis to true north: 0 for east-north-up
   // frames, the meridian convergence for flat projected grids.
   double trueNorthFromY = 0;
-  double minHeight = 0, maxHeight = 0;    // metres above the reference surface, over valid cells
+  double minHeight = 0, maxHeight = 0;    // metres above the reference surface, over valid pixels
   double pixelSizeX = 1, pixelSizeY = 1;  // metres, at the centre
   double metresPerUnit = 1;               // of the DEM's heights (unit and zFactor)
   std::string description;
@@ -90,15 +90,15 @@ struct LocalFrame {
     double lowest = 0;  // the height (metres) below which a ray is in the body (see above)
   } body;
 
-  // Where these cells lie in the raster: the whole of it, or a window (windowFrame).
-  CellWindow window;
+  // Where these pixels lie in the raster: the whole of it, or a window (windowFrame).
+  PixelWindow window;
 
-  std::size_t cellCount() const { return static_cast<std::size_t>(width) * height; }
+  std::size_t pixelCount() const { return static_cast<std::size_t>(width) * height; }
   // The unit upward normal of the body at frame point p ((0, 0, 1) in a flat frame).
   Eigen::Vector3d upAt(const Eigen::Vector3d& p) const;
-  // How far (degrees) the light may be below the horizon at the centre while some cell may still
-  // see it: the largest angle between the centre's up and a cell's, plus the dip of the horizon
-  // from the highest cell down to body.lowest. 0 in a flat frame. (A pass over the cells.)
+  // How far (degrees) the light may be below the horizon at the centre while some pixel may still
+  // see it: the largest angle between the centre's up and a pixel's, plus the dip of the horizon
+  // from the highest pixel down to body.lowest. 0 in a flat frame. (A pass over the pixels.)
   double horizonSlack() const;
   // Whether the ray from p toward `light` passes into the body (below body.lowest).
   bool rayEntersBody(const Eigen::Vector3d& p, const Eigen::Vector3d& light) const;
@@ -121,15 +121,15 @@ class BodyRays {
 
 LocalFrame localFrame(const DemTerrain& dem, const FrameOptions& options);
 
-// A frame of one window of a raster, equal to the whole raster's frame on its cells: the same
+// A frame of one window of a raster, equal to the whole raster's frame on its pixels: the same
 // origin, body, units, height range and vertex arithmetic, so each vertex has the whole frame's
-// bits. A shadow computed in a window whose cells reach far enough around a tile (shadow_tiles.hpp)
+// bits. A shadow computed in a window whose pixels reach far enough around a tile (shadow_tiles.hpp)
 // is the whole raster's shadow on that tile. The surface is closed by the outer half pixel on
 // every side of the window (on sides inside the raster that is terrain the whole raster does not
 // have; shadow_tiles.hpp keeps it beyond the reach of any ray it tests).
 //
 // What every window shares, found without the raster's heights (frameBasis) and then from them
-// (completeBasis: the height range of the valid cells in metres, and a window's frame holding
+// (completeBasis: the height range of the valid pixels in metres, and a window's frame holding
 // the centre square, whose vertices give the pixel size and the triangles' turn).
 struct FrameBasis {
   DemTerrain raster;  // the raster's description (no mesh)
@@ -140,7 +140,7 @@ struct FrameBasis {
   HeightReference heightRef;
   std::shared_ptr<const Geoid> geoid;
   double geoidLow = 0, geoidHigh = 0;
-  LocalFrame shared;            // the fields every window's frame copies (no mesh, cells or grid)
+  LocalFrame shared;            // the fields every window's frame copies (no mesh, pixels or grid)
   RasterGrid::Closure closure;  // the whole raster's
   bool geographic = false;
   double a = 0, flattening = 0;  // the CRS's ellipsoid
@@ -151,22 +151,22 @@ struct FrameBasis {
 FrameBasis frameBasis(const DemTerrain& raster, const FrameOptions& options);
 // Raw heights of `window` (row-major; NaN where no data) to metres in place, and which have data.
 // Throws qota::Error naming the pixel for a height beyond 1e9 m.
-void heightsInMetres(const FrameBasis& basis, const CellWindow& window, std::vector<double>& heights,
+void heightsInMetres(const FrameBasis& basis, const PixelWindow& window, std::vector<double>& heights,
                      std::vector<std::uint8_t>& valid);
-// The frame of `window`: heights in metres with the voids filled (fillVoids), valid per cell.
+// The frame of `window`: heights in metres with the voids filled (fillVoids), valid per pixel.
 // A raster closed round the globe has only the whole window.
-LocalFrame windowFrame(const FrameBasis& basis, const CellWindow& window, std::vector<double> heights,
+LocalFrame windowFrame(const FrameBasis& basis, const PixelWindow& window, std::vector<double> heights,
                        std::vector<std::uint8_t> valid);
 void completeBasis(FrameBasis& basis, double minHeight, double maxHeight, const LocalFrame& centre);
 // Copies what completeBasis found into a frame made before it.
 void adoptBasis(LocalFrame& frame, const FrameBasis& basis);
 
 // Fills NaN heights from their neighbours, rim inwards (onion peeling, as gdal_fillnodata does in
-// spirit): each pass gives every void cell next to known cells the mean of those, until none is
-// left. A window with no data at all becomes flat at 0. levels (optional): per cell, the pass
-// that filled it (0: had data; kNeverFilled: nothing to fill from). A cell filled at pass L
-// depends only on the cells within L of it (Chebyshev distance), and its pass only on those
-// within 2L: so a window's fill equals the whole raster's at every void cell with 2L cells of the
+// spirit): each pass gives every void pixel next to known pixels the mean of those, until none is
+// left. A window with no data at all becomes flat at 0. levels (optional): per pixel, the pass
+// that filled it (0: had data; kNeverFilled: nothing to fill from). A pixel filled at pass L
+// depends only on the pixels within L of it (Chebyshev distance), and its pass only on those
+// within 2L: so a window's fill equals the whole raster's at every void pixel with 2L pixels of the
 // window around it (or the raster's edge).
 constexpr std::uint32_t kNeverFilled = 0xffffffffu;
 void fillVoids(std::vector<double>& heights, int width, int height, std::vector<std::uint32_t>* levels = nullptr);

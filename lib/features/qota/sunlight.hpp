@@ -16,10 +16,10 @@ namespace qota {
 SunPosition sunOverFrame(const LocalFrame& frame, double julianDayUT, const std::string& source);
 
 struct SunlightHours {
-  std::vector<double> hours;        // per cell: hours of direct sunlight (0 where there is no data)
+  std::vector<double> hours;        // per pixel: hours of direct sunlight (0 where there is no data)
   int steps = 0;                    // masks computed, night steps skipped included
   double elapsedHours = 0;          // the span's length
-  std::vector<std::uint8_t> valid;  // per cell of hours: it has data (filled by ShadowTiles only)
+  std::vector<std::uint8_t> valid;  // per pixel of hours: it has data (filled by ShadowTiles only)
 };
 
 // The steps of a span between two instants (Julian days, UT), `stepHours` long (the last may be
@@ -35,18 +35,18 @@ std::vector<SunlightStep> sunlightSteps(double startJulianDay, double endJulianD
 // any work: throws qota::Error naming the values, `option` being what the caller calls them
 // ("--hours", "hours").
 void checkHoursWindow(double start, double end, double step, std::string_view option);
-// Whether the Sun at `sun` can light any cell of the frame: above every horizon's dip (the
+// Whether the Sun at `sun` can light any pixel of the frame: above every horizon's dip (the
 // frame's horizonSlack, or a larger bound) on the ellipsoid, above the horizon on a flat frame.
 bool sunCanLight(const LocalFrame& frame, const SunPosition& sun, double slack);
 
 // Hours of direct sunlight between two instants (Julian days, UT), in steps of `stepHours`
-// (the last step may be shorter): a cell lit at a step's middle counts the whole step. Steps when
-// the Sun is below the horizon of every cell are counted without computing a mask. Throws
+// (the last step may be shorter): a pixel lit at a step's middle counts the whole step. Steps when
+// the Sun is below the horizon of every pixel are counted without computing a mask. Throws
 // qota::Error for a step under a minute or longer than the span. testOnly: as shadowMask's (the
-// other cells get 0); threads: as shadowMask's.
+// other pixels get 0); threads: as shadowMask's.
 SunlightHours sunlightHours(const LocalFrame& frame, const std::string& source, double startJulianDay,
                             double endJulianDay, double stepHours, const IndexOptions& options = {},
                             const Progress& progress = {}, ShadowSearch search = ShadowSearch::Strips,
-                            std::optional<CellWindow> testOnly = std::nullopt, unsigned threads = 0);
+                            std::optional<PixelWindow> testOnly = std::nullopt, unsigned threads = 0);
 
 }  // namespace qota

@@ -6,10 +6,10 @@
 //     x = gt[0] + (col + 0.5) gt[1] + (row + 0.5) gt[2]
 //     y = gt[3] + (col + 0.5) gt[4] + (row + 0.5) gt[5]
 //     z = value
-// in the raster's CRS units (the full geotransform, rotated ones too). Each cell between four
-// pixel centres is split into two triangles along the diagonal from its top-left centre (col,
-// row) to its bottom-right centre (col + 1, row + 1): (TL, BL, BR) and (TL, BR, TR). The surface
-// therefore spans the pixel centres; the outer half-cell border of the raster has no terrain.
+// in the raster's CRS units (the full geotransform, rotated ones too). Each cell (the square
+// between four pixel centres) is split into two triangles along the diagonal from its top-left
+// centre (col, row) to its bottom-right centre (col + 1, row + 1): (TL, BL, BR) and (TL, BR, TR).
+// The surface therefore spans the pixel centres (the outer half pixel: below).
 //
 // Nodata: a pixel equal to the band's nodata value, or NaN or infinite, has no vertex height;
 // every triangle touching it is left out, so nodata makes holes.
@@ -92,7 +92,7 @@ struct DemTerrain {
   std::array<double, 6> geotransform{0, 1, 0, 0, 0, 1};
   std::string crsWkt;  // empty when the raster has no CRS
   std::optional<double> nodata;
-  std::uint64_t nodataCells = 0;
+  std::uint64_t nodataPixels = 0;
   int band = 1;                         // the band read (1-based)
   std::uint64_t estimatedBytes = 0;     // the job's peak memory as loadDem estimated it
   VerticalUnit verticalUnit;            // of the heights in mesh (they are kept in this unit)
