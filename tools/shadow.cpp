@@ -265,6 +265,7 @@ int shadow(const ShadowOptions& given, std::ostream& out, std::ostream& err) {
     demOptions.band = o.band;
     demOptions.lonLatAsCartesian = true;  // read as lon/lat: the frame puts it on its ellipsoid
     demOptions.then = memory::kShadow;
+    refuseBeyondMaxPixels(o, describeDem(o.source, demOptions));
     const DemTerrain dem = loadDem(o.source, demOptions);
     FrameOptions frameOptions;
     frameOptions.flat = o.flat;

@@ -196,6 +196,17 @@ std::uint64_t wholeEstimate(const ShadowOptions& o, std::uint64_t resident) {
          pixels * ShadowTiles::bytesPerWholePixel(lightsForEstimate(o));
 }
 
+void refuseBeyondMaxPixels(const ShadowOptions& o, const DemTerrain& described) {
+  const double pixels = static_cast<double>(described.width) * static_cast<double>(described.height);
+  if (pixels <= static_cast<double>(o.maxPixels)) return;
+  throw Error(o.source + ": " + std::to_string(described.width) + " x " + std::to_string(described.height) +
+              " pixels (" + formatReadable(pixels, 0) + "), more than --max-pixels " + std::to_string(o.maxPixels) +
+              " allows: at the measured rates, reading its heights takes about " +
+              clock(pixels / kPassPixelsPerSecond) + " and its shadows about " +
+              clock(pixels / kShadowPixelsPerSecond) + (o.hours ? " a step" : "") + "; give --max-pixels " +
+              std::to_string(static_cast<std::uint64_t>(pixels)) + " to run it");
+}
+
 bool runsByTiles(const ShadowOptions& o) {
   if (o.tileSize > 0 || o.tile || !o.tilesState.empty()) return true;
   return wholeEstimate(o, memory::residentBytes()) > memoryAllowed(o);
@@ -248,14 +259,7 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
     const double passSeconds = o.tilesState.empty() ? pixels / kPassPixelsPerSecond : 0;
     const double shadowSeconds = (o.tile ? std::min(pixels, double(o.tileSize) * o.tileSize) : pixels) /
                                  kShadowPixelsPerSecond * (o.hours ? 10.0 : 1.0);
-    if (pixels > static_cast<double>(o.maxPixels)) {
-      throw Error(o.source + ": " + std::to_string(described.width) + " x " + std::to_string(described.height) +
-                  " pixels (" + formatReadable(pixels, 0) + "), more than --max-pixels " + std::to_string(o.maxPixels) +
-                  " allows: at the measured rates, reading its heights takes about " +
-                  clock(pixels / kPassPixelsPerSecond) + " and its shadows about " +
-                  clock(pixels / kShadowPixelsPerSecond) + (o.hours ? " a step" : "") + "; give --max-pixels " +
-                  std::to_string(static_cast<std::uint64_t>(pixels)) + " to run it");
-    }
+    refuseBeyondMaxPixels(o, described);
     if (!o.quiet) {
       out << "estimate: " << formatReadable(pixels, 0) << " pixels; "
           << (passSeconds > 0 ? "reading the heights about " + clock(passSeconds) + ", " : std::string())
