@@ -49,6 +49,30 @@ TEST(Predicates, MatchesIntegerArithmeticOnLargeIntegers) {
   }
 }
 
+TEST(Predicates, BothExactPathsMatchIntegerArithmetic) {
+  // orient2dSignExact itself (the filter sends it only the hard cases): its short path when the
+  // differences are exact (near points, one grid), its full expansion when they are not (large
+  // and small coordinates mixed, up to 2^61: a difference needs up to 62 bits; the products stay
+  // within the reference's 128 bits).
+  std::mt19937_64 rng(99);
+  const auto coordinate = [&](int bits) {
+    const double x = std::ldexp(static_cast<double>(static_cast<std::int64_t>(rng() >> 11)), bits - 53);
+    return std::trunc(rng() % 2 ? x : -x);  // an integer below 2^bits in magnitude
+  };
+  int shortPath = 0;
+  for (int i = 0; i < 300000; ++i) {
+    const int bits = 1 + static_cast<int>(rng() % 59);
+    Point2 a{coordinate(bits), coordinate(bits)}, b{coordinate(bits), coordinate(bits)};
+    Point2 c{coordinate(1 + static_cast<int>(rng() % 61)), coordinate(1 + static_cast<int>(rng() % 61))};
+    if (i % 3 == 0) c = {a.u + (b.u - a.u) * 2, a.v + (b.v - a.v) * 2};  // on the line, when exact
+    if (i % 5 == 0) b = {a.u + 1, a.v + 1}, c = {a.u + 2, a.v + 2 + (i % 2)};
+    shortPath += a.u - c.u == static_cast<double>(static_cast<Int128>(a.u) - static_cast<Int128>(c.u));
+    ASSERT_EQ(qota::orient2dSignExact(a, b, c), exactIntegerSign(a, b, c))
+        << "case " << i << ": " << a.u << " " << a.v << ", " << b.u << " " << b.v << ", " << c.u << " " << c.v;
+  }
+  EXPECT_GT(shortPath, 1000);
+}
+
 TEST(Predicates, NearlyCollinearFloatingPoints) {
   // Points nudged by one ulp across the line y = x: the naive determinant gets many wrong.
   std::mt19937_64 rng(7);

@@ -433,15 +433,22 @@ void PlanarCore::buildDeferredTree() const {
       for (std::size_t t = lo; t < hi; ++t) tris_[t] = computeRecord(cold_[t].corner);
     });
   }
-  {
-    std::vector<Box2> boxes(cold_.size());
-    for (std::uint32_t t = 0; t < cold_.size(); ++t) boxes[t] = boxOf(t);
-    setTreeFloor(boxes);
-  }
+  // The boxes and the removed triangles once: the build tests each triangle against four
+  // children a level (1.6x faster than computing them each time; 33 bytes a triangle while the
+  // tree is built, in memory::kCartesianIndex).
+  std::vector<Box2> boxes(cold_.size());
+  std::vector<std::uint8_t> removed(cold_.size());
+  batch::inSlices(cold_.size(), buildThreads_, 1u << 15, [&](std::size_t lo, std::size_t hi) {
+    for (std::size_t t = lo; t < hi; ++t) {
+      boxes[t] = boxOf(static_cast<std::uint32_t>(t));
+      removed[t] = ledger_.removed(cold_[t].polygon);
+    }
+  });
+  setTreeFloor(boxes);
   tree_.build(
       static_cast<std::uint32_t>(cold_.size()), stats_.domain, deferredOptions_,
-      [this](std::uint32_t t, const Box2& b) { return !ledger_.removed(cold_[t].polygon) && overlaps(t, boxOf(t), b); },
-      floorU_, floorV_, [this](std::uint32_t t) { return boxOf(t); }, buildThreads_);
+      [this, &boxes, &removed](std::uint32_t t, const Box2& b) { return !removed[t] && overlaps(t, boxes[t], b); },
+      floorU_, floorV_, [&boxes](std::uint32_t t) { return boxes[t]; }, buildThreads_);
   tree_.markLeaves([this](std::span<std::uint32_t> items) { return prepareLeaf(items); }, buildThreads_);
   treeStatsStale_ = true;
   deferred_->built = true;

@@ -35,7 +35,36 @@ inline int growExpansion(double* e, int n, double b) {
 
 }  // namespace
 
+namespace {
+
+// The sign of the expansion e[0..n): that of its largest nonzero component.
+int signOf(const double* e, int n) {
+  for (int i = n - 1; i >= 0; --i) {
+    if (e[i] > 0) return 1;
+    if (e[i] < 0) return -1;
+  }
+  return 0;
+}
+
+}  // namespace
+
 int orient2dSignExact(Point2 a, Point2 b, Point2 c) {
+  // When the four differences are exact (points of one grid, or near each other: the usual case
+  // here, such as collinear points on a raster's rows), orient2d is (a-c)u (b-c)v - (a-c)v (b-c)u
+  // exactly: two exact products, an expansion of four terms instead of twelve.
+  double du1, dv2, dv1, du2, t0, t1, t2, t3;
+  twoSum(a.u, -c.u, du1, t0), twoSum(b.v, -c.v, dv2, t1);
+  twoSum(a.v, -c.v, dv1, t2), twoSum(b.u, -c.u, du2, t3);
+  if (t0 == 0 && t1 == 0 && t2 == 0 && t3 == 0) {
+    double p1, q1, p2, q2;
+    twoProduct(du1, dv2, p1, q1);
+    twoProduct(dv1, du2, p2, q2);
+    if (p1 == p2 && q1 == q2) return 0;
+    double e[4];
+    int n = 0;
+    for (double x : {q1, -q2, p1, -p2}) n = growExpansion(e, n, x);
+    return signOf(e, n);
+  }
   // Exact: orient2d = au*bv - au*cv - cu*bv - av*bu + av*cu + cv*bu  (the cu*cv terms cancel).
   const double f[6][2] = {{a.u, b.v}, {-a.u, c.v}, {-c.u, b.v}, {-a.v, b.u}, {a.v, c.u}, {c.v, b.u}};
   double e[13];
@@ -46,11 +75,7 @@ int orient2dSignExact(Point2 a, Point2 b, Point2 c) {
     n = growExpansion(e, n, err);
     n = growExpansion(e, n, p);
   }
-  for (int i = n - 1; i >= 0; --i) {
-    if (e[i] > 0) return 1;
-    if (e[i] < 0) return -1;
-  }
-  return 0;
+  return signOf(e, n);
 }
 
 int orient3dSign(const double a[3], const double b[3], const double d[3]) {
