@@ -13,6 +13,7 @@
 #include "qota/index.hpp"
 #include "qota/error.hpp"
 #include "qota/memory_budget.hpp"
+#include "line_crossing.hpp"
 #include "qota/predicates.hpp"
 
 namespace qota {
@@ -479,7 +480,6 @@ std::vector<LineHit> CurvedIndex<M>::alongLine(const Eigen::Vector3d& origin, co
   const Eigen::Vector3d O = mapping_.toLocal(origin);
   // The direction turned, not the difference of two far points (which loses its low digits).
   const Eigen::Vector3d d = mapping_.directionToLocal(direction);
-  const double dv[3] = {d.x(), d.y(), d.z()};
   for (std::uint32_t i = 0; i < tris_.size(); ++i) {
     if (!live(i)) continue;
     const Tri& tri = tris_[i];
@@ -487,15 +487,10 @@ std::vector<LineHit> CurvedIndex<M>::alongLine(const Eigen::Vector3d& origin, co
     for (int k = 0; k < 3; ++k) {
       for (int c = 0; c < 3; ++c) q[k][c] = tri.p[k][c] - O[c];
     }
-    const int s0 = orient3dSign(q[0], q[1], dv), s1 = orient3dSign(q[1], q[2], dv), s2 = orient3dSign(q[2], q[0], dv);
-    const bool neg = s0 < 0 || s1 < 0 || s2<0, pos = s0> 0 || s1 > 0 || s2 > 0;
-    if (neg == pos) continue;  // outside, or the line lies in the triangle's plane
-    const Eigen::Vector3d a(q[0][0], q[0][1], q[0][2]), b(q[1][0], q[1][1], q[1][2]), e(q[2][0], q[2][1], q[2][2]);
-    Eigen::Vector3d n = (b - a).cross(e - a);
-    const double nd = n.dot(d);
-    if (nd == 0) continue;
-    const double tt = n.dot(a) / nd;
-    if (!(tt >= tmin && tt <= tmax)) continue;
+    detail::LineCrossing x;
+    if (!detail::crossesTriangle(q, d, x) || !(x.t >= tmin && x.t <= tmax)) continue;
+    const double tt = x.t;
+    const Eigen::Vector3d& n = x.normal;
     LineHit lh;
     lh.t = tt;
     lh.hit.world = origin + tt * direction;

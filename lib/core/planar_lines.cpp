@@ -10,6 +10,7 @@
 #include <string>
 #include <thread>
 
+#include "line_crossing.hpp"
 #include "qota/predicates.hpp"
 
 namespace qota {
@@ -53,26 +54,17 @@ std::vector<LineHit> PlanarCore::alongLine(const Eigen::Vector3d& origin, const 
       [&](std::span<const std::uint32_t> items) { candidates.insert(candidates.end(), items.begin(), items.end()); });
   std::sort(candidates.begin(), candidates.end());
   candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
-  const double dv[3] = {dn.x(), dn.y(), dn.z()};
   for (std::uint32_t t : candidates) {
     const Cold& c = cold_[t];
-    // Exact side of the line against each edge: the sign of det[a - O; b - O; d] on the corners'
-    // rounded offsets from O, the same for every triangle sharing the corner, so neighbours agree
-    // on a shared edge and the line cannot slip between them.
-    double q[3][3];
+    double q[3][3];  // the corners' offsets from O (line_crossing.hpp)
     for (int k = 0; k < 3; ++k) {
       const std::uint32_t v = c.corner[k];
       q[k][0] = corners2_[v].u - O.x(), q[k][1] = corners2_[v].v - O.y(), q[k][2] = cornerH_[v] - O.z();
     }
-    const int s0 = orient3dSign(q[0], q[1], dv), s1 = orient3dSign(q[1], q[2], dv), s2 = orient3dSign(q[2], q[0], dv);
-    const bool neg = s0 < 0 || s1 < 0 || s2<0, pos = s0> 0 || s1 > 0 || s2 > 0;
-    if (neg == pos) continue;  // outside, or the line lies in the triangle's plane
-    const Eigen::Vector3d a(q[0][0], q[0][1], q[0][2]), b(q[1][0], q[1][1], q[1][2]), e(q[2][0], q[2][1], q[2][2]);
-    Eigen::Vector3d n = (b - a).cross(e - a);
-    const double nd = n.dot(dn);
-    if (nd == 0) continue;
-    const double tt = n.dot(a) / nd;
-    if (tt < tmin || tt > tmax) continue;
+    detail::LineCrossing x;
+    if (!detail::crossesTriangle(q, dn, x) || !(x.t >= tmin && x.t <= tmax)) continue;
+    const double tt = x.t;
+    Eigen::Vector3d n = x.normal;
     if (n.z() < 0) n = -n;
     LineHit lh;
     lh.t = tt;
