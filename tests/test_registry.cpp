@@ -4,6 +4,7 @@
 // mapping's answers against an independent oracle: the mapping's own suites. Python enumerates
 // qota.MAPPINGS the same way: python/tests/test_mappings.py.)
 #include <gtest/gtest.h>
+#include <ogr_spatialref.h>
 
 #include <cmath>
 #include <filesystem>
@@ -189,6 +190,56 @@ TEST(ToolsAgree, SampleTakesOutputAndQuietAsEveryTool) {
     const std::string written((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
     EXPECT_EQ(written, loud.out) << flag;
   }
+}
+
+TEST(ToolsAgree, SampleTakesGdallocationinfosSpellings) {
+  // -wgs84 and -l_srs take points as gdallocationinfo does, -geoloc is the raster's own
+  // georeferencing (the default). The reference: the same points put in the raster's UTM
+  // coordinates by OGR here, sampled with no option.
+  const std::string dem = QOTA_DATA_DIR "/SainteHelens.dem";
+  const std::vector<std::pair<double, double>> lonLat = {{-122.1978, 46.1875}, {-122.2, 46.2}, {-122.15, 46.14}};
+  OGRSpatialReference wgs84, utm;
+  wgs84.SetFromUserInput("EPSG:4326");
+  wgs84.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  ASSERT_EQ(utm.SetFromUserInput(qota::loadDem(dem).crsWkt.c_str()), OGRERR_NONE);
+  utm.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  std::unique_ptr<OGRCoordinateTransformation> toUtm(OGRCreateCoordinateTransformation(&wgs84, &utm));
+  ASSERT_TRUE(toUtm);
+  std::ostringstream degrees, metres;
+  degrees.precision(17), metres.precision(17);
+  for (auto [lon, lat] : lonLat) {
+    degrees << lon << ' ' << lat << '\n';
+    double x = lon, y = lat;
+    ASSERT_TRUE(toUtm->Transform(1, &x, &y));
+    metres << x << ' ' << y << '\n';
+  }
+  const auto heights = [](const std::string& text) {
+    std::vector<double> v;
+    std::istringstream in(text);
+    for (double h; in >> h;) v.push_back(h);
+    return v;
+  };
+  const CliRun reference = cli({"sample", dem, "-geoloc"}, metres.str());
+  ASSERT_EQ(reference.code, 0) << reference.err;
+  const std::vector<double> want = heights(reference.out);
+  ASSERT_EQ(want.size(), lonLat.size());
+  for (const std::vector<std::string>& spelling :
+       {std::vector<std::string>{"-wgs84"}, std::vector<std::string>{"-l_srs", "EPSG:4326"}}) {
+    std::vector<std::string> args = {"sample", dem};
+    args.insert(args.end(), spelling.begin(), spelling.end());
+    const CliRun run = cli(args, degrees.str());
+    ASSERT_EQ(run.code, 0) << spelling[0] << ": " << run.err;
+    const std::vector<double> got = heights(run.out);
+    ASSERT_EQ(got.size(), want.size()) << spelling[0];
+    for (std::size_t i = 0; i < want.size(); ++i) EXPECT_NEAR(got[i], want[i], 1e-6) << spelling[0] << " " << i;
+  }
+  // -o on a character device writes there (nothing is replaced); a folder is still refused.
+  const CliRun toNull = cli({"sample", dem, "-o", "/dev/null"}, metres.str());
+  EXPECT_EQ(toNull.code, 0) << toNull.err;
+  EXPECT_TRUE(toNull.out.empty()) << toNull.out;
+  const CliRun toFolder = cli({"sample", dem, "-o", QOTA_DATA_DIR}, metres.str());
+  EXPECT_EQ(toFolder.code, 2);
+  EXPECT_NE(toFolder.err.find("not a regular file"), std::string::npos) << toFolder.err;
 }
 
 TEST(ToolsAgree, ShadowTakesMappingAsEveryTool) {

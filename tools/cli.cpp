@@ -55,11 +55,20 @@ void addSourceOptions(CLI::App* app, qota::SourceOptions& source) {
 
 // GDAL's tools spell some options with one dash and several letters (-az, -alt, -of, -co);
 // CLI11 reads a single dash as short flags, so those spellings become --az, --alt, --of, --co.
+// gdallocationinfo's point options mean what they mean there: -l_srs is --srs, -wgs84 is
+// --srs EPSG:4326 (longitude, latitude), -geoloc (the raster's own georeferencing) is the default.
 std::vector<std::string> gdalStyleArguments(int argc, const char* const* argv) {
-  std::vector<std::string> args(argv, argv + argc);
-  for (std::size_t i = 1; i < args.size(); ++i) {
-    for (const char* name : {"-az", "-alt", "-of", "-co"}) {
-      if (args[i] == name) args[i] = std::string("-") + name;
+  std::vector<std::string> args;
+  for (int i = 0; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (i > 0 && (a == "-az" || a == "-alt" || a == "-of" || a == "-co")) {
+      args.push_back("-" + a);
+    } else if (i > 0 && a == "-l_srs") {
+      args.push_back("--srs");
+    } else if (i > 0 && a == "-wgs84") {
+      args.push_back("--srs"), args.push_back("EPSG:4326");
+    } else if (i == 0 || a != "-geoloc") {
+      args.push_back(a);
     }
   }
   return args;
@@ -84,11 +93,13 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
       ->add_option("source", sample.source, "Elevation raster (any GDAL format), tree file (qota build) or mesh file")
       ->required();
   sampleCmd->add_option("-i,--input-file", sample.inputFile, "Read points from this file");
-  sampleCmd->add_option("-o,--output,--output-file", sample.outputFile,
-                        "Write results to this file (replaced only when complete)");
+  sampleCmd->add_option(
+      "-o,--output,--output-file", sample.outputFile,
+      "Write results to this file (replaced only when complete; a device such as /dev/null is written in place)");
   sampleCmd->add_flag("-q,--quiet", sample.quiet, "No notes on stderr (a point's problem is still reported)");
   sampleCmd->add_option("--srs", sample.srs,
-                        "CRS of the input points (EPSG:4326, WKT, PROJ...); default: the raster's");
+                        "CRS of the input points (EPSG:4326, WKT, PROJ...; gdallocationinfo's -l_srs; -wgs84: "
+                        "EPSG:4326 as longitude latitude); default: the raster's (-geoloc)");
   sampleCmd
       ->add_option("-p,--precision", sample.precision,
                    "Decimals to print (0 to 100); default: the shortest that round-trips")

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <exception>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <future>
 #include <functional>
@@ -287,11 +288,21 @@ int sample(const SampleOptions& options, std::istream& in, std::ostream& out, st
       input = &file;
       where = options.inputFile;
     }
+    // A file is written whole or not at all (atomic_file.hpp); a character device (/dev/null, a
+    // terminal) is written in place: there is nothing there to replace or to leave half-written.
     std::optional<AtomicFile> outFile;
+    std::ofstream device;
     std::ostream* output = &out;
     if (!options.outputFile.empty()) {
-      outFile.emplace(options.outputFile);
-      output = &outFile->stream();
+      std::error_code ec;
+      if (std::filesystem::is_character_file(std::filesystem::status(options.outputFile, ec))) {
+        device.open(options.outputFile, std::ios::out | std::ios::binary);
+        if (!device) throw Error(options.outputFile + ": cannot write");
+        output = &device;
+      } else {
+        outFile.emplace(options.outputFile);
+        output = &outFile->stream();
+      }
     }
 
     const bool failed = sampling::readLines(options, surface, transform.get(), *input, *output, err, where);
@@ -299,7 +310,7 @@ int sample(const SampleOptions& options, std::istream& in, std::ostream& out, st
       outFile->commit();
     } else {
       output->flush();
-      if (!*output) throw Error("cannot write the output");
+      if (!*output) throw Error((options.outputFile.empty() ? "the output" : options.outputFile) + ": cannot write");
     }
     return failed ? 1 : 0;
   } catch (...) {
