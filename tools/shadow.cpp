@@ -267,13 +267,7 @@ int shadow(const ShadowOptions& given, std::ostream& out, std::ostream& err) {
     demOptions.then = memory::kShadow;
     refuseBeyondMaxPixels(o, describeDem(o.source, demOptions));
     const DemTerrain dem = loadDem(o.source, demOptions);
-    FrameOptions frameOptions;
-    frameOptions.flat = o.flat;
-    frameOptions.pixelSize = o.pixelSize;
-    frameOptions.zFactor = o.zFactor;
-    frameOptions.scale = o.scale;
-    frameOptions.heightRef = o.heightRef;
-    const LocalFrame frame = localFrame(dem, frameOptions);
+    const LocalFrame frame = localFrame(dem, frameOptionsOf(o));
     if (!o.quiet) {
       out << "qota shadow: " << o.source << " -> " << o.output << " (" << format << ")\n"
           << "frame: " << frame.description << '\n';

@@ -34,6 +34,8 @@ std::uint64_t wholeEstimate(const ShadowOptions& o, std::uint64_t resident);
 // Whether the run goes by tiles: asked for (--tile-size, --tile), or the whole raster would not
 // fit in o.maxMemory (or, without it, in the memory available).
 bool runsByTiles(const ShadowOptions& o);
+// How the run's options place the DEM in its frame (--flat, --pixel-size, -z, -s, --height-ref).
+FrameOptions frameOptionsOf(const ShadowOptions& o);
 // Refuses a raster of more pixels than --max-pixels, with the time it would take (whole or by tiles).
 void refuseBeyondMaxPixels(const ShadowOptions& o, const DemTerrain& described);
 // The run by tiles (shadow_tiles.cpp): memory bounded by o.maxMemory, output streamed.

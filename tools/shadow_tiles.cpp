@@ -65,10 +65,7 @@ std::uint64_t geoidBytes(const ShadowOptions& o, const DemTerrain& dem) {
   // The geoid's nodes over the raster, as its frame reads them (qota::Geoid's window).
   if (o.flat || dem.crsWkt.empty()) return 0;
   try {
-    FrameOptions frameOptions;
-    frameOptions.flat = o.flat, frameOptions.pixelSize = o.pixelSize, frameOptions.zFactor = o.zFactor;
-    frameOptions.scale = o.scale, frameOptions.heightRef = o.heightRef;
-    const FrameBasis basis = frameBasis(dem, frameOptions);
+    const FrameBasis basis = frameBasis(dem, frameOptionsOf(o));
     return basis.geoid ? basis.geoid->bytes() : 0;
   } catch (const Error&) {
     return 0;  // (the run says what is wrong)
@@ -134,11 +131,8 @@ std::vector<Eigen::Vector3d> lightsForEstimate(const ShadowOptions& o) {
     DemOptions demOptions;
     demOptions.band = o.band;
     demOptions.lonLatAsCartesian = true;
-    FrameOptions frameOptions;
-    frameOptions.flat = o.flat, frameOptions.pixelSize = o.pixelSize, frameOptions.zFactor = o.zFactor;
-    frameOptions.scale = o.scale, frameOptions.heightRef = o.heightRef;
     const DemTerrain dem = describeDem(o.source, demOptions);
-    const FrameBasis basis = frameBasis(dem, frameOptions);
+    const FrameBasis basis = frameBasis(dem, frameOptionsOf(o));
     const LocalFrame& f = basis.shared;
     // A light below every pixel's horizon by more than the horizon's dip shades the whole raster
     // without a mask (shadowMask's shortcut): a bound of that slack from the raster's extent (the
@@ -196,6 +190,12 @@ std::uint64_t wholeEstimate(const ShadowOptions& o, std::uint64_t resident) {
          pixels * ShadowTiles::bytesPerWholePixel(lightsForEstimate(o));
 }
 
+FrameOptions frameOptionsOf(const ShadowOptions& o) {
+  FrameOptions f;
+  f.flat = o.flat, f.pixelSize = o.pixelSize, f.zFactor = o.zFactor, f.scale = o.scale, f.heightRef = o.heightRef;
+  return f;
+}
+
 void refuseBeyondMaxPixels(const ShadowOptions& o, const DemTerrain& described) {
   const double pixels = static_cast<double>(described.width) * static_cast<double>(described.height);
   if (pixels <= static_cast<double>(o.maxPixels)) return;
@@ -248,12 +248,7 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
       return std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
     };
 
-    FrameOptions frameOptions;
-    frameOptions.flat = o.flat;
-    frameOptions.pixelSize = o.pixelSize;
-    frameOptions.zFactor = o.zFactor;
-    frameOptions.scale = o.scale;
-    frameOptions.heightRef = o.heightRef;
+    const FrameOptions frameOptions = frameOptionsOf(o);
     // Work sized before it starts: the pass over the heights reads every pixel, and the shadows
     // take each about a microsecond; a raster beyond --max-pixels is refused with the estimate.
     const double passSeconds = o.tilesState.empty() ? pixels / kPassPixelsPerSecond : 0;
