@@ -292,11 +292,7 @@ void PlanarCore::finishBuild(std::vector<Pending>& pending, const Lattice* latti
     stats_.memoryBytes = baseMemoryBytes_ + recordBytesBeforeTree_;
   } else {
     setTreeFloor(boxes);
-    tree_.build(
-        static_cast<std::uint32_t>(cold_.size()), domain, options.tree,
-        [this, &boxes](std::uint32_t t, const Box2& b) { return overlaps(t, boxes[t], b); }, floorU_, floorV_,
-        [&boxes](std::uint32_t t) { return boxes[t]; }, options.buildThreads);
-    tree_.markLeaves([this](std::span<std::uint32_t> items) { return prepareLeaf(items); }, options.buildThreads);
+    buildTreeOver(boxes, domain, options.tree, floorU_, floorV_, options.buildThreads);
     stats_.tree = tree_.stats();
     stats_.memoryBytes = baseMemoryBytes_ + tris_.size() * sizeof(Tri) + stats_.tree.memoryBytes;
   }
@@ -433,25 +429,28 @@ void PlanarCore::buildDeferredTree() const {
       for (std::size_t t = lo; t < hi; ++t) tris_[t] = computeRecord(cold_[t].corner);
     });
   }
-  // The boxes and the removed triangles once: the build tests each triangle against four
-  // children a level (1.6x faster than computing them each time; 33 bytes a triangle while the
-  // tree is built, in memory::kCartesianIndex).
+  // The boxes once: the build tests each triangle against four children a level (1.6x faster
+  // than computing them each time; 32 bytes a triangle while the tree is built, in
+  // memory::kCartesianIndex).
   std::vector<Box2> boxes(cold_.size());
-  std::vector<std::uint8_t> removed(cold_.size());
   batch::inSlices(cold_.size(), buildThreads_, 1u << 15, [&](std::size_t lo, std::size_t hi) {
-    for (std::size_t t = lo; t < hi; ++t) {
-      boxes[t] = boxOf(static_cast<std::uint32_t>(t));
-      removed[t] = ledger_.removed(cold_[t].polygon);
-    }
+    for (std::size_t t = lo; t < hi; ++t) boxes[t] = boxOf(static_cast<std::uint32_t>(t));
   });
   setTreeFloor(boxes);
-  tree_.build(
-      static_cast<std::uint32_t>(cold_.size()), stats_.domain, deferredOptions_,
-      [this, &boxes, &removed](std::uint32_t t, const Box2& b) { return !removed[t] && overlaps(t, boxes[t], b); },
-      floorU_, floorV_, [&boxes](std::uint32_t t) { return boxes[t]; }, buildThreads_);
-  tree_.markLeaves([this](std::span<std::uint32_t> items) { return prepareLeaf(items); }, buildThreads_);
+  buildTreeOver(boxes, stats_.domain, deferredOptions_, floorU_, floorV_, buildThreads_);
   treeStatsStale_ = true;
   deferred_->built = true;
+}
+
+void PlanarCore::buildTreeOver(const std::vector<Box2>& boxes, const Box2& domain, const QuadtreeOptions& options,
+                               double minU, double minV, unsigned threads) const {
+  tree_.build(
+      static_cast<std::uint32_t>(boxes.size()), domain, options,
+      [this, &boxes](std::uint32_t t, const Box2& b) {
+        return !ledger_.removed(cold_[t].polygon) && overlaps(t, boxes[t], b);
+      },
+      minU, minV, [&boxes](std::uint32_t t) { return boxes[t]; }, threads);
+  tree_.markLeaves([this](std::span<std::uint32_t> items) { return prepareLeaf(items); }, threads);
 }
 
 bool PlanarCore::separated(std::uint32_t a, std::uint32_t b) const {

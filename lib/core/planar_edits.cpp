@@ -25,15 +25,7 @@ void PlanarCore::rebuildTree(const Box2& domain) {
     const Cold c = cold_[t];
     boxes[t] = makeRecord(t, Pending{{c.corner[0], c.corner[1], c.corner[2]}, c.polygon});
   }
-  const QuadtreeOptions options = tree_.options();
-  const double minU = tree_.minSizeU(), minV = tree_.minSizeV();
-  tree_.build(
-      static_cast<std::uint32_t>(tris_.size()), domain, options,
-      [this, &boxes](std::uint32_t t, const Box2& b) {
-        return !ledger_.removed(cold_[t].polygon) && overlaps(t, boxes[t], b);
-      },
-      minU, minV, [&boxes](std::uint32_t t) { return boxes[t]; });
-  tree_.markLeaves([this](std::span<std::uint32_t> items) { return prepareLeaf(items); });
+  buildTreeOver(boxes, domain, tree_.options(), tree_.minSizeU(), tree_.minSizeV(), 1);
   stats_.domain = domain;
 }
 

@@ -291,6 +291,10 @@ class PlanarCore : public IndexFace<PlanarCore> {
   unsigned buildThreads_ = 0;               // IndexOptions::buildThreads, for the deferred tree too
   mutable double floorU_ = 0, floorV_ = 0;  // the tree's node size floor (setTreeFloor)
   void setTreeFloor(const std::vector<Box2>& boxes) const;
+  // The quadtree over the triangles' boxes (removed polygons left out) and its single-layer
+  // leaves: the build, the deferred build and the edits' rebuild.
+  void buildTreeOver(const std::vector<Box2>& boxes, const Box2& domain, const QuadtreeOptions& options, double minU,
+                     double minV, unsigned threads) const;
   std::uint64_t baseMemoryBytes_ = 0;  // everything but the tree and the triangle records
   mutable IndexStats stats_;
   mutable bool treeStatsStale_ = false;
