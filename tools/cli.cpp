@@ -74,6 +74,35 @@ std::vector<std::string> gdalStyleArguments(int argc, const char* const* argv) {
   return args;
 }
 
+// What qota shadow and qota viewshed read alike (RasterJobOptions): the DEM and the raster out,
+// and how the DEM is placed in its frame.
+void addRasterJobOptions(CLI::App* cmd, RasterJobOptions& o, const std::string& preview) {
+  cmd->add_option("source", o.source, "Elevation raster (any GDAL format)")->required();
+  cmd->add_option("-o,--output", o.output, "Output raster")->required();
+  cmd->add_option("--of", o.format, "GDAL format (-of); default: from the extension");
+  cmd->add_option("--co", o.creationOptions, "Creation option NAME=VALUE (-co), repeatable");
+  cmd->add_flag("-q,--quiet", o.quiet, "No progress or summary");
+  cmd->add_flag("--flat", o.flat,
+                "No curvature: a geographic DEM's lon/lat scaled linearly, a projected DEM's grid as it is");
+  cmd->add_option("--mapping", o.mapping,
+                  "Frame: geodetic (a DEM with a CRS on its ellipsoid, the default) or cartesian (as --flat)")
+      ->check(CLI::IsMember(qota::mappingNameList()));
+  cmd->add_option("-b,--band", o.band, "Raster band holding the heights")->check(CLI::Range(1, 1 << 30));
+  cmd->add_option("-z,--z-factor", o.zFactor,
+                  "Multiply heights by this after converting their unit to metres (gdaldem's -z)")
+      ->check(CLI::PositiveNumber);
+  cmd->add_option("-s,--scale", o.scale,
+                  "Horizontal units per vertical unit, for a raster whose vertical unit is not "
+                  "known (gdaldem's -s; a degree counts as 111120 m)")
+      ->check(CLI::PositiveNumber);
+  cmd->add_option("--pixel-size", o.pixelSize, "Metres per pixel for a raster without CRS");
+  cmd->add_option("--height-ref", o.heightRef,
+                  "On the ellipsoid: what the heights are over: ellipsoid, egm96, egm2008, crs or a "
+                  "geoid grid's path; default: the raster's vertical CRS, else EGM96 on the Earth and "
+                  "the ellipsoid elsewhere (said in the frame line, recorded in the output)");
+  cmd->add_option("--png", o.png, "Also write a PNG preview: " + preview + " over a hillshade");
+}
+
 int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostream& out, std::ostream& err) {
   CLI::App app{"qota: terrain following with the Quick Oriented Terrain Algorithm (MERL TR-96-17, 1996)"};
   app.require_subcommand(1);
@@ -136,11 +165,7 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
                          "(relief / tan(altitude)); pad tiles by that much. A DEM with a CRS is placed on its "
                          "ellipsoid (curvature included, the sun's direction right at every pixel) unless --flat. "
                          "Heights are converted to metres from the raster's vertical unit (-z and -s as gdaldem's).");
-  shadowCmd->add_option("source", shadow.source, "Elevation raster (any GDAL format)")->required();
-  shadowCmd->add_option("-o,--output", shadow.output, "Output raster")->required();
-  shadowCmd->add_option("--of", shadow.format, "GDAL format (-of); default: from the extension");
-  shadowCmd->add_option("--co", shadow.creationOptions, "Creation option NAME=VALUE (-co), repeatable");
-  shadowCmd->add_flag("-q,--quiet", shadow.quiet, "No progress or summary");
+  addRasterJobOptions(shadowCmd, shadow, "the shadows");
   shadowCmd->add_option("--az", shadow.azimuth, "Sun azimuth (-az), degrees clockwise from north (default 315)");
   shadowCmd->add_option("--alt", shadow.altitude, "Sun altitude (-alt), degrees above the horizon (default 45)");
   std::vector<double> sunVector;
@@ -177,29 +202,6 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
                    "(0 to 48) of --time's date, in steps of STEP hours (at least 1/60); a "
                    "pixel lit at a step's middle counts the whole step")
       ->expected(3);
-  shadowCmd->add_flag("--flat", shadow.flat,
-                      "No curvature: a geographic DEM's lon/lat scaled linearly, a projected "
-                      "DEM's grid as it is");
-  shadowCmd
-      ->add_option("--mapping", shadow.mapping,
-                   "Frame: geodetic (a DEM with a CRS on its ellipsoid, the default) or cartesian (as --flat)")
-      ->check(CLI::IsMember(qota::mappingNameList()));
-  shadowCmd->add_option("-b,--band", shadow.band, "Raster band holding the heights")->check(CLI::Range(1, 1 << 30));
-  shadowCmd
-      ->add_option("-z,--z-factor", shadow.zFactor,
-                   "Multiply heights by this after converting their unit to metres (gdaldem's -z)")
-      ->check(CLI::PositiveNumber);
-  shadowCmd
-      ->add_option("-s,--scale", shadow.scale,
-                   "Horizontal units per vertical unit, for a raster whose vertical unit is not "
-                   "known (gdaldem's -s; a degree counts as 111120 m)")
-      ->check(CLI::PositiveNumber);
-  shadowCmd->add_option("--pixel-size", shadow.pixelSize, "Metres per pixel for a raster without CRS");
-  shadowCmd->add_option("--height-ref", shadow.heightRef,
-                        "On the ellipsoid: what the heights are over: ellipsoid, egm96, egm2008, crs or a "
-                        "geoid grid's path; default: the raster's vertical CRS, else EGM96 on the Earth and "
-                        "the ellipsoid elsewhere (said in the frame line, recorded in the output)");
-  shadowCmd->add_option("--png", shadow.png, "Also write a PNG preview: the shadows over a hillshade");
   shadowCmd->add_option("--lit-value", shadow.litValue, "Output value of lit pixels")->capture_default_str();
   shadowCmd->add_option("--shadow-value", shadow.shadowValue, "Output value of shadowed pixels")->capture_default_str();
   shadowCmd->add_option("--nodata-value", shadow.nodataValue, "Output value (and nodata) of pixels without data")
@@ -239,6 +241,42 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
           CLI::CheckedTransformer(std::map<std::string, qota::ShadowSearch>{{"strips", qota::ShadowSearch::Strips},
                                                                             {"quadtree", qota::ShadowSearch::Quadtree}},
                                   CLI::ignore_case));
+
+  ViewshedOptions viewshedOptions;
+  CLI::App* viewshedCmd = app.add_subcommand(
+      "viewshed",
+      "Which pixels an observer sees, exactly, on the triangulated terrain: a pixel is visible when the "
+      "straight segment from the observer to its centre (plus --target-height) meets no terrain between its "
+      "ends (voids do not block). On the DEM's ellipsoid by default (curvature exact: straight lines in "
+      "geocentric coordinates), or --flat. Output: Byte on the DEM's grid, visible 255, not visible 0, "
+      "nodata 128, beyond --max-distance 64.");
+  addRasterJobOptions(viewshedCmd, viewshedOptions, "the viewshed");
+  std::vector<double> observer;
+  viewshedCmd->add_option("--observer,--ox", observer, "X,Y: the observer, in the raster's CRS (or --srs)")
+      ->delimiter(',')
+      ->expected(2)
+      ->required();
+  viewshedCmd->add_option("--srs", viewshedOptions.srs, "CRS of --observer (EPSG:4326, WKT, PROJ; x = lon/easting)");
+  viewshedCmd
+      ->add_option("--observer-height,--oz", viewshedOptions.observerHeight, "Metres above the surface at the observer")
+      ->capture_default_str();
+  viewshedCmd->add_option("--target-height,--tz", viewshedOptions.targetHeight, "Metres above each pixel's surface")
+      ->capture_default_str();
+  viewshedCmd
+      ->add_option("--max-distance,--md", viewshedOptions.maxDistance,
+                   "Metres (horizontal, from the observer); pixels beyond are not tested (0: no limit)")
+      ->capture_default_str();
+  viewshedCmd->add_option("--visible-value,--vv", viewshedOptions.visibleValue, "Output value of visible pixels")
+      ->capture_default_str();
+  viewshedCmd->add_option("--invisible-value,--iv", viewshedOptions.hiddenValue, "Output value of hidden pixels")
+      ->capture_default_str();
+  viewshedCmd->add_option("--nodata-value,--dv", viewshedOptions.nodataValue, "Output value (and nodata) of voids")
+      ->capture_default_str();
+  viewshedCmd
+      ->add_option("--out-of-range-value,--ov", viewshedOptions.outOfRangeValue,
+                   "Output value of pixels beyond --max-distance")
+      ->capture_default_str();
+  addTreeOptions(viewshedCmd, viewshedOptions.index);
 
   AssembleOptions assembleOptions;
   CLI::App* assembleCmd =
@@ -318,6 +356,10 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
       }
     }
     return qota::tools::shadow(shadow, out, err);
+  }
+  if (*viewshedCmd) {
+    viewshedOptions.observer = {observer[0], observer[1]};
+    return tools::viewshed(viewshedOptions, out, err);
   }
   if (*assembleCmd) return tools::assemble(assembleOptions, out, err);
   if (*renderTreeCmd) return tools::renderTree(renderTree, out, err);

@@ -71,6 +71,29 @@ struct InfoOptions {
 };
 int info(const InfoOptions& options, std::ostream& out, std::ostream& err);
 
+// What qota shadow and qota viewshed share: a DEM in, a raster on its grid out, and how the DEM
+// is placed in its frame (FrameOptions). (A base, not a member: a shadow's options are these and
+// its light's.)
+struct RasterJobOptions {
+  std::string source;
+  std::string output;
+  std::string format;                        // GDAL driver; empty: guessed from the extension
+  std::vector<std::string> creationOptions;  // NAME=VALUE
+  bool quiet = false;
+  int band = 0;  // 1-based; 0: the raster's only band
+  bool flat = false;
+  // The frame, as every tool's --mapping names it: "geodetic" (a DEM with a CRS on its
+  // ellipsoid, the default) or "cartesian" (the grid flat: as `flat`); the other mappings are
+  // refused by name. Empty: geodetic, or flat with `flat`.
+  std::string mapping = {};
+  double pixelSize = 0;  // metres per pixel for a raster without CRS
+  double zFactor = 1;    // gdaldem's -z
+  double scale = 0;      // gdaldem's -s (horizontal units per vertical unit)
+  // On the ellipsoid: what the heights are over (FrameOptions::heightRef); recorded in the output.
+  std::string heightRef = {};
+  std::string png;  // a PNG preview over a hillshade
+};
+
 // qota shadow: where a directional light (the sun) is blocked by the terrain, as a raster on the
 // DEM's grid (see qota/shadow.hpp for the geometry).
 //
@@ -88,13 +111,7 @@ int info(const InfoOptions& options, std::ostream& out, std::ostream& err);
 // failed or cancelled run never leaves a partial raster under the requested name; an output that
 // is the input, or a format that stores no pixels (VRT), is refused. Exit code 0 on success, 2 on
 // error.
-struct ShadowOptions {
-  std::string source;
-  std::string output;
-  std::string format;                        // GDAL driver; empty: guessed from the extension
-  std::vector<std::string> creationOptions;  // NAME=VALUE
-  bool quiet = false;
-  int band = 0;  // 1-based; 0: the raster's only band
+struct ShadowOptions : RasterJobOptions {
   std::optional<double> azimuth, altitude;
   // -az/-alt are east-north-up at this (longitude, latitude) (default: the DEM's centre); refused
   // within kPoleDegrees of a pole, where east and north are undefined.
@@ -108,15 +125,6 @@ struct ShadowOptions {
   std::string time;                            // ISO 8601
   std::string tz;                              // zone of a time without offset: +HH:MM or an IANA name
   std::optional<std::array<double, 3>> hours;  // start, end, step (local hours of the date)
-  bool flat = false;
-  // The frame, as every tool's --mapping names it: "geodetic" (a DEM with a CRS on its
-  // ellipsoid, the default) or "cartesian" (the grid flat: as `flat`); the other mappings are
-  // refused by name. Empty: geodetic, or flat with `flat`.
-  std::string mapping = {};
-  double pixelSize = 0;  // metres per pixel for a raster without CRS
-  double zFactor = 1;    // gdaldem's -z
-  double scale = 0;      // gdaldem's -s (horizontal units per vertical unit)
-  std::string png;       // preview: shadow over a hillshade
   int litValue = 255, shadowValue = 0, nodataValue = 128;
   IndexOptions index;  // the quadtree's options (Maxpoly, Maxdepth) for a shadow search that builds one
   ShadowSearch search = ShadowSearch::Strips;  // how the occluders are found (same mask)
@@ -136,10 +144,26 @@ struct ShadowOptions {
   // read from this file when it exists (made for the same raster and frame options, else an
   // error), else made and written there, so that the jobs of a batch make it once.
   std::string tilesState;
-  // On the ellipsoid: what the heights are over (FrameOptions::heightRef); recorded in the output.
-  std::string heightRef = {};
 };
 int shadow(const ShadowOptions& options, std::ostream& out, std::ostream& err);
+
+// qota viewshed: which pixels of a DEM an observer sees (qota/viewshed.hpp for the rule), as a
+// Byte raster on the DEM's grid: visibleValue where the line of sight is clear, hiddenValue where
+// terrain blocks it, nodataValue (also the band's nodata) where the DEM has none, outOfRangeValue
+// beyond maxDistance (four different values; gdal_viewshed's 255 and 0 by default). The observer
+// is given in the raster's CRS, or in `srs`; heights and the distance in metres. The DEM is placed
+// as qota shadow places it (on its ellipsoid, or flat with `flat` / --mapping cartesian).
+// Outputs staged and placed together (none on failure). Exit code 0 on success, 2 on error.
+struct ViewshedOptions : RasterJobOptions {
+  std::array<double, 2> observer{};  // x, y
+  std::string srs;                   // CRS of the observer; empty: the raster's
+  double observerHeight = 2;         // metres above the surface
+  double targetHeight = 0;           // metres above each pixel's surface
+  double maxDistance = 0;            // metres; 0: no limit
+  int visibleValue = 255, hiddenValue = 0, nodataValue = 128, outOfRangeValue = 64;
+  IndexOptions index;
+};
+int viewshed(const ViewshedOptions& options, std::ostream& out, std::ostream& err);
 
 // qota assemble: tiles written by `qota shadow --tile` (or any rasters on one grid) joined into
 // one raster: a GeoTIFF or COG streamed a tile at a time, or a VRT that points at the tiles. The

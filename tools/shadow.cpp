@@ -184,14 +184,13 @@ std::vector<double> preview(const LocalFrame& f, const Eigen::Vector3d& light, c
   return grey;
 }
 
-// True when both paths name the same existing file (or the same path).
+}  // namespace
+
 bool sameFile(const std::string& a, const std::string& b) {
   std::error_code ec;
   if (std::filesystem::equivalent(a, b, ec)) return true;
   return std::filesystem::weakly_canonical(a, ec) == std::filesystem::weakly_canonical(b, ec) && !ec;
 }
-
-}  // namespace
 
 // Everything that can be refused before any work: the light, the values, the outputs.
 void checkOptions(const ShadowOptions& o, const std::string& format) {
@@ -224,27 +223,26 @@ void checkOptions(const ShadowOptions& o, const std::string& format) {
 
 namespace {
 
-// The options with --mapping read, by the registry's flags: a map mapping (cartesian) is --flat,
-// one whose heights are over the ellipsoid (geodetic) the default (which --flat contradicts); the
-// others cast no parallel light on a DEM's grid.
 ShadowOptions withMappingRead(const ShadowOptions& given) {
   ShadowOptions o = given;
-  if (o.mapping.empty()) return o;
-  const MappingEntry& entry = mappingEntry(o.mapping);  // (an unknown name is refused with the list)
-  if (entry.map) {
-    o.flat = true;
-  } else if (entry.ellipsoidHeights) {
-    if (o.flat)
-      throw Error("--mapping " + o.mapping + " puts the DEM on its ellipsoid; --flat keeps it flat: give one");
-  } else {
-    throw Error("--mapping " + o.mapping + ": qota shadow places a DEM on its ellipsoid (" +
-                mappingsWith(&MappingEntry::ellipsoidHeights) + ", the default) or flat (" +
-                mappingsWith(&MappingEntry::map) + ")");
-  }
+  o.flat = flatByMapping(o.mapping, o.flat, "shadow", "casts no parallel light on a DEM's grid");
   return o;
 }
 
 }  // namespace
+
+bool flatByMapping(const std::string& mapping, bool flat, const char* tool, const char* others) {
+  if (mapping.empty()) return flat;
+  const MappingEntry& entry = mappingEntry(mapping);  // (an unknown name is refused with the list)
+  if (entry.map) return true;
+  if (entry.ellipsoidHeights) {
+    if (flat) throw Error("--mapping " + mapping + " puts the DEM on its ellipsoid; --flat keeps it flat: give one");
+    return false;
+  }
+  throw Error("--mapping " + mapping + ": qota " + tool + " places a DEM on its ellipsoid (" +
+              mappingsWith(&MappingEntry::ellipsoidHeights) + ", the default) or flat (" +
+              mappingsWith(&MappingEntry::map) + "); the " + mapping + " mapping " + others);
+}
 
 int shadow(const ShadowOptions& given, std::ostream& out, std::ostream& err) {
   try {

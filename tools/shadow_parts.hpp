@@ -34,8 +34,14 @@ std::uint64_t wholeEstimate(const ShadowOptions& o, std::uint64_t resident);
 // Whether the run goes by tiles: asked for (--tile-size, --tile), or the whole raster would not
 // fit in o.maxMemory (or, without it, in the memory available).
 bool runsByTiles(const ShadowOptions& o);
+// True when both paths name the same existing file (or the same path).
+bool sameFile(const std::string& a, const std::string& b);
+// --mapping read by the registry's flags: a map mapping (cartesian) is flat, one whose heights are
+// over the ellipsoid (geodetic) the default, which `flat` contradicts; the others are refused,
+// the message ending with `others` (what the mapping cannot do for this tool).
+bool flatByMapping(const std::string& mapping, bool flat, const char* tool, const char* others);
 // How the run's options place the DEM in its frame (--flat, --pixel-size, -z, -s, --height-ref).
-FrameOptions frameOptionsOf(const ShadowOptions& o);
+FrameOptions frameOptionsOf(const RasterJobOptions& o);
 // Refuses a raster of more pixels than --max-pixels, with the time it would take (whole or by tiles).
 void refuseBeyondMaxPixels(const ShadowOptions& o, const DemTerrain& described);
 // The run by tiles (shadow_tiles.cpp): memory bounded by o.maxMemory, output streamed.

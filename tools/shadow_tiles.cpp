@@ -190,7 +190,7 @@ std::uint64_t wholeEstimate(const ShadowOptions& o, std::uint64_t resident) {
          pixels * ShadowTiles::bytesPerWholePixel(lightsForEstimate(o));
 }
 
-FrameOptions frameOptionsOf(const ShadowOptions& o) {
+FrameOptions frameOptionsOf(const RasterJobOptions& o) {
   FrameOptions f;
   f.flat = o.flat, f.pixelSize = o.pixelSize, f.zFactor = o.zFactor, f.scale = o.scale, f.heightRef = o.heightRef;
   return f;

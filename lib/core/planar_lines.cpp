@@ -79,4 +79,75 @@ std::vector<LineHit> PlanarCore::alongLine(const Eigen::Vector3d& origin, const 
   return out;
 }
 
+void PlanarCore::ensureNodeTops() const {
+  ensureTree();
+  if (deferred_->topsFor.load(std::memory_order_acquire) == generation_ + 1) return;
+  const std::lock_guard<std::mutex> lock(deferred_->tops);
+  if (deferred_->topsFor.load(std::memory_order_relaxed) == generation_ + 1) return;
+  // Depth first from the root (a tree's depth is bounded by Maxdepth): a node's top is its
+  // triangles' (a leaf) or its children's greatest.
+  const auto nodes = tree_.nodes();
+  std::vector<float> tops(nodes.size(), -INFINITY);
+  const auto topOf = [&](const auto& self, std::uint32_t n) -> float {
+    const Quadtree::Node& nd = nodes[n];
+    float top = -INFINITY;
+    if (nd.count == Quadtree::kInner) {
+      for (std::uint32_t c = 0; c < 4; ++c) top = std::max(top, self(self, nd.first + c));
+    } else {
+      for (std::uint32_t t : tree_.leafRange(nd)) top = std::max(top, tris_[t].hhi);
+    }
+    return tops[n] = top;
+  };
+  if (!nodes.empty()) topOf(topOf, 0);
+  nodeTops_ = std::move(tops);
+  deferred_->topsFor.store(generation_ + 1, std::memory_order_release);
+}
+
+bool PlanarCore::segmentMeets(const Eigen::Vector3d& a, const Eigen::Vector3d& b, std::uint32_t endVertex,
+                              std::span<const std::uint32_t> skip) const {
+  ensureNodeTops();
+  const Eigen::Vector3d O = frame_.toMapped(a);
+  const Eigen::Vector3d d = frame_.toMapped(b) - O;
+  if (!O.allFinite() || !d.allFinite()) return false;
+  // A node is passed over when the segment's lowest height over it is above its highest
+  // triangle corner (hhi is rounded up), with a margin far above the rounding of t and h.
+  const double margin = 1e-9 * (std::fabs(O.z()) + std::fabs(d.z())) + 1e-9;
+  const auto enter = [&](std::uint32_t node, double t0, double t1) {
+    const double top = nodeTops_[node];
+    return !(O.z() + std::min(t0 * d.z(), t1 * d.z()) > top + 1e-12 * std::fabs(top) + 2 * margin);
+  };
+  const auto meets = [&](std::span<const std::uint32_t> items) {
+    for (std::uint32_t t : items) {
+      const Cold& c = cold_[t];
+      if (c.corner[0] == endVertex || c.corner[1] == endVertex || c.corner[2] == endVertex) continue;
+      if (ledger_.removed(c.polygon)) continue;
+      if (!skip.empty() && std::binary_search(skip.begin(), skip.end(), c.polygon)) continue;
+      double q[3][3];  // the corners' offsets from O (line_crossing.hpp)
+      for (int k = 0; k < 3; ++k) {
+        const std::uint32_t v = c.corner[k];
+        q[k][0] = corners2_[v].u - O.x(), q[k][1] = corners2_[v].v - O.y(), q[k][2] = cornerH_[v] - O.z();
+      }
+      // Most triangles of a leaf lie clearly to one side of the segment seen from above: the
+      // vertical plane through it (the sign of d x q in the plane, rounded, with a bound on its
+      // error) parts them from it before the three exact side tests.
+      int left = 0, right = 0;
+      for (const auto& k : q) {
+        const double a = d.x() * k[1], b = d.y() * k[0], side = a - b;
+        const double bound = 4 * std::numeric_limits<double>::epsilon() * (std::fabs(a) + std::fabs(b));
+        left += side > bound, right += side < -bound;
+      }
+      if (left == 3 || right == 3) continue;
+      detail::LineCrossing x;
+      if (detail::crossesTriangle(q, d, x) && x.t > 0 && x.t < 1) return true;
+    }
+    return false;
+  };
+  bool met = false;
+  tree_.walkAlong(O.x(), O.y(), O.x() + d.x(), O.y() + d.y(), enter, [&](std::span<const std::uint32_t> items) {
+    met = meets(items);
+    return met;
+  });
+  return met;
+}
+
 }  // namespace qota

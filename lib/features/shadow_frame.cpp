@@ -363,6 +363,94 @@ void heightsInMetres(const FrameBasis& b, const PixelWindow& window, std::vector
   }
 }
 
+std::vector<Eigen::Vector3d> framePoints(const FrameBasis& b, std::span<const double> col, std::span<const double> row,
+                                         std::span<const double> height, std::span<const int> pole) {
+  const DemTerrain& dem = b.raster;
+  const LocalFrame& f = b.shared;
+  const std::size_t vertexCount = col.size();
+  if (row.size() != vertexCount || height.size() != vertexCount || (!pole.empty() && pole.size() != vertexCount)) {
+    throw Error("frame points: as many columns, rows, heights (and poles) are needed");
+  }
+  const auto poleOf = [&](std::size_t i) { return pole.empty() ? 0 : pole[i]; };
+  const auto& gt = dem.geotransform;
+  const auto source = [&](std::size_t i, double& x, double& y) {
+    x = gt[0] + col[i] * gt[1] + row[i] * gt[2];
+    y = gt[3] + col[i] * gt[4] + row[i] * gt[5];
+  };
+  const double cc = (dem.width - 1) / 2.0, cr = (dem.height - 1) / 2.0;
+  const auto centre = dem.pixelCentre(cc, cr);
+
+  std::vector<Eigen::Vector3d> out(vertexCount);
+  if (dem.crsWkt.empty()) {
+    // Pixel grid, rows running south.
+    const double s = b.options.pixelSize;
+    for (std::size_t i = 0; i < vertexCount; ++i) {
+      out[i] = {(col[i] - 0.5 - cc) * s, -(row[i] - 0.5 - cr) * s, height[i]};
+    }
+  } else {
+    const OGRSpatialReference srs = basisCrs(b);
+    const bool ellipsoid = f.body.ellipsoid;
+    // Longitude and latitude of every vertex, on the CRS's own ellipsoid.
+    std::vector<double> lon(vertexCount), lat(vertexCount);
+    for (std::size_t i = 0; i < vertexCount; ++i) source(i, lon[i], lat[i]);
+    if (!b.geographic && ellipsoid) {
+      OGRSpatialReference geo;
+      geo.CopyGeogCSFrom(&srs);
+      geo.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+      std::unique_ptr<OGRCoordinateTransformation> toGeo(OGRCreateCoordinateTransformation(&srs, &geo));
+      if (!toGeo) throw Error(dem.path + ": its CRS cannot be converted to longitude/latitude");
+      std::vector<int> ok(vertexCount, 0);
+      toGeo->Transform(vertexCount, lon.data(), lat.data(), nullptr, ok.data());
+      for (std::size_t i = 0; i < vertexCount; ++i) {
+        if (!ok[i] || !std::isfinite(lon[i]) || !std::isfinite(lat[i])) {
+          throw Error(dem.path + ": pixel (" + std::to_string(col[i]) + ", " + std::to_string(row[i]) +
+                      ") cannot be converted to longitude/latitude; shadow it with --flat");
+        }
+      }
+    }
+    for (std::size_t i = 0; i < vertexCount; ++i) {
+      if (poleOf(i)) lon[i] = 0, lat[i] = 90.0 * poleOf(i);
+    }
+    const double lon0 = f.centreLon, lat0 = f.centreLat;
+    if (ellipsoid) {
+      const GeographicLib::Geocentric earth(b.a, b.flattening);
+      for (std::size_t i = 0; i < vertexCount; ++i) {
+        if (!(std::fabs(lat[i]) <= 90.0)) {
+          throw Error(dem.path + ": pixel (" + std::to_string(col[i]) + ", " + std::to_string(row[i]) +
+                      ") is at latitude " + std::to_string(lat[i]) + ", beyond the pole");
+        }
+        // Over the ellipsoid: the height over the geoid plus the geoid's undulation there.
+        const double n = b.geoid ? b.geoid->undulation(lon[i], lat[i]) : 0.0;
+        if (std::isnan(n)) {
+          throw Error(dem.path + ": pixel (" + std::to_string(col[i]) + ", " + std::to_string(row[i]) + ") at " +
+                      std::to_string(lon[i]) + ", " + std::to_string(lat[i]) + " is outside the geoid grid " +
+                      b.heightRef.grid);
+        }
+        Eigen::Vector3d X;
+        earth.Forward(lat[i], lon[i], height[i] + n, X.x(), X.y(), X.z());
+        out[i] = f.body.rotation * (X - f.body.origin);
+      }
+    } else if (b.geographic) {
+      // Longitude and latitude scaled linearly by the ellipsoid's radii of curvature at the
+      // centre: no curvature.
+      const double fl = b.flattening, e2 = fl * (2 - fl), s = std::sin(lat0 * kDeg);
+      const double wq = std::sqrt(1 - e2 * s * s);
+      const double nRad = b.a / wq, mRad = b.a * (1 - e2) / (wq * wq * wq);
+      for (std::size_t i = 0; i < vertexCount; ++i) {
+        out[i] = {(lon[i] - lon0) * kDeg * nRad * std::cos(lat0 * kDeg), (lat[i] - lat0) * kDeg * mRad, height[i]};
+      }
+    } else {
+      const double unit = srs.GetLinearUnits();
+      for (std::size_t i = 0; i < vertexCount; ++i) {
+        double x, y;
+        source(i, x, y);
+        out[i] = {(x - centre[0]) * unit, (y - centre[1]) * unit, height[i]};
+      }
+    }
+  }
+  return out;
+}
+
 LocalFrame windowFrame(const FrameBasis& b, const PixelWindow& window, std::vector<double> z,
                        std::vector<std::uint8_t> valid) {
   const DemTerrain& dem = b.raster;
@@ -409,83 +497,7 @@ LocalFrame windowFrame(const FrameBasis& b, const PixelWindow& window, std::vect
     height[i] = sum / w;
   }
   z = {};
-  const auto& gt = dem.geotransform;
-  const auto source = [&](std::size_t i, double& x, double& y) {
-    x = gt[0] + col[i] * gt[1] + row[i] * gt[2];
-    y = gt[3] + col[i] * gt[4] + row[i] * gt[5];
-  };
-  const double cc = (dem.width - 1) / 2.0, cr = (dem.height - 1) / 2.0;
-  const auto centre = dem.pixelCentre(cc, cr);
-
-  f.mesh.vertices.resize(vertexCount);
-  if (dem.crsWkt.empty()) {
-    // Pixel grid, rows running south.
-    const double s = b.options.pixelSize;
-    for (std::size_t i = 0; i < vertexCount; ++i) {
-      f.mesh.vertices[i] = {(col[i] - 0.5 - cc) * s, -(row[i] - 0.5 - cr) * s, height[i]};
-    }
-  } else {
-    const OGRSpatialReference srs = basisCrs(b);
-    const bool ellipsoid = f.body.ellipsoid;
-    // Longitude and latitude of every vertex, on the CRS's own ellipsoid.
-    std::vector<double> lon(vertexCount), lat(vertexCount);
-    for (std::size_t i = 0; i < vertexCount; ++i) source(i, lon[i], lat[i]);
-    if (!b.geographic && ellipsoid) {
-      OGRSpatialReference geo;
-      geo.CopyGeogCSFrom(&srs);
-      geo.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-      std::unique_ptr<OGRCoordinateTransformation> toGeo(OGRCreateCoordinateTransformation(&srs, &geo));
-      if (!toGeo) throw Error(dem.path + ": its CRS cannot be converted to longitude/latitude");
-      std::vector<int> ok(vertexCount, 0);
-      toGeo->Transform(vertexCount, lon.data(), lat.data(), nullptr, ok.data());
-      for (std::size_t i = 0; i < vertexCount; ++i) {
-        if (!ok[i] || !std::isfinite(lon[i]) || !std::isfinite(lat[i])) {
-          throw Error(dem.path + ": pixel (" + std::to_string(col[i]) + ", " + std::to_string(row[i]) +
-                      ") cannot be converted to longitude/latitude; shadow it with --flat");
-        }
-      }
-    }
-    for (std::size_t i = 0; i < vertexCount; ++i) {
-      if (pole[i]) lon[i] = 0, lat[i] = 90.0 * pole[i];
-    }
-    const double lon0 = f.centreLon, lat0 = f.centreLat;
-    if (ellipsoid) {
-      const GeographicLib::Geocentric earth(b.a, b.flattening);
-      for (std::size_t i = 0; i < vertexCount; ++i) {
-        if (!(std::fabs(lat[i]) <= 90.0)) {
-          throw Error(dem.path + ": pixel (" + std::to_string(col[i]) + ", " + std::to_string(row[i]) +
-                      ") is at latitude " + std::to_string(lat[i]) + ", beyond the pole");
-        }
-        // Over the ellipsoid: the height over the geoid plus the geoid's undulation there.
-        const double n = b.geoid ? b.geoid->undulation(lon[i], lat[i]) : 0.0;
-        if (std::isnan(n)) {
-          throw Error(dem.path + ": pixel (" + std::to_string(col[i]) + ", " + std::to_string(row[i]) + ") at " +
-                      std::to_string(lon[i]) + ", " + std::to_string(lat[i]) + " is outside the geoid grid " +
-                      b.heightRef.grid);
-        }
-        Eigen::Vector3d X;
-        earth.Forward(lat[i], lon[i], height[i] + n, X.x(), X.y(), X.z());
-        f.mesh.vertices[i] = f.body.rotation * (X - f.body.origin);
-      }
-    } else if (b.geographic) {
-      // Longitude and latitude scaled linearly by the ellipsoid's radii of curvature at the
-      // centre: no curvature.
-      const double fl = b.flattening, e2 = fl * (2 - fl), s = std::sin(lat0 * kDeg);
-      const double wq = std::sqrt(1 - e2 * s * s);
-      const double nRad = b.a / wq, mRad = b.a * (1 - e2) / (wq * wq * wq);
-      for (std::size_t i = 0; i < vertexCount; ++i) {
-        f.mesh.vertices[i] = {(lon[i] - lon0) * kDeg * nRad * std::cos(lat0 * kDeg), (lat[i] - lat0) * kDeg * mRad,
-                              height[i]};
-      }
-    } else {
-      const double unit = srs.GetLinearUnits();
-      for (std::size_t i = 0; i < vertexCount; ++i) {
-        double x, y;
-        source(i, x, y);
-        f.mesh.vertices[i] = {(x - centre[0]) * unit, (y - centre[1]) * unit, height[i]};
-      }
-    }
-  }
+  f.mesh.vertices = framePoints(b, col, row, height, pole);
   f.mesh.indices = f.grid.indices();
   return f;
 }
@@ -534,13 +546,18 @@ void adoptBasis(LocalFrame& frame, const FrameBasis& b) {
 }
 
 LocalFrame localFrame(const DemTerrain& dem, const FrameOptions& o) {
+  FrameBasis basis;
+  return localFrame(dem, o, basis);
+}
+
+LocalFrame localFrame(const DemTerrain& dem, const FrameOptions& o, FrameBasis& basis) {
   const int w = dem.width, h = dem.height;
   const std::size_t n = static_cast<std::size_t>(std::max(w, 0)) * static_cast<std::size_t>(std::max(h, 0));
   if (w < 1 || h < 1 || dem.mesh.vertices.size() != n) {
     throw Error(dem.path + ": not a raster grid (" + std::to_string(dem.mesh.vertices.size()) + " vertices for " +
                 std::to_string(w) + " x " + std::to_string(h) + " pixels)");
   }
-  FrameBasis basis = frameBasis(dem, o);
+  basis = frameBasis(dem, o);
   const PixelWindow whole{0, 0, w, h};
   // Heights in metres with the voids filled (for occlusion only), and which pixels have data.
   std::vector<double> z(n);

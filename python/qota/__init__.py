@@ -30,7 +30,7 @@ from . import _interop
 from . import _qota
 from ._qota import Error, __version__
 
-__all__ = ["Terrain", "Hits", "Error", "__version__", "shadow", "sun_position", "MAPPINGS"]
+__all__ = ["Terrain", "Hits", "Error", "__version__", "shadow", "viewshed", "sun_position", "MAPPINGS"]
 
 #: The mappings a terrain can be built in (Terrain.mapping is one of these): the library's mapping
 #: registry, as the tools' --mapping takes them.
@@ -423,12 +423,13 @@ def _shadow_file(dem_path, output, azimuth, altitude, time, tz, band, z_factor, 
         return run(_os.path.join(folder, "shadow.tif"))
 
 
-def _shadow_in_memory(dem, azimuth, altitude, time, tz, band, z_factor, output, hours):
-    """qota shadow of a DataArray or a rasterio dataset, as a DataArray on its grid.
+def _on_a_file(dem, band, compute):
+    """compute(path, band) on a raster file holding a DataArray's or a rasterio dataset's band,
+    and the DataArray its result goes into (its dimensions, coordinates and CRS).
 
-    The C++ shadow reads a file: a dataset on a local file is shaded from that file, anything
-    else is written to a temporary GeoTIFF first (float64, with its geotransform, nodata, CRS and
-    vertical unit, which the shadow uses to put heights in metres)."""
+    The C++ tools read a file: a dataset on a local file is read from that file, anything else is
+    written to a temporary GeoTIFF first (float64, with its geotransform, nodata, CRS and
+    vertical unit, which the tools use to put heights in metres)."""
     if _interop.is_rasterio_dataset(dem):
         template = _interop.dataarray_of_rasterio(dem, int(band))
         local = _interop.local_file_of(dem)
@@ -437,12 +438,17 @@ def _shadow_in_memory(dem, azimuth, altitude, time, tz, band, z_factor, output, 
         template = _interop.select_band(dem, int(band))
         local, grid = None, _interop.dataarray_grid(dem, int(band))
     if local is not None:
-        mask = _shadow_file(local, output, azimuth, altitude, time, tz, band, z_factor, hours)
-    else:
-        with _tempfile.TemporaryDirectory(prefix="qota_shadow_") as folder:
-            path = _os.path.join(folder, "dem.tif")
-            _qota._write_raster(path, grid.heights, grid.transform, grid.nodata, grid.crs, grid.unit)
-            mask = _shadow_file(path, output, azimuth, altitude, time, tz, 1, z_factor, hours)
+        return template, compute(local, band)
+    with _tempfile.TemporaryDirectory(prefix="qota_raster_") as folder:
+        path = _os.path.join(folder, "dem.tif")
+        _qota._write_raster(path, grid.heights, grid.transform, grid.nodata, grid.crs, grid.unit)
+        return template, compute(path, 1)
+
+
+def _shadow_in_memory(dem, azimuth, altitude, time, tz, band, z_factor, output, hours):
+    """qota shadow of a DataArray or a rasterio dataset, as a DataArray on its grid."""
+    template, mask = _on_a_file(
+        dem, band, lambda path, b: _shadow_file(path, output, azimuth, altitude, time, tz, b, z_factor, hours))
     if hours is not None:
         return _interop.mask_like(template, mask, -1.0, "sunlight_hours")
     return _interop.mask_like(template, mask)
@@ -495,6 +501,53 @@ def shadow(dem_path, azimuth=None, altitude=None, *, time=None, tz=None, hours=N
         return _shadow_in_memory(dem_path, azimuth, altitude, time, tz, band, z_factor, output, hours)
     return _shadow_file(_local_file(dem_path), output, azimuth, altitude, time, tz, band, z_factor, hours, height_ref,
                         light)
+
+
+def viewshed(dem, observer, *, observer_height=2.0, target_height=0.0, max_distance=0.0, srs=None, band=1,
+             flat=False, height_ref=None, output=None):
+    """Which pixels of a DEM an observer sees, as `qota viewshed` computes it: exactly, on the
+    triangulated terrain (a pixel is visible when the segment from the observer to its centre
+    meets no terrain between its ends; voids block nothing), on the DEM's ellipsoid with straight
+    geocentric lines unless `flat`.
+
+    dem: a raster file, or an xarray.DataArray (rioxarray) or an open rasterio dataset.
+    observer: (x, y) in the raster's CRS, or in `srs` (EPSG:4326, WKT, PROJ; x = longitude or
+    easting). observer_height and target_height: metres above the surface at the observer and at
+    each pixel centre; max_distance: metres (horizontal), 0 for no limit. height_ref: on the
+    ellipsoid, what the heights are over (as qota.shadow's; a raster file only). Returns uint8
+    pixels on the DEM's grid: 255 visible, 0 not visible, 128 nodata, 64 beyond max_distance; a
+    numpy array (rows, columns) for a file, an xarray.DataArray for a DataArray or a rasterio
+    dataset. With `output` the raster is kept there too.
+    """
+    if observer is None:
+        raise Error("observer must be (x, y), got None")
+    x, y = _vector(observer, "observer", 2)
+    heights = {name: _number(value, name) for name, value in
+               (("observer_height", observer_height), ("target_height", target_height),
+                ("max_distance", max_distance))}
+    for name, value in heights.items():
+        if not value >= 0:
+            raise Error(f"{name} must be a number of metres, 0 or more, got {value!r}")
+    if srs is not None and not isinstance(srs, str):
+        raise Error(f"srs must be a text (EPSG:4326, WKT, PROJ), got {srs!r}")
+
+    def run(path, b, kept):
+        return _qota._viewshed(path, kept, (x, y), srs or "", heights["observer_height"], heights["target_height"],
+                               heights["max_distance"], _whole(b, "band"), bool(flat),
+                               "" if height_ref is None else _os.fspath(height_ref))
+
+    def on_file(path, b):
+        if output is not None:
+            return run(path, b, str(output))
+        with _tempfile.TemporaryDirectory(prefix="qota_viewshed_") as folder:
+            return run(path, b, _os.path.join(folder, "viewshed.tif"))
+
+    if _interop.is_dataarray(dem) or _interop.is_rasterio_dataset(dem):
+        if height_ref is not None:
+            raise Error("height_ref takes a raster file; give the DataArray's or dataset's file")
+        template, seen = _on_a_file(dem, band, on_file)
+        return _interop.mask_like(template, seen, 128, "viewshed")
+    return on_file(_local_file(dem), band)
 
 
 def sun_position(time, lon, lat, *, tz=None):

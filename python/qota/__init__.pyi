@@ -72,4 +72,10 @@ def shadow(dem_path: _Raster, azimuth: float | None = None, altitude: float | No
            sun_vector: tuple[float, float, float] | None = None, sun_vector_body: tuple[float, float, float] | None = None,
            subsolar: tuple[float, float] | None = None,
            flat: bool = False) -> npt.NDArray[np.uint8] | npt.NDArray[np.float32] | Any: ...
+# uint8: 255 visible, 0 not, 128 nodata, 64 out of range; a numpy array for a file, an
+# xarray.DataArray for a DataArray or a rasterio dataset.
+def viewshed(dem: _Raster, observer: tuple[float, float], *, observer_height: float = 2.0,
+             target_height: float = 0.0, max_distance: float = 0.0, srs: str | None = None, band: int = 1,
+             flat: bool = False, height_ref: _Path | None = None,
+             output: _Path | None = None) -> npt.NDArray[np.uint8] | Any: ...
 def sun_position(time: str, lon: float, lat: float, *, tz: str | None = None) -> tuple[float, float]: ...

@@ -371,6 +371,36 @@ Terrain load(const std::string& path) {
   }
 }
 
+// A tool run quietly with the GIL released, and the raster it wrote (band 1 of o.output) read
+// back as an array; its error as a qota.Error when it failed.
+template <class Options>
+py::array toolRaster(const char* tool, int (*run)(const Options&, std::ostream&, std::ostream&), const Options& o,
+                     bool floats) {
+  std::ostringstream out, err;
+  int code = 0;
+  {
+    py::gil_scoped_release release;
+    code = run(o, out, err);
+  }
+  const std::string& output = o.output;
+  if (code != 0) {
+    std::string message = err.str();
+    while (!message.empty() && message.back() == '\n') message.pop_back();
+    throw qota::Error(message.empty() ? std::string("qota ") + tool + " failed" : message);
+  }
+  qota::ensureGdalRegistered();
+  std::unique_ptr<GDALDataset> ds(GDALDataset::Open(output.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
+  const std::string unreadable = output + ": cannot read the " + tool + " raster back";
+  if (!ds) throw qota::Error(unreadable);
+  const int w = ds->GetRasterXSize(), h = ds->GetRasterYSize();
+  py::array pixels = floats ? py::array(py::array_t<float>({h, w})) : py::array(py::array_t<std::uint8_t>({h, w}));
+  if (ds->GetRasterBand(1)->RasterIO(GF_Read, 0, 0, w, h, pixels.mutable_data(), w, h, floats ? GDT_Float32 : GDT_Byte,
+                                     0, 0) != CE_None) {
+    throw qota::Error(unreadable);
+  }
+  return pixels;
+}
+
 // qota shadow itself (the same pixels, the same checks and messages), into `output`, read back:
 // uint8 lit, shadow, nodata; with hours (start, end, step), float32 hours of sunlight.
 py::array shadow(const std::string& dem, const std::string& output, std::optional<double> azimuth,
@@ -394,27 +424,26 @@ py::array shadow(const std::string& dem, const std::string& output, std::optiona
   if (sunVectorBody) o.sunVectorBody = Eigen::Vector3d((*sunVectorBody)[0], (*sunVectorBody)[1], (*sunVectorBody)[2]);
   o.subsolar = subsolar;
   o.flat = flat;
-  std::ostringstream out, err;
-  int code = 0;
-  {
-    py::gil_scoped_release release;
-    code = qota::tools::shadow(o, out, err);
-  }
-  if (code != 0) {
-    std::string message = err.str();
-    while (!message.empty() && message.back() == '\n') message.pop_back();
-    throw qota::Error(message.empty() ? "qota shadow failed" : message);
-  }
-  qota::ensureGdalRegistered();
-  std::unique_ptr<GDALDataset> ds(GDALDataset::Open(output.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
-  if (!ds) throw qota::Error(output + ": cannot read the shadow raster back");
-  const int w = ds->GetRasterXSize(), h = ds->GetRasterYSize();
-  py::array pixels = hours ? py::array(py::array_t<float>({h, w})) : py::array(py::array_t<std::uint8_t>({h, w}));
-  if (ds->GetRasterBand(1)->RasterIO(GF_Read, 0, 0, w, h, pixels.mutable_data(), w, h, hours ? GDT_Float32 : GDT_Byte,
-                                     0, 0) != CE_None) {
-    throw qota::Error(output + ": cannot read the shadow raster back");
-  }
-  return pixels;
+  return toolRaster("shadow", qota::tools::shadow, o, hours.has_value());
+}
+
+// qota viewshed itself, into `output`, read back: uint8 visible, not visible, nodata, out of range.
+py::array viewshed(const std::string& dem, const std::string& output, std::array<double, 2> observer,
+                   const std::string& srs, double observerHeight, double targetHeight, double maxDistance, int band,
+                   bool flat, const std::string& heightRef) {
+  qota::tools::ViewshedOptions o;
+  o.source = dem;
+  o.output = output;
+  o.quiet = true;
+  o.band = band;
+  o.observer = observer;
+  o.srs = srs;
+  o.observerHeight = observerHeight;
+  o.targetHeight = targetHeight;
+  o.maxDistance = maxDistance;
+  o.flat = flat;
+  o.heightRef = heightRef;
+  return toolRaster("viewshed", qota::tools::viewshed, o, false);
 }
 
 // The Sun's apparent azimuth and altitude (degrees) seen from (lon, lat) on the Earth.
@@ -644,6 +673,9 @@ PYBIND11_MODULE(_qota, m) {
         py::arg("tz"), py::arg("band"), py::arg("z_factor"), py::arg("hours") = py::none(), py::arg("height_ref") = "",
         py::arg("sun_vector") = py::none(), py::arg("sun_vector_body") = py::none(), py::arg("subsolar") = py::none(),
         py::arg("flat") = false);
+  m.def("_viewshed", &viewshed, py::arg("dem"), py::arg("output"), py::arg("observer"), py::arg("srs"),
+        py::arg("observer_height"), py::arg("target_height"), py::arg("max_distance"), py::arg("band"), py::arg("flat"),
+        py::arg("height_ref"));
   m.def("_sun_position", &sunPosition, py::arg("time"), py::arg("lon"), py::arg("lat"), py::arg("tz"));
   m.def("_write_raster", &writeRaster, py::arg("path"), py::arg("heights"), py::arg("transform"),
         py::arg("nodata") = py::none(), py::arg("crs") = "", py::arg("unit") = "");

@@ -242,6 +242,41 @@ def test_shadow_is_the_tools_mask(tmp_path):
         qota.shadow(RAINIER)
 
 
+def test_viewshed_is_the_tools_raster(tmp_path):
+    import subprocess
+
+    from osgeo import gdal
+
+    tool = os.environ.get("QOTA_TOOL", str(Path(__file__).resolve().parents[2] / "build" / "tools" / "qota"))
+    if not Path(tool).exists():
+        pytest.skip("no qota tool built at " + tool)
+    subprocess.run([tool, "viewshed", str(RAINIER), "--observer", "-121.78,46.83", "--oz", "10", "--md", "15000",
+                    "-o", str(tmp_path / "tool.tif"), "-q"], check=True)
+    ds = gdal.Open(str(tmp_path / "tool.tif"))
+    want = ds.GetRasterBand(1).ReadAsArray()
+    got = qota.viewshed(RAINIER, observer=(-121.78, 46.83), observer_height=10, max_distance=15000)
+    assert got.dtype == np.uint8 and got.shape == want.shape
+    np.testing.assert_array_equal(got, want)
+    assert {0, 64, 255} <= set(np.unique(got)) <= {0, 64, 128, 255}
+    with pytest.raises(qota.Error, match="observer_height"):
+        qota.viewshed(RAINIER, observer=(-121.78, 46.83), observer_height=-1)
+    with pytest.raises(qota.Error, match="not on"):
+        qota.viewshed(RAINIER, observer=(-130, 46.83))
+
+
+def test_viewshed_of_a_wall(tmp_path):
+    # A 10 m wall across column 6 of a flat 1 m grid, the observer 2 m up at column 2: every
+    # pixel up to the wall's face is seen, none behind it (the line to column 7 passes the wall
+    # at 2 - 2 * 4 / 5 m).
+    heights = np.zeros((5, 12))
+    heights[:, 6] = 10
+    path = tmp_path / "wall.tif"
+    qota._qota._write_raster(str(path), heights, (500000.0, 1.0, 0.0, 5000005.0, 0.0, -1.0), None, "EPSG:32633", "m")
+    seen = qota.viewshed(path, observer=(500002.5, 5000002.5), flat=True)
+    np.testing.assert_array_equal(seen[:, :7], 255)
+    np.testing.assert_array_equal(seen[:, 7:], 0)
+
+
 def test_sun_position_at_noon_on_the_solstice():
     # Greenwich (0, 51.4769) at 2024-06-21 12:00 UTC, two minutes before solar noon (the equation
     # of time is -1.7 min): altitude 90 - 51.4769 + 23.44 (the solstice's declination) = 61.96

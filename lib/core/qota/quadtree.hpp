@@ -136,7 +136,20 @@ class Quadtree {
   // Calls visit(items) for every leaf whose closed box meets the segment (u0, v0)-(u1, v1)
   // (boxes widened by a relative 1e-12, so rounding never drops one).
   template <class Visit>
-  void forLeavesAlong(double u0, double v0, double u1, double v1, Visit&& visit) const;
+  void forLeavesAlong(double u0, double v0, double u1, double v1, Visit&& visit) const {
+    walkAlong(
+        u0, v0, u1, v1, [](std::uint32_t, double, double) { return true; },
+        [&](std::span<const std::uint32_t> items) {
+          visit(items);
+          return false;
+        });
+  }
+  // The same walk, pruned and stoppable: enter(node, t0, t1) is asked before each node whose
+  // padded box the segment meets, t0..t1 the piece of the segment (parameter 0 at (u0, v0), 1 at
+  // (u1, v1)) inside that box (widened by the padding), and the node is skipped when it returns
+  // false; visit(items) returns true to stop the walk. Nodes are numbered as nodes() does.
+  template <class Enter, class Visit>
+  void walkAlong(double u0, double v0, double u1, double v1, Enter&& enter, Visit&& visit) const;
 
   // Dynamic edits. insert adds item to every leaf whose box it overlaps; a leaf that then holds
   // more than Maxpoly items is split by the build's own rule (buildNode), so the tree stays as
@@ -242,8 +255,8 @@ class Quadtree {
   std::uint32_t memoryCheckShift_ = 20;  // the build checks the memory left every 2^this nodes
 };
 
-template <class Visit>
-void Quadtree::forLeavesAlong(double u0, double v0, double u1, double v1, Visit&& visit) const {
+template <class Enter, class Visit>
+void Quadtree::walkAlong(double u0, double v0, double u1, double v1, Enter&& enter, Visit&& visit) const {
   if (half_.empty()) return;
   struct Item {
     std::uint32_t node, depth;
@@ -251,9 +264,10 @@ void Quadtree::forLeavesAlong(double u0, double v0, double u1, double v1, Visit&
   };
   const double du = u1 - u0, dv = v1 - v0;
   const double pad = 1e-12 * (std::fabs(root_.uhi - root_.ulo) + std::fabs(root_.vhi - root_.vlo));
-  // Slab test of the segment against a closed, padded box.
+  // Slab test of the segment against a closed, padded box; t0..t1 the piece inside.
+  double t0 = 0, t1 = 1;
   auto meets = [&](double lu, double lv, double hu, double hv) {
-    double t0 = 0, t1 = 1;
+    t0 = 0, t1 = 1;
     auto axis = [&](double o, double d, double lo, double hi) {
       lo -= pad, hi += pad;
       if (d == 0) return o >= lo && o <= hi;
@@ -268,18 +282,22 @@ void Quadtree::forLeavesAlong(double u0, double v0, double u1, double v1, Visit&
   while (!stack.empty()) {
     const Item it = stack.back();
     stack.pop_back();
-    if (!meets(it.lu, it.lv, it.hu, it.hv)) continue;
+    if (!meets(it.lu, it.lv, it.hu, it.hv) || !enter(it.node, t0, t1)) continue;
     const Node& nd = nodes_[it.node];
     if (nd.count != kInner) {
-      visit(leafRange(nd));
+      if (visit(leafRange(nd))) return;
       continue;
     }
     const Point2 cut = cutOf(it.node, it.depth, it.lu, it.lv);
     const double mu = cut.u, mv = cut.v;
-    stack.push_back({nd.first, it.depth + 1, it.lu, it.lv, mu, mv});
-    stack.push_back({nd.first + 1, it.depth + 1, mu, it.lv, it.hu, mv});
-    stack.push_back({nd.first + 2, it.depth + 1, it.lu, mv, mu, it.hv});
-    stack.push_back({nd.first + 3, it.depth + 1, mu, mv, it.hu, it.hv});
+    // Front to back along the segment (the child it starts in popped first), so that a walk
+    // that stops at the first item it meets tends to meet the nearest.
+    const Item child[4] = {{nd.first, it.depth + 1, it.lu, it.lv, mu, mv},
+                           {nd.first + 1, it.depth + 1, mu, it.lv, it.hu, mv},
+                           {nd.first + 2, it.depth + 1, it.lu, mv, mu, it.hv},
+                           {nd.first + 3, it.depth + 1, mu, mv, it.hu, it.hv}};
+    const unsigned start = (du < 0 ? 1u : 0u) | (dv < 0 ? 2u : 0u);
+    for (const unsigned k : {3u, 1u, 2u, 0u}) stack.push_back(child[start ^ k]);
   }
 }
 

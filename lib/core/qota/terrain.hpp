@@ -91,6 +91,19 @@ class PlanarCore : public IndexFace<PlanarCore> {
   std::vector<LineHit> alongLine(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction,
                                  double tmin = -INFINITY, double tmax = INFINITY) const;
 
+  // Whether the open segment from world point a to world point b meets terrain strictly between
+  // its ends: crosses or touches a triangle (closed, by alongLine's exact side tests) at a line
+  // parameter t with 0 < t < 1 (t computed in floating point, so ends that lie on terrain must be
+  // named: see below). A triangle whose plane holds the segment is grazed, not met (its
+  // neighbours decide, as alongLine). endVertex: b is this mesh vertex, so the triangles that
+  // have it as a corner meet the segment only at b and are left out (kNoVertex: none). skip: polygons
+  // left out as well (those a lies on), sorted. The walk skips every quadtree node the segment
+  // passes above (each node keeps the greatest height of its triangles), and stops at the first
+  // triangle met: a viewshed's line of sight, a point light's ray. Thread-safe with queries.
+  static constexpr std::uint32_t kNoVertex = 0xffffffffu;
+  bool segmentMeets(const Eigen::Vector3d& a, const Eigen::Vector3d& b, std::uint32_t endVertex = kNoVertex,
+                    std::span<const std::uint32_t> skip = {}) const;
+
   // Dynamic edits (the paper's dynamic insertion). insertPolygon adds a convex polygon given by
   // its world corners (at least 3, finite; the same rules as the mesh's polygons) and returns its
   // id, which continues after the mesh's (polygon ids are never reused). Its triangles go into
@@ -284,7 +297,12 @@ class PlanarCore : public IndexFace<PlanarCore> {
     std::once_flag once;
     std::atomic<bool> built{false};
     std::mutex stats;  // the lazily refreshed stats_
+    // segmentMeets' node heights (nodeTops_), made on first need for this edit generation + 1.
+    std::mutex tops;
+    std::atomic<std::uint64_t> topsFor{0};
   };
+  mutable std::vector<float> nodeTops_;  // per quadtree node, the greatest hhi of its triangles
+  void ensureNodeTops() const;
   std::uint64_t recordBytesBeforeTree_ = 0;  // tris_ before a deferred build (it may add them)
   std::unique_ptr<Deferred> deferred_ = std::make_unique<Deferred>();
   QuadtreeOptions deferredOptions_;

@@ -27,6 +27,7 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -157,7 +158,17 @@ void heightsInMetres(const FrameBasis& basis, const PixelWindow& window, std::ve
 // A raster closed round the globe has only the whole window.
 LocalFrame windowFrame(const FrameBasis& basis, const PixelWindow& window, std::vector<double> heights,
                        std::vector<std::uint8_t> valid);
+// Frame points of raster positions: pixel coordinates (GDAL's: pixel centres at + 0.5) and
+// heights in metres over the frame's reference (the basis's heightRef on an ellipsoid), placed
+// by the arithmetic windowFrame places its vertices with, so a pixel centre at its pixel's height
+// is that vertex, bit for bit. pole: +1 / -1 for a point at the north / south pole (empty: none).
+// Throws qota::Error naming the position where the CRS or the geoid cannot place it.
+std::vector<Eigen::Vector3d> framePoints(const FrameBasis& basis, std::span<const double> col,
+                                         std::span<const double> row, std::span<const double> height,
+                                         std::span<const int> pole = {});
 void completeBasis(FrameBasis& basis, double minHeight, double maxHeight, const LocalFrame& centre);
+// localFrame(dem, options), and the basis it was made on (for framePoints).
+LocalFrame localFrame(const DemTerrain& dem, const FrameOptions& options, FrameBasis& basis);
 // Copies what completeBasis found into a frame made before it.
 void adoptBasis(LocalFrame& frame, const FrameBasis& basis);
 

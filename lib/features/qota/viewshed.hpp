@@ -1,0 +1,83 @@
+// Viewsheds: which pixels of a DEM an observer sees, exactly, on the triangulated terrain.
+//
+// Rule: a pixel is visible when the open segment from the observer, at (x, y) and `observerHeight`
+// metres above the surface there, to the pixel centre `targetHeight` metres above its surface
+// meets no terrain strictly between its ends. The surface is the DEM's triangulated terrain (what
+// `qota sample` answers: the pixel centres, two triangles a square, the outer half pixel flat to
+// the raster's edge); triangles with a corner on a void are holes, which block nothing. "Above"
+// is along the body's up (the ellipsoid normal), and the segment is straight in the frame
+// (shadow_frame.hpp): on an ellipsoid, a straight line in geocentric coordinates through terrain
+// placed by longitude, latitude and height, so the body's curvature is exact, not a correction
+// term; in a flat frame (FrameOptions::flat) a straight line over the grid as it is.
+//
+// The test of a segment against a triangle is the planar index's exact side test
+// (CartesianIndex::segmentMeets): a segment touching an edge or a corner is blocked, one that
+// runs within the plane of a triangle grazes it (its neighbours decide: a flat plain seen from
+// the ground is visible). A target on the surface (targetHeight 0) is a vertex of the terrain,
+// whose own triangles meet its segment only there; an observer on the surface (observerHeight 0)
+// is not blocked by the triangles it stands on.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "qota/dem.hpp"
+#include "qota/shadow.hpp"
+#include "qota/shadow_frame.hpp"
+
+namespace qota {
+
+enum class Sight : std::uint8_t { Hidden = 0, Visible = 1, NoData = 2, OutOfRange = 3 };
+
+struct ViewshedOptions {
+  double observerX = 0, observerY = 0;  // in the DEM's CRS (its world x, y; longitude, latitude)
+  double observerHeight = 2;            // metres above the surface at the observer
+  double targetHeight = 0;              // metres above each pixel centre's surface
+  // Pixels farther than this (metres, horizontally: in the plane square to the observer's up)
+  // are OutOfRange and not tested; 0: no limit.
+  double maxDistance = 0;
+  FrameOptions frame;  // flat or on the ellipsoid, units, the heights' reference
+  IndexOptions index;  // the quadtree's options
+};
+
+struct Viewshed {
+  std::vector<Sight> sight;  // per pixel, row-major
+  Eigen::Vector3d observer;  // in the frame
+  double surface = 0;        // the terrain's height under the observer, metres over the DEM's reference
+  std::size_t visible = 0, tested = 0;
+  std::string frameDescription;
+};
+
+// Throws qota::Error naming the value for an observer off the raster or over a void, heights or
+// a distance that are not finite or negative, a raster smaller than 2 x 2 pixels.
+// threads: 0 = one per core (at most 8).
+Viewshed viewshed(const DemTerrain& dem, const ViewshedOptions& options, const Progress& progress = {},
+                  unsigned threads = 0);
+
+// Cumulative viewsheds: how many of a list of observers, each with its own height, see each
+// pixel (the same rule). The DEM is placed and indexed once for all of them.
+struct Observer {
+  double x = 0, y = 0;  // in the DEM's CRS
+  double height = 2;    // metres above the surface
+  std::string name;     // for errors ("points.txt:12"); empty: "observer K"
+};
+struct CumulativeOptions {
+  double targetHeight = 0;  // metres above each pixel centre's surface
+  double maxDistance = 0;   // metres, horizontally from each observer; 0: no limit
+  FrameOptions frame;
+  IndexOptions index;
+};
+struct CumulativeViewshed {
+  std::vector<std::uint32_t> count;  // per pixel, row-major: the observers that see it
+  std::vector<std::uint8_t> valid;   // per pixel: the DEM has a height here
+  std::string frameDescription;
+};
+// Throws qota::Error naming the observer (its name) that is off the raster or over a void.
+CumulativeViewshed cumulativeViewshed(const DemTerrain& dem, std::span<const Observer> observers,
+                                      const CumulativeOptions& options, const Progress& progress = {},
+                                      unsigned threads = 0);
+
+}  // namespace qota

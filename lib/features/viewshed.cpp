@@ -1,0 +1,239 @@
+#include "qota/viewshed.hpp"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <memory>
+#include <thread>
+
+#include "qota/error.hpp"
+#include "qota/terrain.hpp"
+#include "shadow_facing.hpp"
+
+namespace qota {
+
+namespace {
+
+std::string number(double x) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.10g", x);
+  return buf;
+}
+
+void checkMetres(const char* name, double value) {
+  if (!std::isfinite(value) || value < 0) {
+    throw Error(std::string(name) + " must be a finite number of metres, 0 or more, got " + number(value));
+  }
+}
+
+// The triangulated surface's height (metres) at pixel position (col, row), by the raster rule
+// (raster_grid.hpp: squares split from top-left to bottom-right; the outer half pixel flat to the
+// edge), from the heights in metres; NaN over a void.
+double surfaceAt(const std::vector<double>& z, const std::vector<std::uint8_t>& valid, int w, int h, double col,
+                 double row) {
+  const double c = std::clamp(col, 0.5, w - 0.5) - 0.5, r = std::clamp(row, 0.5, h - 0.5) - 0.5;
+  const int c0 = std::min(static_cast<int>(std::floor(c)), w - 2),
+            r0 = std::min(static_cast<int>(std::floor(r)), h - 2);
+  const double fx = c - c0, fy = r - r0;
+  const std::size_t tl = static_cast<std::size_t>(r0) * w + c0, tr = tl + 1, bl = tl + w, br = bl + 1;
+  // Triangle (TL, BL, BR) holds fy >= fx, (TL, BR, TR) fx >= fy; on the diagonal either answers.
+  const bool lower = valid[tl] && valid[bl] && valid[br], upper = valid[tl] && valid[br] && valid[tr];
+  if (fy >= fx && lower) return z[tl] + fx * (z[br] - z[bl]) + fy * (z[bl] - z[tl]);
+  if (fx >= fy && upper) return z[tl] + fx * (z[tr] - z[tl]) + fy * (z[br] - z[tr]);
+  return NAN;
+}
+
+// A DEM made ready for lines of sight: its frame, its heights in metres (for the surface under an
+// observer) and the quadtree over the triangles that block (those with data, and within `reach`
+// metres of `near` seen from above when reach > 0).
+class Sightlines {
+ public:
+  Sightlines(const DemTerrain& dem, const FrameOptions& frameOptions, const IndexOptions& indexOptions,
+             const Progress& report)
+      : dem_(dem) {
+    if (dem.width < 2 || dem.height < 2) {
+      throw Error(dem.path + ": a viewshed needs a raster of at least 2 x 2 pixels, this one has " +
+                  std::to_string(dem.width) + " x " + std::to_string(dem.height));
+    }
+    if (report) report(0.0, "placing the terrain");
+    frame_ = localFrame(dem, frameOptions, basis_);
+    const std::size_t n = frame_.pixelCount();
+    metres_.resize(n);
+    for (std::size_t i = 0; i < n; ++i) metres_[i] = dem.mesh.vertices[i].z();
+    heightsInMetres(basis_, PixelWindow{0, 0, frame_.width, frame_.height}, metres_, valid_);
+    indexOptions_ = indexOptions;
+  }
+
+  const LocalFrame& frame() const { return frame_; }
+
+  // The observer `height` metres above the surface at world (x, y): its frame point and the
+  // surface's height there (metres over the DEM's reference). `what` names it in errors.
+  std::pair<Eigen::Vector3d, double> observerAt(double x, double y, double height, const std::string& what) const {
+    if (!std::isfinite(x) || !std::isfinite(y)) {
+      throw Error(what + " must be finite, got " + number(x) + ", " + number(y));
+    }
+    const double xr = dem_.turnedOnto(x);
+    if (!dem_.onRaster(xr, y)) throw Error(what + " at " + number(x) + ", " + number(y) + " is not on " + dem_.path);
+    const auto [col, row] = dem_.pixelOf(xr, y);
+    const double surface = surfaceAt(metres_, valid_, frame_.width, frame_.height, col, row);
+    if (std::isnan(surface)) {
+      throw Error(what + " at " + number(x) + ", " + number(y) + " is over a void of " + dem_.path +
+                  " (no data there)");
+    }
+    const double c[1] = {col}, r[1] = {row}, z[1] = {surface + height};
+    return {framePoints(basis_, c, r, z)[0], surface};
+  }
+
+  // The quadtree over the triangles with data; with reach > 0, only those whose corners all lie
+  // within reach of `near` seen from above (along `up`).
+  void index(const Eigen::Vector3d& near, const Eigen::Vector3d& up, double reach) {
+    const std::size_t n = frame_.pixelCount();
+    const auto& v = frame_.mesh.vertices;
+    const auto& extra = frame_.grid.extraVertices();
+    Mesh terrain;
+    terrain.vertices = v;
+    frame_.grid.appendTriangles(terrain, [&](std::uint32_t k) {
+      if (reach > 0 && !(horizontal(v[k] - near, up) <= reach)) return false;
+      if (k < n) return frame_.valid[k] != 0;
+      const RasterGrid::ExtraVertex& e = extra[k - n];
+      return e.pole != 0 || frame_.valid[e.pixel] != 0;
+    });
+    if (terrain.polygonCount() == 0) {
+      throw Error(dem_.path + ": no terrain to see (no square of pixels with data" +
+                  (reach > 0 ? std::string(" within the maximum distance)") : std::string(")")));
+    }
+    index_ = std::make_unique<CartesianIndex>(terrain, CartesianMapping(), indexOptions_);
+  }
+
+  static double horizontal(const Eigen::Vector3d& d, const Eigen::Vector3d& up) { return (d - d.dot(up) * up).norm(); }
+
+  // Sight of every pixel from `observer` (a frame point `height` metres above the surface):
+  // visit(i, sight) for each pixel with data, on `threads` threads (visit must be safe for
+  // different pixels at once). Returns false when progress cancelled.
+  template <class Visit>
+  bool look(const Eigen::Vector3d& observer, double height, double targetHeight, double maxDistance, unsigned threads,
+            const Progress& progress, double from, double span, const Visit& visit) const {
+    const CartesianIndex& index = *index_;
+    // An observer on the surface stands on its own triangles: they meet every segment at its start.
+    std::vector<std::uint32_t> standsOn;
+    if (height == 0) {
+      for (const Hit& hit : index.allWorld(observer)) {
+        if (std::fabs(hit.height - observer.z()) <= 1e-9 * (1 + std::fabs(observer.z()))) {
+          standsOn.push_back(hit.polygon);
+        }
+      }
+      std::sort(standsOn.begin(), standsOn.end());
+    }
+    const Eigen::Vector3d up = frame_.upAt(observer);
+    const auto& v = frame_.mesh.vertices;
+    const int w = frame_.width, h = frame_.height;
+    std::atomic<std::size_t> nextRow{0}, rowsDone{0};
+    std::atomic<bool> stop{false};
+    shadow::inThreads(threads, [&](unsigned k) {
+      for (std::size_t r; !stop && (r = nextRow++) < static_cast<std::size_t>(h);) {
+        for (std::size_t i = r * w; i < (r + 1) * w; ++i) {
+          if (!frame_.valid[i]) continue;
+          if (maxDistance > 0 && horizontal(v[i] - observer, up) > maxDistance) {
+            visit(i, Sight::OutOfRange);
+            continue;
+          }
+          // A target on the surface is the vertex itself, whose own triangles meet its segment only there.
+          const bool onSurface = targetHeight == 0;
+          const Eigen::Vector3d target = onSurface ? v[i] : v[i] + targetHeight * frame_.upAt(v[i]);
+          const bool blocked = index.segmentMeets(
+              observer, target, onSurface ? static_cast<std::uint32_t>(i) : CartesianIndex::kNoVertex, standsOn);
+          visit(i, blocked ? Sight::Hidden : Sight::Visible);
+        }
+        const std::size_t done = ++rowsDone;
+        if (k == 0 && progress && !progress(from + span * static_cast<double>(done) / h, "testing lines of sight")) {
+          stop = true;
+        }
+      }
+    });
+    return !stop;
+  }
+
+ private:
+  const DemTerrain& dem_;
+  FrameBasis basis_;
+  LocalFrame frame_;
+  std::vector<double> metres_;  // heights in metres, voids not filled
+  std::vector<std::uint8_t> valid_;
+  IndexOptions indexOptions_;
+  std::unique_ptr<CartesianIndex> index_;
+};
+
+unsigned threadsOr(unsigned threads) {
+  return threads ? threads : std::max(1u, std::min(8u, std::thread::hardware_concurrency()));
+}
+
+}  // namespace
+
+Viewshed viewshed(const DemTerrain& dem, const ViewshedOptions& o, const Progress& progress, unsigned threads) {
+  checkMetres("observer height", o.observerHeight);
+  checkMetres("target height", o.targetHeight);
+  checkMetres("maximum distance", o.maxDistance);
+  Sightlines sight(dem, o.frame, o.index, progress);
+  Viewshed out;
+  std::tie(out.observer, out.surface) = sight.observerAt(o.observerX, o.observerY, o.observerHeight, "the observer");
+  out.frameDescription = sight.frame().description;
+  // Within a maximum distance only the triangles that reach within it can block (a segment
+  // between two points of the disc stays in it, seen from above): those whose corners all lie
+  // within it and a triangle's extent (two pixel diagonals) more.
+  const LocalFrame& f = sight.frame();
+  if (progress && !progress(0.05, "building the quadtree")) throw Error("viewshed cancelled");
+  sight.index(out.observer, f.upAt(out.observer),
+              o.maxDistance > 0 ? o.maxDistance + 2 * std::hypot(f.pixelSizeX, f.pixelSizeY) : 0.0);
+  out.sight.assign(f.pixelCount(), Sight::NoData);
+  std::atomic<std::size_t> visible{0}, tested{0};
+  const bool finished = sight.look(out.observer, o.observerHeight, o.targetHeight, o.maxDistance, threadsOr(threads),
+                                   progress, 0.1, 0.9, [&](std::size_t i, Sight s) {
+                                     out.sight[i] = s;
+                                     if (s == Sight::Visible) visible.fetch_add(1, std::memory_order_relaxed);
+                                     if (s != Sight::OutOfRange) tested.fetch_add(1, std::memory_order_relaxed);
+                                   });
+  if (!finished) throw Error("viewshed cancelled");
+  out.visible = visible, out.tested = tested;
+  if (progress) progress(1.0, "done");
+  return out;
+}
+
+CumulativeViewshed cumulativeViewshed(const DemTerrain& dem, std::span<const Observer> observers,
+                                      const CumulativeOptions& o, const Progress& progress, unsigned threads) {
+  checkMetres("target height", o.targetHeight);
+  checkMetres("maximum distance", o.maxDistance);
+  if (observers.empty()) throw Error("no observers given");
+  Sightlines sight(dem, o.frame, o.index, progress);
+  const LocalFrame& f = sight.frame();
+  std::vector<std::pair<Eigen::Vector3d, double>> placed;
+  placed.reserve(observers.size());
+  for (std::size_t k = 0; k < observers.size(); ++k) {
+    const Observer& ob = observers[k];
+    const std::string what = ob.name.empty() ? "observer " + std::to_string(k + 1) : ob.name;
+    checkMetres((what + " height").c_str(), ob.height);
+    placed.push_back(sight.observerAt(ob.x, ob.y, ob.height, what));
+  }
+  if (progress && !progress(0.05, "building the quadtree")) throw Error("viewshed cancelled");
+  // One quadtree for every observer: the whole terrain (each observer's maximum distance is
+  // checked per pixel).
+  sight.index(Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ(), 0.0);
+  CumulativeViewshed out;
+  const std::size_t n = f.pixelCount();
+  out.count.assign(n, 0);
+  out.valid.assign(f.valid.begin(), f.valid.end());
+  out.frameDescription = f.description;
+  const unsigned workers = threadsOr(threads);
+  for (std::size_t k = 0; k < observers.size(); ++k) {
+    const double from = 0.1 + 0.9 * static_cast<double>(k) / observers.size();
+    const bool finished = sight.look(placed[k].first, observers[k].height, o.targetHeight, o.maxDistance, workers,
+                                     progress, from, 0.9 / observers.size(), [&](std::size_t i, Sight s) {
+                                       out.count[i] += s == Sight::Visible;  // (a pixel is one thread's)
+                                     });
+    if (!finished) throw Error("viewshed cancelled");
+  }
+  if (progress) progress(1.0, "done");
+  return out;
+}
+
+}  // namespace qota

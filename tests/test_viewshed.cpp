@@ -1,0 +1,469 @@
+// Viewsheds against oracles written apart from the code under test: every line of sight tested
+// against every triangle of the raster's triangulation, in exact integer arithmetic on pixel
+// grids (coordinates in quarter pixels, integer heights), and in geocentric coordinates from
+// GeographicLib on ellipsoids and spheres (cells within rounding of a triangle's edge or a grazing
+// line are counted, not compared).
+#include <GeographicLib/Geocentric.hpp>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <sstream>
+
+#include "qota/error.hpp"
+#include "qota/raster_grid.hpp"
+#include "qota/viewshed.hpp"
+#include "qota_tools.hpp"
+#include "raster_files.hpp"
+
+namespace {
+
+using qota::Sight;
+
+// ---- The exact oracle on a pixel grid (no CRS, 1 m pixels): coordinates times 4 are integers.
+struct P3 {
+  long long x, y, z;
+};
+
+// Sign of det[b - a, c - a, d - a], exact: coordinates of a few hundred quarter metres stay far
+// from 64-bit overflow.
+int orient(const P3& a, const P3& b, const P3& c, const P3& d) {
+  const long long bx = b.x - a.x, by = b.y - a.y, bz = b.z - a.z;
+  const long long cx = c.x - a.x, cy = c.y - a.y, cz = c.z - a.z;
+  const long long dx = d.x - a.x, dy = d.y - a.y, dz = d.z - a.z;
+  const long long det = bx * (cy * dz - cz * dy) - by * (cx * dz - cz * dx) + bz * (cx * dy - cy * dx);
+  return det > 0 ? 1 : det < 0 ? -1 : 0;
+}
+
+// Whether the open segment o-p meets the closed triangle abc. A segment in the triangle's plane
+// grazes it (the rule: its neighbours decide).
+bool meets(const P3& o, const P3& p, const P3& a, const P3& b, const P3& c) {
+  const int so = orient(a, b, c, o), sp = orient(a, b, c, p);
+  if (so == 0 || sp == 0 || so == sp) return false;  // coplanar, an end on the plane, or one side
+  const int e0 = orient(o, p, a, b), e1 = orient(o, p, b, c), e2 = orient(o, p, c, a);
+  return !((e0 < 0 || e1 < 0 || e2 < 0) && (e0 > 0 || e1 > 0 || e2 > 0));
+}
+
+struct GridCase {
+  int w = 0, h = 0;
+  std::vector<double> z;  // integer heights, NaN for voids
+};
+
+constexpr double kNoData = -9999;
+
+std::string writeGrid(const GridCase& g, const std::string& name) {
+  qota::test::RasterSpec spec;
+  spec.width = g.w, spec.height = g.h;
+  spec.geotransform = {0, 1, 0, static_cast<double>(g.h), 0, -1};  // x = col, y = h - row
+  spec.nodata = kNoData;
+  std::vector<double> band(g.z);
+  for (double& v : band) v = std::isnan(v) ? kNoData : v;
+  spec.bands = {band};
+  const auto path = qota::test::scratchPath(name);
+  qota::test::writeRaster(path, spec);
+  return path.string();
+}
+
+// The oracle's viewshed: every pixel against every triangle of the raster rule with its border
+// (the outer half pixel), placed as the pixel grid's frame places them (1 m a pixel, centred).
+std::vector<Sight> gridOracle(const GridCase& g, double col, double row, double observerHeight, double targetHeight,
+                              double maxDistance) {
+  const int w = g.w, h = g.h;
+  const qota::RasterGrid grid(w, h, {.border = true});
+  const std::size_t n = static_cast<std::size_t>(w) * h;
+  // Position in quarter metres of pixel coordinates (cx, cy) (GDAL's, centres at + 0.5).
+  const auto at = [&](double cx, double cy, double height) {
+    return P3{std::llround(4 * cx - 2 * w), std::llround(2 * h - 4 * cy), std::llround(4 * height)};
+  };
+  std::vector<P3> vertex(grid.vertexCount());
+  std::vector<bool> valid(grid.vertexCount());
+  for (std::size_t i = 0; i < n; ++i) {
+    valid[i] = !std::isnan(g.z[i]);
+    vertex[i] = at(static_cast<double>(i % w) + 0.5, static_cast<double>(i / w) + 0.5, valid[i] ? g.z[i] : 0);
+  }
+  for (std::size_t k = 0; k < grid.extraVertices().size(); ++k) {
+    const auto& e = grid.extraVertices()[k];
+    valid[n + k] = !std::isnan(g.z[e.pixel]);
+    vertex[n + k] = at(e.col, e.row, valid[n + k] ? g.z[e.pixel] : 0);
+  }
+  std::vector<std::array<std::uint32_t, 3>> tris;
+  for (std::size_t t = 0; t < grid.triangleCount(); ++t) {
+    const auto c = grid.triangle(t);
+    if (valid[c[0]] && valid[c[1]] && valid[c[2]]) tris.push_back(c);
+  }
+  // The surface under the observer: the triangle rule on the clamped position.
+  const double cc = std::clamp(col, 0.5, w - 0.5) - 0.5, rr = std::clamp(row, 0.5, h - 0.5) - 0.5;
+  const int c0 = std::min(static_cast<int>(cc), w - 2), r0 = std::min(static_cast<int>(rr), h - 2);
+  const double fx = cc - c0, fy = rr - r0;
+  const auto Z = [&](int r, int c) { return g.z[static_cast<std::size_t>(r) * w + c]; };
+  // The square's lower-left triangle holds fy >= fx, its upper-right one fx >= fy (on the
+  // diagonal, whichever has data).
+  const double lower = Z(r0, c0) + fx * (Z(r0 + 1, c0 + 1) - Z(r0 + 1, c0)) + fy * (Z(r0 + 1, c0) - Z(r0, c0));
+  const double upper = Z(r0, c0) + fx * (Z(r0, c0 + 1) - Z(r0, c0)) + fy * (Z(r0 + 1, c0 + 1) - Z(r0, c0 + 1));
+  const double surface = fy >= fx && !std::isnan(lower) ? lower : upper;
+  const P3 o = at(col, row, surface + observerHeight);
+  std::vector<Sight> out(n, Sight::NoData);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!valid[i]) continue;
+    P3 p = vertex[i];
+    p.z += std::llround(4 * targetHeight);
+    if (maxDistance > 0) {
+      const double dx = (p.x - o.x) / 4.0, dy = (p.y - o.y) / 4.0;
+      if (dx * dx + dy * dy > maxDistance * maxDistance) {
+        out[i] = Sight::OutOfRange;
+        continue;
+      }
+    }
+    bool blocked = false;
+    for (const auto& t : tris) {
+      if (meets(o, p, vertex[t[0]], vertex[t[1]], vertex[t[2]])) {
+        blocked = true;
+        break;
+      }
+    }
+    out[i] = blocked ? Sight::Hidden : Sight::Visible;
+  }
+  return out;
+}
+
+std::vector<Sight> gridViewshed(const std::string& path, double col, double row, double observerHeight,
+                                double targetHeight, double maxDistance, int h) {
+  const qota::DemTerrain dem = qota::loadDem(path, {});
+  qota::ViewshedOptions o;
+  o.observerX = col, o.observerY = h - row;
+  o.observerHeight = observerHeight, o.targetHeight = targetHeight, o.maxDistance = maxDistance;
+  o.frame.pixelSize = 1;
+  return qota::viewshed(dem, o).sight;
+}
+
+int countDifferent(const std::vector<Sight>& a, const std::vector<Sight>& b, int w, std::string& where) {
+  int differ = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    if (a[i] == b[i]) continue;
+    if (differ++ < 5) {
+      where += " (" + std::to_string(i % w) + ", " + std::to_string(i / w) + "): qota " +
+               std::to_string(static_cast<int>(a[i])) + " oracle " + std::to_string(static_cast<int>(b[i]));
+    }
+  }
+  return differ;
+}
+
+GridCase randomGrid(std::mt19937& rng, bool voids) {
+  GridCase g;
+  g.w = std::uniform_int_distribution<int>(5, 18)(rng);
+  g.h = std::uniform_int_distribution<int>(5, 18)(rng);
+  g.z.resize(static_cast<std::size_t>(g.w) * g.h);
+  std::uniform_int_distribution<int> height(0, 9), coin(0, 19);
+  for (double& v : g.z) v = height(rng);
+  // A ridge across, the kind of terrain that hides things.
+  const int ridge = std::uniform_int_distribution<int>(1, g.w - 2)(rng);
+  for (int r = 0; r < g.h; ++r) g.z[static_cast<std::size_t>(r) * g.w + ridge] += 8;
+  if (voids) {
+    for (double& v : g.z) {
+      if (coin(rng) == 0) v = NAN;
+    }
+  }
+  return g;
+}
+
+TEST(Viewshed, PixelGridMatchesExactOracle) {
+  std::mt19937 rng(20261127);
+  int cases = 0, visible = 0, hidden = 0;
+  for (int k = 0; k < 60; ++k) {
+    const GridCase g = randomGrid(rng, k % 2 == 1);
+    const std::string path = writeGrid(g, "viewshed_grid.tif");
+    // Observers on quarter pixels: at centres (vertices), on edges and diagonals, in the outer half pixel.
+    std::uniform_int_distribution<int> qc(0, 4 * g.w), qr(0, 4 * g.h);
+    const double heights[] = {0, 0.25, 1, 2.5, 7};
+    const double targets[] = {0, 0, 0.5, 2};
+    for (int tries = 0; tries < 6; ++tries) {
+      const double col = qc(rng) / 4.0, row = qr(rng) / 4.0;
+      const double H = heights[k % 5], T = targets[tries % 4], D = tries == 5 ? 4.3 : 0;
+      std::vector<Sight> got;
+      try {
+        got = gridViewshed(path, col, row, H, T, D, g.h);
+      } catch (const qota::Error& e) {
+        // Only an observer over a void (or on the raster's very edge) may be refused.
+        EXPECT_NE(std::string(e.what()).find("void"), std::string::npos) << e.what();
+        continue;
+      }
+      const std::vector<Sight> want = gridOracle(g, col, row, H, T, D);
+      std::string where;
+      EXPECT_EQ(countDifferent(got, want, g.w, where), 0)
+          << "case " << k << ": " << g.w << " x " << g.h << ", observer (" << col << ", " << row << ") H " << H << " T "
+          << T << " D " << D << where;
+      for (Sight s : want) visible += s == Sight::Visible, hidden += s == Sight::Hidden;
+      ++cases;
+    }
+  }
+  EXPECT_GT(cases, 250);
+  EXPECT_GT(visible, 5000);  // both answers well represented
+  EXPECT_GT(hidden, 5000);
+}
+
+TEST(Viewshed, FlatPlainSeenFromTheGroundIsVisible) {
+  // Every line of sight runs in the plane of the triangles: it grazes them, as the rule says.
+  GridCase g{9, 7, std::vector<double>(63, 3.0)};
+  const std::string path = writeGrid(g, "viewshed_flat.tif");
+  const auto got = gridViewshed(path, 4.5, 3.5, 0, 0, 0, g.h);
+  EXPECT_EQ(got, gridOracle(g, 4.5, 3.5, 0, 0, 0));
+  for (Sight s : got) EXPECT_EQ(s, Sight::Visible);
+}
+
+TEST(Viewshed, WallHidesWhatIsBehindIt) {
+  GridCase g{12, 5, std::vector<double>(60, 0.0)};
+  for (int r = 0; r < 5; ++r) g.z[static_cast<std::size_t>(r) * 12 + 6] = 10;  // a wall at column 6
+  const std::string path = writeGrid(g, "viewshed_wall.tif");
+  const auto got = gridViewshed(path, 2.5, 2.5, 2, 0, 0, g.h);
+  for (int r = 0; r < 5; ++r) {
+    for (int c = 0; c < 12; ++c) {
+      const Sight s = got[static_cast<std::size_t>(r) * 12 + c];
+      EXPECT_EQ(s, c <= 6 ? Sight::Visible : Sight::Hidden) << c << ", " << r;
+    }
+  }
+  // A target 40 m up is seen over the wall (the line passes column 6 at 17.6 m; 20 m up, at 9.4 m, it is not).
+  const auto tall = gridViewshed(path, 2.5, 2.5, 2, 40, 0, g.h);
+  EXPECT_EQ(gridViewshed(path, 2.5, 2.5, 2, 20, 0, g.h)[2 * 12 + 11], Sight::Hidden);
+  EXPECT_EQ(tall[2 * 12 + 11], Sight::Visible);
+}
+
+TEST(Viewshed, RefusesWhatItCannotPlace) {
+  GridCase g{6, 6, std::vector<double>(36, 1.0)};
+  g.z[2 * 6 + 2] = NAN;
+  const std::string path = writeGrid(g, "viewshed_refuse.tif");
+  const qota::DemTerrain dem = qota::loadDem(path, {});
+  qota::ViewshedOptions o;
+  o.frame.pixelSize = 1;
+  const auto message = [&](const qota::ViewshedOptions& v) {
+    try {
+      qota::viewshed(dem, v);
+    } catch (const qota::Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  o.observerX = 2.5, o.observerY = 6 - 2.5;  // on the void's pixel centre
+  EXPECT_NE(message(o).find("void"), std::string::npos) << message(o);
+  o.observerX = 60;
+  EXPECT_NE(message(o).find("not on"), std::string::npos) << message(o);
+  o.observerX = 4.5, o.observerY = 1.5, o.observerHeight = NAN;
+  EXPECT_NE(message(o).find("observer height"), std::string::npos) << message(o);
+  o.observerHeight = 2, o.targetHeight = -1;
+  EXPECT_NE(message(o).find("target height"), std::string::npos) << message(o);
+}
+
+// ---- On a body: straight geocentric segments (GeographicLib) against the triangles.
+struct Vec {
+  double x, y, z;
+  Vec operator-(const Vec& o) const { return {x - o.x, y - o.y, z - o.z}; }
+  Vec operator+(const Vec& o) const { return {x + o.x, y + o.y, z + o.z}; }
+  Vec operator*(double s) const { return {x * s, y * s, z * s}; }
+  double dot(const Vec& o) const { return x * o.x + y * o.y + z * o.z; }
+  Vec cross(const Vec& o) const { return {y * o.z - z * o.y, z * o.x - x * o.z, x * o.y - y * o.x}; }
+};
+
+struct BodyCase {
+  std::string crs;
+  double a, f;  // the ellipsoid (f = 0: a sphere)
+  int w, h;
+  double lon0, lat0, step;  // north-west corner, degrees a pixel
+  std::vector<double> z;    // heights over the ellipsoid
+};
+
+// Per pixel: Visible, Hidden, or NoData for "within rounding of the answer changing".
+std::vector<Sight> bodyOracle(const BodyCase& b, double col, double row, double observerHeight, double targetHeight) {
+  const GeographicLib::Geocentric body(b.a, b.f);
+  const int w = b.w, h = b.h;
+  const std::size_t n = static_cast<std::size_t>(w) * h;
+  const qota::RasterGrid grid(w, h, {.border = true});
+  const auto place = [&](double cx, double cy, double height) {
+    Vec v;
+    body.Forward(b.lat0 - cy * b.step, b.lon0 + cx * b.step, height, v.x, v.y, v.z);
+    return v;
+  };
+  std::vector<Vec> vertex(grid.vertexCount());
+  for (std::size_t i = 0; i < n; ++i) vertex[i] = place(i % w + 0.5, i / w + 0.5, b.z[i]);
+  for (std::size_t k = 0; k < grid.extraVertices().size(); ++k) {
+    const auto& e = grid.extraVertices()[k];
+    vertex[n + k] = place(e.col, e.row, b.z[e.pixel]);
+  }
+  const double cc = std::clamp(col, 0.5, w - 0.5) - 0.5, rr = std::clamp(row, 0.5, h - 0.5) - 0.5;
+  const int c0 = std::min(static_cast<int>(cc), w - 2), r0 = std::min(static_cast<int>(rr), h - 2);
+  const double fx = cc - c0, fy = rr - r0;
+  const auto Z = [&](int r, int c) { return b.z[static_cast<std::size_t>(r) * w + c]; };
+  const double surface = fy >= fx
+                             ? Z(r0, c0) + fx * (Z(r0 + 1, c0 + 1) - Z(r0 + 1, c0)) + fy * (Z(r0 + 1, c0) - Z(r0, c0))
+                             : Z(r0, c0) + fx * (Z(r0, c0 + 1) - Z(r0, c0)) + fy * (Z(r0 + 1, c0 + 1) - Z(r0, c0 + 1));
+  const Vec o = place(col, row, surface + observerHeight);
+  std::vector<Sight> out(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec p = place(i % w + 0.5, i / w + 0.5, b.z[i] + targetHeight);
+    const Vec d = p - o;
+    bool clearlyBlocked = false, nearMiss = false;
+    for (std::size_t t = 0; t < grid.triangleCount() && !clearlyBlocked; ++t) {
+      const auto c = grid.triangle(t);
+      if (targetHeight == 0 && (c[0] == i || c[1] == i || c[2] == i)) continue;  // met only at the target
+      // Moller-Trumbore, with how far inside the hit is (barycentric and along the segment).
+      const Vec A = vertex[c[0]], e1 = vertex[c[1]] - A, e2 = vertex[c[2]] - A;
+      const Vec pv = d.cross(e2);
+      const double det = e1.dot(pv);
+      if (std::fabs(det) < 1e-300) continue;
+      const Vec tv = o - A;
+      const double u = tv.dot(pv) / det;
+      const Vec qv = tv.cross(e1);
+      const double v = d.dot(qv) / det, s = e2.dot(qv) / det;
+      const double inside = std::min({u, v, 1 - u - v, s, 1 - s});
+      if (inside > 1e-7)
+        clearlyBlocked = true;
+      else if (inside > -1e-7)
+        nearMiss = true;
+    }
+    out[i] = clearlyBlocked ? Sight::Hidden : nearMiss ? Sight::NoData : Sight::Visible;
+  }
+  return out;
+}
+
+void compareOnBody(const BodyCase& b, const std::string& name, double col, double row, double H, double T,
+                   int& compared, int& visible) {
+  qota::test::RasterSpec spec;
+  spec.width = b.w, spec.height = b.h;
+  spec.geotransform = {b.lon0, b.step, 0, b.lat0, 0, -b.step};
+  spec.crs = b.crs;
+  spec.bands = {b.z};
+  const auto path = qota::test::scratchPath(name);
+  qota::test::writeRaster(path, spec);
+  const qota::DemTerrain dem = qota::loadDem(path.string(), {.lonLatAsCartesian = true});
+  qota::ViewshedOptions o;
+  o.observerX = b.lon0 + col * b.step, o.observerY = b.lat0 - row * b.step;
+  o.observerHeight = H, o.targetHeight = T;
+  o.frame.heightRef = "ellipsoid";
+  const auto got = qota::viewshed(dem, o).sight;
+  const auto want = bodyOracle(b, col, row, H, T);
+  int differ = 0, ambiguous = 0;
+  for (std::size_t i = 0; i < got.size(); ++i) {
+    if (want[i] == Sight::NoData) {
+      ++ambiguous;
+      continue;
+    }
+    ++compared, visible += want[i] == Sight::Visible;
+    if (got[i] != want[i] && differ++ < 5) {
+      ADD_FAILURE() << name << ": pixel (" << i % b.w << ", " << i / b.w << ") qota " << static_cast<int>(got[i])
+                    << ", oracle " << static_cast<int>(want[i]);
+    }
+  }
+  EXPECT_EQ(differ, 0) << name;
+  EXPECT_LT(ambiguous, static_cast<int>(got.size()) / 50) << name << ": too many cells within rounding";
+}
+
+std::vector<double> hills(int w, int h, double relief, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(0, 1);
+  std::vector<double> z(static_cast<std::size_t>(w) * h, 0.0);
+  for (int k = 0; k < 6; ++k) {
+    const double cx = u(rng) * w, cy = u(rng) * h, s = 2 + u(rng) * w / 4, a = relief * u(rng);
+    for (int r = 0; r < h; ++r) {
+      for (int c = 0; c < w; ++c) {
+        z[static_cast<std::size_t>(r) * w + c] += a * std::exp(-((c - cx) * (c - cx) + (r - cy) * (r - cy)) / (s * s));
+      }
+    }
+  }
+  for (double& v : z) v = std::round(v);
+  return z;
+}
+
+TEST(Viewshed, Wgs84MatchesStraightGeocentricSegments) {
+  int compared = 0, visible = 0;
+  for (unsigned seed = 1; seed <= 3; ++seed) {
+    // 40 x 40 pixels of 0.01 degree (about 1 km) in the Alps, hills up to 1500 m.
+    const BodyCase b{"EPSG:4326", 6378137.0, 1 / 298.257223563, 40, 40, 7.0, 46.5, 0.01, hills(40, 40, 1500, seed)};
+    compareOnBody(b, "viewshed_wgs84.tif", 7.25 + seed, 13.5 + 3 * seed, 2, seed == 2 ? 10 : 0, compared, visible);
+  }
+  EXPECT_GT(compared, 4000);
+  EXPECT_GT(visible, 400);
+  EXPECT_LT(visible, compared - 400);
+}
+
+TEST(Viewshed, MoonSizedSphereMatchesStraightSegments) {
+  int compared = 0, visible = 0;
+  // A sphere of the Moon's radius: curvature hides four times as much as on the Earth.
+  const BodyCase b{
+      "+proj=longlat +R=1737400 +no_defs", 1737400.0, 0.0, 40, 40, 20.0, 10.0, 0.02, hills(40, 40, 900, 7)};
+  compareOnBody(b, "viewshed_moon.tif", 20.5, 20.5, 10, 0, compared, visible);
+  EXPECT_GT(compared, 1500);
+  EXPECT_GT(visible, 100);
+}
+
+TEST(Viewshed, HorizonOfABareSphereIsWhereGeometrySaysItIs) {
+  // Heights all 0 on a sphere of the Earth's radius, observer 100 m up: a target on the ground
+  // is seen up to the horizon, sqrt(2 R H) (35.7 km), hidden beyond (the triangles are chords,
+  // a little below the sphere: a 2 % margin either side).
+  const int w = 161, h = 3;
+  qota::test::RasterSpec spec;
+  spec.width = w, spec.height = h;
+  const double step = 0.005;  // degrees: 556 m on the equator
+  spec.geotransform = {0, step, 0, step * h / 2, 0, -step};
+  spec.crs = "+proj=longlat +R=6371000 +no_defs";
+  spec.bands = {std::vector<double>(static_cast<std::size_t>(w) * h, 0.0)};
+  const auto path = qota::test::scratchPath("viewshed_horizon.tif");
+  qota::test::writeRaster(path, spec);
+  const qota::DemTerrain dem = qota::loadDem(path.string(), {.lonLatAsCartesian = true});
+  qota::ViewshedOptions o;
+  o.observerX = 0.5 * step, o.observerY = 0;
+  o.observerHeight = 100;
+  o.frame.heightRef = "ellipsoid";
+  const auto sight = qota::viewshed(dem, o).sight;
+  const double horizon = std::sqrt(2 * 6371000.0 * 100);
+  int checked = 0;
+  for (int c = 0; c < w; ++c) {
+    const double distance = c * step * M_PI / 180 * 6371000;
+    const Sight s = sight[static_cast<std::size_t>(w) + c];  // the middle row
+    if (distance < 0.98 * horizon) {
+      EXPECT_EQ(s, Sight::Visible) << distance;
+    } else if (distance > 1.02 * horizon) {
+      EXPECT_EQ(s, Sight::Hidden) << distance;
+    }
+    ++checked;
+  }
+  EXPECT_EQ(checked, w);
+}
+
+TEST(ViewshedTool, WritesByteRasterAndRefusesBadValues) {
+  GridCase g{12, 5, std::vector<double>(60, 0.0)};
+  for (int r = 0; r < 5; ++r) g.z[static_cast<std::size_t>(r) * 12 + 6] = 10;
+  g.z[0] = NAN;
+  const std::string dem = writeGrid(g, "viewshed_tool.tif");
+  const auto outPath = qota::test::scratchPath("viewshed_tool_out.tif");
+  std::filesystem::remove(outPath);
+  qota::tools::ViewshedOptions o;
+  o.source = dem, o.output = outPath.string(), o.quiet = true, o.pixelSize = 1;
+  o.observer = {2.5, 5 - 2.5};
+  std::ostringstream out, err;
+  ASSERT_EQ(qota::tools::viewshed(o, out, err), 0) << err.str();
+  qota::ensureGdalRegistered();
+  std::unique_ptr<GDALDataset> ds(GDALDataset::Open(outPath.c_str(), GDAL_OF_RASTER));
+  ASSERT_TRUE(ds);
+  GDALRasterBand* band = ds->GetRasterBand(1);
+  EXPECT_EQ(band->GetRasterDataType(), GDT_Byte);
+  int hasNodata = 0;
+  EXPECT_EQ(band->GetNoDataValue(&hasNodata), 128);
+  EXPECT_TRUE(hasNodata);
+  std::vector<std::uint8_t> v(60);
+  ASSERT_EQ(band->RasterIO(GF_Read, 0, 0, 12, 5, v.data(), 12, 5, GDT_Byte, 0, 0), CE_None);
+  EXPECT_EQ(v[0], 128);
+  EXPECT_EQ(v[2 * 12 + 3], 255);
+  EXPECT_EQ(v[2 * 12 + 10], 0);
+  ds.reset();
+
+  // Values that could not be told apart, and an observer off the raster: refused, nothing written.
+  std::filesystem::remove(outPath);
+  o.outOfRangeValue = 0;
+  EXPECT_EQ(qota::tools::viewshed(o, out, err), 2);
+  EXPECT_NE(err.str().find("must differ"), std::string::npos) << err.str();
+  o.outOfRangeValue = 64, o.observer = {100, 100};
+  err.str("");
+  EXPECT_EQ(qota::tools::viewshed(o, out, err), 2);
+  EXPECT_NE(err.str().find("not on"), std::string::npos) << err.str();
+  EXPECT_FALSE(std::filesystem::exists(outPath));
+}
+
+}  // namespace
