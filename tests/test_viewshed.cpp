@@ -7,6 +7,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <fstream>
+#include <iomanip>
 #include <random>
 #include <sstream>
 
@@ -199,6 +201,40 @@ TEST(Viewshed, PixelGridMatchesExactOracle) {
   EXPECT_GT(cases, 250);
   EXPECT_GT(visible, 5000);  // both answers well represented
   EXPECT_GT(hidden, 5000);
+}
+
+TEST(Viewshed, CumulativeCountsAreTheOraclesSum) {
+  std::mt19937 rng(7);
+  for (int k = 0; k < 6; ++k) {
+    const GridCase g = randomGrid(rng, k % 2 == 1);
+    const std::string path = writeGrid(g, "viewshed_cumulative.tif");
+    const qota::DemTerrain dem = qota::loadDem(path, {});
+    std::vector<qota::Observer> observers;
+    std::vector<std::uint32_t> want(g.z.size(), 0);
+    std::uniform_int_distribution<int> qc(2, 4 * g.w - 2), qr(2, 4 * g.h - 2);
+    const double D = k == 3 ? 5.2 : 0;
+    while (observers.size() < 5) {
+      const double col = qc(rng) / 4.0, row = qr(rng) / 4.0, H = 0.25 * (observers.size() % 3) + 1;
+      std::vector<Sight> one;
+      try {
+        one = gridViewshed(path, col, row, H, 0.5, D, g.h);  // (refused over a void: another place)
+      } catch (const qota::Error&) {
+        continue;
+      }
+      const std::vector<Sight> oracle = gridOracle(g, col, row, H, 0.5, D);
+      for (std::size_t i = 0; i < want.size(); ++i) want[i] += oracle[i] == Sight::Visible;
+      observers.push_back({col, g.h - row, H, ""});
+    }
+    qota::CumulativeOptions o;
+    o.targetHeight = 0.5, o.maxDistance = D, o.frame.pixelSize = 1;
+    const qota::CumulativeViewshed got = qota::cumulativeViewshed(dem, observers, o);
+    for (std::size_t i = 0; i < want.size(); ++i) {
+      EXPECT_EQ(got.valid[i] != 0, !std::isnan(g.z[i])) << i;
+      if (got.valid[i]) {
+        EXPECT_EQ(got.count[i], want[i]) << "case " << k << ", pixel " << i;
+      }
+    }
+  }
 }
 
 TEST(Viewshed, FlatPlainSeenFromTheGroundIsVisible) {
@@ -464,6 +500,93 @@ TEST(ViewshedTool, WritesByteRasterAndRefusesBadValues) {
   EXPECT_EQ(qota::tools::viewshed(o, out, err), 2);
   EXPECT_NE(err.str().find("not on"), std::string::npos) << err.str();
   EXPECT_FALSE(std::filesystem::exists(outPath));
+}
+
+TEST(ViewshedTool, ObserversFromTextLayersAndCsv) {
+  // A UTM grid (1 m pixels, a wall at column 6); the same three observers as text in the
+  // raster's CRS, as a GeoJSON layer in longitude/latitude (heights in a field, one null), and as
+  // a CSV of lon/lat columns (with --srs EPSG:4326): the same counts, which are the single viewsheds' sum.
+  GridCase g{12, 6, std::vector<double>(72, 0.0)};
+  for (int r = 0; r < 6; ++r) g.z[static_cast<std::size_t>(r) * 12 + 6] = 10;
+  qota::test::RasterSpec spec;
+  spec.width = 12, spec.height = 6;
+  spec.geotransform = {500000, 1, 0, 5000006, 0, -1};
+  spec.crs = "EPSG:32633";
+  spec.bands = {g.z};
+  const std::string dem = qota::test::scratchPath("viewshed_observers.tif").string();
+  qota::test::writeRaster(dem, spec);
+  const double places[3][3] = {{500002.5, 5000003.5, 2}, {500009.5, 5000001.5, 25}, {500006.5, 5000004.5, 2}};
+  // Longitude and latitude of each, by OGR.
+  OGRSpatialReference utm, geo;
+  utm.SetFromUserInput("EPSG:32633");
+  geo.SetFromUserInput("EPSG:4326");
+  utm.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  geo.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  std::unique_ptr<OGRCoordinateTransformation> ct(OGRCreateCoordinateTransformation(&utm, &geo));
+  std::ostringstream text, json, csv;
+  text << "# x y height\n";
+  json << std::setprecision(17) << R"({"type":"FeatureCollection","features":[)";
+  csv << std::setprecision(17) << "name,lon,lat,height\n";
+  for (int k = 0; k < 3; ++k) {
+    double lon = places[k][0], lat = places[k][1];
+    ct->Transform(1, &lon, &lat);
+    text << std::setprecision(17) << places[k][0] << " " << places[k][1] << " " << places[k][2] << "\n";
+    json << (k ? "," : "") << R"({"type":"Feature","properties":{"height":)"
+         << (k == 2 ? "null" : std::to_string(places[k][2])) << R"(},"geometry":{"type":"Point","coordinates":[)" << lon
+         << "," << lat << "]}}";
+    csv << "p" << k << "," << lon << "," << lat << "," << places[k][2] << "\n";
+  }
+  json << "]}";
+  const auto write = [](const std::string& name, const std::string& body) {
+    const auto path = qota::test::scratchPath(name);
+    std::ofstream(path) << body;
+    return path.string();
+  };
+  const std::string files[3] = {write("observers.txt", text.str()), write("observers.geojson", json.str()),
+                                write("observers.csv", csv.str())};
+  std::vector<std::uint16_t> first;
+  for (const std::string& file : files) {
+    const auto outPath = qota::test::scratchPath("viewshed_counts.tif");
+    qota::tools::ViewshedOptions o;
+    o.source = dem, o.output = outPath.string(), o.quiet = true, o.observersFile = file, o.flat = true;
+    if (file == files[2]) o.srs = "EPSG:4326";  // a CSV layer states no CRS
+    std::ostringstream out, err;
+    ASSERT_EQ(qota::tools::viewshed(o, out, err), 0) << file << ": " << err.str();
+    std::unique_ptr<GDALDataset> ds(GDALDataset::Open(outPath.c_str(), GDAL_OF_RASTER));
+    ASSERT_TRUE(ds);
+    EXPECT_EQ(ds->GetRasterBand(1)->GetRasterDataType(), GDT_UInt16);
+    std::vector<std::uint16_t> counts(72);
+    ASSERT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Read, 0, 0, 12, 6, counts.data(), 12, 6, GDT_UInt16, 0, 0), CE_None);
+    if (first.empty()) {
+      first = counts;
+      // The sum of the single viewsheds (the tool's own, each checked against the oracle above).
+      const qota::DemTerrain d = qota::loadDem(dem, {});
+      std::vector<int> sum(counts.size(), 0);
+      for (const auto& p : places) {
+        qota::ViewshedOptions v;
+        v.observerX = p[0], v.observerY = p[1], v.observerHeight = p[2], v.frame.flat = true;
+        const auto one = qota::viewshed(d, v).sight;
+        for (std::size_t i = 0; i < sum.size(); ++i) sum[i] += one[i] == Sight::Visible;
+      }
+      for (std::size_t i = 0; i < counts.size(); ++i) EXPECT_EQ(counts[i], sum[i]) << "pixel " << i;
+      EXPECT_GT(*std::max_element(sum.begin(), sum.end()), 1);
+    }
+    EXPECT_EQ(counts, first) << file;
+  }
+  // A malformed line is named; nothing is written.
+  const auto outPath = qota::test::scratchPath("viewshed_counts_bad.tif");
+  std::filesystem::remove(outPath);
+  qota::tools::ViewshedOptions o;
+  o.source = dem, o.output = outPath.string(), o.quiet = true, o.flat = true;
+  o.observersFile = write("observers_bad.txt", "500002.5 5000003.5\n500002.5 north\n");
+  std::ostringstream out, err;
+  EXPECT_EQ(qota::tools::viewshed(o, out, err), 2);
+  EXPECT_NE(err.str().find("observers_bad.txt:2: expected 'x y [height]'"), std::string::npos) << err.str();
+  EXPECT_FALSE(std::filesystem::exists(outPath));
+  o.observersFile = files[0], o.observer = std::array<double, 2>{500002.5, 5000003.5};
+  err.str("");
+  EXPECT_EQ(qota::tools::viewshed(o, out, err), 2);
+  EXPECT_NE(err.str().find("give one observer"), std::string::npos) << err.str();
 }
 
 }  // namespace

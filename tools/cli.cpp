@@ -254,8 +254,16 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
   std::vector<double> observer;
   viewshedCmd->add_option("--observer,--ox", observer, "X,Y: the observer, in the raster's CRS (or --srs)")
       ->delimiter(',')
-      ->expected(2)
-      ->required();
+      ->expected(2);
+  viewshedCmd->add_option("--observers", viewshedOptions.observersFile,
+                          "Cumulative: how many of these observers see each pixel (UInt16). Any OGR point layer "
+                          "(GeoPackage, GeoJSON, Shapefile, CSV with x/y or lon/lat columns) in its own CRS (a CSV "
+                          "in --srs), or text lines 'x y [height]' in the raster's CRS (or --srs)");
+  viewshedCmd
+      ->add_option("--height-field", viewshedOptions.heightField,
+                   "The --observers layer's field holding each observer's height (metres above the surface; "
+                   "missing or null: --observer-height)")
+      ->capture_default_str();
   viewshedCmd->add_option("--srs", viewshedOptions.srs, "CRS of --observer (EPSG:4326, WKT, PROJ; x = lon/easting)");
   viewshedCmd
       ->add_option("--observer-height,--oz", viewshedOptions.observerHeight, "Metres above the surface at the observer")
@@ -358,7 +366,7 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
     return qota::tools::shadow(shadow, out, err);
   }
   if (*viewshedCmd) {
-    viewshedOptions.observer = {observer[0], observer[1]};
+    if (!observer.empty()) viewshedOptions.observer = std::array<double, 2>{observer[0], observer[1]};
     return tools::viewshed(viewshedOptions, out, err);
   }
   if (*assembleCmd) return tools::assemble(assembleOptions, out, err);

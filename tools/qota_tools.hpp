@@ -154,12 +154,20 @@ int shadow(const ShadowOptions& options, std::ostream& out, std::ostream& err);
 // is given in the raster's CRS, or in `srs`; heights and the distance in metres. The DEM is placed
 // as qota shadow places it (on its ellipsoid, or flat with `flat` / --mapping cartesian).
 // Outputs staged and placed together (none on failure). Exit code 0 on success, 2 on error.
+//
+// Cumulative: with observersFile instead of observer, the count of the observers that see each
+// pixel (UInt16, or UInt32 from 65535 observers on; nodata the type's largest value). The file is
+// any OGR point layer (each feature's height from the field heightField when it has one; CSV with
+// x/y, lon/lat or easting/northing columns) in its own CRS (one that states none, as a CSV, in
+// `srs` or the raster's), or text lines "x y [height]" in `srs` or the raster's CRS.
 struct ViewshedOptions : RasterJobOptions {
-  std::array<double, 2> observer{};  // x, y
-  std::string srs;                   // CRS of the observer; empty: the raster's
-  double observerHeight = 2;         // metres above the surface
-  double targetHeight = 0;           // metres above each pixel's surface
-  double maxDistance = 0;            // metres; 0: no limit
+  std::optional<std::array<double, 2>> observer;  // x, y
+  std::string observersFile;
+  std::string heightField = "height";
+  std::string srs;            // CRS of the observer (and of text observers); empty: the raster's
+  double observerHeight = 2;  // metres above the surface
+  double targetHeight = 0;    // metres above each pixel's surface
+  double maxDistance = 0;     // metres; 0: no limit
   int visibleValue = 255, hiddenValue = 0, nodataValue = 128, outOfRangeValue = 64;
   IndexOptions index;
 };

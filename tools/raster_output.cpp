@@ -44,7 +44,7 @@ std::string driverForPath(const std::string& path) {
 }
 
 std::vector<std::string> checkCreationOptions(const std::string& format, const std::vector<std::string>& options,
-                                              bool byteData, int mostValue) {
+                                              bool byteData, std::uint64_t mostValue) {
   ensureGdalRegistered();
   std::string f = format;
   std::transform(f.begin(), f.end(), f.begin(), [](unsigned char c) { return std::toupper(c); });
@@ -77,7 +77,7 @@ std::vector<std::string> checkCreationOptions(const std::string& format, const s
   if (!value("NBITS").empty()) {
     const int bits = std::atoi(value("NBITS").c_str());
     int need = 1;
-    while (need < 8 && (1 << need) <= mostValue) ++need;
+    while (need < 32 && (std::uint64_t{1} << need) <= mostValue) ++need;
     if (byteData && bits < need) {
       refuse("-co NBITS=" + value("NBITS") + " (the value " + std::to_string(mostValue) + " needs " +
              std::to_string(need) + " bits)");
@@ -113,7 +113,10 @@ void writeRaster(const RasterWrite& w, const DemTerrain& grid, const std::vector
     co.AddString(o.c_str());
   }
   GDALDriver* mem = GetGDALDriverManager()->GetDriverByName("MEM");
-  const GDALDataType type = w.byteData ? GDT_Byte : GDT_Float32;
+  const GDALDataType type = !w.type.empty() ? GDALGetDataTypeByName(w.type.c_str())
+                            : w.byteData    ? GDT_Byte
+                                            : GDT_Float32;
+  if (type == GDT_Unknown) throw Error(w.path + ": no data type " + w.type);
   std::unique_ptr<GDALDataset> ds(mem->Create("", grid.width, grid.height, 1, type, nullptr));
   if (!ds) throw Error(w.path + ": cannot allocate the output raster");
   double gt[6];

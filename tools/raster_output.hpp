@@ -25,9 +25,9 @@ std::string driverForPath(const std::string& path);
 // the option): lossy compression (JPEG, WebP, JPEG XL or LERC with an error allowed, the JPEG
 // and WebP formats), fewer bits than the values need (NBITS below what `mostValue` takes in a
 // Byte band; 16-bit floats), signed bytes. Returns GDAL's own warnings on the rest (an option the
-// driver does not know), for the tool to print. byteData: Byte values (else Float32).
+// driver does not know), for the tool to print. byteData: integer values (Byte, or counts; else Float32).
 std::vector<std::string> checkCreationOptions(const std::string& format, const std::vector<std::string>& options,
-                                              bool byteData, int mostValue);
+                                              bool byteData, std::uint64_t mostValue);
 
 // One band on the DEM's grid and georeferencing. `type`: "Byte" or "Float32" (the values are
 // converted). Throws qota::Error naming the file when it cannot be written.
@@ -39,6 +39,7 @@ struct RasterWrite {
   double nodata = 0;
   bool quiet = true;                                               // no progress on stdout
   std::vector<std::pair<std::string, std::string>> metadata = {};  // NAME, VALUE items of the dataset
+  std::string type = {};  // a GDAL data type name ("UInt16", "UInt32") instead of Byte / Float32
 };
 void writeRaster(const RasterWrite& w, const DemTerrain& grid, const std::vector<double>& values, OutputStage& stage);
 

@@ -2,10 +2,15 @@
 #include "qota/viewshed.hpp"
 
 #include <Eigen/Geometry>
+#include <gdal_priv.h>
 #include <ogr_spatialref.h>
+#include <ogrsf_frmts.h>
+#include <strings.h>
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
+#include <fstream>
 #include <memory>
 #include <ostream>
 
@@ -19,28 +24,121 @@
 namespace qota::tools {
 namespace {
 
-// The observer in the raster's CRS: as given, or transformed from --srs.
-std::array<double, 2> observerOnRaster(const ViewshedOptions& o, const DemTerrain& dem) {
-  if (o.srs.empty()) return o.observer;
-  if (dem.crsWkt.empty()) throw Error(o.source + ": the raster has no CRS, so --srs cannot place the observer on it");
-  OGRSpatialReference from, to;
-  if (from.SetFromUserInput(o.srs.c_str()) != OGRERR_NONE) {
-    throw Error("--srs '" + o.srs + "' is not a coordinate reference system GDAL knows");
-  }
+// Points from `from` (a CRS GDAL reads; empty: the raster's own) into the raster's CRS, in place.
+// `what` names them in errors.
+void toRasterCrs(const OGRSpatialReference* from, const DemTerrain& dem, std::vector<Observer>& points,
+                 const std::string& what) {
+  if (!from || points.empty()) return;
+  if (dem.crsWkt.empty()) throw Error(dem.path + ": the raster has no CRS, so " + what + " cannot be placed on it");
+  OGRSpatialReference source(*from), to;
   to.importFromWkt(dem.crsWkt.c_str());
-  from.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  source.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
   to.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  const std::unique_ptr<OGRCoordinateTransformation> ct(OGRCreateCoordinateTransformation(&from, &to));
-  double x = o.observer[0], y = o.observer[1];
-  if (!ct || !ct->Transform(1, &x, &y) || !std::isfinite(x) || !std::isfinite(y)) {
-    throw Error("--observer " + formatNumber(o.observer[0]) + "," + formatNumber(o.observer[1]) +
-                " cannot be converted from --srs '" + o.srs + "' to the raster's CRS");
+  const std::unique_ptr<OGRCoordinateTransformation> ct(OGRCreateCoordinateTransformation(&source, &to));
+  if (!ct) throw Error(what + ": no transformation to the raster's CRS");
+  for (Observer& p : points) {
+    const double x0 = p.x, y0 = p.y;
+    if (!ct->Transform(1, &p.x, &p.y) || !std::isfinite(p.x) || !std::isfinite(p.y)) {
+      throw Error(p.name + " (" + formatNumber(x0) + ", " + formatNumber(y0) +
+                  ") cannot be converted to the raster's CRS");
+    }
   }
-  return {x, y};
+}
+
+std::unique_ptr<OGRSpatialReference> srsOf(const std::string& srs) {
+  if (srs.empty()) return nullptr;
+  auto s = std::make_unique<OGRSpatialReference>();
+  if (s->SetFromUserInput(srs.c_str()) != OGRERR_NONE) {
+    throw Error("--srs '" + srs + "' is not a coordinate reference system GDAL knows");
+  }
+  return s;
+}
+
+// Text lines "x y [height]" (spaces, tabs or commas; '#' starts a comment), in --srs or the
+// raster's CRS; a height, when given, overrides --observer-height.
+std::vector<Observer> observersFromText(const ViewshedOptions& o) {
+  std::ifstream in(o.observersFile);
+  if (!in) throw Error(o.observersFile + ": cannot open");
+  std::vector<Observer> points;
+  std::string line;
+  for (std::size_t number = 1; std::getline(in, line); ++number) {
+    const std::string text = line.substr(0, line.find('#'));
+    std::vector<double> fields;
+    std::size_t i = 0;
+    while (i < text.size()) {
+      while (i < text.size() && (std::isspace(static_cast<unsigned char>(text[i])) || text[i] == ',')) ++i;
+      if (i == text.size()) break;
+      std::size_t j = i;
+      while (j < text.size() && !std::isspace(static_cast<unsigned char>(text[j])) && text[j] != ',') ++j;
+      double v = 0;
+      const auto [end, ec] = std::from_chars(text.data() + i, text.data() + j, v);
+      if (ec != std::errc() || end != text.data() + j || !std::isfinite(v))
+        fields.assign(4, 0);  // not a number
+      else
+        fields.push_back(v);
+      i = j;
+    }
+    if (fields.empty()) continue;
+    const std::string name = o.observersFile + ":" + std::to_string(number);
+    if (fields.size() < 2 || fields.size() > 3) {
+      throw Error(name + ": expected 'x y [height]' (numbers), got '" + line + "'");
+    }
+    points.push_back({fields[0], fields[1], fields.size() == 3 ? fields[2] : o.observerHeight, name});
+  }
+  if (points.empty()) throw Error(o.observersFile + ": no observers in it");
+  return points;
+}
+
+// Observers from --observers: an OGR point layer (GeoPackage, GeoJSON, Shapefile, FlatGeobuf, CSV
+// with x/y, lon/lat or easting/northing columns...) in its own CRS, each feature's height from
+// the field --height-field when it has one (else --observer-height); anything else is text.
+std::vector<Observer> readObservers(const ViewshedOptions& o, const DemTerrain& dem) {
+  const char* csv[] = {"X_POSSIBLE_NAMES=x,lon,long,longitude,easting", "Y_POSSIBLE_NAMES=y,lat,latitude,northing",
+                       "AUTODETECT_TYPE=YES", nullptr};
+  std::unique_ptr<GDALDataset> ds;
+  {
+    CPLPushErrorHandler(CPLQuietErrorHandler);  // (a text file is not a layer: no noise about it)
+    const char* const csvDriver[] = {"CSV", nullptr};
+    const bool isCsv =
+        o.observersFile.size() > 4 && !strcasecmp(o.observersFile.c_str() + o.observersFile.size() - 4, ".csv");
+    ds.reset(GDALDataset::FromHandle(GDALOpenEx(o.observersFile.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY,
+                                                isCsv ? csvDriver : nullptr, isCsv ? csv : nullptr, nullptr)));
+    CPLPopErrorHandler();
+  }
+  std::vector<Observer> points;
+  const auto text = srsOf(o.srs);
+  if (!ds || ds->GetLayerCount() == 0) {
+    points = observersFromText(o);
+    toRasterCrs(text.get(), dem, points, "--observers " + o.observersFile);
+    return points;
+  }
+  OGRLayer* layer = ds->GetLayer(0);
+  const int heightField = layer->GetLayerDefn()->GetFieldIndex(o.heightField.c_str());
+  layer->ResetReading();
+  for (OGRFeatureUniquePtr f(layer->GetNextFeature()); f; f.reset(layer->GetNextFeature())) {
+    const std::string name = o.observersFile + " feature " + std::to_string(f->GetFID());
+    const OGRGeometry* g = f->GetGeometryRef();
+    if (!g || wkbFlatten(g->getGeometryType()) != wkbPoint) {
+      throw Error(name +
+                  ": not a point (observers are points; a CSV needs x/y, lon/lat or easting/northing "
+                  "columns)");
+    }
+    const auto* p = g->toPoint();
+    double height = o.observerHeight;
+    if (heightField >= 0 && f->IsFieldSetAndNotNull(heightField)) height = f->GetFieldAsDouble(heightField);
+    points.push_back({p->getX(), p->getY(), height, name});
+  }
+  if (points.empty()) throw Error(o.observersFile + ": no observers in its first layer");
+  const OGRSpatialReference* layerSrs = layer->GetSpatialRef();
+  toRasterCrs(layerSrs ? layerSrs : text.get(), dem, points, "--observers " + o.observersFile);
+  return points;
 }
 
 void checkOptions(const ViewshedOptions& o, const std::string& format) {
   if (o.output.empty()) throw Error("an output file is needed: -o OUT");
+  if (o.observer.has_value() == !o.observersFile.empty()) {
+    throw Error("give one observer (--observer X,Y) or a file of them (--observers FILE)");
+  }
   const int values[4] = {o.visibleValue, o.hiddenValue, o.nodataValue, o.outOfRangeValue};
   for (int v : values) {
     if (v < 0 || v > 255) throw Error("output values must be 0..255, got " + std::to_string(v));
@@ -65,9 +163,9 @@ void checkOptions(const ViewshedOptions& o, const std::string& format) {
   if (!o.png.empty() && sameFile(o.png, o.output)) throw Error("--png and -o name the same file");
 }
 
-// A grey hillshade (light from the north-west, 45 degrees up) where visible, darkened where
-// hidden, darker still beyond the range; nodata black.
-std::vector<double> preview(const LocalFrame& f, const std::vector<Sight>& sight) {
+// A grey hillshade (light from the north-west, 45 degrees up) scaled by each pixel's factor:
+// 1 where seen, less where not; black where the factor is negative (nodata).
+std::vector<double> preview(const LocalFrame& f, const std::vector<double>& factor) {
   const int w = f.width, h = f.height;
   const Eigen::Vector3d light = Eigen::Vector3d(-0.5, 0.5, std::sqrt(0.5)).normalized();
   std::vector<double> grey(f.pixelCount(), 0.0);
@@ -75,17 +173,116 @@ std::vector<double> preview(const LocalFrame& f, const std::vector<Sight>& sight
   for (int r = 0; r < h; ++r) {
     for (int c = 0; c < w; ++c) {
       const std::size_t i = static_cast<std::size_t>(r) * w + c;
-      if (sight[i] == Sight::NoData) continue;
+      if (factor[i] < 0) continue;
       const auto at = [&](int cc, int rr) -> const Eigen::Vector3d& {
         return v[static_cast<std::size_t>(std::clamp(rr, 0, h - 1)) * w + std::clamp(cc, 0, w - 1)];
       };
       const Eigen::Vector3d n = (at(c + 1, r) - at(c - 1, r)).cross(at(c, r - 1) - at(c, r + 1));
       const double shade = n.squaredNorm() > 0 ? std::max(0.0, n.normalized().dot(light)) : 0.5;
-      const double scale = sight[i] == Sight::Visible ? 1.0 : sight[i] == Sight::Hidden ? 0.35 : 0.15;
-      grey[i] = 40 + 215 * (0.3 + 0.7 * shade) * scale;
+      grey[i] = 40 + 215 * (0.3 + 0.7 * shade) * factor[i];
     }
   }
   return grey;
+}
+
+}  // namespace
+
+namespace {
+
+// Where the DEM was read and placed: the pieces both kinds of run share.
+struct Run {
+  std::string format;
+  DemTerrain dem;
+  FrameOptions frame;
+};
+
+// The values of a single observer's viewshed, its summary, its raster.
+void writeOne(const ViewshedOptions& o, const Run& run, std::ostream& out, OutputStage& stage) {
+  std::vector<Observer> at{{(*o.observer)[0], (*o.observer)[1], o.observerHeight, "--observer"}};
+  toRasterCrs(srsOf(o.srs).get(), run.dem, at, "--observer");
+  qota::ViewshedOptions v;
+  v.observerX = at[0].x, v.observerY = at[0].y;
+  v.observerHeight = o.observerHeight, v.targetHeight = o.targetHeight, v.maxDistance = o.maxDistance;
+  v.frame = run.frame;
+  v.index = o.index;
+  const Viewshed seen = qota::viewshed(run.dem, v, termProgress(o.quiet, 0, 1));
+  if (!o.quiet) {
+    out << "frame: " << seen.frameDescription << '\n'
+        << "observer: " << formatNumber(v.observerX) << ", " << formatNumber(v.observerY) << ", "
+        << formatNumber(o.observerHeight) << " m above the surface at " << formatNumber(seen.surface, 3) << " m\n"
+        << "visible: " << seen.visible << " of " << seen.tested << " pixels tested ("
+        << formatNumber(seen.tested ? 100.0 * seen.visible / seen.tested : 0.0, 2) << " %)\n";
+  }
+  std::vector<double> values(seen.sight.size()), shade(seen.sight.size());
+  for (std::size_t i = 0; i < values.size(); ++i) {
+    const Sight s = seen.sight[i];
+    values[i] = s == Sight::Visible  ? o.visibleValue
+                : s == Sight::Hidden ? o.hiddenValue
+                : s == Sight::NoData ? o.nodataValue
+                                     : o.outOfRangeValue;
+    shade[i] = s == Sight::Visible ? 1.0 : s == Sight::Hidden ? 0.35 : s == Sight::NoData ? -1.0 : 0.15;
+  }
+  RasterWrite w{o.output,
+                run.format,
+                o.creationOptions,
+                true,
+                double(o.nodataValue),
+                true,
+                {{"QOTA_TOOL", "viewshed"},
+                 {"QOTA_FRAME", seen.frameDescription},
+                 {"QOTA_OBSERVER", formatNumber(v.observerX) + "," + formatNumber(v.observerY)},
+                 {"QOTA_OBSERVER_HEIGHT", formatNumber(o.observerHeight)},
+                 {"QOTA_TARGET_HEIGHT", formatNumber(o.targetHeight)},
+                 {"QOTA_MAX_DISTANCE", formatNumber(o.maxDistance)},
+                 {"QOTA_VALUES", "visible=" + std::to_string(o.visibleValue) + ",invisible=" +
+                                     std::to_string(o.hiddenValue) + ",nodata=" + std::to_string(o.nodataValue) +
+                                     ",out_of_range=" + std::to_string(o.outOfRangeValue)}}};
+  writeRaster(w, run.dem, values, stage);
+  if (!o.png.empty()) {
+    writeRaster({o.png, "PNG", {}, true, 0.0, true}, run.dem, preview(localFrame(run.dem, run.frame), shade), stage);
+  }
+}
+
+// How many of --observers see each pixel: UInt16 (UInt32 from 65535 observers on), nodata the
+// type's largest value.
+void writeCounts(const ViewshedOptions& o, const Run& run, std::ostream& out, OutputStage& stage) {
+  const std::vector<Observer> observers = readObservers(o, run.dem);
+  CumulativeOptions c;
+  c.targetHeight = o.targetHeight, c.maxDistance = o.maxDistance, c.frame = run.frame, c.index = o.index;
+  if (!o.quiet) out << "observers: " << observers.size() << " from " << o.observersFile << '\n';
+  const CumulativeViewshed seen = cumulativeViewshed(run.dem, observers, c, termProgress(o.quiet, 0, 1));
+  const bool wide = observers.size() >= 65535;
+  const double nodata = wide ? 4294967295.0 : 65535.0;
+  std::vector<double> values(seen.count.size()), shade(seen.count.size());
+  std::uint32_t most = 0, seenAny = 0;
+  for (std::uint32_t k : seen.count) most = std::max(most, k);
+  for (std::size_t i = 0; i < values.size(); ++i) {
+    values[i] = seen.valid[i] ? seen.count[i] : nodata;
+    shade[i] = !seen.valid[i] ? -1.0 : 0.3 + 0.7 * (most ? double(seen.count[i]) / most : 0.0);
+    seenAny += seen.valid[i] && seen.count[i] > 0;
+  }
+  if (!o.quiet) {
+    out << "frame: " << seen.frameDescription << '\n'
+        << "seen by at least one: " << seenAny << " pixels; by the most: " << most << " observers\n";
+  }
+  RasterWrite w{o.output,
+                run.format,
+                o.creationOptions,
+                true,
+                nodata,
+                true,
+                {{"QOTA_TOOL", "viewshed"},
+                 {"QOTA_FRAME", seen.frameDescription},
+                 {"QOTA_OBSERVERS", o.observersFile},
+                 {"QOTA_OBSERVER_COUNT", std::to_string(observers.size())},
+                 {"QOTA_TARGET_HEIGHT", formatNumber(o.targetHeight)},
+                 {"QOTA_MAX_DISTANCE", formatNumber(o.maxDistance)},
+                 {"QOTA_VALUES", "count of the observers that see the pixel"}},
+                wide ? "UInt32" : "UInt16"};
+  writeRaster(w, run.dem, values, stage);
+  if (!o.png.empty()) {
+    writeRaster({o.png, "PNG", {}, true, 0.0, true}, run.dem, preview(localFrame(run.dem, run.frame), shade), stage);
+  }
 }
 
 }  // namespace
@@ -97,61 +294,23 @@ int viewshed(const ViewshedOptions& given, std::ostream& out, std::ostream& err)
     for (const std::string* path : {&o.output, &o.png}) {
       if (!path->empty()) OutputStage::checkTarget(*path);
     }
-    const std::string format = o.output.empty() ? "" : o.format.empty() ? driverForPath(o.output) : o.format;
-    checkOptions(o, format);
-    const int mostValue = std::max({o.visibleValue, o.hiddenValue, o.nodataValue, o.outOfRangeValue});
-    for (const std::string& warning : checkCreationOptions(format, o.creationOptions, true, mostValue)) {
+    Run run;
+    run.format = o.output.empty() ? "" : o.format.empty() ? driverForPath(o.output) : o.format;
+    checkOptions(o, run.format);
+    const std::uint64_t mostValue =
+        o.observersFile.empty() ? std::max({o.visibleValue, o.hiddenValue, o.nodataValue, o.outOfRangeValue}) : 65535;
+    for (const std::string& warning : checkCreationOptions(run.format, o.creationOptions, true, mostValue)) {
       err << "qota viewshed: warning: GDAL: " << warning << '\n';
     }
     DemOptions demOptions;
     demOptions.band = o.band;
     demOptions.lonLatAsCartesian = true;  // read as lon/lat: the frame puts it on its ellipsoid
     demOptions.then = memory::kShadow;
-    const DemTerrain dem = loadDem(o.source, demOptions);
-
-    qota::ViewshedOptions v;
-    const auto [x, y] = observerOnRaster(o, dem);
-    v.observerX = x, v.observerY = y;
-    v.observerHeight = o.observerHeight, v.targetHeight = o.targetHeight, v.maxDistance = o.maxDistance;
-    v.frame = frameOptionsOf(o);
-    v.index = o.index;
-    if (!o.quiet) out << "qota viewshed: " << o.source << " -> " << o.output << " (" << format << ")\n";
-    const Viewshed seen = qota::viewshed(dem, v, termProgress(o.quiet, 0, 1));
-    if (!o.quiet) {
-      out << "frame: " << seen.frameDescription << '\n'
-          << "observer: " << formatNumber(x) << ", " << formatNumber(y) << ", " << formatNumber(o.observerHeight)
-          << " m above the surface at " << formatNumber(seen.surface, 3) << " m\n"
-          << "visible: " << seen.visible << " of " << seen.tested << " pixels tested ("
-          << formatNumber(seen.tested ? 100.0 * seen.visible / seen.tested : 0.0, 2) << " %)\n";
-    }
-    std::vector<double> values(seen.sight.size());
-    for (std::size_t i = 0; i < values.size(); ++i) {
-      const Sight s = seen.sight[i];
-      values[i] = s == Sight::Visible  ? o.visibleValue
-                  : s == Sight::Hidden ? o.hiddenValue
-                  : s == Sight::NoData ? o.nodataValue
-                                       : o.outOfRangeValue;
-    }
+    run.dem = loadDem(o.source, demOptions);
+    run.frame = frameOptionsOf(o);
+    if (!o.quiet) out << "qota viewshed: " << o.source << " -> " << o.output << " (" << run.format << ")\n";
     OutputStage stage;
-    RasterWrite w{o.output,
-                  format,
-                  o.creationOptions,
-                  true,
-                  double(o.nodataValue),
-                  true,
-                  {{"QOTA_TOOL", "viewshed"},
-                   {"QOTA_OBSERVER", formatNumber(x) + "," + formatNumber(y)},
-                   {"QOTA_OBSERVER_HEIGHT", formatNumber(o.observerHeight)},
-                   {"QOTA_TARGET_HEIGHT", formatNumber(o.targetHeight)},
-                   {"QOTA_MAX_DISTANCE", formatNumber(o.maxDistance)},
-                   {"QOTA_VALUES", "visible=" + std::to_string(o.visibleValue) + ",invisible=" +
-                                       std::to_string(o.hiddenValue) + ",nodata=" + std::to_string(o.nodataValue) +
-                                       ",out_of_range=" + std::to_string(o.outOfRangeValue)}}};
-    writeRaster(w, dem, values, stage);
-    if (!o.png.empty()) {
-      const LocalFrame frame = localFrame(dem, v.frame);
-      writeRaster({o.png, "PNG", {}, true, 0.0, true}, dem, preview(frame, seen.sight), stage);
-    }
+    o.observersFile.empty() ? writeOne(o, run, out, stage) : writeCounts(o, run, out, stage);
     stage.commit();
     if (!o.quiet) out << "written: " << o.output << (o.png.empty() ? "" : " and " + o.png) << '\n';
     return 0;
