@@ -22,6 +22,12 @@ paste -d '  ' <(echo "$points") <(echo "$points" | build/tools/qota sample "$dem
   awk '{printf "%12s %10s  -> %-20s %s %s %s %s\n", $1, $2, $3, $4, $5, $6, $7}'
 echo "== qota shadow $dem (sun from the south-east, 20 degrees up)"
 build/tools/qota shadow "$dem" -o build/rainier_shadow.tif -az 135 -alt 20 --png build/rainier_shadow.png
+echo "== qota viewshed $dem (what a climber 10 m up at Camp Muir sees, exactly; the Earth's curvature included)"
+build/tools/qota viewshed "$dem" --observer -121.7326,46.8356 --oz 10 -o build/rainier_viewshed.tif \
+  --png build/rainier_viewshed.png
+echo "== qota viewshed $dem --observers data/rainier_lookouts.txt (how many of five ridge-top lookouts see each pixel)"
+build/tools/qota viewshed "$dem" --observers data/rainier_lookouts.txt -o build/rainier_lookouts.tif \
+  --png build/rainier_lookouts.png
 echo "== qota sample data/etopo20.tif --mapping spherical   (the globe as a closed planet under radial gravity;"
 echo "   lon lat -> surface radius in metres, and the world point)"
 printf '%s\n' '86.925 27.988' '142.2 11.35' '0 90' '180 -52' '-180 -52' |

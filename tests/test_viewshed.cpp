@@ -93,16 +93,23 @@ std::vector<Sight> gridOracle(const GridCase& g, double col, double row, double 
     const auto c = grid.triangle(t);
     if (valid[c[0]] && valid[c[1]] && valid[c[2]]) tris.push_back(c);
   }
-  // The surface under the observer: the triangle rule on the clamped position.
-  const double cc = std::clamp(col, 0.5, w - 0.5) - 0.5, rr = std::clamp(row, 0.5, h - 0.5) - 0.5;
-  const int c0 = std::min(static_cast<int>(cc), w - 2), r0 = std::min(static_cast<int>(rr), h - 2);
-  const double fx = cc - c0, fy = rr - r0;
-  const auto Z = [&](int r, int c) { return g.z[static_cast<std::size_t>(r) * w + c]; };
-  // The square's lower-left triangle holds fy >= fx, its upper-right one fx >= fy (on the
-  // diagonal, whichever has data).
-  const double lower = Z(r0, c0) + fx * (Z(r0 + 1, c0 + 1) - Z(r0 + 1, c0)) + fy * (Z(r0 + 1, c0) - Z(r0, c0));
-  const double upper = Z(r0, c0) + fx * (Z(r0, c0 + 1) - Z(r0, c0)) + fy * (Z(r0 + 1, c0 + 1) - Z(r0, c0 + 1));
-  const double surface = fy >= fx && !std::isnan(lower) ? lower : upper;
+  // The surface under the observer: a triangle with data whose projection holds the position
+  // (clamped onto the outermost centres' lines), its height there by barycentric weights (exact
+  // in quarter units: the position is on quarter pixels).
+  const double cc = std::clamp(col, 0.5, w - 0.5), rr = std::clamp(row, 0.5, h - 0.5);
+  const P3 q = at(cc, rr, 0);
+  double surface = NAN;
+  for (const auto& t : tris) {
+    const P3 &a = vertex[t[0]], &b = vertex[t[1]], &c = vertex[t[2]];
+    const auto area = [](const P3& u, const P3& v, const P3& x) {
+      return (v.x - u.x) * (x.y - u.y) - (v.y - u.y) * (x.x - u.x);
+    };
+    const long long whole = area(a, b, c), wa = area(q, b, c), wb = area(a, q, c), wc = area(a, b, q);
+    if (whole == 0 || (whole > 0 ? (wa < 0 || wb < 0 || wc < 0) : (wa > 0 || wb > 0 || wc > 0))) continue;
+    surface = (static_cast<double>(wa) * a.z + static_cast<double>(wb) * b.z + static_cast<double>(wc) * c.z) /
+              static_cast<double>(whole) / 4;
+    break;
+  }
   const P3 o = at(col, row, surface + observerHeight);
   std::vector<Sight> out(n, Sight::NoData);
   for (std::size_t i = 0; i < n; ++i) {
@@ -235,6 +242,53 @@ TEST(Viewshed, CumulativeCountsAreTheOraclesSum) {
       }
     }
   }
+}
+
+// A point light's mask is the oracle's viewshed from the light (lit where the segment to the light
+// is clear): on a grid without voids the light arriving from below a pixel's own surface is
+// always blocked on its way too (the surface is continuous over the raster), so attached shadow
+// adds nothing there.
+TEST(PointLight, PixelGridMatchesExactOracle) {
+  std::mt19937 rng(1127);
+  int cases = 0, lit = 0, dark = 0;
+  for (int k = 0; k < 30; ++k) {
+    const GridCase g = randomGrid(rng, false);
+    const std::string path = writeGrid(g, "point_light.tif");
+    const qota::DemTerrain dem = qota::loadDem(path, {});
+    std::uniform_int_distribution<int> qc(0, 4 * g.w), qr(0, 4 * g.h);
+    for (int tries = 0; tries < 4; ++tries) {
+      const double col = qc(rng) / 4.0, row = qr(rng) / 4.0, H = (tries + 1) * 1.5;
+      qota::PointLightOptions o;
+      o.x = col, o.y = g.h - row, o.height = H, o.frame.pixelSize = 1;
+      const std::vector<qota::Light> got = qota::pointLightMask(dem, o);
+      const std::vector<Sight> want = gridOracle(g, col, row, H, 0, 0);
+      int differ = 0;
+      for (std::size_t i = 0; i < got.size(); ++i) {
+        const qota::Light expected = want[i] == Sight::Visible ? qota::Light::Lit : qota::Light::Shadow;
+        differ += got[i] != expected;
+        lit += expected == qota::Light::Lit, dark += expected == qota::Light::Shadow;
+      }
+      EXPECT_EQ(differ, 0) << "case " << k << ": light at (" << col << ", " << row << ") " << H << " m up";
+      ++cases;
+    }
+  }
+  EXPECT_EQ(cases, 120);
+  EXPECT_GT(lit, 3000);
+  EXPECT_GT(dark, 3000);
+}
+
+TEST(PointLight, AbsoluteHeightIsTheSameLight) {
+  GridCase g{10, 8, std::vector<double>(80, 0.0)};
+  for (std::size_t i = 0; i < g.z.size(); ++i) g.z[i] = static_cast<double>((i * 7) % 5);
+  const std::string path = writeGrid(g, "point_light_absolute.tif");
+  const qota::DemTerrain dem = qota::loadDem(path, {});
+  qota::PointLightOptions above, absolute;
+  above.x = absolute.x = 3.5, above.y = absolute.y = 8 - 4.5;  // pixel (3, 4): its height is the surface
+  above.height = 6, absolute.height = 6 + g.z[4 * 10 + 3], absolute.aboveSurface = false;
+  above.frame.pixelSize = absolute.frame.pixelSize = 1;
+  EXPECT_EQ(qota::pointLightMask(dem, above), qota::pointLightMask(dem, absolute));
+  above.height = 0;
+  EXPECT_THROW(qota::pointLightMask(dem, above), qota::Error);
 }
 
 TEST(Viewshed, FlatPlainSeenFromTheGroundIsVisible) {

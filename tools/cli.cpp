@@ -172,7 +172,15 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
   shadowCmd->add_option("--sun-vector", sunVector, "Vector toward the light: east,north,up")
       ->delimiter(',')
       ->expected(3);
-  std::vector<double> at, sunVectorBody, subsolar;
+  std::vector<double> at, sunVectorBody, subsolar, lightPoint;
+  shadowCmd
+      ->add_option("--light-point", lightPoint,
+                   "X,Y,Z: a point light (a lamp, a floodlight) at X,Y in the raster's CRS, Z metres above the "
+                   "surface there (--light-point-absolute: over the DEM's height reference); the same mask kinds")
+      ->delimiter(',')
+      ->expected(3);
+  shadowCmd->add_flag("--light-point-absolute", shadow.lightPointAbsolute,
+                      "--light-point's Z is a height over the DEM's reference (metres), not above the surface");
   shadowCmd->add_option("--at", at, "LON,LAT: -az/-alt are east-north-up at this place (default: the DEM's centre)")
       ->delimiter(',')
       ->expected(2);
@@ -353,6 +361,7 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
       shadow.sunVectorBody = Eigen::Vector3d(sunVectorBody[0], sunVectorBody[1], sunVectorBody[2]);
     if (!subsolar.empty()) shadow.subsolar = std::array<double, 2>{subsolar[0], subsolar[1]};
     if (!at.empty()) shadow.at = std::array<double, 2>{at[0], at[1]};
+    if (!lightPoint.empty()) shadow.lightPoint = std::array<double, 3>{lightPoint[0], lightPoint[1], lightPoint[2]};
     if (!hours.empty()) shadow.hours = std::array<double, 3>{hours[0], hours[1], hours[2]};
     if (!tileAt.empty()) shadow.tile = std::array<int, 2>{tileAt[0], tileAt[1]};
     if (!maxMemory.empty()) {

@@ -122,6 +122,11 @@ struct ShadowOptions : RasterJobOptions {
   // declination): the same light anywhere on the body, poles included.
   std::optional<Eigen::Vector3d> sunVectorBody;
   std::optional<std::array<double, 2>> subsolar;
+  // A point light at x, y (the raster's CRS) and z metres above the surface there, or over the
+  // DEM's reference with lightPointAbsolute (qota/viewshed.hpp, pointLightMask); the whole raster
+  // in memory, one mask.
+  std::optional<std::array<double, 3>> lightPoint;
+  bool lightPointAbsolute = false;
   std::string time;                            // ISO 8601
   std::string tz;                              // zone of a time without offset: +HH:MM or an IANA name
   std::optional<std::array<double, 3>> hours;  // start, end, step (local hours of the date)

@@ -12,6 +12,7 @@
 #include "qota/mapping_registry.hpp"
 #include "qota/shadow.hpp"
 #include "qota/sunlight.hpp"
+#include "qota/viewshed.hpp"
 #include "cancel.hpp"
 #include "qota_tools.hpp"
 #include "raster_output.hpp"
@@ -31,7 +32,7 @@ namespace {
 
 int lightKinds(const ShadowOptions& o) {
   return (o.azimuth || o.altitude ? 1 : 0) + (o.sunVector ? 1 : 0) + (o.time.empty() ? 0 : 1) +
-         (o.sunVectorBody ? 1 : 0) + (o.subsolar ? 1 : 0);
+         (o.sunVectorBody ? 1 : 0) + (o.subsolar ? 1 : 0) + (o.lightPoint ? 1 : 0);
 }
 
 // East, north and up at (lon, lat) on the frame's body, or the refusal where they are undefined.
@@ -196,8 +197,9 @@ bool sameFile(const std::string& a, const std::string& b) {
 void checkOptions(const ShadowOptions& o, const std::string& format) {
   if (o.output.empty()) throw Error("an output file is needed: -o OUT");
   if (lightKinds(o) > 1) {
-    throw Error("give one light: -az/-alt, --sun-vector, --time, --sun-vector-body or --subsolar");
+    throw Error("give one light: -az/-alt, --sun-vector, --time, --sun-vector-body, --subsolar or --light-point");
   }
+  if (o.lightPointAbsolute && !o.lightPoint) throw Error("--light-point-absolute needs --light-point");
   if (!o.tz.empty() && o.time.empty()) throw Error("--tz needs --time (the date and time it is the zone of)");
   if (o.hours && o.time.empty()) throw Error("--hours needs --time for the date");
   for (int v : {o.litValue, o.shadowValue, o.nodataValue}) {
@@ -257,12 +259,15 @@ int shadow(const ShadowOptions& given, std::ostream& out, std::ostream& err) {
       err << "qota shadow: warning: GDAL: " << warning << '\n';
     }
     const std::uint64_t resident = memory::residentBytes();
-    if (runsByTiles(o)) return shadowByTiles(o, format, out, err);
-    const std::uint64_t estimate = wholeEstimate(o, resident);
+    if (o.lightPoint && (o.tileSize > 0 || o.tile || !o.tilesState.empty())) {
+      throw Error("--light-point shades the whole raster in memory; it does not run by tiles");
+    }
+    if (!o.lightPoint && runsByTiles(o)) return shadowByTiles(o, format, out, err);
+    const std::uint64_t estimate = o.lightPoint ? 0 : wholeEstimate(o, resident);
     DemOptions demOptions;
     demOptions.band = o.band;
     demOptions.lonLatAsCartesian = true;  // read as lon/lat: the frame puts it on its ellipsoid
-    demOptions.then = memory::kShadow;
+    demOptions.then = o.lightPoint ? memory::kLinesOfSight : memory::kShadow;
     refuseBeyondMaxPixels(o, describeDem(o.source, demOptions));
     const DemTerrain dem = loadDem(o.source, demOptions);
     const LocalFrame frame = localFrame(dem, frameOptionsOf(o));
@@ -297,6 +302,26 @@ int shadow(const ShadowOptions& given, std::ostream& out, std::ostream& err) {
         out << "sunlight: " << steps << " steps of " << formatNumber(step) << " h, from " << span.start.local << " ("
             << span.start.utc << ") to " << span.end.local << " (" << span.end.utc << "), " << formatNumber(elapsed)
             << " h\n";
+      }
+    } else if (o.lightPoint) {
+      PointLightOptions p;
+      p.x = (*o.lightPoint)[0], p.y = (*o.lightPoint)[1], p.height = (*o.lightPoint)[2];
+      p.aboveSurface = !o.lightPointAbsolute;
+      p.frame = frameOptionsOf(o);
+      p.index = o.index;
+      if (!o.quiet) {
+        out << "light: a point at " << formatNumber(p.x) << ", " << formatNumber(p.y) << ", " << formatNumber(p.height)
+            << " m " << (p.aboveSurface ? "above the surface" : "over the DEM's reference") << '\n';
+      }
+      mask = pointLightMask(dem, p, termProgress(o.quiet, 0, 1));
+      for (std::size_t i = 0; i < pixels; ++i) {
+        values[i] = mask[i] == Light::Lit ? o.litValue : mask[i] == Light::Shadow ? o.shadowValue : o.nodataValue;
+      }
+      shownLight = Eigen::Vector3d(0, 0, 1);
+      if (!o.quiet) {
+        std::size_t lit = 0, valid = 0;
+        for (Light l : mask) lit += l == Light::Lit, valid += l != Light::NoData;
+        out << "lit: " << formatNumber(valid ? 100.0 * lit / valid : 0.0, 2) << " % of " << valid << " pixels\n";
       }
     } else {
       const LightChoice light = chooseLight(o, frame, out);
@@ -342,8 +367,8 @@ int shadow(const ShadowOptions& given, std::ostream& out, std::ostream& err) {
     stage.commit();
     if (!o.quiet) {
       out << "written: " << o.output << (o.png.empty() ? "" : " and " + o.png) << '\n'
-          << "memory: peak " << memory::peakBytes() / (1 << 20) << " MiB (estimated " << estimate / (1 << 20)
-          << " MiB)\n";
+          << "memory: peak " << memory::peakBytes() / (1 << 20) << " MiB"
+          << (estimate ? " (estimated " + std::to_string(estimate / (1 << 20)) + " MiB)" : std::string()) << '\n';
     }
     return 0;
   } catch (...) {

@@ -258,7 +258,7 @@ void writeCounts(const ViewshedOptions& o, const Run& run, std::ostream& out, Ou
   for (std::uint32_t k : seen.count) most = std::max(most, k);
   for (std::size_t i = 0; i < values.size(); ++i) {
     values[i] = seen.valid[i] ? seen.count[i] : nodata;
-    shade[i] = !seen.valid[i] ? -1.0 : 0.3 + 0.7 * (most ? double(seen.count[i]) / most : 0.0);
+    shade[i] = !seen.valid[i] ? -1.0 : seen.count[i] == 0 ? 0.3 : 0.65 + 0.35 * seen.count[i] / most;
     seenAny += seen.valid[i] && seen.count[i] > 0;
   }
   if (!o.quiet) {
@@ -305,7 +305,7 @@ int viewshed(const ViewshedOptions& given, std::ostream& out, std::ostream& err)
     DemOptions demOptions;
     demOptions.band = o.band;
     demOptions.lonLatAsCartesian = true;  // read as lon/lat: the frame puts it on its ellipsoid
-    demOptions.then = memory::kShadow;
+    demOptions.then = memory::kLinesOfSight;
     run.dem = loadDem(o.source, demOptions);
     run.frame = frameOptionsOf(o);
     if (!o.quiet) out << "qota viewshed: " << o.source << " -> " << o.output << " (" << run.format << ")\n";

@@ -568,7 +568,11 @@ LocalFrame localFrame(const DemTerrain& dem, const FrameOptions& o, FrameBasis& 
   for (std::size_t i = 0; i < n; ++i) {
     if (valid[i]) lo = std::min(lo, z[i]), hi = std::max(hi, z[i]);
   }
-  fillVoids(z, w, h);
+  if (o.fillVoids) {
+    fillVoids(z, w, h);
+  } else {
+    for (double& v : z) v = std::isnan(v) ? (lo <= hi ? lo : 0.0) : v;
+  }
   LocalFrame f = windowFrame(basis, whole, std::move(z), std::move(valid));
   completeBasis(basis, lo, hi, f);
   adoptBasis(f, basis);

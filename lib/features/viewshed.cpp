@@ -29,18 +29,22 @@ void checkMetres(const char* name, double value) {
 
 // The triangulated surface's height (metres) at pixel position (col, row), by the raster rule
 // (raster_grid.hpp: squares split from top-left to bottom-right; the outer half pixel flat to the
-// edge), from the heights in metres; NaN over a void.
+// edge), from the heights in metres; NaN over a void. A point on a square's side or corner lies in
+// every triangle around it: any of them with data answers (the surface is continuous).
 double surfaceAt(const std::vector<double>& z, const std::vector<std::uint8_t>& valid, int w, int h, double col,
                  double row) {
   const double c = std::clamp(col, 0.5, w - 0.5) - 0.5, r = std::clamp(row, 0.5, h - 0.5) - 0.5;
-  const int c0 = std::min(static_cast<int>(std::floor(c)), w - 2),
-            r0 = std::min(static_cast<int>(std::floor(r)), h - 2);
-  const double fx = c - c0, fy = r - r0;
-  const std::size_t tl = static_cast<std::size_t>(r0) * w + c0, tr = tl + 1, bl = tl + w, br = bl + 1;
-  // Triangle (TL, BL, BR) holds fy >= fx, (TL, BR, TR) fx >= fy; on the diagonal either answers.
-  const bool lower = valid[tl] && valid[bl] && valid[br], upper = valid[tl] && valid[br] && valid[tr];
-  if (fy >= fx && lower) return z[tl] + fx * (z[br] - z[bl]) + fy * (z[bl] - z[tl]);
-  if (fx >= fy && upper) return z[tl] + fx * (z[tr] - z[tl]) + fy * (z[br] - z[tr]);
+  const int cf = static_cast<int>(std::floor(c)), rf = static_cast<int>(std::floor(r));
+  for (int c0 = std::min(cf, w - 2); c0 >= std::max(cf - 1, 0); --c0) {
+    for (int r0 = std::min(rf, h - 2); r0 >= std::max(rf - 1, 0); --r0) {
+      const double fx = c - c0, fy = r - r0;
+      if (fx < 0 || fx > 1 || fy < 0 || fy > 1) continue;
+      const std::size_t tl = static_cast<std::size_t>(r0) * w + c0, tr = tl + 1, bl = tl + w, br = bl + 1;
+      // Triangle (TL, BL, BR) holds fy >= fx, (TL, BR, TR) fx >= fy.
+      if (fy >= fx && valid[tl] && valid[bl] && valid[br]) return z[tl] + fx * (z[br] - z[bl]) + fy * (z[bl] - z[tl]);
+      if (fx >= fy && valid[tl] && valid[br] && valid[tr]) return z[tl] + fx * (z[tr] - z[tl]) + fy * (z[br] - z[tr]);
+    }
+  }
   return NAN;
 }
 
@@ -49,15 +53,19 @@ double surfaceAt(const std::vector<double>& z, const std::vector<std::uint8_t>& 
 // metres of `near` seen from above when reach > 0).
 class Sightlines {
  public:
+  // holes: voids are holes, their triangles left out (viewsheds); else they are filled from their
+  // rims and block, as for shadows (light cannot pass under the terrain).
   Sightlines(const DemTerrain& dem, const FrameOptions& frameOptions, const IndexOptions& indexOptions,
-             const Progress& report)
-      : dem_(dem) {
+             const Progress& report, bool holes = true)
+      : dem_(dem), holes_(holes) {
     if (dem.width < 2 || dem.height < 2) {
       throw Error(dem.path + ": a viewshed needs a raster of at least 2 x 2 pixels, this one has " +
                   std::to_string(dem.width) + " x " + std::to_string(dem.height));
     }
     if (report) report(0.0, "placing the terrain");
-    frame_ = localFrame(dem, frameOptions, basis_);
+    FrameOptions options = frameOptions;
+    options.fillVoids = !holes;
+    frame_ = localFrame(dem, options, basis_);
     const std::size_t n = frame_.pixelCount();
     metres_.resize(n);
     for (std::size_t i = 0; i < n; ++i) metres_[i] = dem.mesh.vertices[i].z();
@@ -81,9 +89,16 @@ class Sightlines {
       throw Error(what + " at " + number(x) + ", " + number(y) + " is over a void of " + dem_.path +
                   " (no data there)");
     }
-    const double c[1] = {col}, r[1] = {row}, z[1] = {surface + height};
-    return {framePoints(basis_, c, r, z)[0], surface};
+    return {pointAt(col, row, surface + height), surface};
   }
+
+  // The frame point at pixel position (col, row) and `height` metres over the DEM's reference,
+  // anywhere (on the raster or beyond it).
+  Eigen::Vector3d pointAt(double col, double row, double height) const {
+    const double c[1] = {col}, r[1] = {row}, z[1] = {height};
+    return framePoints(basis_, c, r, z)[0];
+  }
+  const DemTerrain& dem() const { return dem_; }
 
   // The quadtree over the triangles with data; with reach > 0, only those whose corners all lie
   // within reach of `near` seen from above (along `up`).
@@ -95,6 +110,7 @@ class Sightlines {
     terrain.vertices = v;
     frame_.grid.appendTriangles(terrain, [&](std::uint32_t k) {
       if (reach > 0 && !(horizontal(v[k] - near, up) <= reach)) return false;
+      if (!holes_) return true;  // (filled)
       if (k < n) return frame_.valid[k] != 0;
       const RasterGrid::ExtraVertex& e = extra[k - n];
       return e.pole != 0 || frame_.valid[e.pixel] != 0;
@@ -105,6 +121,8 @@ class Sightlines {
     }
     index_ = std::make_unique<CartesianIndex>(terrain, CartesianMapping(), indexOptions_);
   }
+
+  const CartesianIndex& index() const { return *index_; }
 
   static double horizontal(const Eigen::Vector3d& d, const Eigen::Vector3d& up) { return (d - d.dot(up) * up).norm(); }
 
@@ -156,6 +174,7 @@ class Sightlines {
 
  private:
   const DemTerrain& dem_;
+  bool holes_ = true;
   FrameBasis basis_;
   LocalFrame frame_;
   std::vector<double> metres_;  // heights in metres, voids not filled
@@ -232,6 +251,58 @@ CumulativeViewshed cumulativeViewshed(const DemTerrain& dem, std::span<const Obs
                                      });
     if (!finished) throw Error("viewshed cancelled");
   }
+  if (progress) progress(1.0, "done");
+  return out;
+}
+
+std::vector<Light> pointLightMask(const DemTerrain& dem, const PointLightOptions& o, const Progress& progress,
+                                  unsigned threads) {
+  if (!std::isfinite(o.x) || !std::isfinite(o.y) || !std::isfinite(o.height)) {
+    throw Error("the light's position must be finite, got " + number(o.x) + ", " + number(o.y) + ", " +
+                number(o.height));
+  }
+  if (o.aboveSurface && !(o.height > 0)) {
+    throw Error("the light's height above the surface must be more than 0 m, got " + number(o.height));
+  }
+  Sightlines sight(dem, o.frame, o.index, progress, /*holes=*/false);
+  const LocalFrame& f = sight.frame();
+  const Eigen::Vector3d light = o.aboveSurface ? sight.observerAt(o.x, o.y, o.height, "the light").first : [&] {
+    const auto [col, row] = dem.pixelOf(dem.turnedOnto(o.x), o.y);
+    return sight.pointAt(col, row, o.height);
+  }();
+  if (progress && !progress(0.05, "building the quadtree")) throw Error("shadow computation cancelled");
+  sight.index(Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ(), 0.0);
+  // How each triangle faces the light (its plane's side), for attached shadow: the light
+  // arriving from below a pixel's own surface.
+  const Mesh& mesh = f.mesh;
+  std::vector<std::uint8_t> facing(mesh.polygonCount());
+  for (std::size_t t = 0; t < facing.size(); ++t) {
+    const auto c = mesh.polygon(t);
+    facing[t] =
+        shadow::facingOf(f, c, (light - mesh.vertices[c[0]]).normalized(), f.body.ellipsoid ? f.gridWinding : 0);
+  }
+  std::vector<Light> out(f.pixelCount(), Light::NoData);
+  const CartesianIndex& index = sight.index();
+  const int w = f.width, h = f.height;
+  std::atomic<std::size_t> nextRow{0}, rowsDone{0};
+  std::atomic<bool> stop{false};
+  shadow::inThreads(threadsOr(threads), [&](unsigned k) {
+    for (std::size_t r; !stop && (r = nextRow++) < static_cast<std::size_t>(h);) {
+      for (std::size_t i = r * w; i < (r + 1) * w; ++i) {
+        if (!f.valid[i]) continue;
+        std::uint32_t ring[RasterGrid::kMaxRing];
+        bool closed = false;
+        const int count = f.grid.ring(static_cast<int>(r), static_cast<int>(i - r * w), ring, closed);
+        const Eigen::Vector3d& p = mesh.vertices[i];
+        const bool attached = shadow::attachedShadow(f, std::span<const std::uint32_t>(ring, count), closed,
+                                                     static_cast<std::uint32_t>(i), light - p, facing.data());
+        out[i] = attached || index.segmentMeets(light, p, static_cast<std::uint32_t>(i)) ? Light::Shadow : Light::Lit;
+      }
+      const std::size_t done = ++rowsDone;
+      if (k == 0 && progress && !progress(0.1 + 0.9 * static_cast<double>(done) / h, "testing pixels")) stop = true;
+    }
+  });
+  if (stop) throw Error("shadow computation cancelled");
   if (progress) progress(1.0, "done");
   return out;
 }

@@ -52,6 +52,10 @@ struct FrameOptions {
   // What the heights are over, on an ellipsoid (qota/geoid.hpp: "ellipsoid", "egm96", "egm2008",
   // "crs", a grid's path; "": the raster's own, else assumed). Not used by flat frames.
   std::string heightRef = {};
+  // Voids filled from their rims (fillVoids), so light cannot pass under the terrain; false leaves
+  // them at the lowest height with data, for callers that drop the triangles that touch them
+  // (viewsheds: voids are holes).
+  bool fillVoids = true;
 };
 
 // The DEM's vertices in a local metric east-north-up frame (same vertex indices as dem.mesh for

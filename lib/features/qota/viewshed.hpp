@@ -80,4 +80,21 @@ CumulativeViewshed cumulativeViewshed(const DemTerrain& dem, std::span<const Obs
                                       const CumulativeOptions& options, const Progress& progress = {},
                                       unsigned threads = 0);
 
+// Shadows of a point light (a lamp, a lander's floodlight): the paper's spherical mapping centred
+// on the light, done as lines of sight. A pixel centre is in shadow when the open segment from it
+// to the light meets terrain (its own triangles left out: they meet the segment only at the pixel),
+// or when the light arrives from below its own surface (attached shadow, as shadow.hpp says);
+// else lit. Voids are filled from their rims, as for the sun (light cannot pass under the
+// terrain); their pixels are NoData. The light at world (x, y) (the DEM's CRS; off the raster
+// too when its height is absolute), `height` metres above the surface there when aboveSurface,
+// else over the DEM's reference (its ellipsoid or geoid, FrameOptions::heightRef).
+struct PointLightOptions {
+  double x = 0, y = 0, height = 0;
+  bool aboveSurface = true;
+  FrameOptions frame;
+  IndexOptions index;
+};
+std::vector<Light> pointLightMask(const DemTerrain& dem, const PointLightOptions& options,
+                                  const Progress& progress = {}, unsigned threads = 0);
+
 }  // namespace qota
