@@ -59,23 +59,30 @@ import sys, os
 import numpy as np
 from osgeo import gdal
 work = sys.argv[1]
-def read(name):
+def read(name, like=None):
+    """A raster's band 1; `like`: a reference name whose grid it is cut out of (gdal_viewshed
+    writes only the window of its distance): the window placed on that grid, the rest 64."""
     path = os.path.join(work, name)
     if not os.path.exists(path):
         return None
     ds = gdal.Open(path)
-    return ds.GetRasterBand(1).ReadAsArray()
+    a = ds.GetRasterBand(1).ReadAsArray()
+    if like is None:
+        return a
+    ref = gdal.Open(os.path.join(work, like))
+    g, r = ds.GetGeoTransform(), ref.GetGeoTransform()
+    col, row = round((g[0] - r[0]) / r[1]), round((g[3] - r[3]) / r[5])
+    full = np.full((ref.RasterYSize, ref.RasterXSize), 64, dtype=a.dtype)
+    full[row:row + a.shape[0], col:col + a.shape[1]] = a
+    return full
 for md in ("0", "10000"):
     q = read(f"qota_{md}.tif")
     inside = (q == 255) | (q == 0)
     print(f"  {'whole raster' if md == '0' else 'within 10 km'}: {inside.sum()} pixels, qota (exact) marks "
           f"{(q[inside] == 255).sum()} visible")
     for tool, visible in (("gdal_viewshed", 255), ("r.viewshed", 1)):
-        a = read(f"{'gdal' if tool == 'gdal_viewshed' else 'grass'}_{md}.tif")
+        a = read(f"{'gdal' if tool == 'gdal_viewshed' else 'grass'}_{md}.tif", f"qota_{md}.tif")
         if a is None:
-            continue
-        if a.shape != q.shape:  # gdal_viewshed crops its output to the distance's window
-            print(f"    {tool}: output of {a.shape}, not the DEM's grid; not compared")
             continue
         seen = a[inside] == visible
         exact = q[inside] == 255

@@ -53,43 +53,81 @@ double surfaceAt(const std::vector<double>& z, const std::vector<std::uint8_t>& 
 // metres of `near` seen from above when reach > 0).
 class Sightlines {
  public:
+  // An observer (or a light) placed: its frame point, the surface under it and where it is.
+  struct Placed {
+    Eigen::Vector3d point;
+    double surface, col, row;  // metres over the DEM's reference; pixel position
+  };
+
   // holes: voids are holes, their triangles left out (viewsheds); else they are filled from their
-  // rims and block, as for shadows (light cannot pass under the terrain).
+  // rims and block, as for shadows (light cannot pass under the terrain). The frame is placed by
+  // place() (the basis and the heights in metres are ready for observerAt before it).
   Sightlines(const DemTerrain& dem, const FrameOptions& frameOptions, const IndexOptions& indexOptions,
              const Progress& report, bool holes = true)
-      : dem_(dem), holes_(holes) {
+      : dem_(dem), holes_(holes), options_(frameOptions), indexOptions_(indexOptions) {
     if (dem.width < 2 || dem.height < 2) {
       throw Error(dem.path + ": a viewshed needs a raster of at least 2 x 2 pixels, this one has " +
                   std::to_string(dem.width) + " x " + std::to_string(dem.height));
     }
     if (report) report(0.0, "placing the terrain");
-    FrameOptions options = frameOptions;
-    options.fillVoids = !holes;
-    frame_ = localFrame(dem, options, basis_);
-    const std::size_t n = frame_.pixelCount();
+    options_.fillVoids = !holes;
+    basis_ = frameBasis(dem, options_);
+    const std::size_t n = static_cast<std::size_t>(dem.width) * dem.height;
     metres_.resize(n);
     for (std::size_t i = 0; i < n; ++i) metres_[i] = dem.mesh.vertices[i].z();
-    heightsInMetres(basis_, PixelWindow{0, 0, frame_.width, frame_.height}, metres_, valid_);
-    indexOptions_ = indexOptions;
+    heightsInMetres(basis_, PixelWindow{0, 0, dem.width, dem.height}, metres_, valid_);
   }
 
+  // The frame over the whole raster, or (holes only) over the pixels within `reach` metres of
+  // the observer seen from above, with a margin: its window grows until every pixel on its sides
+  // inside the raster lies beyond reach.
+  void place(const Placed* observer = nullptr, double reach = 0) {
+    const int w = dem_.width, h = dem_.height;
+    const RasterGrid::Closure& closure = basis_.closure;
+    if (observer && reach > 0 && holes_ && !closure.wrapsColumns && !closure.northCap && !closure.southCap) {
+      // Metres a pixel near the observer, from the frame's own placement.
+      const double col = observer->col, row = observer->row;
+      const double cs[4] = {col - 0.5, col + 0.5, col, col}, rs[4] = {row, row, row - 0.5, row + 0.5};
+      const double zs[4] = {0, 0, 0, 0};
+      const auto p = framePoints(basis_, cs, rs, zs);
+      const double dx = (p[1] - p[0]).norm(), dy = (p[3] - p[2]).norm();
+      diagonal_ = std::hypot(dx, dy);
+      reach += 3 * diagonal_;  // every pixel a triangle that meets the disc can have as a corner, and more
+      for (double grow = 1.25; grow < 100; grow *= 2) {
+        const double hc = std::ceil(reach / dx * grow) + 2, hr = std::ceil(reach / dy * grow) + 2;
+        const int c0 = static_cast<int>(std::max(0.0, std::floor(col - hc)));
+        const int c1 = static_cast<int>(std::min<double>(w, std::ceil(col + hc)));
+        const int r0 = static_cast<int>(std::max(0.0, std::floor(row - hr)));
+        const int r1 = static_cast<int>(std::min<double>(h, std::ceil(row + hr)));
+        if (c1 - c0 < 2 || r1 - r0 < 2 || (c0 == 0 && r0 == 0 && c1 == w && r1 == h)) break;
+        placeWindow({c0, r0, c1 - c0, r1 - r0});
+        if (sidesBeyond(observer->point, reach)) return;
+      }
+    }
+    placeWindow({0, 0, w, h});
+  }
+
+  // A pixel's diagonal near the observer in metres (set by place with a reach).
+  double diagonal_ = 0;
   const LocalFrame& frame() const { return frame_; }
+  // Per raster pixel: the DEM has a height there.
+  const std::vector<std::uint8_t>& valid() const { return valid_; }
 
   // The observer `height` metres above the surface at world (x, y): its frame point and the
   // surface's height there (metres over the DEM's reference). `what` names it in errors.
-  std::pair<Eigen::Vector3d, double> observerAt(double x, double y, double height, const std::string& what) const {
+  Placed observerAt(double x, double y, double height, const std::string& what) const {
     if (!std::isfinite(x) || !std::isfinite(y)) {
       throw Error(what + " must be finite, got " + number(x) + ", " + number(y));
     }
     const double xr = dem_.turnedOnto(x);
     if (!dem_.onRaster(xr, y)) throw Error(what + " at " + number(x) + ", " + number(y) + " is not on " + dem_.path);
     const auto [col, row] = dem_.pixelOf(xr, y);
-    const double surface = surfaceAt(metres_, valid_, frame_.width, frame_.height, col, row);
+    const double surface = surfaceAt(metres_, valid_, dem_.width, dem_.height, col, row);
     if (std::isnan(surface)) {
       throw Error(what + " at " + number(x) + ", " + number(y) + " is over a void of " + dem_.path +
                   " (no data there)");
     }
-    return {pointAt(col, row, surface + height), surface};
+    return {pointAt(col, row, surface + height), surface, col, row};
   }
 
   // The frame point at pixel position (col, row) and `height` metres over the DEM's reference,
@@ -146,14 +184,18 @@ class Sightlines {
     const Eigen::Vector3d up = frame_.upAt(observer);
     const auto& v = frame_.mesh.vertices;
     const int w = frame_.width, h = frame_.height;
+    const PixelWindow& win = frame_.window;
     std::atomic<std::size_t> nextRow{0}, rowsDone{0};
     std::atomic<bool> stop{false};
     shadow::inThreads(threads, [&](unsigned k) {
       for (std::size_t r; !stop && (r = nextRow++) < static_cast<std::size_t>(h);) {
+        // Frame pixel i is the raster's pixel `at` (the frame may be a window of it).
+        const std::size_t rowStart = (win.row + r) * static_cast<std::size_t>(dem_.width) + win.col - r * w;
         for (std::size_t i = r * w; i < (r + 1) * w; ++i) {
           if (!frame_.valid[i]) continue;
+          const std::size_t at = rowStart + i;
           if (maxDistance > 0 && horizontal(v[i] - observer, up) > maxDistance) {
-            visit(i, Sight::OutOfRange);
+            visit(at, Sight::OutOfRange);
             continue;
           }
           // A target on the surface is the vertex itself, whose own triangles meet its segment only there.
@@ -161,7 +203,7 @@ class Sightlines {
           const Eigen::Vector3d target = onSurface ? v[i] : v[i] + targetHeight * frame_.upAt(v[i]);
           const bool blocked = index.segmentMeets(
               observer, target, onSurface ? static_cast<std::uint32_t>(i) : CartesianIndex::kNoVertex, standsOn);
-          visit(i, blocked ? Sight::Hidden : Sight::Visible);
+          visit(at, blocked ? Sight::Hidden : Sight::Visible);
         }
         const std::size_t done = ++rowsDone;
         if (k == 0 && progress && !progress(from + span * static_cast<double>(done) / h, "testing lines of sight")) {
@@ -173,11 +215,80 @@ class Sightlines {
   }
 
  private:
+  // The frame of `window`: the heights in metres there, voids filled (shadows) or at the lowest
+  // height (holes, whose triangles are left out); the basis completed from the raster's centre.
+  void placeWindow(const PixelWindow& window) {
+    if (!complete_) {
+      double lo = INFINITY, hi = -INFINITY;
+      for (std::size_t i = 0; i < metres_.size(); ++i) {
+        if (valid_[i]) lo = std::min(lo, metres_[i]), hi = std::max(hi, metres_[i]);
+      }
+      // Holes: voids at the lowest height (their triangles are left out); shadows: filled from
+      // their rims over the whole raster, as localFrame fills them.
+      placed_ = metres_;
+      if (holes_) {
+        for (double& v : placed_) v = std::isnan(v) ? (lo <= hi ? lo : 0.0) : v;
+      } else {
+        fillVoids(placed_, dem_.width, dem_.height);
+      }
+      lo_ = lo, hi_ = hi;
+    }
+    std::vector<double> z = sliceOf(placed_, window);
+    std::vector<std::uint8_t> valid = sliceOf(valid_, window);
+    frame_ = windowFrame(basis_, window, std::move(z), std::move(valid));
+    if (!complete_) {
+      // The centre square's frame completes the basis (pixel size, the triangles' turn), as every
+      // window's frame of the raster does (shadow_frame.hpp): this one when it holds the centre.
+      const PixelWindow centre{std::min((dem_.width - 1) / 2, dem_.width - 2),
+                               std::min((dem_.height - 1) / 2, dem_.height - 2), 2, 2};
+      const bool holds = centre.col >= window.col && centre.row >= window.row &&
+                         centre.col + 2 <= window.col + window.width && centre.row + 2 <= window.row + window.height;
+      completeBasis(basis_, lo_, hi_,
+                    holds ? frame_ : windowFrame(basis_, centre, sliceOf(placed_, centre), sliceOf(valid_, centre)));
+      complete_ = true;
+    }
+    adoptBasis(frame_, basis_);
+  }
+
+  template <class T>
+  std::vector<T> sliceOf(const std::vector<T>& all, const PixelWindow& win) const {
+    std::vector<T> out;
+    out.reserve(static_cast<std::size_t>(win.width) * win.height);
+    for (int r = win.row; r < win.row + win.height; ++r) {
+      const auto first = all.begin() + static_cast<std::ptrdiff_t>(static_cast<std::size_t>(r) * dem_.width + win.col);
+      out.insert(out.end(), first, first + win.width);
+    }
+    return out;
+  }
+
+  // Whether every pixel on the window's sides inside the raster lies farther than reach from p.
+  bool sidesBeyond(const Eigen::Vector3d& p, double reach) const {
+    const LocalFrame& f = frame_;
+    const Eigen::Vector3d up = f.upAt(p);
+    const auto beyond = [&](int c, int r) {
+      return horizontal(f.mesh.vertices[static_cast<std::size_t>(r) * f.width + c] - p, up) > reach;
+    };
+    const PixelWindow& win = f.window;
+    for (int c = 0; c < f.width; ++c) {
+      if (win.row > 0 && !beyond(c, 0)) return false;
+      if (win.row + win.height < dem_.height && !beyond(c, f.height - 1)) return false;
+    }
+    for (int r = 0; r < f.height; ++r) {
+      if (win.col > 0 && !beyond(0, r)) return false;
+      if (win.col + win.width < dem_.width && !beyond(f.width - 1, r)) return false;
+    }
+    return true;
+  }
+
   const DemTerrain& dem_;
   bool holes_ = true;
+  FrameOptions options_;
+  bool complete_ = false;
+  double lo_ = 0, hi_ = 0;      // the height range of the pixels with data (metres)
+  std::vector<double> placed_;  // the heights the frame places: voids filled (shadows) or lowest
   FrameBasis basis_;
   LocalFrame frame_;
-  std::vector<double> metres_;  // heights in metres, voids not filled
+  std::vector<double> metres_;  // heights in metres over the whole raster, voids not filled (NaN)
   std::vector<std::uint8_t> valid_;
   IndexOptions indexOptions_;
   std::unique_ptr<CartesianIndex> index_;
@@ -195,16 +306,24 @@ Viewshed viewshed(const DemTerrain& dem, const ViewshedOptions& o, const Progres
   checkMetres("maximum distance", o.maxDistance);
   Sightlines sight(dem, o.frame, o.index, progress);
   Viewshed out;
-  std::tie(out.observer, out.surface) = sight.observerAt(o.observerX, o.observerY, o.observerHeight, "the observer");
-  out.frameDescription = sight.frame().description;
-  // Within a maximum distance only the triangles that reach within it can block (a segment
-  // between two points of the disc stays in it, seen from above): those whose corners all lie
-  // within it and a triangle's extent (two pixel diagonals) more.
+  const Sightlines::Placed observer = sight.observerAt(o.observerX, o.observerY, o.observerHeight, "the observer");
+  out.observer = observer.point, out.surface = observer.surface;
+  // Within a maximum distance only the pixels around the observer are placed, and only the
+  // triangles that reach within it can block (a segment between two points of the disc stays in
+  // it, seen from above): those whose corners all lie within it and a triangle's extent (two pixel
+  // diagonals) more.
+  sight.place(&observer, o.maxDistance);
   const LocalFrame& f = sight.frame();
+  out.frameDescription = f.description;
   if (progress && !progress(0.05, "building the quadtree")) throw Error("viewshed cancelled");
-  sight.index(out.observer, f.upAt(out.observer),
-              o.maxDistance > 0 ? o.maxDistance + 2 * std::hypot(f.pixelSizeX, f.pixelSizeY) : 0.0);
-  out.sight.assign(f.pixelCount(), Sight::NoData);
+  const double diagonal = std::max(sight.diagonal_, std::hypot(f.pixelSizeX, f.pixelSizeY));
+  sight.index(out.observer, f.upAt(out.observer), o.maxDistance > 0 ? o.maxDistance + 2 * diagonal : 0.0);
+  // Pixels with data outside the placed window are beyond the distance.
+  const auto& valid = sight.valid();
+  out.sight.assign(valid.size(), Sight::NoData);
+  for (std::size_t i = 0; i < valid.size(); ++i) {
+    if (valid[i] && o.maxDistance > 0) out.sight[i] = Sight::OutOfRange;
+  }
   std::atomic<std::size_t> visible{0}, tested{0};
   const bool finished = sight.look(out.observer, o.observerHeight, o.targetHeight, o.maxDistance, threadsOr(threads),
                                    progress, 0.1, 0.9, [&](std::size_t i, Sight s) {
@@ -224,8 +343,9 @@ CumulativeViewshed cumulativeViewshed(const DemTerrain& dem, std::span<const Obs
   checkMetres("maximum distance", o.maxDistance);
   if (observers.empty()) throw Error("no observers given");
   Sightlines sight(dem, o.frame, o.index, progress);
+  sight.place();
   const LocalFrame& f = sight.frame();
-  std::vector<std::pair<Eigen::Vector3d, double>> placed;
+  std::vector<Sightlines::Placed> placed;
   placed.reserve(observers.size());
   for (std::size_t k = 0; k < observers.size(); ++k) {
     const Observer& ob = observers[k];
@@ -245,7 +365,7 @@ CumulativeViewshed cumulativeViewshed(const DemTerrain& dem, std::span<const Obs
   const unsigned workers = threadsOr(threads);
   for (std::size_t k = 0; k < observers.size(); ++k) {
     const double from = 0.1 + 0.9 * static_cast<double>(k) / observers.size();
-    const bool finished = sight.look(placed[k].first, observers[k].height, o.targetHeight, o.maxDistance, workers,
+    const bool finished = sight.look(placed[k].point, observers[k].height, o.targetHeight, o.maxDistance, workers,
                                      progress, from, 0.9 / observers.size(), [&](std::size_t i, Sight s) {
                                        out.count[i] += s == Sight::Visible;  // (a pixel is one thread's)
                                      });
@@ -265,8 +385,9 @@ std::vector<Light> pointLightMask(const DemTerrain& dem, const PointLightOptions
     throw Error("the light's height above the surface must be more than 0 m, got " + number(o.height));
   }
   Sightlines sight(dem, o.frame, o.index, progress, /*holes=*/false);
+  sight.place();
   const LocalFrame& f = sight.frame();
-  const Eigen::Vector3d light = o.aboveSurface ? sight.observerAt(o.x, o.y, o.height, "the light").first : [&] {
+  const Eigen::Vector3d light = o.aboveSurface ? sight.observerAt(o.x, o.y, o.height, "the light").point : [&] {
     const auto [col, row] = dem.pixelOf(dem.turnedOnto(o.x), o.y);
     return sight.pointAt(col, row, o.height);
   }();
