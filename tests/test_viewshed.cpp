@@ -517,6 +517,62 @@ TEST(Viewshed, HorizonOfABareSphereIsWhereGeometrySaysItIs) {
   EXPECT_EQ(checked, w);
 }
 
+TEST(Viewshed, RefractionMovesTheHorizonWhereTheModelSays) {
+  // The bare sphere of the test above, with the standard coefficient 0.13: the horizon of an
+  // observer 100 m up moves out to sqrt(2 R' h), R' = R / (1 - k): 38.3 km.
+  const int w = 181, h = 3;
+  qota::test::RasterSpec spec;
+  spec.width = w, spec.height = h;
+  const double step = 0.005;
+  spec.geotransform = {0, step, 0, step * h / 2, 0, -step};
+  spec.crs = "+proj=longlat +R=6371000 +no_defs";
+  spec.bands = {std::vector<double>(static_cast<std::size_t>(w) * h, 0.0)};
+  const auto path = qota::test::scratchPath("viewshed_refraction.tif");
+  qota::test::writeRaster(path, spec);
+  const qota::DemTerrain dem = qota::loadDem(path.string(), {.lonLatAsCartesian = true});
+  qota::ViewshedOptions o;
+  o.observerX = 0.5 * step, o.observerY = 0, o.observerHeight = 100, o.refraction = 0.13;
+  o.frame.heightRef = "ellipsoid";
+  const auto sight = qota::viewshed(dem, o).sight;
+  const double horizon = std::sqrt(2 * 6371000.0 / (1 - 0.13) * 100);
+  int visible = 0;
+  for (int c = 0; c < w; ++c) {
+    const double distance = c * step * M_PI / 180 * 6371000;
+    const Sight s = sight[static_cast<std::size_t>(w) + c];
+    visible += s == Sight::Visible;
+    if (distance < 0.98 * horizon) {
+      EXPECT_EQ(s, Sight::Visible) << distance;
+    } else if (distance > 1.02 * horizon) {
+      EXPECT_EQ(s, Sight::Hidden) << distance;
+    }
+  }
+  EXPECT_GT(visible, 0);
+  o.frame.flat = true;
+  EXPECT_THROW(qota::viewshed(dem, o), qota::Error);  // a flat frame has no curvature to bend over
+}
+
+TEST(Viewshed, MaximumDistanceChangesNothingWithinIt) {
+  // A raster much larger than the distance: only a window around the observer is placed and
+  // indexed; every pixel within the distance is as the whole raster's viewshed has it.
+  std::mt19937 rng(99);
+  GridCase g;
+  g.w = 90, g.h = 70;
+  g.z.resize(static_cast<std::size_t>(g.w) * g.h);
+  std::uniform_int_distribution<int> height(0, 30);
+  for (double& v : g.z) v = height(rng);
+  const std::string path = writeGrid(g, "viewshed_window.tif");
+  const auto whole = gridViewshed(path, 40.5, 30.5, 3, 0, 0, g.h);
+  const auto near = gridViewshed(path, 40.5, 30.5, 3, 0, 12.5, g.h);
+  int inside = 0;
+  for (std::size_t i = 0; i < whole.size(); ++i) {
+    if (near[i] == Sight::OutOfRange) continue;
+    EXPECT_EQ(near[i], whole[i]) << i;
+    ++inside;
+  }
+  EXPECT_GT(inside, 400);
+  EXPECT_LT(inside, 700);
+}
+
 TEST(ViewshedTool, WritesByteRasterAndRefusesBadValues) {
   GridCase g{12, 5, std::vector<double>(60, 0.0)};
   for (int r = 0; r < 5; ++r) g.z[static_cast<std::size_t>(r) * 12 + 6] = 10;

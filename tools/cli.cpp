@@ -282,6 +282,11 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
       ->add_option("--max-distance,--md", viewshedOptions.maxDistance,
                    "Metres (horizontal, from the observer); pixels beyond are not tested (0: no limit)")
       ->capture_default_str();
+  viewshedCmd
+      ->add_option("--refraction", viewshedOptions.refraction,
+                   "Refraction coefficient k (0.13 is usual for the Earth): lines of sight bend with curvature k/R, "
+                   "modelled as the terrain raised by k d^2 / 2R; on the ellipsoid, one observer (default 0: straight)")
+      ->capture_default_str();
   viewshedCmd->add_option("--visible-value,--vv", viewshedOptions.visibleValue, "Output value of visible pixels")
       ->capture_default_str();
   viewshedCmd->add_option("--invisible-value,--iv", viewshedOptions.hiddenValue, "Output value of hidden pixels")

@@ -173,6 +173,7 @@ struct ViewshedOptions : RasterJobOptions {
   double observerHeight = 2;  // metres above the surface
   double targetHeight = 0;    // metres above each pixel's surface
   double maxDistance = 0;     // metres; 0: no limit
+  double refraction = 0;      // coefficient k (qota/viewshed.hpp); one observer, on an ellipsoid
   int visibleValue = 255, hiddenValue = 0, nodataValue = 128, outOfRangeValue = 64;
   IndexOptions index;
 };

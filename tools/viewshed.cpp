@@ -139,6 +139,9 @@ void checkOptions(const ViewshedOptions& o, const std::string& format) {
   if (o.observer.has_value() == !o.observersFile.empty()) {
     throw Error("give one observer (--observer X,Y) or a file of them (--observers FILE)");
   }
+  if (o.refraction != 0 && !o.observersFile.empty()) {
+    throw Error("--refraction takes one observer (--observer); it is not applied to --observers");
+  }
   const int values[4] = {o.visibleValue, o.hiddenValue, o.nodataValue, o.outOfRangeValue};
   for (int v : values) {
     if (v < 0 || v > 255) throw Error("output values must be 0..255, got " + std::to_string(v));
@@ -203,6 +206,7 @@ void writeOne(const ViewshedOptions& o, const Run& run, std::ostream& out, Outpu
   qota::ViewshedOptions v;
   v.observerX = at[0].x, v.observerY = at[0].y;
   v.observerHeight = o.observerHeight, v.targetHeight = o.targetHeight, v.maxDistance = o.maxDistance;
+  v.refraction = o.refraction;
   v.frame = run.frame;
   v.index = o.index;
   const Viewshed seen = qota::viewshed(run.dem, v, termProgress(o.quiet, 0, 1));
@@ -234,6 +238,7 @@ void writeOne(const ViewshedOptions& o, const Run& run, std::ostream& out, Outpu
                  {"QOTA_OBSERVER_HEIGHT", formatNumber(o.observerHeight)},
                  {"QOTA_TARGET_HEIGHT", formatNumber(o.targetHeight)},
                  {"QOTA_MAX_DISTANCE", formatNumber(o.maxDistance)},
+                 {"QOTA_REFRACTION", formatNumber(o.refraction)},
                  {"QOTA_VALUES", "visible=" + std::to_string(o.visibleValue) + ",invisible=" +
                                      std::to_string(o.hiddenValue) + ",nodata=" + std::to_string(o.nodataValue) +
                                      ",out_of_range=" + std::to_string(o.outOfRangeValue)}}};

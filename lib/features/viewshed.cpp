@@ -110,6 +110,22 @@ class Sightlines {
   // A pixel's diagonal near the observer in metres (set by place with a reach).
   double diagonal_ = 0;
   const LocalFrame& frame() const { return frame_; }
+  // Refraction by the standard coefficient model: a line of sight bends toward the body with a
+  // curvature k / R, which is the straight line over a body of radius R / (1 - k); so every point
+  // of the terrain is raised by k d^2 / (2 R) along its up, d its distance from the observer seen
+  // from above, R the body's mean radius. (A model, as every viewshed tool's: exact in the
+  // curvature, approximate in the bending.) Call before index().
+  void refract(const Eigen::Vector3d& observer, double k) {
+    if (k == 0) return;
+    const LocalFrame::Body& body = frame_.body;
+    const double radius = (2 * body.a + body.b) / 3;
+    const Eigen::Vector3d up = frame_.upAt(observer);
+    for (Eigen::Vector3d& v : frame_.mesh.vertices) {
+      const double d = horizontal(v - observer, up);
+      v += frame_.upAt(v) * (k * d * d / (2 * radius));
+    }
+  }
+
   // Per raster pixel: the DEM has a height there.
   const std::vector<std::uint8_t>& valid() const { return valid_; }
 
@@ -313,6 +329,17 @@ Viewshed viewshed(const DemTerrain& dem, const ViewshedOptions& o, const Progres
   // it, seen from above): those whose corners all lie within it and a triangle's extent (two pixel
   // diagonals) more.
   sight.place(&observer, o.maxDistance);
+  if (o.refraction != 0) {
+    if (!std::isfinite(o.refraction) || o.refraction <= -1 || o.refraction >= 1) {
+      throw Error("the refraction coefficient must be between -1 and 1 (0.13 is the usual one for the Earth), got " +
+                  number(o.refraction));
+    }
+    if (!sight.frame().body.ellipsoid) {
+      throw Error(
+          "refraction bends lines of sight over a curved body; a flat frame has no curvature to bend them over");
+    }
+    sight.refract(out.observer, o.refraction);
+  }
   const LocalFrame& f = sight.frame();
   out.frameDescription = f.description;
   if (progress && !progress(0.05, "building the quadtree")) throw Error("viewshed cancelled");

@@ -504,7 +504,7 @@ def shadow(dem_path, azimuth=None, altitude=None, *, time=None, tz=None, hours=N
 
 
 def viewshed(dem, observer, *, observer_height=2.0, target_height=0.0, max_distance=0.0, srs=None, band=1,
-             flat=False, height_ref=None, output=None):
+             flat=False, height_ref=None, refraction=0.0, output=None):
     """Which pixels of a DEM an observer sees, as `qota viewshed` computes it: exactly, on the
     triangulated terrain (a pixel is visible when the segment from the observer to its centre
     meets no terrain between its ends; voids block nothing), on the DEM's ellipsoid with straight
@@ -517,7 +517,8 @@ def viewshed(dem, observer, *, observer_height=2.0, target_height=0.0, max_dista
     ellipsoid, what the heights are over (as qota.shadow's; a raster file only). Returns uint8
     pixels on the DEM's grid: 255 visible, 0 not visible, 128 nodata, 64 beyond max_distance; a
     numpy array (rows, columns) for a file, an xarray.DataArray for a DataArray or a rasterio
-    dataset. With `output` the raster is kept there too.
+    dataset. With `output` the raster is kept there too. refraction: the coefficient k of the
+    standard model (0.13 is usual for the Earth; `qota viewshed --refraction`), on the ellipsoid.
     """
     if observer is None:
         raise Error("observer must be (x, y), got None")
@@ -534,7 +535,8 @@ def viewshed(dem, observer, *, observer_height=2.0, target_height=0.0, max_dista
     def run(path, b, kept):
         return _qota._viewshed(path, kept, (x, y), srs or "", heights["observer_height"], heights["target_height"],
                                heights["max_distance"], _whole(b, "band"), bool(flat),
-                               "" if height_ref is None else _os.fspath(height_ref))
+                               "" if height_ref is None else _os.fspath(height_ref),
+                               _number(refraction, "refraction"))
 
     def on_file(path, b):
         if output is not None:

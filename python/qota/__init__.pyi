@@ -76,6 +76,6 @@ def shadow(dem_path: _Raster, azimuth: float | None = None, altitude: float | No
 # xarray.DataArray for a DataArray or a rasterio dataset.
 def viewshed(dem: _Raster, observer: tuple[float, float], *, observer_height: float = 2.0,
              target_height: float = 0.0, max_distance: float = 0.0, srs: str | None = None, band: int = 1,
-             flat: bool = False, height_ref: _Path | None = None,
+             flat: bool = False, height_ref: _Path | None = None, refraction: float = 0.0,
              output: _Path | None = None) -> npt.NDArray[np.uint8] | Any: ...
 def sun_position(time: str, lon: float, lat: float, *, tz: str | None = None) -> tuple[float, float]: ...

@@ -430,7 +430,7 @@ py::array shadow(const std::string& dem, const std::string& output, std::optiona
 // qota viewshed itself, into `output`, read back: uint8 visible, not visible, nodata, out of range.
 py::array viewshed(const std::string& dem, const std::string& output, std::array<double, 2> observer,
                    const std::string& srs, double observerHeight, double targetHeight, double maxDistance, int band,
-                   bool flat, const std::string& heightRef) {
+                   bool flat, const std::string& heightRef, double refraction) {
   qota::tools::ViewshedOptions o;
   o.source = dem;
   o.output = output;
@@ -441,6 +441,7 @@ py::array viewshed(const std::string& dem, const std::string& output, std::array
   o.observerHeight = observerHeight;
   o.targetHeight = targetHeight;
   o.maxDistance = maxDistance;
+  o.refraction = refraction;
   o.flat = flat;
   o.heightRef = heightRef;
   return toolRaster("viewshed", qota::tools::viewshed, o, false);
@@ -675,7 +676,7 @@ PYBIND11_MODULE(_qota, m) {
         py::arg("flat") = false);
   m.def("_viewshed", &viewshed, py::arg("dem"), py::arg("output"), py::arg("observer"), py::arg("srs"),
         py::arg("observer_height"), py::arg("target_height"), py::arg("max_distance"), py::arg("band"), py::arg("flat"),
-        py::arg("height_ref"));
+        py::arg("height_ref"), py::arg("refraction") = 0.0);
   m.def("_sun_position", &sunPosition, py::arg("time"), py::arg("lon"), py::arg("lat"), py::arg("tz"));
   m.def("_write_raster", &writeRaster, py::arg("path"), py::arg("heights"), py::arg("transform"),
         py::arg("nodata") = py::none(), py::arg("crs") = "", py::arg("unit") = "");

@@ -215,6 +215,21 @@ def test_shadow_of_a_dataarray_is_the_files_mask(tmp_path, stack):
     np.testing.assert_array_equal(got.values, qota.shadow(RAINIER, time="2024-06-21T18:30", tz="America/Los_Angeles"))
 
 
+def test_viewshed_of_a_dataarray_is_the_files(stack):
+    # Within 12 km, so the in-memory copies (written to a temporary GeoTIFF) stay quick.
+    kwargs = dict(observer=(-121.78, 46.83), observer_height=10, max_distance=12000)
+    want = qota.viewshed(RAINIER, **kwargs)
+    assert (want == 0).any() and (want == 255).any() and (want == 64).any()
+    da = rioxarray.open_rasterio(RAINIER)
+    for dem in (da, da.squeeze("band")):
+        got = qota.viewshed(dem, **kwargs)
+        assert isinstance(got, xr.DataArray) and got.name == "viewshed"
+        assert_same_grid(got, dem)
+        np.testing.assert_array_equal(got.values.reshape(want.shape), want)
+    got = qota.viewshed(stack(stack(MemoryFile(RAINIER.read_bytes())).open()), **kwargs)
+    np.testing.assert_array_equal(got.values[0], want)
+
+
 def test_shadow_of_a_dataarray_keeps_its_vertical_unit(tmp_path):
     # A DEM in feet: the DataArray's `units` reaches the shadow as the file's unit type does.
     with rasterio.open(RAINIER) as ds:

@@ -262,6 +262,11 @@ def test_viewshed_is_the_tools_raster(tmp_path):
         qota.viewshed(RAINIER, observer=(-121.78, 46.83), observer_height=-1)
     with pytest.raises(qota.Error, match="not on"):
         qota.viewshed(RAINIER, observer=(-130, 46.83))
+    # Refraction lets the observer see over more of the terrain (a triangle's corners are raised by
+    # the model and its inside in between: a few grazing pixels may go the other way).
+    bent = qota.viewshed(RAINIER, observer=(-121.78, 46.83), observer_height=10, max_distance=15000, refraction=0.13)
+    gained, lost = ((bent == 255) & (got != 255)).sum(), ((bent != 255) & (got == 255)).sum()
+    assert gained > 2 * lost and (bent == 255).sum() > (got == 255).sum()
 
 
 def test_viewshed_of_a_wall(tmp_path):

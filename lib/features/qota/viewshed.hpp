@@ -39,6 +39,11 @@ struct ViewshedOptions {
   // Pixels farther than this (metres, horizontally: in the plane square to the observer's up)
   // are OutOfRange and not tested; 0: no limit.
   double maxDistance = 0;
+  // Refraction coefficient k (0.13 is the usual one for the Earth's atmosphere; 0: straight
+  // lines): a line of sight bends toward the body with curvature k / R, modelled as every terrain
+  // point raised by k d^2 / (2 R) (d: its distance from the observer seen from above, R the body's
+  // mean radius), which is straight lines over a body of radius R / (1 - k). On an ellipsoid only.
+  double refraction = 0;
   FrameOptions frame;  // flat or on the ellipsoid, units, the heights' reference
   IndexOptions index;  // the quadtree's options
 };
