@@ -669,17 +669,31 @@ TEST(ViewshedTool, ObserversFromTextLayersAndCsv) {
     ASSERT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Read, 0, 0, 12, 6, counts.data(), 12, 6, GDT_UInt16, 0, 0), CE_None);
     if (first.empty()) {
       first = counts;
-      // The sum of the single viewsheds (the tool's own, each checked against the oracle above).
+      // The sum of the single viewsheds (the tool's own, each checked against the oracle above),
+      // and which of them see each pixel in the --which raster, a bit each.
       const qota::DemTerrain d = qota::loadDem(dem, {});
-      std::vector<int> sum(counts.size(), 0);
-      for (const auto& p : places) {
+      std::vector<int> sum(counts.size(), 0), bits(counts.size(), 0);
+      for (int k = 0; k < 3; ++k) {
         qota::ViewshedOptions v;
-        v.observerX = p[0], v.observerY = p[1], v.observerHeight = p[2], v.frame.flat = true;
+        v.observerX = places[k][0], v.observerY = places[k][1], v.observerHeight = places[k][2], v.frame.flat = true;
         const auto one = qota::viewshed(d, v).sight;
-        for (std::size_t i = 0; i < sum.size(); ++i) sum[i] += one[i] == Sight::Visible;
+        for (std::size_t i = 0; i < sum.size(); ++i) {
+          sum[i] += one[i] == Sight::Visible;
+          bits[i] |= (one[i] == Sight::Visible) << k;
+        }
       }
       for (std::size_t i = 0; i < counts.size(); ++i) EXPECT_EQ(counts[i], sum[i]) << "pixel " << i;
       EXPECT_GT(*std::max_element(sum.begin(), sum.end()), 1);
+      const auto whichPath = qota::test::scratchPath("viewshed_which.tif");
+      o.whichFile = whichPath.string();
+      ASSERT_EQ(qota::tools::viewshed(o, out, err), 0) << err.str();
+      std::unique_ptr<GDALDataset> which(GDALDataset::Open(whichPath.c_str(), GDAL_OF_RASTER));
+      ASSERT_TRUE(which);
+      EXPECT_EQ(which->GetRasterBand(1)->GetRasterDataType(), GDT_Byte);
+      EXPECT_STREQ(which->GetMetadataItem("QOTA_BIT_1"), (files[0] + ":3 (500009.5, 5000001.5)").c_str());
+      std::vector<int> got(72);
+      ASSERT_EQ(which->GetRasterBand(1)->RasterIO(GF_Read, 0, 0, 12, 6, got.data(), 12, 6, GDT_Int32, 0, 0), CE_None);
+      EXPECT_EQ(got, bits);
     }
     EXPECT_EQ(counts, first) << file;
   }

@@ -267,6 +267,9 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
                           "Cumulative: how many of these observers see each pixel (UInt16). Any OGR point layer "
                           "(GeoPackage, GeoJSON, Shapefile, CSV with x/y or lon/lat columns) in its own CRS (a CSV "
                           "in --srs), or text lines 'x y [height]' in the raster's CRS (or --srs)");
+  viewshedCmd->add_option("--which", viewshedOptions.whichFile,
+                          "With --observers: also a raster of which observers see each pixel, bit k for the k-th "
+                          "(Byte up to 7 observers, UInt16 up to 15, UInt32 up to 31; the metadata names each bit)");
   viewshedCmd
       ->add_option("--height-field", viewshedOptions.heightField,
                    "The --observers layer's field holding each observer's height (metres above the surface; "

@@ -169,6 +169,10 @@ struct ViewshedOptions : RasterJobOptions {
   std::optional<std::array<double, 2>> observer;  // x, y
   std::string observersFile;
   std::string heightField = "height";
+  // With observersFile: also a raster of which observers see each pixel, bit k for the file's
+  // k-th observer (Byte up to 7 observers, UInt16 up to 15, UInt32 up to 31; nodata the type's
+  // largest value; the metadata names each bit's observer).
+  std::string whichFile;
   std::string srs;            // CRS of the observer (and of text observers); empty: the raster's
   double observerHeight = 2;  // metres above the surface
   double targetHeight = 0;    // metres above each pixel's surface

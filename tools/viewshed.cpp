@@ -139,6 +139,13 @@ void checkOptions(const ViewshedOptions& o, const std::string& format) {
   if (o.observer.has_value() == !o.observersFile.empty()) {
     throw Error("give one observer (--observer X,Y) or a file of them (--observers FILE)");
   }
+  if (!o.whichFile.empty() && o.observersFile.empty()) {
+    throw Error("--which FILE records which of --observers see each pixel; give --observers");
+  }
+  if (!o.whichFile.empty() && (sameFile(o.whichFile, o.output) || sameFile(o.whichFile, o.source) ||
+                               (!o.png.empty() && sameFile(o.whichFile, o.png)))) {
+    throw Error("--which " + o.whichFile + " names the input or another output; give a file of its own");
+  }
   if (o.refraction != 0 && !o.observersFile.empty()) {
     throw Error("--refraction takes one observer (--observer); it is not applied to --observers");
   }
@@ -252,8 +259,13 @@ void writeOne(const ViewshedOptions& o, const Run& run, std::ostream& out, Outpu
 // type's largest value.
 void writeCounts(const ViewshedOptions& o, const Run& run, std::ostream& out, OutputStage& stage) {
   const std::vector<Observer> observers = readObservers(o, run.dem);
+  if (!o.whichFile.empty() && observers.size() > 31) {
+    throw Error("--which keeps a bit for each observer, at most 31 (a UInt32 with its nodata); " + o.observersFile +
+                " has " + std::to_string(observers.size()));
+  }
   CumulativeOptions c;
   c.targetHeight = o.targetHeight, c.maxDistance = o.maxDistance, c.frame = run.frame, c.index = o.index;
+  c.which = !o.whichFile.empty();
   if (!o.quiet) out << "observers: " << observers.size() << " from " << o.observersFile << '\n';
   const CumulativeViewshed seen = cumulativeViewshed(run.dem, observers, c, termProgress(o.quiet, 0, 1));
   const bool wide = observers.size() >= 65535;
@@ -285,6 +297,24 @@ void writeCounts(const ViewshedOptions& o, const Run& run, std::ostream& out, Ou
                  {"QOTA_VALUES", "count of the observers that see the pixel"}},
                 wide ? "UInt32" : "UInt16"};
   writeRaster(w, run.dem, values, stage);
+  if (!o.whichFile.empty()) {
+    // The smallest type with a value left for nodata above every bitset.
+    const std::size_t bits = observers.size() < 8 ? 8 : observers.size() < 16 ? 16 : 32;
+    const double none = std::ldexp(1.0, static_cast<int>(bits)) - 1;
+    std::vector<double> which(seen.which.size());
+    for (std::size_t i = 0; i < which.size(); ++i) which[i] = seen.valid[i] ? static_cast<double>(seen.which[i]) : none;
+    std::vector<std::pair<std::string, std::string>> metadata{{"QOTA_TOOL", "viewshed"},
+                                                              {"QOTA_VALUES", "bit k set: observer k sees the pixel"}};
+    for (std::size_t k = 0; k < observers.size(); ++k) {
+      metadata.emplace_back("QOTA_BIT_" + std::to_string(k), observers[k].name + " (" + formatNumber(observers[k].x) +
+                                                                 ", " + formatNumber(observers[k].y) + ")");
+    }
+    RasterWrite bitsWrite{o.whichFile, driverForPath(o.whichFile),
+                          {},          true,
+                          none,        true,
+                          metadata,    bits == 8 ? "Byte" : bits == 16 ? "UInt16" : "UInt32"};
+    writeRaster(bitsWrite, run.dem, which, stage);
+  }
   if (!o.png.empty()) {
     writeRaster({o.png, "PNG", {}, true, 0.0, true}, run.dem, preview(localFrame(run.dem, run.frame), shade), stage);
   }
@@ -296,7 +326,7 @@ int viewshed(const ViewshedOptions& given, std::ostream& out, std::ostream& err)
   try {
     ViewshedOptions o = given;
     o.flat = flatByMapping(o.mapping, o.flat, "viewshed", "draws no line of sight on a DEM's grid");
-    for (const std::string* path : {&o.output, &o.png}) {
+    for (const std::string* path : {&o.output, &o.png, &o.whichFile}) {
       if (!path->empty()) OutputStage::checkTarget(*path);
     }
     Run run;
@@ -317,7 +347,10 @@ int viewshed(const ViewshedOptions& given, std::ostream& out, std::ostream& err)
     OutputStage stage;
     o.observersFile.empty() ? writeOne(o, run, out, stage) : writeCounts(o, run, out, stage);
     stage.commit();
-    if (!o.quiet) out << "written: " << o.output << (o.png.empty() ? "" : " and " + o.png) << '\n';
+    if (!o.quiet) {
+      out << "written: " << o.output << (o.png.empty() ? "" : " and " + o.png)
+          << (o.whichFile.empty() ? "" : " and " + o.whichFile) << '\n';
+    }
     return 0;
   } catch (...) {
     return reportFailure("viewshed", err);

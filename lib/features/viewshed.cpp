@@ -369,6 +369,10 @@ CumulativeViewshed cumulativeViewshed(const DemTerrain& dem, std::span<const Obs
   checkMetres("target height", o.targetHeight);
   checkMetres("maximum distance", o.maxDistance);
   if (observers.empty()) throw Error("no observers given");
+  if (o.which && observers.size() > kMaxWhich) {
+    throw Error("which observers see each pixel is kept for at most " + std::to_string(kMaxWhich) +
+                " observers (a bit each), not " + std::to_string(observers.size()));
+  }
   Sightlines sight(dem, o.frame, o.index, progress);
   sight.place();
   const LocalFrame& f = sight.frame();
@@ -387,6 +391,7 @@ CumulativeViewshed cumulativeViewshed(const DemTerrain& dem, std::span<const Obs
   CumulativeViewshed out;
   const std::size_t n = f.pixelCount();
   out.count.assign(n, 0);
+  if (o.which) out.which.assign(n, 0);
   out.valid.assign(f.valid.begin(), f.valid.end());
   out.frameDescription = f.description;
   const unsigned workers = threadsOr(threads);
@@ -394,7 +399,9 @@ CumulativeViewshed cumulativeViewshed(const DemTerrain& dem, std::span<const Obs
     const double from = 0.1 + 0.9 * static_cast<double>(k) / observers.size();
     const bool finished = sight.look(placed[k].point, observers[k].height, o.targetHeight, o.maxDistance, workers,
                                      progress, from, 0.9 / observers.size(), [&](std::size_t i, Sight s) {
-                                       out.count[i] += s == Sight::Visible;  // (a pixel is one thread's)
+                                       if (s != Sight::Visible) return;  // (a pixel is one thread's)
+                                       ++out.count[i];
+                                       if (o.which) out.which[i] |= std::uint64_t{1} << k;
                                      });
     if (!finished) throw Error("viewshed cancelled");
   }

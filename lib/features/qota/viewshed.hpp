@@ -72,11 +72,15 @@ struct Observer {
 struct CumulativeOptions {
   double targetHeight = 0;  // metres above each pixel centre's surface
   double maxDistance = 0;   // metres, horizontally from each observer; 0: no limit
+  // Also which observers see each pixel, a bit each (observer k: bit k); at most kMaxWhich.
+  bool which = false;
   FrameOptions frame;
   IndexOptions index;
 };
+constexpr std::size_t kMaxWhich = 64;
 struct CumulativeViewshed {
   std::vector<std::uint32_t> count;  // per pixel, row-major: the observers that see it
+  std::vector<std::uint64_t> which;  // per pixel, with CumulativeOptions::which: bit k, observer k sees it
   std::vector<std::uint8_t> valid;   // per pixel: the DEM has a height here
   std::string frameDescription;
 };
