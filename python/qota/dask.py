@@ -14,6 +14,10 @@ halo and every block's frame need) are made once on the client, in one pass over
 reach the workers as a small pickled text. Each task calls the C++ core with the GIL released. The
 result is the whole raster's, pixel for pixel: what qota.shadow gives for the same raster.
 
+Viewsheds: how many of many observers see each pixel (viewsheds), the observers split into
+groups, each group one task that places and indexes the raster and looks from its observers
+(qota::cumulativeViewshed), the tasks' counts summed.
+
 Points: heights under (x, y) points given as a dask DataFrame or array, each partition answered
 by a sampler that reads the raster tile by tile (one per worker process and raster), bit for bit
 the whole terrain's (Terrain.from_raster).
@@ -639,3 +643,50 @@ def _sample_by_block(path, band, points, x, y, description, block):
     divisions = [k * _PLACE for k in range(n)] + [n * _PLACE - 1]
     back = heights.set_index("_qota_place", divisions=divisions, sorted=False)
     return dd.map_partitions(_in_input_order, back, points, meta=("height", "f8"), align_dataframes=False)
+
+
+#: The value of viewsheds' pixels that have no data.
+VIEWSHED_NODATA = np.iinfo(np.uint32).max
+
+
+def _viewshed_counts(path, xs, ys, heights, target_height, max_distance, band, flat, height_ref):
+    return _qota._cumulative(path, xs, ys, heights, target_height, max_distance, band, flat, height_ref)
+
+
+def viewsheds(source, observers, *, observer_height=2.0, target_height=0.0, max_distance=0.0, band=1, flat=False,
+              height_ref=None, per_task=16):
+    """How many of `observers` see each pixel of a raster, lazily, as `qota viewshed --observers`
+    counts them (the exact rule of qota.viewshed): a dask array (rows, columns) of uint32 counts,
+    VIEWSHED_NODATA where the raster has no data.
+
+    source: a raster path (or GDAL name) that every worker can open.
+    observers: (n, 2) x, y in the raster's CRS, or (n, 3) with each observer's height above the
+        surface (metres; else observer_height).
+    per_task: observers a task looks from; each task places and indexes the whole raster once
+        (the memory of `qota viewshed` on it), the tasks' counts are summed.
+    """
+    import dask
+    import dask.array as da
+
+    path = _local_file(source)
+    band, per_task = _whole(band, "band"), _whole(per_task, "per_task")
+    description = _qota._describe_raster(path, band)  # refused here, on the client, if unreadable
+    points = np.asarray(observers, dtype=np.float64)
+    if points.ndim != 2 or points.shape[1] not in (2, 3) or len(points) == 0:
+        raise Error(f"observers must be an (n, 2) or (n, 3) array of x, y [, height] with n > 0; got shape "
+                    f"{points.shape}")
+    height = _number(observer_height, "observer_height")
+    heights = points[:, 2].copy() if points.shape[1] == 3 else np.full(len(points), height)
+    target, distance = _number(target_height, "target_height"), _number(max_distance, "max_distance")
+    reference = "" if height_ref is None else os.fspath(height_ref)
+    parts = []
+    for first in range(0, len(points), per_task):
+        group = slice(first, first + per_task)
+        counts = dask.delayed(_viewshed_counts, pure=True)(path, points[group, 0].copy(), points[group, 1].copy(),
+                                                          heights[group], target, distance, band, bool(flat),
+                                                          reference)
+        parts.append(counts)
+    rows, cols = description["height"], description["width"]
+    total = da.stack([da.from_delayed(p, shape=(rows, cols), dtype=np.int64) for p in parts]).sum(axis=0)
+    return da.where(total < 0, VIEWSHED_NODATA, total).astype(np.uint32)
+

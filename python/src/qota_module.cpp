@@ -34,6 +34,7 @@
 #include "qota/sun.hpp"
 #include "qota/sunlight.hpp"
 #include "qota/terrain.hpp"
+#include "qota/viewshed.hpp"
 #include "qota/treefile.hpp"
 #include "qota/version.hpp"
 #include "qota_tools.hpp"
@@ -447,6 +448,44 @@ py::array viewshed(const std::string& dem, const std::string& output, std::array
   return toolRaster("viewshed", qota::tools::viewshed, o, false);
 }
 
+// How many of these observers (x, y in the raster's CRS, heights above the surface) see each pixel
+// of the raster (qota::cumulativeViewshed), as int64 (rows, columns), -1 where the raster has no
+// data: one task of qota.dask.viewsheds, whose sums keep voids negative.
+py::array_t<std::int64_t> cumulative(const std::string& path, py::array_t<double, py::array::forcecast> xs,
+                                     py::array_t<double, py::array::forcecast> ys,
+                                     py::array_t<double, py::array::forcecast> heights, double targetHeight,
+                                     double maxDistance, int band, bool flat, const std::string& heightRef) {
+  if (xs.ndim() != 1 || ys.ndim() != 1 || heights.ndim() != 1 || xs.shape(0) != ys.shape(0) ||
+      xs.shape(0) != heights.shape(0)) {
+    throw qota::Error("observers: x, y and heights must be 1-D arrays of one length");
+  }
+  std::vector<qota::Observer> observers(static_cast<std::size_t>(xs.shape(0)));
+  for (std::size_t k = 0; k < observers.size(); ++k) {
+    const auto i = static_cast<py::ssize_t>(k);
+    observers[k] = {xs.at(i), ys.at(i), heights.at(i), "observer " + std::to_string(k)};
+  }
+  qota::CumulativeOptions o;
+  o.targetHeight = targetHeight, o.maxDistance = maxDistance, o.frame.flat = flat, o.frame.heightRef = heightRef;
+  qota::CumulativeViewshed seen;
+  int width = 0, height = 0;
+  {
+    py::gil_scoped_release release;
+    qota::DemOptions demOptions;
+    demOptions.band = band;
+    demOptions.lonLatAsCartesian = true;
+    demOptions.then = qota::memory::kLinesOfSight;
+    const qota::DemTerrain dem = qota::loadDem(path, demOptions);
+    width = dem.width, height = dem.height;
+    seen = qota::cumulativeViewshed(dem, observers, o);
+  }
+  py::array_t<std::int64_t> out({height, width});
+  std::int64_t* p = out.mutable_data();
+  for (std::size_t i = 0; i < seen.count.size(); ++i) {
+    p[i] = seen.valid[i] ? static_cast<std::int64_t>(seen.count[i]) : std::int64_t{-1};
+  }
+  return out;
+}
+
 // The Sun's apparent azimuth and altitude (degrees) seen from (lon, lat) on the Earth.
 py::tuple sunPosition(const std::string& time, double lon, double lat, const std::string& tz) {
   if (!std::isfinite(lon) || !(lat >= -90 && lat <= 90)) {
@@ -677,6 +716,8 @@ PYBIND11_MODULE(_qota, m) {
   m.def("_viewshed", &viewshed, py::arg("dem"), py::arg("output"), py::arg("observer"), py::arg("srs"),
         py::arg("observer_height"), py::arg("target_height"), py::arg("max_distance"), py::arg("band"), py::arg("flat"),
         py::arg("height_ref"), py::arg("refraction") = 0.0);
+  m.def("_cumulative", &cumulative, py::arg("path"), py::arg("x"), py::arg("y"), py::arg("heights"),
+        py::arg("target_height"), py::arg("max_distance"), py::arg("band"), py::arg("flat"), py::arg("height_ref"));
   m.def("_sun_position", &sunPosition, py::arg("time"), py::arg("lon"), py::arg("lat"), py::arg("tz"));
   m.def("_write_raster", &writeRaster, py::arg("path"), py::arg("heights"), py::arg("transform"),
         py::arg("nodata") = py::none(), py::arg("crs") = "", py::arg("unit") = "");

@@ -283,3 +283,23 @@ def test_max_memory_sizes_the_blocks(client, part):
         qota.dask.shadow(dem, azimuth=135, altitude=2, max_memory=1 << 20)
     with pytest.raises(qota.Error, match="not a size"):
         qota.dask.shadow(dem, azimuth=135, altitude=40, max_memory="lots")
+
+
+def test_viewsheds_count_the_single_viewsheds(client):
+    # Five observers in groups of two (three tasks) within 10 km: each pixel's count is how many
+    # of qota.viewshed's single masks see it (an independent path: one observer at a time, a
+    # window of the raster each), voids VIEWSHED_NODATA.
+    points = np.loadtxt(DATA / "rainier_lookouts.txt")
+    got = qota.dask.viewsheds(RAINIER, points, max_distance=10000, per_task=2)
+    assert isinstance(got, dsa.Array) and got.dtype == np.uint32
+    got = got.compute()
+    want = np.zeros(got.shape, dtype=np.int64)
+    for x, y, h in points:
+        seen = qota.viewshed(RAINIER, observer=(x, y), observer_height=h, max_distance=10000)
+        want += seen == 255
+        voids = seen == 128
+    want[voids] = qota.dask.VIEWSHED_NODATA
+    np.testing.assert_array_equal(got, want)
+    assert (got[~voids] >= 1).sum() > 1000
+    with pytest.raises(qota.Error, match="observers must be"):
+        qota.dask.viewsheds(RAINIER, np.zeros((0, 2)))
