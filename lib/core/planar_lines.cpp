@@ -120,7 +120,6 @@ bool PlanarCore::segmentMeets(const Eigen::Vector3d& a, const Eigen::Vector3d& b
     for (std::uint32_t t : items) {
       const Cold& c = cold_[t];
       if (c.corner[0] == endVertex || c.corner[1] == endVertex || c.corner[2] == endVertex) continue;
-      if (ledger_.removed(c.polygon)) continue;
       if (!skip.empty() && std::binary_search(skip.begin(), skip.end(), c.polygon)) continue;
       double q[3][3];  // the corners' offsets from O (line_crossing.hpp)
       for (int k = 0; k < 3; ++k) {
