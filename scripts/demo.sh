@@ -8,7 +8,7 @@ cmake -S . -B build -DCMAKE_BUILD_TYPE=Release > /dev/null
 cmake --build build -j2 --target qota_cli
 dem=data/mt_rainier_90m.tif
 echo "== qota info $dem"
-build/tools/qota info "$dem"
+build/tools/qota info "$dem" --tree
 echo "== qota sample $dem   (lon lat -> height in metres; 'none': no terrain)"
 points='-121.7603 46.8529
 -121.7353 46.7865

@@ -14,6 +14,7 @@ packages=(
   libgtest-dev libgmock-dev     # tests
   libbenchmark-dev              # bench/
   libcli11-dev                  # argument parsing for the qota tool
+  nlohmann-json3-dev            # qota info --json
   libpng-dev                    # PNG previews
   libxxhash-dev                 # block hashes of heights, checksums of states and tiles
   proj-data                     # the EGM96 geoid grid (egm96_15.gtx) heights over a geoid need

@@ -1,4 +1,4 @@
-// qota sample and qota info, called as library functions.
+// qota sample, called as a library function (qota info: test_info.cpp).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -223,22 +223,6 @@ TEST(SampleTool, MissingFilesAndAtomicOutput) {
   r = sample(o, "");
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("no_such_dir/out.txt"), std::string::npos) << r.err;
-}
-
-TEST(InfoTool, PrintsTable4Statistics) {
-  qota::tools::InfoOptions o;
-  o.source.source = QOTA_DATA_DIR "/SainteHelens.dem";
-  o.source.index.tree.maxPoly = 12;
-  std::ostringstream out, err;
-  ASSERT_EQ(qota::tools::info(o, out, err), 0) << err.str();
-  const std::string s = out.str();
-  for (const char* key :
-       {"size: 327 x 468", "triangles: 296197", "nodes: ", "memory (MB): ", "average tests per query: ", "depth: ",
-        "leaves: ", "max poly: 12", "max polygons per leaf: ", "leaf references: ", "crs: "}) {
-    EXPECT_NE(s.find(key), std::string::npos) << key << "\n" << s;
-  }
-  o.source.source = "/no/such.dem";
-  EXPECT_EQ(qota::tools::info(o, out, err), 2);
 }
 
 TEST(TextOutput, ShortestRoundTrip) {

@@ -54,14 +54,15 @@ void addSourceOptions(CLI::App* app, qota::SourceOptions& source) {
 }
 
 // GDAL's tools spell some options with one dash and several letters (-az, -alt, -of, -co);
-// CLI11 reads a single dash as short flags, so those spellings become --az, --alt, --of, --co.
+// CLI11 reads a single dash as short flags, so those spellings become --az, --alt, --of, --co
+// (and gdalinfo's -stats, -json: --stats, --json).
 // gdallocationinfo's point options mean what they mean there: -l_srs is --srs, -wgs84 is
 // --srs EPSG:4326 (longitude, latitude), -geoloc (the raster's own georeferencing) is the default.
 std::vector<std::string> gdalStyleArguments(int argc, const char* const* argv) {
   std::vector<std::string> args;
   for (int i = 0; i < argc; ++i) {
     const std::string a = argv[i];
-    if (i > 0 && (a == "-az" || a == "-alt" || a == "-of" || a == "-co")) {
+    if (i > 0 && (a == "-az" || a == "-alt" || a == "-of" || a == "-co" || a == "-stats" || a == "-json")) {
       args.push_back("-" + a);
     } else if (i > 0 && a == "-l_srs") {
       args.push_back("--srs");
@@ -147,12 +148,20 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
   addSourceOptions(sampleCmd, sample);
 
   InfoOptions info;
-  CLI::App* infoCmd = app.add_subcommand("info", "Raster, terrain and quadtree statistics (the paper's Table 4)");
+  CLI::App* infoCmd =
+      app.add_subcommand("info",
+                         "What a source is: a raster's driver, bands, CRS, heights, extent, ground pixel size and the "
+                         "memory each tool would take, without building anything; --tree adds the quadtree "
+                         "statistics (the paper's Table 4). A tree file or mesh is read and its tree described.");
   infoCmd
       ->add_option("source", info.source.source,
                    "Elevation raster (any GDAL format), tree file (qota build) or mesh file")
       ->required();
   infoCmd->add_flag("-q,--quiet", info.quiet, "No notes (info prints none today)");
+  infoCmd->add_flag("--tree", info.tree,
+                    "Build the quadtree and print its statistics (implied by --max-poly and --max-depth)");
+  infoCmd->add_flag("--stats", info.stats, "Read every pixel: each band's height range and void pixels (-stats)");
+  infoCmd->add_flag("--json", info.json, "One JSON object, keys the labels in snake case (-json)");
   addSourceOptions(infoCmd, info.source);
 
   ShadowOptions shadow;
@@ -362,7 +371,10 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
   if (*sampleCmd) {
     return tools::sample(sample, in, out, err);
   }
-  if (*infoCmd) return tools::info(info, out, err);
+  if (*infoCmd) {
+    info.tree = info.tree || infoCmd->count("--max-poly") > 0 || infoCmd->count("--max-depth") > 0;
+    return tools::info(info, out, err);
+  }
   if (*shadowCmd) {
     if (!sunVector.empty()) shadow.sunVector = Eigen::Vector3d(sunVector[0], sunVector[1], sunVector[2]);
     if (!sunVectorBody.empty())

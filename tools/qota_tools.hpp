@@ -61,13 +61,22 @@ struct SampleOptions : SourceOptions {
 };
 int sample(const SampleOptions& options, std::istream& in, std::ostream& out, std::ostream& err);
 
-// qota info: the raster, the terrain and the quadtree statistics (the paper's Table 4), one
-// "name: value" per line.
+// qota info: what a source is, one "name: value" per line (or one JSON object). A raster is
+// described without building anything: driver, size, every band (type, unit, nodata, scale and
+// offset; with `stats` the height range and void pixels, read by strips), the CRS, the vertical
+// CRS and unit, what the heights are over on the ellipsoid, the extent (and in longitude/latitude),
+// the pixel size on the ground, and the memory each tool would take. `tree` builds the quadtree
+// too (in the source's mapping) and prints its statistics (the paper's Table 4), refusing what
+// does not fit with the streaming tools named. A tree file or a mesh is read whole and its tree's
+// statistics printed.
 struct InfoOptions {
   // The source, as every tool reads one: a raster (in --mapping, default cartesian), a mesh or a
   // tree file; the band, the mapping's parameters and the quadtree's.
   SourceOptions source;
   bool quiet = false;  // (info prints no notes; kept so that -q means the same in every tool)
+  bool tree = false;   // a raster: build the quadtree and print its statistics
+  bool stats = false;  // a raster: read every pixel for each band's height range (gdalinfo's -stats)
+  bool json = false;   // one JSON object, the keys the labels in snake case
 };
 int info(const InfoOptions& options, std::ostream& out, std::ostream& err);
 

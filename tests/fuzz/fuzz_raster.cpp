@@ -147,6 +147,9 @@ void runTools(const std::string& path, std::uint8_t how) {
   qota::tools::InfoOptions i;
   i.source.source = path;
   i.source.band = 1;
+  i.stats = true;
+  if (int c = qota::tools::info(i, out, err); c != 0 && c != 2) std::abort();
+  i.tree = true, i.json = true;
   if (int c = qota::tools::info(i, out, err); c != 0 && c != 2) std::abort();
 
   qota::tools::ShadowOptions sh;
