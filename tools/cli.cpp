@@ -145,6 +145,14 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
                    "geodetic: print heights over the ellipsoid (ellipsoid) instead of the source's own "
                    "reference")
       ->check(CLI::IsMember({"ellipsoid"}));
+  sampleCmd
+      ->add_option("-r,--resampling", sample.resampling,
+                   "How a raster's height at a point is found: triangle (the exact surface of the raster's "
+                   "triangles, as every qota tool sees it), or GDAL's rules: nearest (the pixel containing the "
+                   "point, as gdallocationinfo prints), bilinear, cubic (on pixel centres, GDAL's kernels and "
+                   "nodata rules)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"triangle", "nearest", "bilinear", "cubic"}));
   addSourceOptions(sampleCmd, sample);
 
   InfoOptions info;

@@ -387,6 +387,7 @@ int info(const InfoOptions& options, std::ostream& out, std::ostream& err) {
     if (isTreeFile(so.source) || !isRaster(so.source)) {
       indexFacts(so, f);  // a tree file or a mesh is read whole whatever is asked
     } else {
+      requireMappingOptions(so);
       rasterFacts(options, f);
       if (!options.tree) {
         const std::string mapping = so.mapping.empty() ? "cartesian" : so.mapping;

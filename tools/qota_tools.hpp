@@ -58,6 +58,10 @@ struct SampleOptions : SourceOptions {
   // geodetic: heights read (--query-z) and printed are over the source's reference (heightRef)
   // unless this is "ellipsoid" (printed over the ellipsoid).
   std::string outputHeightRef = {};
+  // How a raster's height at a point is found (qota/kernel_sampler.hpp): "triangle" (the exact
+  // surface, the default), or GDAL's rules "nearest" (what gdallocationinfo prints), "bilinear",
+  // "cubic"; these on a raster in the cartesian mapping only.
+  std::string resampling = "triangle";
 };
 int sample(const SampleOptions& options, std::istream& in, std::ostream& out, std::ostream& err);
 

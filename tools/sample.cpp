@@ -31,6 +31,7 @@
 #include "qota/error.hpp"
 #include "qota/geoid.hpp"
 #include "qota/mapping_registry.hpp"
+#include "qota/kernel_sampler.hpp"
 #include "qota/raster_sampler.hpp"
 #include "qota/treefile.hpp"
 #include "cancel.hpp"
@@ -129,6 +130,25 @@ Surface rasterSurface(const std::shared_ptr<RasterSampler>& sampler) {
   };
 }
 
+// A raster by one of GDAL's sampling rules (KernelSampler), on one thread (its block cache is
+// its own). With a query height, the height when it is at or below it, else none: the rule's
+// surface is single-valued.
+Surface kernelSurface(const std::shared_ptr<KernelSampler>& sampler) {
+  return [sampler](std::span<const Query> q, bool hasZ, std::span<Answer> out) {
+    for (std::size_t i = 0; i < q.size(); ++i) {
+      out[i] = Answer{};
+      const std::optional<double> h = sampler->height(q[i].x, q[i].y);
+      if (!h && !sampler->dem().onRaster(q[i].x, q[i].y)) {
+        out[i] =
+            outside("none", "point (" + formatNumber(q[i].x) + ", " + formatNumber(q[i].y) + ") is off the raster");
+      } else if (h && (!hasZ || *h <= q[i].z)) {
+        out[i].height = h;
+        out[i].world = Eigen::Vector3d(q[i].x, q[i].y, *h);
+      }
+    }
+  };
+}
+
 template <class... F>
 struct Overloaded : F... {
   using F::operator()...;
@@ -170,14 +190,15 @@ std::optional<Surface> mapAnswers(const std::shared_ptr<TreeFile>& tree,
 // else an index (a tree file, a mesh, or a raster in a curved mapping) queried point by point.
 Surface openSurface(const SampleOptions& options, TreeSource& source, std::ostream& err) {
   const MappingEntry& entry = mappingEntry(options.mapping);
-  if (!isTreeFile(options.source)) {  // (a tree file's options were given when it was built)
-    requireMappingTakes(entry, options.radius != 0, &MappingEntry::radius, "--radius");
-    requireMappingTakes(entry, options.length != 0, &MappingEntry::length, "--length");
-    requireMappingTakes(entry, options.origin.has_value(), &MappingEntry::origin, "--origin");
-    requireMappingTakes(entry, !options.heightRef.empty(), &MappingEntry::ellipsoid, "--height-ref");
-  }
+  if (!isTreeFile(options.source)) requireMappingOptions(options);  // (a tree file's were given when built)
   // The default mapping's rasters go through the streaming sampler: no index at all.
   const bool asMap = entry.map;
+  const Resampling rule = resamplingNamed(options.resampling);
+  if (rule != Resampling::Triangle && (!asMap || isTreeFile(options.source) || !isRaster(options.source))) {
+    throw Error(std::string("-r ") + resamplingName(rule) +
+                " samples a raster's pixels in the cartesian mapping; a tree file, a mesh or another mapping "
+                "answers its triangles (-r triangle)");
+  }
   if (asMap && !isTreeFile(options.source)) {
     requireSource(options.source);
     if (isRaster(options.source)) {
@@ -185,6 +206,11 @@ Surface openSurface(const SampleOptions& options, TreeSource& source, std::ostre
       // the cache that matters, and memory must not grow with the raster.
       constexpr GIntBig kGdalCacheBytes = GIntBig{64} << 20;
       if (GDALGetCacheMax64() > kGdalCacheBytes) GDALSetCacheMax64(kGdalCacheBytes);
+      if (rule != Resampling::Triangle) {
+        auto sampler = std::make_shared<KernelSampler>(options.source, options.band, rule);
+        source.path = sampler->dem().path, source.crsWkt = sampler->dem().crsWkt;
+        return kernelSurface(sampler);
+      }
       RasterSampler::Options so;
       so.band = options.band;
       auto sampler = std::make_shared<RasterSampler>(options.source, so);

@@ -97,6 +97,14 @@ std::string mappingsWith(bool MappingEntry::*flag) {
   return text;
 }
 
+void requireMappingOptions(const SourceOptions& o) {
+  const MappingEntry& entry = mappingEntry(o.mapping);
+  requireMappingTakes(entry, o.radius != 0, &MappingEntry::radius, "--radius");
+  requireMappingTakes(entry, o.length != 0, &MappingEntry::length, "--length");
+  requireMappingTakes(entry, o.origin.has_value(), &MappingEntry::origin, "--origin");
+  requireMappingTakes(entry, !o.heightRef.empty(), &MappingEntry::ellipsoid, "--height-ref");
+}
+
 void requireMappingTakes(const MappingEntry& entry, bool given, bool MappingEntry::*flag, const std::string& what) {
   if (given && !(entry.*flag)) {
     throw Error(what + " applies to the " + mappingsWith(flag) + " mapping, not " + entry.name);
@@ -257,11 +265,7 @@ TreeFile openIndex(const SourceOptions& o) {
     }
     return tf;
   }
-  // Each option only where the mapping takes it (the registry's entry says which).
-  requireMappingTakes(entry, o.radius != 0, &MappingEntry::radius, "--radius");
-  requireMappingTakes(entry, o.length != 0, &MappingEntry::length, "--length");
-  requireMappingTakes(entry, o.origin.has_value(), &MappingEntry::origin, "--origin");
-  requireMappingTakes(entry, !o.heightRef.empty(), &MappingEntry::ellipsoid, "--height-ref");
+  requireMappingOptions(o);
   if (!isRaster(o.source)) {
     // A mesh file, in world coordinates: the mapping's default frame (a sphere or cylinder
     // about the origin's z axis, the WGS84 ellipsoid with ECEF coordinates).

@@ -30,7 +30,12 @@ from . import _interop
 from . import _qota
 from ._qota import Error, __version__
 
-__all__ = ["Terrain", "Hits", "Error", "__version__", "shadow", "viewshed", "sun_position", "MAPPINGS"]
+__all__ = ["Terrain", "Hits", "Error", "__version__", "sample", "shadow", "viewshed", "sun_position", "MAPPINGS",
+           "RESAMPLINGS"]
+
+#: How qota.sample finds a raster's height at a point (`qota sample -r`): "triangle" (the exact
+#: surface every qota tool sees), or GDAL's rules "nearest", "bilinear", "cubic".
+RESAMPLINGS: tuple = ("triangle", "nearest", "bilinear", "cubic")
 
 #: The mappings a terrain can be built in (Terrain.mapping is one of these): the library's mapping
 #: registry, as the tools' --mapping takes them.
@@ -549,6 +554,33 @@ def viewshed(dem, observer, *, observer_height=2.0, target_height=0.0, max_dista
             raise Error("height_ref takes a raster file; give the DataArray's or dataset's file")
         template, seen = _on_a_file(dem, band, on_file)
         return _interop.mask_like(template, seen, 128, "viewshed")
+    return on_file(_local_file(dem), band)
+
+
+def sample(dem, x, y, *, band=1, resampling="triangle", srs=None):
+    """Heights of a raster under points, streamed as `qota sample` reads it: tile by tile, so a
+    raster of any size (a VRT of a continent) is sampled in bounded memory, without loading it.
+
+    dem: a raster file (or any GDAL name), an open rasterio dataset or an xarray.DataArray.
+    x, y: coordinates of any shape (broadcast together), in the raster's CRS or in `srs`
+    (EPSG:4326, WKT, PROJ; x = longitude or easting). resampling (qota.RESAMPLINGS): "triangle",
+    the exact surface of the raster's triangles (Terrain.from_raster(dem).heights(x, y), bit for
+    bit); "nearest", the pixel containing the point (what gdallocationinfo prints); "bilinear" and
+    "cubic", GDAL's kernels on pixel centres with its nodata rules. Returns float64 heights in
+    the raster's vertical unit, NaN where there is none (a void, off the raster).
+    """
+    if resampling not in RESAMPLINGS:
+        raise Error(f"resampling must be one of {', '.join(RESAMPLINGS)}, got {resampling!r}")
+    if srs is not None and not isinstance(srs, str):
+        raise Error(f"srs must be a text (EPSG:4326, WKT, PROJ), got {srs!r}")
+    xs, ys = _broadcast(x=x, y=y)
+
+    def on_file(path, b):
+        sampler = _qota._RasterSampler(path, _whole(b, "band"), resampling, srs or "")
+        return sampler.heights(_flat(xs), _flat(ys)).reshape(xs.shape)
+
+    if _interop.is_dataarray(dem) or _interop.is_rasterio_dataset(dem):
+        return _on_a_file(dem, band, on_file)[1]
     return on_file(_local_file(dem), band)
 
 

@@ -78,4 +78,9 @@ def viewshed(dem: _Raster, observer: tuple[float, float], *, observer_height: fl
              target_height: float = 0.0, max_distance: float = 0.0, srs: str | None = None, band: int = 1,
              flat: bool = False, height_ref: _Path | None = None, refraction: float = 0.0,
              output: _Path | None = None) -> npt.NDArray[np.uint8] | Any: ...
+RESAMPLINGS: tuple[str, ...]
+# float64 heights, NaN where there are none; the shape of x and y broadcast together.
+def sample(dem: _Raster, x: _Coords, y: _Coords, *, band: int = 1,
+           resampling: Literal["triangle", "nearest", "bilinear", "cubic"] = "triangle",
+           srs: str | None = None) -> _Heights: ...
 def sun_position(time: str, lon: float, lat: float, *, tz: str | None = None) -> tuple[float, float]: ...

@@ -526,24 +526,26 @@ def _writer_lock(path):
 # --- points ------------------------------------------------------------------------------------
 
 @functools.lru_cache(maxsize=8)
-def _sampler(path, band):
-    """One sampler per raster in each process: its tile cache serves every task there."""
-    return _qota._RasterSampler(path, band)
+def _sampler(source):
+    """One sampler per raster (path, band, resampling) in each process: its tile cache serves
+    every task there."""
+    path, band, resampling = source
+    return _qota._RasterSampler(path, band, resampling)
 
 
-def _sample_xy(path, band, x, y):
-    return _sampler(path, band).heights(np.ascontiguousarray(x, dtype=np.float64),
+def _sample_xy(source, x, y):
+    return _sampler(source).heights(np.ascontiguousarray(x, dtype=np.float64),
                                         np.ascontiguousarray(y, dtype=np.float64))
 
 
-def _sample_frame(frame, path, band, x, y, name):
+def _sample_frame(frame, source, x, y, name):
     import pandas as pd
 
-    return pd.Series(_sample_xy(path, band, frame[x].to_numpy(), frame[y].to_numpy()), index=frame.index, name=name)
+    return pd.Series(_sample_xy(source, frame[x].to_numpy(), frame[y].to_numpy()), index=frame.index, name=name)
 
 
-def _sample_rows(points, path, band):
-    return _sample_xy(path, band, points[:, 0], points[:, 1])
+def _sample_rows(points, source):
+    return _sample_xy(source, points[:, 0], points[:, 1])
 
 
 def _block_keys(frame, x, y, inverse, size, across):
@@ -559,9 +561,10 @@ def _block_keys(frame, x, y, inverse, size, across):
     return keys
 
 
-def sample(source, points, *, band=1, x="x", y="y", by_block=False, block=1024):
-    """Heights of a raster under points, lazily: Terrain.from_raster(source).heights(x, y), bit
-    for bit, NaN where there is no terrain (a hole, off the raster).
+def sample(source, points, *, band=1, x="x", y="y", by_block=False, block=1024, resampling="triangle"):
+    """Heights of a raster under points, lazily: qota.sample(source, x, y, resampling=...), bit
+    for bit (with "triangle", Terrain.from_raster(source).heights(x, y)), NaN where there is no
+    terrain (a hole, off the raster).
 
     source: a raster path (or GDAL name) that every worker can open.
     points: a dask DataFrame with columns `x` and `y` (the raster's CRS), giving a dask Series
@@ -578,19 +581,23 @@ def sample(source, points, *, band=1, x="x", y="y", by_block=False, block=1024):
     path = _local_file(source)
     band, block = _whole(band, "band"), _whole(block, "block")
     description = _qota._describe_raster(path, band)  # refused here, on the client, if unreadable
+    from . import RESAMPLINGS
+    if resampling not in RESAMPLINGS:
+        raise Error(f"resampling must be one of {', '.join(RESAMPLINGS)}, got {resampling!r}")
+    source = (path, band, resampling)
     if hasattr(points, "map_partitions") and hasattr(points, "columns"):
         for column in (x, y):
             if column not in points.columns:
                 raise Error(f"the points have no column {column!r} (columns: {', '.join(map(str, points.columns))})")
         if by_block:
-            return _sample_by_block(path, band, points, x, y, description, int(block))
-        return points.map_partitions(_sample_frame, path, band, x, y, "height", meta=("height", "f8"))
+            return _sample_by_block(source, points, x, y, description, int(block))
+        return points.map_partitions(_sample_frame, source, x, y, "height", meta=("height", "f8"))
     if _is_dask(points) and points.ndim == 2 and points.shape[1] == 2:
         if by_block:
             raise Error("by_block takes a dask DataFrame of points (a dask array is answered in its own chunks)")
         if len(points.chunks[1]) > 1:
             points = points.rechunk({1: 2})
-        return points.map_blocks(_sample_rows, path, band, drop_axis=1, dtype=np.float64)
+        return points.map_blocks(_sample_rows, source, drop_axis=1, dtype=np.float64)
     raise Error(f"points must be a dask DataFrame with columns {x!r} and {y!r}, or a dask array of shape (n, 2); "
                 f"got {type(points).__name__}")
 
@@ -609,11 +616,11 @@ def _with_places(frame, x, y, partition_info=None):
                          "_qota_place": np.arange(len(frame), dtype=np.int64) + number * _PLACE})
 
 
-def _placed_heights(frame, path, band, x, y):
+def _placed_heights(frame, source, x, y):
     import pandas as pd
 
     return pd.DataFrame({"_qota_place": frame["_qota_place"].to_numpy(),
-                         "height": _sample_xy(path, band, frame[x].to_numpy(), frame[y].to_numpy())})
+                         "height": _sample_xy(source, frame[x].to_numpy(), frame[y].to_numpy())})
 
 
 def _in_input_order(heights, points):
@@ -626,7 +633,7 @@ def _in_input_order(heights, points):
     return pd.Series(values, index=points.index, name="height")
 
 
-def _sample_by_block(path, band, points, x, y, description, block):
+def _sample_by_block(source, points, x, y, description, block):
     if block < 1:
         raise Error(f"block must be a number of pixels (1 or more), got {block}")
     import dask.dataframe as dd
@@ -638,7 +645,7 @@ def _sample_by_block(path, band, points, x, y, description, block):
     keys = placed.map_partitions(_block_keys, x, y, description["inverse_geotransform"], block, across,
                                  meta=("_qota_block", "i8"))
     heights = placed.assign(_qota_block=keys).shuffle("_qota_block") \
-        .map_partitions(_placed_heights, path, band, x, y, meta={"_qota_place": "i8", "height": "f8"})
+        .map_partitions(_placed_heights, source, x, y, meta={"_qota_place": "i8", "height": "f8"})
     # Back in the input's partitions, by place: partition k holds the places [k _PLACE, (k + 1) _PLACE).
     divisions = [k * _PLACE for k in range(n)] + [n * _PLACE - 1]
     back = heights.set_index("_qota_place", divisions=divisions, sorted=False)

@@ -27,6 +27,7 @@
 #include "qota/error.hpp"
 #include "qota/mapping_registry.hpp"
 #include "qota/instant.hpp"
+#include "qota/kernel_sampler.hpp"
 #include "qota/raster_sampler.hpp"
 #include "qota/geoid.hpp"
 #include "qota/terrain_face.hpp"
@@ -653,17 +654,37 @@ std::array<double, 2> localSpan(const std::string& time, const std::string& tz, 
   return {span.start.julianDayUT, span.end.julianDayUT};
 }
 
-// A raster's heights under points, read tile by tile (RasterSampler), with the outer half-pixel
-// rule as the Python Terrain and qota sample keep it: the whole terrain's answers, bit for bit.
-// One sampler answers one batch at a time (its cache); others wait.
+// A raster's heights under points, streamed: read tile by tile (RasterSampler), with the outer
+// half-pixel rule as the Python Terrain and qota sample keep it (the whole terrain's answers, bit
+// for bit), or by one of GDAL's rules (KernelSampler: nearest, bilinear, cubic). Points in the
+// raster's CRS, or in `srs` (x easting/longitude, y northing/latitude). One sampler answers one
+// batch at a time (its cache); others wait.
 class Sampler {
  public:
-  Sampler(const std::string& path, int band) {
-    qota::RasterSampler::Options o;
-    o.band = band;
+  Sampler(const std::string& path, int band, const std::string& resampling, const std::string& srs) {
+    const qota::Resampling rule = qota::resamplingNamed(resampling);
     py::gil_scoped_release release;
-    sampler_ = std::make_unique<qota::RasterSampler>(path, o);
-    inverse_ = sampler_->dem().inverseGeotransform();
+    if (rule == qota::Resampling::Triangle) {
+      qota::RasterSampler::Options o;
+      o.band = band;
+      sampler_ = std::make_unique<qota::RasterSampler>(path, o);
+    } else {
+      kernel_ = std::make_unique<qota::KernelSampler>(path, band, rule);
+    }
+    const qota::DemTerrain& dem = this->dem();
+    inverse_ = dem.inverseGeotransform();
+    if (!srs.empty()) {
+      if (dem.crsWkt.empty()) throw qota::Error(path + ": the raster has no CRS, so points in srs cannot be placed");
+      OGRSpatialReference from, to;
+      if (from.SetFromUserInput(srs.c_str()) != OGRERR_NONE) {
+        throw qota::Error("srs '" + srs + "' is not a coordinate reference system GDAL knows");
+      }
+      to.importFromWkt(dem.crsWkt.c_str());
+      from.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+      to.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+      transform_.reset(OGRCreateCoordinateTransformation(&from, &to));
+      if (!transform_) throw qota::Error("srs '" + srs + "': no transformation to the raster's CRS");
+    }
   }
 
   py::array_t<double> heights(const Array& x, const Array& y) {
@@ -676,20 +697,34 @@ class Sampler {
     double* o = out.mutable_data();
     {
       py::gil_scoped_release release;
-      const qota::DemTerrain& dem = sampler_->dem();
-      for (std::size_t i = 0; i < n; ++i) {
-        const auto p = dem.surfacePoint(xs[i], ys[i], inverse_);
-        xs[i] = p ? (*p)[0] : kNaN, ys[i] = p ? (*p)[1] : kNaN;  // off the raster: no terrain
-      }
       const std::lock_guard<std::mutex> guard(lock_);
-      sampler_->heights(xs, ys, {}, answers);
+      if (transform_ && n > 0) {
+        std::vector<int> ok(n);
+        transform_->Transform(n, xs.data(), ys.data(), nullptr, ok.data());
+        for (std::size_t i = 0; i < n; ++i) {
+          if (!ok[i]) xs[i] = ys[i] = kNaN;  // not transformable: no terrain
+        }
+      }
+      if (kernel_) {
+        kernel_->heights(xs, ys, answers);
+      } else {
+        const qota::DemTerrain& dem = sampler_->dem();
+        for (std::size_t i = 0; i < n; ++i) {
+          const auto p = dem.surfacePoint(xs[i], ys[i], inverse_);
+          xs[i] = p ? (*p)[0] : kNaN, ys[i] = p ? (*p)[1] : kNaN;  // off the raster: no terrain
+        }
+        sampler_->heights(xs, ys, {}, answers);
+      }
       for (std::size_t i = 0; i < n; ++i) o[i] = answers[i] ? *answers[i] : kNaN;
     }
     return out;
   }
 
  private:
+  const qota::DemTerrain& dem() const { return kernel_ ? kernel_->dem() : sampler_->dem(); }
   std::unique_ptr<qota::RasterSampler> sampler_;
+  std::unique_ptr<qota::KernelSampler> kernel_;
+  std::unique_ptr<OGRCoordinateTransformation> transform_;
   std::array<double, 6> inverse_{};
   std::mutex lock_;
 };
@@ -795,7 +830,8 @@ PYBIND11_MODULE(_qota, m) {
       "_check_hours", [](double start, double end, double step) { qota::checkHoursWindow(start, end, step, "hours"); },
       py::arg("start"), py::arg("end"), py::arg("step"));
   py::class_<Sampler>(m, "_RasterSampler")
-      .def(py::init<const std::string&, int>(), py::arg("path"), py::arg("band"))
+      .def(py::init<const std::string&, int, const std::string&, const std::string&>(), py::arg("path"),
+           py::arg("band"), py::arg("resampling") = "triangle", py::arg("srs") = "")
       .def("heights", &Sampler::heights, py::arg("x"), py::arg("y"));
   py::class_<Terrain>(m, "_Terrain")
       .def_static("from_raster", &fromRaster, py::arg("path"), py::arg("band"), py::arg("mapping"),

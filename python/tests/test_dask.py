@@ -175,6 +175,10 @@ def test_points_equal_the_whole_terrain(client):
     np.testing.assert_array_equal(got.to_numpy(), want)
     array = dsa.from_array(np.column_stack([x, y]), chunks=(1700, 2))
     np.testing.assert_array_equal(qota.dask.sample(RAINIER, array).compute(), want)
+    # GDAL's rules through Dask: qota.sample's answers
+    for rule in ("nearest", "cubic"):
+        got = qota.dask.sample(RAINIER, dd.from_pandas(points, npartitions=3), resampling=rule).compute()
+        np.testing.assert_array_equal(got.to_numpy(), qota.sample(RAINIER, x, y, resampling=rule))
     # By block, whatever the index: values repeated (4 rows each, sorted), shuffled, not numbers,
     # or unknown divisions: every height on its own row.
     n = len(x)

@@ -38,6 +38,11 @@ struct SourceOptions {
 /// the lon/lat grid gives exactly. Throws qota::Error.
 TreeFile openIndex(const SourceOptions& options);
 
+/// Each mapping parameter only where the mapping takes it (the registry's entry says which):
+/// --radius, --length, --origin and --height-ref given to a mapping that takes none are refused by
+/// name (qota::Error). openIndex checks it; a tool that reads a source another way calls it.
+void requireMappingOptions(const SourceOptions& options);
+
 /// A mesh in world coordinates built in a mapping's default frame, as openIndex builds a mesh
 /// file: cartesian with gravity -Z about cartesianOrigin; a sphere or cylinder about the origin
 /// and z axis; the WGS84 ellipsoid in ECEF metres; enu at `origin` (latitude, longitude degrees,
