@@ -77,7 +77,7 @@ def reference(path, xs, ys, rule):
 
 def qota_sample(path, xs, ys, rule):
     text = "".join(f"{x!r} {y!r}\n" for x, y in zip(xs, ys))
-    r = subprocess.run([qota, "sample", path, "-r", rule, "-q"], input=text, capture_output=True, text=True)
+    r = subprocess.run([qota, "sample", path, "-r", rule, "-q", "-p", "17"], input=text, capture_output=True, text=True)
     lines = r.stdout.splitlines()
     assert len(lines) == len(xs), (rule, r.stderr)
     return [None if s == "none" else float(s) for s in lines]

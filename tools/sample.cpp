@@ -21,6 +21,7 @@
 #include <string_view>
 #include <thread>
 #include <type_traits>
+#include <unistd.h>
 #include <vector>
 
 #include "index_source.hpp"
@@ -188,7 +189,7 @@ std::optional<Surface> mapAnswers(const std::shared_ptr<TreeFile>& tree,
 
 // The terrain of options.source: a raster in the Cartesian mapping through the tile sampler,
 // else an index (a tree file, a mesh, or a raster in a curved mapping) queried point by point.
-Surface openSurface(const SampleOptions& options, TreeSource& source, std::ostream& err) {
+Surface openSurface(const SampleOptions& options, TreeSource& source, bool& integerValues, std::ostream& err) {
   const MappingEntry& entry = mappingEntry(options.mapping);
   if (!isTreeFile(options.source)) requireMappingOptions(options);  // (a tree file's were given when built)
   // The default mapping's rasters go through the streaming sampler: no index at all.
@@ -209,6 +210,7 @@ Surface openSurface(const SampleOptions& options, TreeSource& source, std::ostre
       if (rule != Resampling::Triangle) {
         auto sampler = std::make_shared<KernelSampler>(options.source, options.band, rule);
         source.path = sampler->dem().path, source.crsWkt = sampler->dem().crsWkt;
+        integerValues = sampler->dem().integerValues;
         return kernelSurface(sampler);
       }
       RasterSampler::Options so;
@@ -216,6 +218,7 @@ Surface openSurface(const SampleOptions& options, TreeSource& source, std::ostre
       auto sampler = std::make_shared<RasterSampler>(options.source, so);
       const DemTerrain& dem = sampler->dem();
       source.path = dem.path, source.crsWkt = dem.crsWkt;
+      integerValues = dem.integerValues;
       return rasterSurface(sampler);
     }
   }
@@ -302,7 +305,8 @@ int sample(const SampleOptions& options, std::istream& in, std::ostream& out, st
                   " decimals");
     }
     TreeSource source;
-    const Surface surface = openSurface(options, source, err);
+    bool integerValues = false;
+    const Surface surface = openSurface(options, source, integerValues, err);
     const std::unique_ptr<OGRCoordinateTransformation> transform = makeTransform(options.srs, source);
 
     std::ifstream file;
@@ -313,6 +317,9 @@ int sample(const SampleOptions& options, std::istream& in, std::ostream& out, st
       if (!file) throw Error(options.inputFile + ": cannot read");
       input = &file;
       where = options.inputFile;
+    } else if (&in == &std::cin && isatty(STDIN_FILENO) && !options.quiet) {
+      // (a person at a terminal who typed `qota sample DEM` and sees nothing happen)
+      err << "qota sample: reading points from the terminal, one 'x y' a line; Ctrl-D ends (or give -i FILE)\n";
     }
     // A file is written whole or not at all (atomic_file.hpp); a character device (/dev/null, a
     // terminal) is written in place: there is nothing there to replace or to leave half-written.
@@ -331,7 +338,8 @@ int sample(const SampleOptions& options, std::istream& in, std::ostream& out, st
       }
     }
 
-    const bool failed = sampling::readLines(options, surface, transform.get(), *input, *output, err, where);
+    const bool failed =
+        sampling::readLines(options, surface, transform.get(), *input, *output, err, where, integerValues);
     if (outFile) {
       outFile->commit();
     } else {

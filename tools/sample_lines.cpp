@@ -116,8 +116,14 @@ const std::size_t kThreads = std::max(1u, std::thread::hardware_concurrency());
 class LineLoop {
  public:
   LineLoop(const SampleOptions& options, const Surface& surface, OGRCoordinateTransformation* transform,
-           std::ostream& output, std::ostream& err, std::string where)
-      : o_(options), surface_(surface), transform_(transform), out_(output), err_(err), where_(std::move(where)) {}
+           std::ostream& output, std::ostream& err, std::string where, bool integerSource)
+      : o_(options),
+        surface_(surface),
+        transform_(transform),
+        out_(output),
+        err_(err),
+        where_(std::move(where)),
+        roundNoise_(integerSource && options.precision < 0) {}
 
   // Reads `in` to its end. Returns whether any line failed.
   bool run(std::istream& in) {
@@ -318,9 +324,10 @@ class LineLoop {
       } else if (!a.height) {
         t += "none";
       } else {
-        appendNumber(t, *a.height, o_.precision);
+        appendNumber(t, shown(*a.height), o_.precision);
         if (o_.printWorld) {
-          for (int k = 0; k < 3; ++k) t += r.p.separator, appendNumber(t, a.world[k], o_.precision);
+          for (int k = 0; k < 3; ++k)
+            t += r.p.separator, appendNumber(t, k == 2 ? shown(a.world[k]) : a.world[k], o_.precision);
         }
       }
     }
@@ -350,6 +357,16 @@ class LineLoop {
     t += '\n';
   }
 
+  // A height as printed: from an integer raster without -p, rounded to a millionth of its unit
+  // (far below any DEM's accuracy, far above the interpolation's rounding: a few units in the
+  // last place of the height, 1e-12 of it).
+  double shown(double h) const {
+    if (!roundNoise_ || !(std::fabs(h) < 1e9)) return h;
+    // (half away from zero through an integer conversion: std::round is a library call here)
+    const double k = h * 1e6;
+    return static_cast<double>(static_cast<std::int64_t>(k + (k < 0 ? -0.5 : 0.5))) / 1e6;
+  }
+
   static void passThrough(std::string& t, const PointLine& p) {
     if (!p.rest.empty()) t += p.separator, t += p.rest;
   }
@@ -360,6 +377,7 @@ class LineLoop {
   std::ostream& out_;
   std::ostream& err_;
   std::string where_;
+  bool roundNoise_ = false;
   std::uint64_t lineNo_ = 0;
   bool failed_ = false;
   std::vector<LineResult> results_;
@@ -370,8 +388,8 @@ class LineLoop {
 }  // namespace
 
 bool readLines(const SampleOptions& options, const Surface& surface, OGRCoordinateTransformation* transform,
-               std::istream& in, std::ostream& out, std::ostream& err, const std::string& where) {
-  LineLoop loop(options, surface, transform, out, err, where);
+               std::istream& in, std::ostream& out, std::ostream& err, const std::string& where, bool integerSource) {
+  LineLoop loop(options, surface, transform, out, err, where, integerSource);
   return loop.run(in);
 }
 

@@ -58,8 +58,12 @@ void inParallel(std::size_t n, std::size_t minPerThread, Work&& work) {
 // Reads `in` to its end, a line at a time as qota sample's help says, answering the points on
 // `surface` (placed by `transform` from --srs first, when given) and writing one line per input
 // line to `out`; a failed line's message goes to `err` (the first 20, then a count). `where`
-// names the input in messages. Returns whether any line failed.
+// names the input in messages. integerSource: the heights are interpolated from whole numbers
+// (an integer raster), so the shortest form (no -p) prints them rounded to a millionth of the
+// unit, which drops the last-bit noise of the interpolation (4367.000000000034 prints 4367).
+// Returns whether any line failed.
 bool readLines(const SampleOptions& options, const Surface& surface, OGRCoordinateTransformation* transform,
-               std::istream& in, std::ostream& out, std::ostream& err, const std::string& where);
+               std::istream& in, std::ostream& out, std::ostream& err, const std::string& where,
+               bool integerSource = false);
 
 }  // namespace qota::tools::sampling

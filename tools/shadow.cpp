@@ -300,7 +300,7 @@ int shadow(const ShadowOptions& given, std::ostream& out, std::ostream& err) {
       if (!o.quiet) {
         GDALTermProgress(1.0, "", nullptr);
         out << "sunlight: " << steps << " steps of " << formatNumber(step) << " h, from " << span.start.local << " ("
-            << span.start.utc << ") to " << span.end.local << " (" << span.end.utc << "), " << formatNumber(elapsed)
+            << span.start.utc << ") to " << span.end.local << " (" << span.end.utc << "), " << formatHours(elapsed)
             << " h\n";
       }
     } else if (o.lightPoint) {

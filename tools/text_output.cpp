@@ -47,4 +47,9 @@ int reportFailure(const char* tool, std::ostream& err) {
   return 2;
 }
 
+std::string formatHours(double hours) {
+  if (!std::isfinite(hours)) return formatNumber(hours);
+  return formatNumber(std::round(hours * 3.6e6) / 3.6e6);
+}
+
 }  // namespace qota::tools

@@ -24,6 +24,10 @@ std::string formatNumber(double value, int precision = -1);
 // scientific notation (a shadow reach of 1e300 m is not printed as 300 digits).
 std::string formatReadable(double value, int decimals);
 
+// Hours elapsed (differences of Julian days, a few microseconds of rounding) for people: rounded
+// to the millisecond, then the shortest form ("23", "1.5").
+std::string formatHours(double hours);
+
 // For a tool's catch (...): prints "qota <tool>: <what went wrong>" for whatever was thrown (a
 // qota::Error's message, "out of memory", a library's exception) and returns exit code 2.
 int reportFailure(const char* tool, std::ostream& err);

@@ -193,6 +193,13 @@ DemTerrain openDem(const std::string& path, const DemOptions& options, std::uniq
   int hasNodata = 0;
   const double nodata = band->GetNoDataValue(&hasNodata);
   if (hasNodata) dem.nodata = nodata;
+  {
+    int hasScale = FALSE, hasOffset = FALSE;
+    const double scale = band->GetScale(&hasScale), offset = band->GetOffset(&hasOffset);
+    dem.integerValues = !GDALDataTypeIsFloating(band->GetRasterDataType()) &&
+                        !GDALDataTypeIsComplex(band->GetRasterDataType()) && (!hasScale || scale == 1) &&
+                        (!hasOffset || offset == 0);
+  }
   dem.verticalUnit = verticalUnitOf(path, band, srs);
   dem.verticalReference = verticalReferenceOf(srs);
   dem.lonLat = srs && srs->IsGeographic() && dem.geotransform[2] == 0 && dem.geotransform[4] == 0;

@@ -93,7 +93,11 @@ struct DemTerrain {
   std::string crsWkt;  // empty when the raster has no CRS
   std::optional<double> nodata;
   std::uint64_t nodataPixels = 0;
-  int band = 1;                         // the band read (1-based)
+  int band = 1;  // the band read (1-based)
+  // The band holds whole numbers (an integer data type, no scale or offset): heights between
+  // pixel centres are interpolated from integers (qota sample prints them without the last-bit
+  // noise of that arithmetic).
+  bool integerValues = false;
   std::uint64_t estimatedBytes = 0;     // the job's peak memory as loadDem estimated it
   VerticalUnit verticalUnit;            // of the heights in mesh (they are kept in this unit)
   VerticalReference verticalReference;  // what the raster states of its heights' reference
