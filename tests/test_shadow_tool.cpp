@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <map>
 #include <regex>
 #include <sstream>
 
@@ -589,3 +590,75 @@ TEST(ShadowTool, MemoryLimitsAndTileOptionsAreChecked) {
 }
 
 }  // namespace
+
+namespace {
+
+// A raster's dataset metadata and its band's description and unit, as GDAL reads them.
+struct Provenance {
+  std::map<std::string, std::string> items;
+  std::string description, unit;
+};
+Provenance provenanceOf(const std::string& path) {
+  std::unique_ptr<GDALDataset> ds(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER));
+  Provenance p;
+  if (!ds) return p;
+  for (char** m = ds->GetMetadata(); m && *m; ++m) {
+    const std::string item = *m;
+    const auto eq = item.find('=');
+    if (eq != std::string::npos) p.items[item.substr(0, eq)] = item.substr(eq + 1);
+  }
+  p.description = ds->GetRasterBand(1)->GetDescription();
+  p.unit = ds->GetRasterBand(1)->GetUnitType();
+  return p;
+}
+
+int runQota(std::vector<std::string> args) {
+  args.insert(args.begin(), "qota");
+  std::vector<const char*> argv;
+  for (const std::string& a : args) argv.push_back(a.c_str());
+  std::istringstream in;
+  std::ostringstream out, err;
+  const int code = qota::tools::runCli(static_cast<int>(argv.size()), argv.data(), in, out, err);
+  EXPECT_EQ(code, 0) << err.str();
+  return code;
+}
+
+}  // namespace
+
+TEST(ShadowTool, OutputsRecordTheirMaking) {
+  const std::string dem = QOTA_DATA_DIR "/mt_rainier_90m.tif";
+  const std::string mask = scratchPath("provenance_mask.tif").string();
+  runQota({"shadow", dem, "-az", "135", "-alt", "20", "-o", mask, "-q"});
+  Provenance p = provenanceOf(mask);
+  EXPECT_EQ(p.items["QOTA_TOOL"], "shadow");
+  EXPECT_EQ(p.items["QOTA_SOURCE"], dem);
+  EXPECT_EQ(p.items["QOTA_BAND"], "1");
+  EXPECT_NE(p.items["QOTA_LIGHT"].find("azimuth 135.000 deg, altitude 20.000 deg"), std::string::npos)
+      << p.items["QOTA_LIGHT"];
+  EXPECT_EQ(p.items["QOTA_VALUES"], "lit 255, shadow 0, nodata 128");
+  EXPECT_FALSE(p.items["QOTA_VERSION"].empty());
+  EXPECT_EQ(p.items["QOTA_COMMAND"], "qota shadow " + dem + " -az 135 -alt 20 -o " + mask + " -q");
+  EXPECT_EQ(p.description, "shadow mask");
+
+  // Hours by tiles: every tile and the raster they make say the same, the band in hours.
+  const std::string hours = scratchPath("provenance hours.tif").string();
+  runQota({"shadow", dem, "--time", "2024-06-21", "--tz", "America/Los_Angeles", "--hours", "6", "20", "2",
+           "--tile-size", "512", "-o", hours, "-q"});
+  p = provenanceOf(hours);
+  EXPECT_EQ(p.items["QOTA_TOOL"], "shadow");
+  EXPECT_EQ(p.items["QOTA_TZ"], "America/Los_Angeles");
+  EXPECT_EQ(p.items["QOTA_TIME"], "2024-06-21");
+  EXPECT_EQ(p.items["QOTA_HOURS"], "start 6 h, end 20 h, step 2 h (local clock)");
+  EXPECT_NE(p.items["QOTA_COMMAND"].find("'" + hours + "'"), std::string::npos) << p.items["QOTA_COMMAND"];
+  EXPECT_EQ(p.description, "hours of direct sunlight");
+  EXPECT_EQ(p.unit, "h");
+
+  const std::string seen = scratchPath("provenance_viewshed.tif").string();
+  runQota({"viewshed", dem, "--observer", "-121.78,46.83", "--oz", "2", "--md", "3000", "-o", seen, "-q"});
+  p = provenanceOf(seen);
+  EXPECT_EQ(p.items["QOTA_TOOL"], "viewshed");
+  EXPECT_EQ(p.items["QOTA_SOURCE"], dem);
+  EXPECT_EQ(p.items["QOTA_OBSERVER"], "-121.78,46.83");
+  EXPECT_EQ(p.description, "viewshed");
+  EXPECT_FALSE(p.items["QOTA_COMMAND"].empty());
+}

@@ -31,6 +31,7 @@ struct Tile {
   std::optional<double> nodata;
   std::map<std::string, std::string> qota;  // its QOTA_* metadata, sealed (tile_metadata.hpp)
   long long col = 0, row = 0;               // its place on the first tile's grid
+  std::string description, unit;            // its band's
 };
 
 Tile describe(const std::string& path) {
@@ -62,6 +63,8 @@ Tile describe(const std::string& path) {
   }
   GDALRasterBand* band = ds->GetRasterBand(1);
   t.type = band->GetRasterDataType();
+  t.description = band->GetDescription() ? band->GetDescription() : "";
+  t.unit = band->GetUnitType() ? band->GetUnitType() : "";
   int has = 0;
   const double nodata = band->GetNoDataValue(&has);
   if (has) t.nodata = nodata;
@@ -308,11 +311,15 @@ int assemble(const AssembleOptions& o, std::ostream& out, std::ostream& err) {
       if (tiles[0].qota.count("QOTA_TILE_SIZE")) {
         block = StreamedRaster::blockFor(std::atoi(tiles[0].qota.at("QOTA_TILE_SIZE").c_str()));
         for (const auto& [key, value] : tiles[0].qota) {
-          if (key != "QOTA_TILE" && key != "QOTA_PIXELS" && key != "QOTA_CELLS" && key != "QOTA_CHECKSUM") {
+          if (key == "QOTA_COMMAND") {
+            fingerprint.push_back({"QOTA_TILE_COMMAND", value});  // (how the first tile was made)
+          } else if (key != "QOTA_TILE" && key != "QOTA_PIXELS" && key != "QOTA_CELLS" && key != "QOTA_CHECKSUM") {
             fingerprint.push_back({key, value});
           }
         }
+        if (!commandLine().empty()) fingerprint.push_back({"QOTA_COMMAND", commandLine()});
       }
+      grid.bandDescription = tiles[0].description, grid.bandUnit = tiles[0].unit;
       grid.blockSize = block;
       grid.nodata = tiles[0].nodata;
       RasterWrite w{o.output, format, o.creationOptions, tiles[0].type == GDT_Byte, tiles[0].nodata.value_or(0), true};

@@ -422,6 +422,7 @@ int runCli(int argc, const char* const* argv, std::istream& in, std::ostream& ou
     return 2;
   };
   try {
+    recordCommandLine(argc, argv);
     return parseAndRun(argc, argv, in, out, err);
   } catch (const std::bad_alloc&) {
     return fail("out of memory");

@@ -252,6 +252,10 @@ int build(const BuildOptions& options, std::ostream& out, std::ostream& err);
 // `qota --version`: qota's version and those of GDAL and PROJ it runs with and of GeographicLib
 // it was built with, one "name version" per line.
 std::string versionText();
+// The command line qota was run with, as a shell would take it back (runCli records it; empty
+// when a tool is called as a function): the provenance rasters carry (QOTA_COMMAND).
+std::string commandLine();
+void recordCommandLine(int argc, const char* const* argv);
 
 int runCli(int argc, const char* const* argv, std::istream& in, std::ostream& out, std::ostream& err);
 

@@ -11,8 +11,20 @@
 
 #include "gdal_errors.hpp"
 #include "qota/error.hpp"
+#include "qota/version.hpp"
+#include "qota_tools.hpp"
 
 namespace qota::tools {
+
+std::vector<std::pair<std::string, std::string>> withProvenance(
+    std::vector<std::pair<std::string, std::string>> items) {
+  const auto has = [&items](const std::string& name) {
+    return std::any_of(items.begin(), items.end(), [&name](const auto& i) { return i.first == name; });
+  };
+  if (!has("QOTA_VERSION")) items.emplace_back("QOTA_VERSION", QOTA_VERSION_STRING);
+  if (!has("QOTA_COMMAND") && !commandLine().empty()) items.emplace_back("QOTA_COMMAND", commandLine());
+  return items;
+}
 namespace {
 
 std::string lower(std::string s) {
@@ -123,9 +135,11 @@ void writeRaster(const RasterWrite& w, const DemTerrain& grid, const std::vector
   std::copy(grid.geotransform.begin(), grid.geotransform.end(), gt);
   ds->SetGeoTransform(gt);
   if (!grid.crsWkt.empty()) ds->SetProjection(grid.crsWkt.c_str());
-  for (const auto& [name, value] : w.metadata) ds->SetMetadataItem(name.c_str(), value.c_str());
+  for (const auto& [name, value] : withProvenance(w.metadata)) ds->SetMetadataItem(name.c_str(), value.c_str());
   GDALRasterBand* band = ds->GetRasterBand(1);
   band->SetNoDataValue(w.nodata);
+  if (!w.bandDescription.empty()) band->SetDescription(w.bandDescription.c_str());
+  if (!w.bandUnit.empty()) band->SetUnitType(w.bandUnit.c_str());
   if (band->RasterIO(GF_Write, 0, 0, grid.width, grid.height, const_cast<double*>(values.data()), grid.width,
                      grid.height, GDT_Float64, 0, 0) != CE_None) {
     throw Error(w.path + ": cannot fill the output raster");
@@ -207,6 +221,8 @@ StreamedRaster::StreamedRaster(const RasterWrite& w, const Grid& grid, OutputSta
   for (const auto& [name, value] : grid.metadata) o.ds->SetMetadataItem(name.c_str(), value.c_str());
   o.band = o.ds->GetRasterBand(1);
   if (grid.nodata) o.band->SetNoDataValue(*grid.nodata);
+  if (!grid.bandDescription.empty()) o.band->SetDescription(grid.bandDescription.c_str());
+  if (!grid.bandUnit.empty()) o.band->SetUnitType(grid.bandUnit.c_str());
 }
 
 StreamedRaster::~StreamedRaster() = default;

@@ -40,7 +40,12 @@ struct RasterWrite {
   bool quiet = true;                                               // no progress on stdout
   std::vector<std::pair<std::string, std::string>> metadata = {};  // NAME, VALUE items of the dataset
   std::string type = {};  // a GDAL data type name ("UInt16", "UInt32") instead of Byte / Float32
+  // The band's description and unit ("hours of direct sunlight", "h"); empty: none.
+  std::string bandDescription = {}, bandUnit = {};
 };
+// What every raster a tool writes records of its making, after the tool's own items: the qota
+// version (QOTA_VERSION) and the command line (QOTA_COMMAND, when run as the qota command).
+std::vector<std::pair<std::string, std::string>> withProvenance(std::vector<std::pair<std::string, std::string>> items);
 void writeRaster(const RasterWrite& w, const DemTerrain& grid, const std::vector<double>& values, OutputStage& stage);
 
 // One band written a window at a time, for rasters larger than memory: a tiled, DEFLATE-compressed
@@ -57,6 +62,7 @@ class StreamedRaster {
     int blockSize = 256;
     std::optional<double> nodata;                               // the band's (RasterWrite's nodata is not used here)
     std::vector<std::pair<std::string, std::string>> metadata;  // NAME, VALUE items of the dataset
+    std::string bandDescription = {}, bandUnit = {};
   };
   StreamedRaster(const RasterWrite& w, const Grid& grid, OutputStage& stage);
   // The largest block size (at most 256) that tiles of `side` pixels are made of, so that every

@@ -246,6 +246,26 @@ bool flatByMapping(const std::string& mapping, bool flat, const char* tool, cons
               mappingsWith(&MappingEntry::map) + "); the " + mapping + " mapping " + others);
 }
 
+std::vector<std::pair<std::string, std::string>> shadowProvenance(const ShadowOptions& o, int band,
+                                                                  const std::string& frame, const std::string& light) {
+  std::vector<std::pair<std::string, std::string>> items{{"QOTA_TOOL", "shadow"},
+                                                         {"QOTA_SOURCE", o.source},
+                                                         {"QOTA_BAND", std::to_string(band)},
+                                                         {"QOTA_FRAME", frame},
+                                                         {"QOTA_LIGHT", light}};
+  if (!o.time.empty()) items.emplace_back("QOTA_TIME", o.time);
+  if (!o.tz.empty()) items.emplace_back("QOTA_TZ", o.tz);
+  if (o.hours) {
+    items.emplace_back("QOTA_HOURS", "start " + formatNumber((*o.hours)[0]) + " h, end " + formatNumber((*o.hours)[1]) +
+                                         " h, step " + formatNumber((*o.hours)[2]) + " h (local clock)");
+  }
+  items.emplace_back("QOTA_VALUES", o.hours ? std::string("hours of direct sunlight, nodata -1")
+                                            : "lit " + std::to_string(o.litValue) + ", shadow " +
+                                                  std::to_string(o.shadowValue) + ", nodata " +
+                                                  std::to_string(o.nodataValue));
+  return items;
+}
+
 int shadow(const ShadowOptions& given, std::ostream& out, std::ostream& err) {
   try {
     const ShadowOptions o = withMappingRead(given);
@@ -287,6 +307,7 @@ int shadow(const ShadowOptions& given, std::ostream& out, std::ostream& err) {
     std::vector<Light> mask;
     Eigen::Vector3d shownLight;
     std::vector<double> hoursLit;
+    std::string lightText;  // the light, for the output's provenance
     if (o.hours) {
       const double step = (*o.hours)[2];
       const LocalSpan span = hoursSpan(o);
@@ -297,6 +318,8 @@ int shadow(const ShadowOptions& given, std::ostream& out, std::ostream& err) {
       shownLight = frame.towardSun(sunOverFrame(frame, (span.start.julianDayUT + span.end.julianDayUT) / 2, o.source));
       const int steps = sunlight.steps;
       const double elapsed = sunlight.elapsedHours;
+      lightText = "sunlight hours from " + span.start.local + " (" + span.start.utc + ") to " + span.end.local + " (" +
+                  span.end.utc + ") in " + std::to_string(steps) + " steps of " + formatNumber(step) + " h";
       if (!o.quiet) {
         GDALTermProgress(1.0, "", nullptr);
         out << "sunlight: " << steps << " steps of " << formatNumber(step) << " h, from " << span.start.local << " ("
@@ -309,6 +332,8 @@ int shadow(const ShadowOptions& given, std::ostream& out, std::ostream& err) {
       p.aboveSurface = !o.lightPointAbsolute;
       p.frame = frameOptionsOf(o);
       p.index = o.index;
+      lightText = "a point at " + formatNumber(p.x) + "," + formatNumber(p.y) + ", " + formatNumber(p.height) + " m " +
+                  (p.aboveSurface ? "above the surface" : "over the DEM's reference");
       if (!o.quiet) {
         out << "light: a point at " << formatNumber(p.x) << ", " << formatNumber(p.y) << ", " << formatNumber(p.height)
             << " m " << (p.aboveSurface ? "above the surface" : "over the DEM's reference") << '\n';
@@ -326,6 +351,8 @@ int shadow(const ShadowOptions& given, std::ostream& out, std::ostream& err) {
     } else {
       const LightChoice light = chooseLight(o, frame, out);
       shownLight = light.toward;
+      lightText = light.description + "; toward " + formatNumber(light.toward.x()) + "," +
+                  formatNumber(light.toward.y()) + "," + formatNumber(light.toward.z()) + " in the frame";
       if (!o.quiet) out << "light: " << light.description << '\n';
       if (light.toward.z() <= 0) {
         err << "qota shadow: the light is at or below the horizon at the centre"
@@ -357,7 +384,9 @@ int shadow(const ShadowOptions& given, std::ostream& out, std::ostream& err) {
                   !o.hours,
                   o.hours ? -1.0 : double(o.nodataValue),
                   true,
-                  {{"QOTA_FRAME", frame.description}}};
+                  shadowProvenance(o, dem.band, frame.description, lightText)};
+    w.bandDescription = o.hours ? "hours of direct sunlight" : "shadow mask";
+    w.bandUnit = o.hours ? "h" : "";
     writeRaster(w, dem, values, stage);
     if (!o.png.empty()) {
       const std::vector<double> grey = preview(frame, shownLight.z() > 0 ? shownLight : Eigen::Vector3d(0, 0, 1), mask,

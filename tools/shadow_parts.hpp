@@ -5,6 +5,8 @@
 #include <Eigen/Core>
 #include <ostream>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "qota/instant.hpp"
 #include "qota/shadow_frame.hpp"
@@ -34,6 +36,11 @@ std::uint64_t wholeEstimate(const ShadowOptions& o, std::uint64_t resident);
 // Whether the run goes by tiles: asked for (--tile-size, --tile), or the whole raster would not
 // fit in o.maxMemory (or, without it, in the memory available).
 bool runsByTiles(const ShadowOptions& o);
+// What a shadow or hours raster records of its making (QOTA_TOOL, QOTA_SOURCE, QOTA_BAND,
+// QOTA_FRAME, QOTA_LIGHT, QOTA_TIME, QOTA_TZ, QOTA_HOURS, QOTA_VALUES); withProvenance adds the
+// version and command line.
+std::vector<std::pair<std::string, std::string>> shadowProvenance(const ShadowOptions& o, int band,
+                                                                  const std::string& frame, const std::string& light);
 // True when both paths name the same existing file (or the same path).
 bool sameFile(const std::string& a, const std::string& b);
 // --mapping read by the registry's flags: a map mapping (cartesian) is flat, one whose heights are

@@ -378,6 +378,8 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
     grid.crsWkt = dem.crsWkt;
     grid.blockSize = StreamedRaster::blockFor(side);
     grid.nodata = o.hours ? -1.0 : double(o.nodataValue);
+    grid.bandDescription = o.hours ? "hours of direct sunlight" : "shadow mask";
+    grid.bandUnit = o.hours ? "h" : "";
     // The run's grid and everything the pixels depend on (tile_metadata.hpp), sealed when written.
     MetadataItems fingerprint{
         {"QOTA_VERSION", QOTA_VERSION_STRING},
@@ -396,6 +398,13 @@ int shadowByTiles(const ShadowOptions& o, const std::string& format, std::ostrea
                                 : "lit " + std::to_string(o.litValue) + ", shadow " + std::to_string(o.shadowValue) +
                                       ", nodata " + std::to_string(o.nodataValue)}};
     if (o.tile) fingerprint.push_back({"QOTA_TILE", std::to_string((*o.tile)[0]) + "," + std::to_string((*o.tile)[1])});
+    // What else the run records of its making (the version and frame, light and values are in the
+    // fingerprint already): the tool, band, instant and zone, hours, command line.
+    for (auto& item : withProvenance(shadowProvenance(o, dem.band, "", ""))) {
+      const bool known =
+          std::any_of(fingerprint.begin(), fingerprint.end(), [&item](const auto& f) { return f.first == item.first; });
+      if (!known) fingerprint.push_back(std::move(item));
+    }
     OutputStage stage;
     StreamedRaster output({o.output, format, o.creationOptions, !o.hours, o.hours ? -1.0 : double(o.nodataValue), true},
                           grid, stage);

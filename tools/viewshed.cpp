@@ -240,6 +240,8 @@ void writeOne(const ViewshedOptions& o, const Run& run, std::ostream& out, Outpu
                 double(o.nodataValue),
                 true,
                 {{"QOTA_TOOL", "viewshed"},
+                 {"QOTA_SOURCE", o.source},
+                 {"QOTA_BAND", std::to_string(run.dem.band)},
                  {"QOTA_FRAME", seen.frameDescription},
                  {"QOTA_OBSERVER", formatNumber(v.observerX) + "," + formatNumber(v.observerY)},
                  {"QOTA_OBSERVER_HEIGHT", formatNumber(o.observerHeight)},
@@ -249,6 +251,7 @@ void writeOne(const ViewshedOptions& o, const Run& run, std::ostream& out, Outpu
                  {"QOTA_VALUES", "visible=" + std::to_string(o.visibleValue) + ",invisible=" +
                                      std::to_string(o.hiddenValue) + ",nodata=" + std::to_string(o.nodataValue) +
                                      ",out_of_range=" + std::to_string(o.outOfRangeValue)}}};
+  w.bandDescription = "viewshed";
   writeRaster(w, run.dem, values, stage);
   if (!o.png.empty()) {
     writeRaster({o.png, "PNG", {}, true, 0.0, true}, run.dem, preview(localFrame(run.dem, run.frame), shade), stage);
@@ -289,6 +292,8 @@ void writeCounts(const ViewshedOptions& o, const Run& run, std::ostream& out, Ou
                 nodata,
                 true,
                 {{"QOTA_TOOL", "viewshed"},
+                 {"QOTA_SOURCE", o.source},
+                 {"QOTA_BAND", std::to_string(run.dem.band)},
                  {"QOTA_FRAME", seen.frameDescription},
                  {"QOTA_OBSERVERS", o.observersFile},
                  {"QOTA_OBSERVER_COUNT", std::to_string(observers.size())},
@@ -296,6 +301,7 @@ void writeCounts(const ViewshedOptions& o, const Run& run, std::ostream& out, Ou
                  {"QOTA_MAX_DISTANCE", formatNumber(o.maxDistance)},
                  {"QOTA_VALUES", "count of the observers that see the pixel"}},
                 wide ? "UInt32" : "UInt16"};
+  w.bandDescription = "observers that see the pixel";
   writeRaster(w, run.dem, values, stage);
   if (!o.whichFile.empty()) {
     // The smallest type with a value left for nodata above every bitset.
@@ -304,6 +310,11 @@ void writeCounts(const ViewshedOptions& o, const Run& run, std::ostream& out, Ou
     std::vector<double> which(seen.which.size());
     for (std::size_t i = 0; i < which.size(); ++i) which[i] = seen.valid[i] ? static_cast<double>(seen.which[i]) : none;
     std::vector<std::pair<std::string, std::string>> metadata{{"QOTA_TOOL", "viewshed"},
+                                                              {"QOTA_SOURCE", o.source},
+                                                              {"QOTA_FRAME", seen.frameDescription},
+                                                              {"QOTA_OBSERVERS", o.observersFile},
+                                                              {"QOTA_TARGET_HEIGHT", formatNumber(o.targetHeight)},
+                                                              {"QOTA_MAX_DISTANCE", formatNumber(o.maxDistance)},
                                                               {"QOTA_VALUES", "bit k set: observer k sees the pixel"}};
     for (std::size_t k = 0; k < observers.size(); ++k) {
       metadata.emplace_back("QOTA_BIT_" + std::to_string(k), observers[k].name + " (" + formatNumber(observers[k].x) +
@@ -313,6 +324,7 @@ void writeCounts(const ViewshedOptions& o, const Run& run, std::ostream& out, Ou
                           {},          true,
                           none,        true,
                           metadata,    bits == 8 ? "Byte" : bits == 16 ? "UInt16" : "UInt32"};
+    bitsWrite.bandDescription = "which observers see the pixel (a bit each)";
     writeRaster(bitsWrite, run.dem, which, stage);
   }
   if (!o.png.empty()) {
