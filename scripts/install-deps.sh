@@ -27,9 +27,10 @@ packages=(
                                 # the Python package (python/) and its tests
   python3-rasterio python3-xarray python3-rioxarray python3-affine
                                 # Python interop (rasterio datasets, DataArrays), optional at runtime
-  python3-dask python3-distributed python3-pandas python3-zarr python3-mypy
+  python3-dask python3-distributed python3-pandas python3-zarr python3-mypy python3-geopandas
                                 # qota.dask: shadows and points over a Dask cluster (pandas for its
-                                # DataFrames, zarr for Zarr output), optional at runtime
+                                # DataFrames, zarr for Zarr output; qota.sample on GeoDataFrames),
+                                # optional at runtime
 )
 
 [ $# -gt 0 ] && packages=("$@")

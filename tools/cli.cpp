@@ -62,7 +62,8 @@ std::vector<std::string> gdalStyleArguments(int argc, const char* const* argv) {
   std::vector<std::string> args;
   for (int i = 0; i < argc; ++i) {
     const std::string a = argv[i];
-    if (i > 0 && (a == "-az" || a == "-alt" || a == "-of" || a == "-co" || a == "-stats" || a == "-json")) {
+    if (i > 0 &&
+        (a == "-az" || a == "-alt" || a == "-of" || a == "-co" || a == "-oo" || a == "-stats" || a == "-json")) {
       args.push_back("-" + a);
     } else if (i > 0 && a == "-l_srs") {
       args.push_back("--srs");
@@ -153,6 +154,16 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
                    "nodata rules)")
       ->capture_default_str()
       ->check(CLI::IsMember({"triangle", "nearest", "bilinear", "cubic"}));
+  sampleCmd
+      ->add_option("--field", sample.field,
+                   "A vector layer of points: the name of the height field added to the output layer")
+      ->capture_default_str();
+  sampleCmd->add_option("--of", sample.outputFormat,
+                        "A vector layer of points: the OGR driver of the output layer (-of); default: by extension");
+  sampleCmd->add_option("--layer", sample.layer, "A vector layer of points: the input layer (default: the first)");
+  sampleCmd->add_option("--oo", sample.openOptions,
+                        "A vector layer of points: an open option NAME=VALUE of the input (-oo; a CSV's "
+                        "X_POSSIBLE_NAMES=..., Y_POSSIBLE_NAMES=...), repeatable");
   addSourceOptions(sampleCmd, sample);
 
   InfoOptions info;

@@ -62,6 +62,16 @@ struct SampleOptions : SourceOptions {
   // surface, the default), or GDAL's rules "nearest" (what gdallocationinfo prints), "bilinear",
   // "cubic"; these on a raster in the cartesian mapping only.
   std::string resampling = "triangle";
+  // Points from a vector layer (qota/../tools/sample_vector.cpp): when inputFile opens as an OGR
+  // layer with geometries (GeoPackage, GeoJSON, Shapefile, FlatGeobuf, ..., a CSV whose columns
+  // name x and y (x, lon, long, longitude, easting; y, lat, latitude, northing) or hold WKT), its
+  // points are sampled in the layer's CRS (srs when the layer states none) and written to
+  // outputFile as a layer of any OGR format (by extension, or outputFormat): every input field
+  // and geometry kept, a Real field `field` added (null where there is no terrain).
+  std::string field = "height";
+  std::string outputFormat = {};              // OGR driver of the output layer; empty: by extension
+  std::string layer = {};                     // the input layer; empty: the first
+  std::vector<std::string> openOptions = {};  // the input's open options NAME=VALUE (--oo)
 };
 int sample(const SampleOptions& options, std::istream& in, std::ostream& out, std::ostream& err);
 

@@ -34,25 +34,43 @@ std::string lower(std::string s) {
 
 }  // namespace
 
-std::string driverForPath(const std::string& path) {
+namespace {
+
+// The first GDAL driver that writes files of `path`'s extension and has `capability` (rasters or
+// vectors); `preferred` first where several claim it.
+std::string writerForPath(const std::string& path, const char* capability,
+                          const std::vector<std::pair<std::string, std::string>>& preferred) {
   ensureGdalRegistered();
   std::string ext = lower(std::filesystem::path(path).extension().string());
   if (!ext.empty() && ext[0] == '.') ext.erase(0, 1);
   if (ext.empty()) throw Error(path + ": no extension to guess the format from; give -of FORMAT");
-  if (ext == "tif" || ext == "tiff") return "GTiff";  // not COG, which also claims .tif
+  for (const auto& [e, driver] : preferred) {
+    if (e == ext) return driver;
+  }
   GDALDriverManager* dm = GetGDALDriverManager();
   for (int i = 0; i < dm->GetDriverCount(); ++i) {
     GDALDriver* d = dm->GetDriver(i);
     const char* exts = d->GetMetadataItem(GDAL_DMD_EXTENSIONS);
-    const bool raster = d->GetMetadataItem(GDAL_DCAP_RASTER) != nullptr;
+    const bool able = d->GetMetadataItem(capability) != nullptr;
     const bool writes = d->GetMetadataItem(GDAL_DCAP_CREATE) || d->GetMetadataItem(GDAL_DCAP_CREATECOPY);
-    if (!exts || !raster || !writes) continue;
+    if (!exts || !able || !writes) continue;
     const CPLStringList list(CSLTokenizeString(exts));
     for (int k = 0; k < list.size(); ++k) {
       if (lower(list[k]) == ext) return d->GetDescription();
     }
   }
   throw Error(path + ": no GDAL driver writes '." + ext + "' files; give -of FORMAT");
+}
+
+}  // namespace
+
+std::string driverForPath(const std::string& path) {
+  return writerForPath(path, GDAL_DCAP_RASTER,
+                       {{"tif", "GTiff"}, {"tiff", "GTiff"}});  // (not COG, which also claims .tif)
+}
+
+std::string vectorDriverForPath(const std::string& path) {
+  return writerForPath(path, GDAL_DCAP_VECTOR, {{"json", "GeoJSON"}, {"geojson", "GeoJSON"}, {"csv", "CSV"}});
 }
 
 std::vector<std::string> checkCreationOptions(const std::string& format, const std::vector<std::string>& options,

@@ -20,6 +20,9 @@ namespace qota::tools {
 // The GDAL driver that writes files with this name's extension ("GTiff" for .tif); throws
 // qota::Error when none does.
 std::string driverForPath(const std::string& path);
+// The GDAL vector driver that writes files of the path's extension (.gpkg, .geojson, .shp, .fgb,
+// .csv, ...). Throws qota::Error naming the path when none does.
+std::string vectorDriverForPath(const std::string& path);
 
 // Refuses creation options and formats that would change the values written (qota::Error naming
 // the option): lossy compression (JPEG, WebP, JPEG XL or LERC with an error allowed, the JPEG

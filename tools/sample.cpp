@@ -296,6 +296,30 @@ Surface openSurface(const SampleOptions& options, TreeSource& source, bool& inte
       tree->index);
 }
 
+// Lines of text in: the options of vector layers are refused by name, and so is a vector format
+// for the lines out (they would be written as text under its name).
+void refuseVectorOptionsForText(const SampleOptions& o) {
+  const std::string input = o.inputFile.empty() ? std::string("stdin") : o.inputFile;
+  if (!o.outputFormat.empty() || !o.layer.empty() || !o.openOptions.empty() || o.field != "height") {
+    throw Error(std::string(!o.outputFormat.empty()  ? "--of"
+                            : !o.layer.empty()       ? "--layer"
+                            : !o.openOptions.empty() ? "--oo"
+                                                     : "--field") +
+                " applies to a vector layer of points; " + input + " is read as lines of text");
+  }
+  if (o.outputFile.empty() || o.outputFile.rfind("/dev/", 0) == 0) return;
+  std::string ext = std::filesystem::path(o.outputFile).extension().string();
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  for (const char* vector : {".gpkg", ".geojson", ".json", ".shp", ".fgb", ".kml", ".gml", ".sqlite", ".geojsonl"}) {
+    if (ext == vector) {
+      throw Error(o.outputFile +
+                  ": a vector layer is written for a vector layer of points (-i POINTS.gpkg, .geojson, "
+                  ".shp, a CSV with x and y columns); " +
+                  input + " is read as lines of text, written as text");
+    }
+  }
+}
+
 }  // namespace
 
 int sample(const SampleOptions& options, std::istream& in, std::ostream& out, std::ostream& err) {
@@ -309,6 +333,12 @@ int sample(const SampleOptions& options, std::istream& in, std::ostream& out, st
     const Surface surface = openSurface(options, source, integerValues, err);
     const std::unique_ptr<OGRCoordinateTransformation> transform = makeTransform(options.srs, source);
 
+    if (!options.inputFile.empty()) {
+      if (const std::unique_ptr<GDALDataset> layer = sampling::openPointLayer(options)) {
+        return sampling::sampleLayer(options, *layer, surface, source.crsWkt, integerValues, err) ? 1 : 0;
+      }
+    }
+    refuseVectorOptionsForText(options);
     std::ifstream file;
     std::istream* input = &in;
     std::string where = "stdin";

@@ -48,8 +48,8 @@ struct PointLine {
 };
 
 // Reads the first `want` fields of a line as finite numbers (fields are separated by spaces,
-// tabs or commas) and keeps the rest of the line as it is. Returns false, with the message in
-// `problem`, for a bad line; true for a good (or blank) one, leaving `problem` as it is.
+// tabs or commas; a number may be in double quotes) and keeps the rest of the line as it is. Returns false, with the
+// message in `problem`, for a bad line; true for a good (or blank) one, leaving `problem` as it is.
 bool parsePointLine(std::string_view line, int want, PointLine& out, std::string& problem) {
   out = PointLine{};
   if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
@@ -63,11 +63,15 @@ bool parsePointLine(std::string_view line, int want, PointLine& out, std::string
       problem = std::string(expected) + ", got " + std::to_string(k) + (k == 1 ? " value" : " values");
       return false;
     }
-    // A number ends where its field does (no separator can be part of one).
+    // A number ends where its field does (no separator can be part of one); a quoted field (a
+    // spreadsheet's CSV: "-121.76","46.85") holds the number between its quotes.
+    const bool inQuotes = line[i] == '"';
     double v = 0;
-    const auto r = std::from_chars(line.data() + i, line.data() + line.size(), v);
-    const std::size_t end = static_cast<std::size_t>(r.ptr - line.data());
-    if (r.ec != std::errc() || (end < line.size() && !isSeparator(line[end]))) {
+    const auto r = std::from_chars(line.data() + i + inQuotes, line.data() + line.size(), v);
+    std::size_t end = static_cast<std::size_t>(r.ptr - line.data());
+    const bool closed = !inQuotes || (end < line.size() && line[end] == '"');
+    end += inQuotes && closed;
+    if (r.ec != std::errc() || !closed || (end < line.size() && !isSeparator(line[end]))) {
       std::size_t j = i;
       while (j < line.size() && !isSeparator(line[j])) ++j;
       const std::string_view token = line.substr(i, j - i);
@@ -357,15 +361,7 @@ class LineLoop {
     t += '\n';
   }
 
-  // A height as printed: from an integer raster without -p, rounded to a millionth of its unit
-  // (far below any DEM's accuracy, far above the interpolation's rounding: a few units in the
-  // last place of the height, 1e-12 of it).
-  double shown(double h) const {
-    if (!roundNoise_ || !(std::fabs(h) < 1e9)) return h;
-    // (half away from zero through an integer conversion: std::round is a library call here)
-    const double k = h * 1e6;
-    return static_cast<double>(static_cast<std::int64_t>(k + (k < 0 ? -0.5 : 0.5))) / 1e6;
-  }
+  double shown(double h) const { return roundNoise_ ? withoutNoise(h) : h; }
 
   static void passThrough(std::string& t, const PointLine& p) {
     if (!p.rest.empty()) t += p.separator, t += p.rest;

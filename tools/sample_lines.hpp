@@ -2,11 +2,13 @@
 // reads them (sample_lines.cpp), shared with the surfaces that answer them (sample.cpp).
 #pragma once
 
+#include <gdal_priv.h>
 #include <ogr_spatialref.h>
 
 #include <Eigen/Core>
 #include <exception>
 #include <functional>
+#include <memory>
 #include <istream>
 #include <mutex>
 #include <optional>
@@ -32,6 +34,16 @@ inline Answer outside(const char* token, std::string problem) { return {std::nul
 struct Query {
   double x = 0, y = 0, z = 0;
 };
+
+// A height from an integer raster as qota sample prints it without -p: rounded to a millionth of
+// its unit (far below any DEM's accuracy, far above the interpolation's rounding: a few units in
+// the last place of the height, 1e-12 of it).
+inline double withoutNoise(double h) {
+  if (!(h > -1e9 && h < 1e9)) return h;
+  // (half away from zero through an integer conversion: std::round is a library call here)
+  const double k = h * 1e6;
+  return static_cast<double>(static_cast<long long>(k + (k < 0 ? -0.5 : 0.5))) / 1e6;
+}
 
 // The terrain of options.source with its queries, answered a batch at a time (answers[i] for
 // queries[i], each set whole; hasZ: every query has its height). Called on one thread; it may
@@ -62,6 +74,16 @@ void inParallel(std::size_t n, std::size_t minPerThread, Work&& work) {
 // (an integer raster), so the shortest form (no -p) prints them rounded to a millionth of the
 // unit, which drops the last-bit noise of the interpolation (4367.000000000034 prints 4367).
 // Returns whether any line failed.
+// A vector layer of points (any OGR format with geometries; a CSV whose columns name x and y or
+// hold WKT) opened from options.inputFile, or null when the file is lines of text.
+std::unique_ptr<GDALDataset> openPointLayer(const SampleOptions& options);
+// Samples the layer's points on `surface` (transformed from the layer's CRS, or --srs, to
+// sourceWkt) and writes them with every field and a height field to options.outputFile, staged.
+// A failed feature's message goes to `err` (the first 20, then a count). Returns whether any
+// feature failed (not a point, off the source).
+bool sampleLayer(const SampleOptions& options, GDALDataset& in, const Surface& surface, const std::string& sourceWkt,
+                 bool integerSource, std::ostream& err);
+
 bool readLines(const SampleOptions& options, const Surface& surface, OGRCoordinateTransformation* transform,
                std::istream& in, std::ostream& out, std::ostream& err, const std::string& where,
                bool integerSource = false);

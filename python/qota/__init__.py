@@ -557,22 +557,45 @@ def viewshed(dem, observer, *, observer_height=2.0, target_height=0.0, max_dista
     return on_file(_local_file(dem), band)
 
 
-def sample(dem, x, y, *, band=1, resampling="triangle", srs=None):
+def _is_geodataframe(value):
+    return hasattr(value, "geometry") and hasattr(value, "crs") and hasattr(value, "assign")
+
+
+def sample(dem, x, y=None, *, band=1, resampling="triangle", srs=None, field="height"):
     """Heights of a raster under points, streamed as `qota sample` reads it: tile by tile, so a
     raster of any size (a VRT of a continent) is sampled in bounded memory, without loading it.
 
     dem: a raster file (or any GDAL name), an open rasterio dataset or an xarray.DataArray.
     x, y: coordinates of any shape (broadcast together), in the raster's CRS or in `srs`
-    (EPSG:4326, WKT, PROJ; x = longitude or easting). resampling (qota.RESAMPLINGS): "triangle",
-    the exact surface of the raster's triangles (Terrain.from_raster(dem).heights(x, y), bit for
-    bit); "nearest", the pixel containing the point (what gdallocationinfo prints); "bilinear" and
-    "cubic", GDAL's kernels on pixel centres with its nodata rules. Returns float64 heights in
-    the raster's vertical unit, NaN where there is none (a void, off the raster).
+    (EPSG:4326, WKT, PROJ; x = longitude or easting). Or x alone a geopandas GeoDataFrame of
+    points: a copy of it is returned with a column `field` of heights, its points taken in its own
+    CRS (`srs` when it has none). resampling (qota.RESAMPLINGS): "triangle", the exact surface of
+    the raster's triangles (Terrain.from_raster(dem).heights(x, y), bit for bit); "nearest", the
+    pixel containing the point (what gdallocationinfo prints); "bilinear" and "cubic", GDAL's
+    kernels on pixel centres with its nodata rules. Returns float64 heights in the raster's
+    vertical unit, NaN where there is none (a void, off the raster, an empty geometry).
     """
     if resampling not in RESAMPLINGS:
         raise Error(f"resampling must be one of {', '.join(RESAMPLINGS)}, got {resampling!r}")
     if srs is not None and not isinstance(srs, str):
         raise Error(f"srs must be a text (EPSG:4326, WKT, PROJ), got {srs!r}")
+    frame = None
+    if y is None:
+        if not _is_geodataframe(x):
+            raise Error("give x and y, or a geopandas GeoDataFrame of points as x")
+        frame = x
+        if field in frame.columns:
+            raise Error(f"the GeoDataFrame already has a column {field!r}; name the heights' column with field=")
+        geometry = frame.geometry
+        empty = (geometry.isna() | geometry.is_empty).to_numpy()
+        kinds = set(geometry[~empty].geom_type) - {"Point"}  # (an empty point may say GeometryCollection)
+        if kinds:
+            raise Error(f"the GeoDataFrame's geometries must be points, not {', '.join(sorted(kinds))}")
+        points = geometry[~empty]
+        x, y = _np.full(len(frame), _np.nan), _np.full(len(frame), _np.nan)
+        x[~empty], y[~empty] = points.x.to_numpy(dtype=_np.float64), points.y.to_numpy(dtype=_np.float64)
+        if frame.crs is not None:
+            srs = frame.crs.to_wkt()
     xs, ys = _broadcast(x=x, y=y)
 
     def on_file(path, b):
@@ -580,8 +603,10 @@ def sample(dem, x, y, *, band=1, resampling="triangle", srs=None):
         return sampler.heights(_flat(xs), _flat(ys)).reshape(xs.shape)
 
     if _interop.is_dataarray(dem) or _interop.is_rasterio_dataset(dem):
-        return _on_a_file(dem, band, on_file)[1]
-    return on_file(_local_file(dem), band)
+        heights = _on_a_file(dem, band, on_file)[1]
+    else:
+        heights = on_file(_local_file(dem), band)
+    return heights if frame is None else frame.assign(**{field: heights})
 
 
 def sun_position(time, lon, lat, *, tz=None):

@@ -102,3 +102,27 @@ def test_refusals():
         qota.sample(RAINIER, [0], [0], srs="EPSG:999999")
     with pytest.raises(qota.Error, match="do not broadcast"):
         qota.sample(RAINIER, [0, 1], [0, 1, 2])
+
+
+def test_a_geodataframe_gets_a_height_column():
+    gpd = pytest.importorskip("geopandas")
+    shapely = pytest.importorskip("shapely.geometry")
+    x, y, col, row, v = random_points(200, 3)
+    frame = gpd.GeoDataFrame({"name": [f"p{i}" for i in range(200)]},
+                             geometry=[shapely.Point(a, b) for a, b in zip(x, y)], crs="EPSG:4326")
+    got = qota.sample(RAINIER, frame, resampling="nearest")
+    assert list(got.columns) == ["name", "geometry", "height"] and "height" not in frame.columns
+    np.testing.assert_array_equal(got["height"].to_numpy(), v[row.astype(int), col.astype(int)])
+    # In another CRS: the frame's own is used.
+    utm = frame.to_crs("EPSG:32610")
+    np.testing.assert_allclose(qota.sample(RAINIER, utm, resampling="nearest")["height"], got["height"])
+    # An empty geometry and a point off the raster have none; non-points are refused.
+    frame.loc[0, "geometry"] = shapely.Point()
+    frame.loc[1, "geometry"] = shapely.Point(-130, 40)
+    h = qota.sample(RAINIER, frame, field="elev")["elev"].to_numpy()
+    assert np.isnan(h[:2]).all() and not np.isnan(h[2:]).all()
+    with pytest.raises(qota.Error, match="already has a column"):
+        qota.sample(RAINIER, got)
+    lines = gpd.GeoDataFrame(geometry=[shapely.LineString([(0, 0), (1, 1)])])
+    with pytest.raises(qota.Error, match="must be points"):
+        qota.sample(RAINIER, lines)
