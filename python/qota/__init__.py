@@ -18,8 +18,10 @@ rasterio datasets and xarray DataArrays (with rioxarray) are sources too.
 """
 from __future__ import annotations
 
+import contextlib as _contextlib
 import errno as _errno
 import os as _os
+import re as _re
 import tempfile as _tempfile
 import typing as _typing
 import warnings as _warnings
@@ -410,17 +412,48 @@ def _vector(value, name, n):
     return v
 
 
+#: The tools' options as the Python arguments that give them, for the tools' messages.
+_ARGUMENTS = {
+    "shadow": {"-az/-alt": "azimuth/altitude", "-az": "azimuth", "-alt": "altitude", "--time": "time", "--tz": "tz",
+               "--hours": "hours", "-z/--z-factor": "z_factor", "--z-factor": "z_factor", "-z": "z_factor",
+               "--height-ref": "height_ref", "--sun-vector-body": "sun_vector_body", "--sun-vector": "sun_vector",
+               "--subsolar": "subsolar", "--flat": "flat", "--png": "png", "-b": "band", "--band": "band"},
+    "viewshed": {"--observer-height": "observer_height", "--oz": "observer_height",
+                 "--target-height": "target_height", "--tz": "target_height", "--max-distance": "max_distance",
+                 "--md": "max_distance", "--refraction": "refraction", "--observers": "observers",
+                 "--observer": "observer", "--srs": "srs", "--height-ref": "height_ref", "--flat": "flat",
+                 "-b": "band", "--band": "band"},
+}
+
+
+@_contextlib.contextmanager
+def _in_python_terms(tool):
+    """A tool's qota.Error told in the Python call's terms: the argument names instead of the
+    command's options, without the "qota <tool>:" prefix."""
+    try:
+        yield
+    except Error as e:
+        names = _ARGUMENTS[tool]
+        pattern = r"(?<![\w-])(" + "|".join(_re.escape(k) for k in sorted(names, key=len, reverse=True)) + r")(?![\w-])"
+        message = _re.sub(pattern, lambda m: names[m.group(1)], str(e))
+        message = message.removeprefix(f"qota {tool}: ")
+        raise Error(message) from None
+
+
 def _shadow_file(dem_path, output, azimuth, altitude, time, tz, band, z_factor, hours, height_ref=None, light=None):
     """qota shadow on a raster file, into `output` (or a temporary file), as a uint8 array (float32
     hours with `hours`). light: sun_vector, sun_vector_body, subsolar, flat."""
     light = light or {}
 
     def run(path):
-        return _qota._shadow(dem_path, path, azimuth, altitude, time or "", tz or "", int(band), float(z_factor),
-                             _hours_span(hours), "" if height_ref is None else _os.fspath(height_ref),
-                             _vector(light.get("sun_vector"), "sun_vector", 3),
-                             _vector(light.get("sun_vector_body"), "sun_vector_body", 3),
-                             _vector(light.get("subsolar"), "subsolar", 2), bool(light.get("flat", False)))
+        png = light.get("png")
+        with _in_python_terms("shadow"):
+            return _qota._shadow(dem_path, path, azimuth, altitude, time or "", tz or "", int(band), float(z_factor),
+                                 _hours_span(hours), "" if height_ref is None else _os.fspath(height_ref),
+                                 _vector(light.get("sun_vector"), "sun_vector", 3),
+                                 _vector(light.get("sun_vector_body"), "sun_vector_body", 3),
+                                 _vector(light.get("subsolar"), "subsolar", 2), bool(light.get("flat", False)),
+                                 "" if png is None else _os.fspath(png))
 
     if output is not None:
         return run(str(output))
@@ -450,17 +483,19 @@ def _on_a_file(dem, band, compute):
         return template, compute(path, 1)
 
 
-def _shadow_in_memory(dem, azimuth, altitude, time, tz, band, z_factor, output, hours):
+def _shadow_in_memory(dem, azimuth, altitude, time, tz, band, z_factor, output, hours, png=None):
     """qota shadow of a DataArray or a rasterio dataset, as a DataArray on its grid."""
     template, mask = _on_a_file(
-        dem, band, lambda path, b: _shadow_file(path, output, azimuth, altitude, time, tz, b, z_factor, hours))
+        dem, band, lambda path, b: _shadow_file(path, output, azimuth, altitude, time, tz, b, z_factor, hours,
+                                                light={"png": png}))
     if hours is not None:
         return _interop.mask_like(template, mask, -1.0, "sunlight_hours")
     return _interop.mask_like(template, mask)
 
 
 def shadow(dem_path, azimuth=None, altitude=None, *, time=None, tz=None, hours=None, band=1, z_factor=1.0,
-           output=None, height_ref=None, sun_vector=None, sun_vector_body=None, subsolar=None, flat=False):
+           output=None, height_ref=None, sun_vector=None, sun_vector_body=None, subsolar=None, flat=False,
+           png=None):
     """Where the terrain of a DEM shades itself from the Sun, as `qota shadow` computes it.
 
     dem_path: a raster file, or an xarray.DataArray (rioxarray) or an open rasterio dataset.
@@ -486,9 +521,13 @@ def shadow(dem_path, azimuth=None, altitude=None, *, time=None, tz=None, hours=N
     in IAU_MARS); subsolar=(lon, lat), the Sun over that point (planetocentric latitude). flat:
     no curvature (qota shadow --flat). -az/-alt and sun_vector are refused at a pole.
 
+    png: also write a PNG preview there (the mask, or the hours, over a hillshade; `qota shadow
+    --png`). Errors (qota.Error) name these arguments.
+
     For a raster in chunks, over Dask: qota.dask.shadow.
     """
-    light = {"sun_vector": sun_vector, "sun_vector_body": sun_vector_body, "subsolar": subsolar, "flat": flat}
+    light = {"sun_vector": sun_vector, "sun_vector_body": sun_vector_body, "subsolar": subsolar, "flat": flat,
+             "png": png}
     others = sum(v is not None for v in (sun_vector, sun_vector_body, subsolar))
     if time is None and others == 0 and (azimuth is None or altitude is None):
         raise Error("give azimuth and altitude, or time, sun_vector, sun_vector_body or subsolar")
@@ -503,7 +542,7 @@ def shadow(dem_path, azimuth=None, altitude=None, *, time=None, tz=None, hours=N
         if height_ref is not None or others or flat:
             raise Error("height_ref, sun_vector, sun_vector_body, subsolar and flat take a raster file; give the "
                         "DataArray's or dataset's file")
-        return _shadow_in_memory(dem_path, azimuth, altitude, time, tz, band, z_factor, output, hours)
+        return _shadow_in_memory(dem_path, azimuth, altitude, time, tz, band, z_factor, output, hours, png)
     return _shadow_file(_local_file(dem_path), output, azimuth, altitude, time, tz, band, z_factor, hours, height_ref,
                         light)
 
@@ -538,10 +577,11 @@ def viewshed(dem, observer, *, observer_height=2.0, target_height=0.0, max_dista
         raise Error(f"srs must be a text (EPSG:4326, WKT, PROJ), got {srs!r}")
 
     def run(path, b, kept):
-        return _qota._viewshed(path, kept, (x, y), srs or "", heights["observer_height"], heights["target_height"],
-                               heights["max_distance"], _whole(b, "band"), bool(flat),
-                               "" if height_ref is None else _os.fspath(height_ref),
-                               _number(refraction, "refraction"))
+        with _in_python_terms("viewshed"):
+            return _qota._viewshed(path, kept, (x, y), srs or "", heights["observer_height"],
+                                   heights["target_height"], heights["max_distance"], _whole(b, "band"), bool(flat),
+                                   "" if height_ref is None else _os.fspath(height_ref),
+                                   _number(refraction, "refraction"))
 
     def on_file(path, b):
         if output is not None:

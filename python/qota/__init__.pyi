@@ -71,7 +71,7 @@ def shadow(dem_path: _Raster, azimuth: float | None = None, altitude: float | No
            z_factor: float = 1.0, output: _Path | None = None, height_ref: _Path | None = None,
            sun_vector: tuple[float, float, float] | None = None, sun_vector_body: tuple[float, float, float] | None = None,
            subsolar: tuple[float, float] | None = None,
-           flat: bool = False) -> npt.NDArray[np.uint8] | npt.NDArray[np.float32] | Any: ...
+           flat: bool = False, png: _Path | None = None) -> npt.NDArray[np.uint8] | npt.NDArray[np.float32] | Any: ...
 # uint8: 255 visible, 0 not, 128 nodata, 64 out of range; a numpy array for a file, an
 # xarray.DataArray for a DataArray or a rasterio dataset.
 def viewshed(dem: _Raster, observer: tuple[float, float], *, observer_height: float = 2.0,

@@ -409,8 +409,9 @@ py::array shadow(const std::string& dem, const std::string& output, std::optiona
                  std::optional<double> altitude, const std::string& time, const std::string& tz, int band,
                  double zFactor, std::optional<std::array<double, 3>> hours, const std::string& heightRef,
                  std::optional<std::array<double, 3>> sunVector, std::optional<std::array<double, 3>> sunVectorBody,
-                 std::optional<std::array<double, 2>> subsolar, bool flat) {
+                 std::optional<std::array<double, 2>> subsolar, bool flat, const std::string& png) {
   qota::tools::ShadowOptions o;
+  o.png = png;
   o.source = dem;
   o.output = output;
   o.quiet = true;
@@ -747,7 +748,7 @@ PYBIND11_MODULE(_qota, m) {
   m.def("_shadow", &shadow, py::arg("dem"), py::arg("output"), py::arg("azimuth"), py::arg("altitude"), py::arg("time"),
         py::arg("tz"), py::arg("band"), py::arg("z_factor"), py::arg("hours") = py::none(), py::arg("height_ref") = "",
         py::arg("sun_vector") = py::none(), py::arg("sun_vector_body") = py::none(), py::arg("subsolar") = py::none(),
-        py::arg("flat") = false);
+        py::arg("flat") = false, py::arg("png") = "");
   m.def("_viewshed", &viewshed, py::arg("dem"), py::arg("output"), py::arg("observer"), py::arg("srs"),
         py::arg("observer_height"), py::arg("target_height"), py::arg("max_distance"), py::arg("band"), py::arg("flat"),
         py::arg("height_ref"), py::arg("refraction") = 0.0);

@@ -126,3 +126,21 @@ def test_a_geodataframe_gets_a_height_column():
     lines = gpd.GeoDataFrame(geometry=[shapely.LineString([(0, 0), (1, 1)])])
     with pytest.raises(qota.Error, match="must be points"):
         qota.sample(RAINIER, lines)
+
+
+def test_tool_errors_speak_python(tmp_path):
+    with pytest.raises(qota.Error) as e:
+        qota.shadow(RAINIER, time="2024-06-21T12:00")
+    assert "give tz" in str(e.value) and "--tz" not in str(e.value) and not str(e.value).startswith("qota ")
+    with pytest.raises(qota.Error, match="z_factor must be a positive number"):
+        qota.shadow(RAINIER, azimuth=100, altitude=20, z_factor=-1)
+    with pytest.raises(qota.Error) as e:
+        qota.viewshed(RAINIER, observer=(-130, 40))
+    assert str(e.value).startswith("the observer at -130, 40 is not on")
+
+
+def test_shadow_png_preview(tmp_path):
+    png = tmp_path / "preview.png"
+    mask = qota.shadow(RAINIER, azimuth=135, altitude=20, png=png)
+    preview = gdal.Open(str(png))
+    assert (preview.RasterXSize, preview.RasterYSize) == (mask.shape[1], mask.shape[0])
