@@ -15,6 +15,7 @@ packages=(
   libbenchmark-dev              # bench/
   libcli11-dev                  # argument parsing for the qota tool
   nlohmann-json3-dev            # qota info --json
+  libcairo2-dev fonts-dejavu-core  # the tools' PNG previews: colour, legends and scales with text
   libpng-dev                    # PNG previews
   libxxhash-dev                 # block hashes of heights, checksums of states and tiles
   proj-data                     # the EGM96 geoid grid (egm96_15.gtx) heights over a geoid need

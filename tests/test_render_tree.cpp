@@ -165,7 +165,8 @@ TEST(RenderTree, EmptyLeavesAreWhiteAndFullLeavesGrey) {
 }
 
 TEST(RenderTree, MorePolygonsPerLeafMeansFewerEdges) {
-  const RenderTreeOptions fine = helens("fine.png", 1000, 32), coarse = helens("coarse.png", 1000, 128);
+  RenderTreeOptions fine = helens("fine.png", 1000, 32), coarse = helens("coarse.png", 1000, 128);
+  fine.depth = coarse.depth = 30;  // (every leaf drawn, however small)
   ASSERT_EQ(render(fine).code, 0);
   ASSERT_EQ(render(coarse).code, 0);
   const Image a = readPng(fine.output), b = readPng(coarse.output);
@@ -212,3 +213,19 @@ TEST(RenderTree, ErrorsExitTwoAndLeaveNoFile) {
 }
 
 }  // namespace
+
+TEST(RenderTreeTool, DrawsToADepthWhoseCellsCanBeSeen) {
+  // The Rainier tile's tree at Maxpoly 8 goes 11 levels deep; at 256 pixels the picture stops
+  // where cells are 8 pixels across (depth 5), and --depth draws another.
+  qota::tools::RenderTreeOptions o;
+  o.source.source = QOTA_DATA_DIR "/mt_rainier_90m.tif";
+  o.output = scratch("render_depth.png").string();
+  o.size = 256;
+  std::ostringstream out, err;
+  ASSERT_EQ(qota::tools::renderTree(o, out, err), 0) << err.str();
+  EXPECT_NE(out.str().find("drawn to depth 5 (cells of 8 pixels or more"), std::string::npos) << out.str();
+  o.depth = 3;
+  std::ostringstream out3;
+  ASSERT_EQ(qota::tools::renderTree(o, out3, err), 0) << err.str();
+  EXPECT_NE(out3.str().find("drawn to depth 3;"), std::string::npos) << out3.str();
+}

@@ -662,3 +662,63 @@ TEST(ShadowTool, OutputsRecordTheirMaking) {
   EXPECT_EQ(p.description, "viewshed");
   EXPECT_FALSE(p.items["QOTA_COMMAND"].empty());
 }
+
+TEST(ShadowTool, PreviewsShowTheMaskInColourWithALegend) {
+  // The preview's pixels against the mask written beside it: blue where it says shadow, grey
+  // where lit, transparent where there is no data; a legend strip below the picture.
+  const RasterValues rainier = qota::test::readRaster(QOTA_DATA_DIR "/mt_rainier_90m.tif");
+  const std::string dem = crop(rainier, "EPSG:4326", 150, 450, 100, 300, "preview_dem.tif", -32768);
+  const std::string mask = scratchPath("preview_mask.tif").string(), png = scratchPath("preview_mask.png").string();
+  runQota({"shadow", dem, "-az", "135", "-alt", "20", "-o", mask, "--png", png, "-q"});
+  const RasterValues m = qota::test::readRaster(mask);
+  std::unique_ptr<GDALDataset> p(GDALDataset::Open(png.c_str(), GDAL_OF_RASTER));
+  ASSERT_TRUE(p);
+  ASSERT_EQ(p->GetRasterCount(), 4);  // RGBA
+  EXPECT_EQ(p->GetRasterXSize(), std::max(m.width, 360));
+  EXPECT_GT(p->GetRasterYSize(), m.height + 30);  // the legend
+  std::vector<std::uint8_t> rgba[4];
+  for (int b = 0; b < 4; ++b) {
+    rgba[b].resize(static_cast<std::size_t>(m.width) * m.height);
+    ASSERT_EQ(p->GetRasterBand(b + 1)->RasterIO(GF_Read, 0, 0, m.width, m.height, rgba[b].data(), m.width, m.height,
+                                                GDT_Byte, 0, 0),
+              CE_None);
+  }
+  std::size_t shadow = 0, lit = 0, none = 0;
+  for (std::size_t i = 0; i < rgba[0].size(); ++i) {
+    const int r = rgba[0][i], g = rgba[1][i], b = rgba[2][i], a = rgba[3][i];
+    if (m.values[i] == 128) {
+      EXPECT_EQ(a, 0) << i;
+      ++none;
+    } else if (m.values[i] == 0) {
+      EXPECT_TRUE(a == 255 && b > r + 20) << i << ": " << r << "," << g << "," << b;
+      ++shadow;
+    } else {
+      EXPECT_TRUE(a == 255 && r == g && g == b) << i << ": " << r << "," << g << "," << b;
+      ++lit;
+    }
+  }
+  EXPECT_GT(shadow, 1000u);
+  EXPECT_GT(lit, 1000u);
+  EXPECT_GT(none, 0u);
+
+  // A viewshed's: amber where visible.
+  const std::string seen = scratchPath("preview_seen.tif").string(), seenPng = scratchPath("preview_seen.png").string();
+  runQota({"viewshed", dem, "--observer", "-121.7326,46.8356", "--oz", "10", "-o", seen, "--png", seenPng, "-q"});
+  const RasterValues v = qota::test::readRaster(seen);
+  std::unique_ptr<GDALDataset> vp(GDALDataset::Open(seenPng.c_str(), GDAL_OF_RASTER));
+  ASSERT_TRUE(vp);
+  std::vector<std::uint8_t> red(rgba[0].size()), blue(rgba[0].size());
+  ASSERT_EQ(
+      vp->GetRasterBand(1)->RasterIO(GF_Read, 0, 0, v.width, v.height, red.data(), v.width, v.height, GDT_Byte, 0, 0),
+      CE_None);
+  ASSERT_EQ(
+      vp->GetRasterBand(3)->RasterIO(GF_Read, 0, 0, v.width, v.height, blue.data(), v.width, v.height, GDT_Byte, 0, 0),
+      CE_None);
+  std::size_t visible = 0;
+  for (std::size_t i = 0; i < red.size(); ++i) {
+    if (v.values[i] == 128) continue;
+    EXPECT_EQ(v.values[i] == 255, red[i] > blue[i] + 40) << i;
+    visible += v.values[i] == 255;
+  }
+  EXPECT_GT(visible, 100u);
+}

@@ -372,6 +372,11 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
   renderTreeCmd->add_option("--size", renderTree.size, "Pixels along the image's long side")
       ->capture_default_str()
       ->check(CLI::Range(16, 16384));
+  renderTreeCmd
+      ->add_option("--depth", renderTree.depth,
+                   "Draw the tree down to this depth (deeper nodes as their ancestor there); default: the deepest "
+                   "whose cells are 8 image pixels or more across")
+      ->check(CLI::Range(0, 30));
   renderTreeCmd->add_flag("-q,--quiet", renderTree.quiet, "No summary");
   addSourceOptions(renderTreeCmd, renderTree.source);
 

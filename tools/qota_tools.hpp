@@ -241,6 +241,9 @@ struct RenderTreeOptions {
   SourceOptions source;  // as every tool reads one (a raster in --mapping, a mesh, a tree file)
   std::string output;
   int size = 1024;  // pixels along the image's long side
+  // The depth drawn: nodes deeper are drawn as their ancestor at this depth; -1: the deepest whose
+  // cells are 8 image pixels or more across.
+  int depth = -1;
   bool quiet = false;
 };
 int renderTree(const RenderTreeOptions& options, std::ostream& out, std::ostream& err);

@@ -37,9 +37,10 @@ constexpr int kMinSize = 16, kMaxSize = 16384;
 constexpr double kEmptyGrey = 255, kFullGrey = 160, kShadeDepth = 0.35;
 constexpr std::uint8_t kEdgeGrey = 40;
 
-// The leaf containing mapped (u, v), as an index into tree.nodes(), or -1 outside the root box.
-std::int64_t leafAt(const Quadtree& tree, double u, double v) {
-  return tree.contains(u, v) ? static_cast<std::int64_t>(tree.leafIndex(u, v)) : -1;
+// The node drawn at mapped (u, v): the leaf there, or its ancestor at `depth`; an index into
+// tree.nodes(), or -1 outside the root box.
+std::int64_t cellAt(const Quadtree& tree, double u, double v, std::uint32_t depth) {
+  return tree.contains(u, v) ? static_cast<std::int64_t>(tree.nodeIndexAt(u, v, depth)) : -1;
 }
 
 // A leaf's fill: white when empty, darker with log(1 + polygons), kFullGrey from Maxpoly on.
@@ -179,6 +180,11 @@ int renderTree(const RenderTreeOptions& o, std::ostream& out, std::ostream& err)
     const int iw = std::max(1, int(std::lround(aspectW * scale)));
     const int ih = std::max(1, int(std::lround(aspectH * scale)));
     const double colsPer = double(gridW) / iw, rowsPer = double(gridH) / ih;
+    // The depth drawn: as asked, else the deepest whose cells are 8 image pixels or more across
+    // (a deeper tree over a large raster would draw as a uniform grey of edges).
+    const std::uint32_t depth =
+        o.depth >= 0 ? static_cast<std::uint32_t>(o.depth)
+                     : static_cast<std::uint32_t>(std::max(1.0, std::floor(std::log2(std::max(iw, ih) / 8.0))));
     // Fractional raster (col, row) of an image pixel's centre, and the leaf there.
     const auto rasterAt = [&](int i, int j) { return std::array<double, 2>{(i + 0.5) * colsPer, (j + 0.5) * rowsPer}; };
     const auto leafRow = [&](int j, std::vector<std::int64_t>& ids) {
@@ -187,9 +193,10 @@ int renderTree(const RenderTreeOptions& o, std::ostream& out, std::ostream& err)
           const auto [col, row] = rasterAt(i, j);
           const auto world = dem->pixelCentre(col - 0.5, row - 0.5);
           const Point2 m = toTree(world[0], world[1]);
-          ids[i] = leafAt(tree, m.u, m.v);
+          ids[i] = cellAt(tree, m.u, m.v, depth);
         } else {
-          ids[i] = box.empty() ? -1 : leafAt(tree, box.ulo + (i + 0.5) * boxW / iw, box.vhi - (j + 0.5) * boxH / ih);
+          ids[i] =
+              box.empty() ? -1 : cellAt(tree, box.ulo + (i + 0.5) * boxW / iw, box.vhi - (j + 0.5) * boxH / ih, depth);
         }
       }
     };
@@ -206,7 +213,11 @@ int renderTree(const RenderTreeOptions& o, std::ostream& out, std::ostream& err)
           px = kEdgeGrey;
           continue;
         }
-        const double fill = ids[i] < 0 ? kEmptyGrey : leafGrey(Quadtree::leafSize(tree.nodes()[ids[i]]), maxPoly);
+        // (a node split further than the depth drawn: as full as a leaf can be)
+        const Quadtree::Node* node = ids[i] < 0 ? nullptr : &tree.nodes()[static_cast<std::size_t>(ids[i])];
+        const double fill = !node                             ? kEmptyGrey
+                            : node->count == Quadtree::kInner ? kFullGrey
+                                                              : leafGrey(Quadtree::leafSize(*node), maxPoly);
         double shade = 1.0;
         if (dem) {
           const auto [col, row] = rasterAt(i, j);
@@ -226,8 +237,10 @@ int renderTree(const RenderTreeOptions& o, std::ostream& out, std::ostream& err)
       out << "qota render-tree: " << o.source.source << " -> " << o.output << '\n'
           << "tree: " << t.nodes << " nodes, " << t.leaves << " leaves (" << t.emptyLeaves << " empty), depth "
           << t.depth << " (max poly " << maxPoly << ", max depth " << maxDepth << ")\n"
-          << "image: " << iw << " x " << ih << " pixels; white: empty leaf, grey " << int(kFullGrey) << ": " << maxPoly
-          << " polygons or more (log scale), grey " << int(kEdgeGrey) << ": leaf edges\n"
+          << "image: " << iw << " x " << ih << " pixels, drawn to depth " << depth
+          << (o.depth < 0 ? " (cells of 8 pixels or more; --depth N for another)" : "") << "; white: empty leaf, grey "
+          << int(kFullGrey) << ": " << maxPoly << " polygons or more (log scale) or split deeper, grey "
+          << int(kEdgeGrey) << ": edges\n"
           << "written: " << o.output << '\n';
     }
     return 0;

@@ -14,6 +14,7 @@
 #include "qota/sunlight.hpp"
 #include "qota/viewshed.hpp"
 #include "cancel.hpp"
+#include "preview.hpp"
 #include "qota_tools.hpp"
 #include "raster_output.hpp"
 #include "shadow_parts.hpp"
@@ -154,35 +155,28 @@ LocalSpan hoursSpan(const ShadowOptions& o) {
 
 namespace {
 
-// A grey hillshade (Lambert under the same light) darkened where shadowed; nodata black.
-std::vector<double> preview(const LocalFrame& f, const Eigen::Vector3d& light, const std::vector<Light>& mask,
-                            const std::vector<double>* hours) {
-  const int w = f.width, h = f.height;
-  std::vector<double> grey(f.pixelCount(), 0.0);
-  double maxHours = 0;
-  if (hours) {
-    for (double x : *hours) maxHours = std::max(maxHours, x);
-  }
-  const auto& v = f.mesh.vertices;
-  for (int r = 0; r < h; ++r) {
-    for (int c = 0; c < w; ++c) {
-      const std::size_t i = static_cast<std::size_t>(r) * w + c;
-      if (!f.valid[i]) continue;
-      const auto at = [&](int cc, int rr) -> const Eigen::Vector3d& {
-        cc = std::clamp(cc, 0, w - 1), rr = std::clamp(rr, 0, h - 1);
-        return v[static_cast<std::size_t>(rr) * w + cc];
-      };
-      const Eigen::Vector3d east = at(c + 1, r) - at(c - 1, r), north = at(c, r - 1) - at(c, r + 1);
-      Eigen::Vector3d n = east.cross(north);
-      const double shade = n.squaredNorm() > 0 ? std::max(0.0, n.normalized().dot(light)) : 0.5;
-      if (hours) {
-        grey[i] = 30 + 225 * (maxHours > 0 ? (*hours)[i] / maxHours : 0) * (0.6 + 0.4 * shade);
-      } else {
-        grey[i] = 40 + 215 * shade * (mask[i] == Light::Lit ? 1.0 : 0.3);
-      }
+// The preview: the mask in colour over a hillshade lit from the light (from overhead when it is
+// down), with a legend; or the hours on a colour ramp with its scale.
+void writePreview(const ShadowOptions& o, const LocalFrame& frame, const Eigen::Vector3d& light,
+                  const std::vector<Light>& mask, const std::vector<double>& hours, const std::string& title,
+                  OutputStage& stage) {
+  const std::vector<double> shade = hillshade(frame, light.z() > 0 ? light.normalized() : Eigen::Vector3d(0, 0, 1));
+  if (o.hours) {
+    std::vector<double> values(hours.size());
+    double most = 0;
+    for (std::size_t i = 0; i < values.size(); ++i) {
+      values[i] = frame.valid[i] ? hours[i] : std::numeric_limits<double>::quiet_NaN();
+      if (frame.valid[i]) most = std::max(most, hours[i]);
     }
+    writeRampPreview(o.png, frame.width, frame.height, shade, values, 0, most, "h", title, stage);
+    return;
   }
-  return grey;
+  std::vector<int> classes(mask.size());
+  for (std::size_t i = 0; i < mask.size(); ++i) {
+    classes[i] = mask[i] == Light::Lit ? 0 : mask[i] == Light::Shadow ? 1 : -1;
+  }
+  writeCategoryPreview(o.png, frame.width, frame.height, shade, classes,
+                       {{"lit", {255, 255, 255}, 0.0}, {"in shadow", {40, 80, 220}, 0.6}}, title, stage);
 }
 
 }  // namespace
@@ -307,7 +301,8 @@ int shadow(const ShadowOptions& given, std::ostream& out, std::ostream& err) {
     std::vector<Light> mask;
     Eigen::Vector3d shownLight;
     std::vector<double> hoursLit;
-    std::string lightText;  // the light, for the output's provenance
+    std::string lightText;   // the light, for the output's provenance
+    std::string lightTitle;  // and in short, for the preview
     if (o.hours) {
       const double step = (*o.hours)[2];
       const LocalSpan span = hoursSpan(o);
@@ -320,6 +315,8 @@ int shadow(const ShadowOptions& given, std::ostream& out, std::ostream& err) {
       const double elapsed = sunlight.elapsedHours;
       lightText = "sunlight hours from " + span.start.local + " (" + span.start.utc + ") to " + span.end.local + " (" +
                   span.end.utc + ") in " + std::to_string(steps) + " steps of " + formatNumber(step) + " h";
+      lightTitle = "hours of direct sunlight from " + span.start.local + " to " + span.end.local + ", steps of " +
+                   formatNumber(step) + " h";
       if (!o.quiet) {
         GDALTermProgress(1.0, "", nullptr);
         out << "sunlight: " << steps << " steps of " << formatNumber(step) << " h, from " << span.start.local << " ("
@@ -334,6 +331,7 @@ int shadow(const ShadowOptions& given, std::ostream& out, std::ostream& err) {
       p.index = o.index;
       lightText = "a point at " + formatNumber(p.x) + "," + formatNumber(p.y) + ", " + formatNumber(p.height) + " m " +
                   (p.aboveSurface ? "above the surface" : "over the DEM's reference");
+      lightTitle = "shadows of " + lightText;
       if (!o.quiet) {
         out << "light: a point at " << formatNumber(p.x) << ", " << formatNumber(p.y) << ", " << formatNumber(p.height)
             << " m " << (p.aboveSurface ? "above the surface" : "over the DEM's reference") << '\n';
@@ -353,6 +351,7 @@ int shadow(const ShadowOptions& given, std::ostream& out, std::ostream& err) {
       shownLight = light.toward;
       lightText = light.description + "; toward " + formatNumber(light.toward.x()) + "," +
                   formatNumber(light.toward.y()) + "," + formatNumber(light.toward.z()) + " in the frame";
+      lightTitle = "shadows, light at " + light.description;
       if (!o.quiet) out << "light: " << light.description << '\n';
       if (light.toward.z() <= 0) {
         err << "qota shadow: the light is at or below the horizon at the centre"
@@ -389,9 +388,8 @@ int shadow(const ShadowOptions& given, std::ostream& out, std::ostream& err) {
     w.bandUnit = o.hours ? "h" : "";
     writeRaster(w, dem, values, stage);
     if (!o.png.empty()) {
-      const std::vector<double> grey = preview(frame, shownLight.z() > 0 ? shownLight : Eigen::Vector3d(0, 0, 1), mask,
-                                               o.hours ? &hoursLit : nullptr);
-      writeRaster({o.png, "PNG", {}, true, 0.0, true}, dem, grey, stage);
+      writePreview(o, frame, shownLight, mask, hoursLit,
+                   std::filesystem::path(o.source).filename().string() + ": " + lightTitle, stage);
     }
     stage.commit();
     if (!o.quiet) {

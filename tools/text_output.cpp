@@ -7,6 +7,7 @@
 #include <new>
 #include <ostream>
 
+#include "cancel.hpp"
 #include "qota/error.hpp"
 
 namespace qota::tools {
@@ -34,6 +35,14 @@ std::string formatReadable(double value, int decimals) {
 
 int reportFailure(const char* tool, std::ostream& err) {
   err << "qota " << tool << ": ";
+  if (cancelRequested()) {  // (whatever the work threw when it stopped: the signal is the cause)
+    try {
+      throwIfCancelled();
+    } catch (const std::exception& e) {
+      err << e.what() << '\n';
+      return 2;
+    }
+  }
   try {
     throw;
   } catch (const std::bad_alloc&) {

@@ -10,12 +10,15 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
+#include <limits>
 #include <memory>
 #include <ostream>
 
 #include "qota/error.hpp"
 #include "qota/memory_budget.hpp"
+#include "preview.hpp"
 #include "qota_tools.hpp"
 #include "raster_output.hpp"
 #include "shadow_parts.hpp"
@@ -23,6 +26,9 @@
 
 namespace qota::tools {
 namespace {
+
+// The hillshade's light in previews: from the north-west, 45 degrees up (gdaldem's default).
+const Eigen::Vector3d kPreviewLight = Eigen::Vector3d(-0.5, 0.5, std::sqrt(0.5)).normalized();
 
 // Points from `from` (a CRS GDAL reads; empty: the raster's own) into the raster's CRS, in place.
 // `what` names them in errors.
@@ -173,28 +179,6 @@ void checkOptions(const ViewshedOptions& o, const std::string& format) {
   if (!o.png.empty() && sameFile(o.png, o.output)) throw Error("--png and -o name the same file");
 }
 
-// A grey hillshade (light from the north-west, 45 degrees up) scaled by each pixel's factor:
-// 1 where seen, less where not; black where the factor is negative (nodata).
-std::vector<double> preview(const LocalFrame& f, const std::vector<double>& factor) {
-  const int w = f.width, h = f.height;
-  const Eigen::Vector3d light = Eigen::Vector3d(-0.5, 0.5, std::sqrt(0.5)).normalized();
-  std::vector<double> grey(f.pixelCount(), 0.0);
-  const auto& v = f.mesh.vertices;
-  for (int r = 0; r < h; ++r) {
-    for (int c = 0; c < w; ++c) {
-      const std::size_t i = static_cast<std::size_t>(r) * w + c;
-      if (factor[i] < 0) continue;
-      const auto at = [&](int cc, int rr) -> const Eigen::Vector3d& {
-        return v[static_cast<std::size_t>(std::clamp(rr, 0, h - 1)) * w + std::clamp(cc, 0, w - 1)];
-      };
-      const Eigen::Vector3d n = (at(c + 1, r) - at(c - 1, r)).cross(at(c, r - 1) - at(c, r + 1));
-      const double shade = n.squaredNorm() > 0 ? std::max(0.0, n.normalized().dot(light)) : 0.5;
-      grey[i] = 40 + 215 * (0.3 + 0.7 * shade) * factor[i];
-    }
-  }
-  return grey;
-}
-
 }  // namespace
 
 namespace {
@@ -224,14 +208,15 @@ void writeOne(const ViewshedOptions& o, const Run& run, std::ostream& out, Outpu
         << "visible: " << seen.visible << " of " << seen.tested << " pixels tested ("
         << formatNumber(seen.tested ? 100.0 * seen.visible / seen.tested : 0.0, 2) << " %)\n";
   }
-  std::vector<double> values(seen.sight.size()), shade(seen.sight.size());
+  std::vector<double> values(seen.sight.size());
+  std::vector<int> classes(seen.sight.size());
   for (std::size_t i = 0; i < values.size(); ++i) {
     const Sight s = seen.sight[i];
     values[i] = s == Sight::Visible  ? o.visibleValue
                 : s == Sight::Hidden ? o.hiddenValue
                 : s == Sight::NoData ? o.nodataValue
                                      : o.outOfRangeValue;
-    shade[i] = s == Sight::Visible ? 1.0 : s == Sight::Hidden ? 0.35 : s == Sight::NoData ? -1.0 : 0.15;
+    classes[i] = s == Sight::Visible ? 0 : s == Sight::Hidden ? 1 : s == Sight::NoData ? -1 : 2;
   }
   RasterWrite w{o.output,
                 run.format,
@@ -254,7 +239,15 @@ void writeOne(const ViewshedOptions& o, const Run& run, std::ostream& out, Outpu
   w.bandDescription = "viewshed";
   writeRaster(w, run.dem, values, stage);
   if (!o.png.empty()) {
-    writeRaster({o.png, "PNG", {}, true, 0.0, true}, run.dem, preview(localFrame(run.dem, run.frame), shade), stage);
+    const LocalFrame frame = localFrame(run.dem, run.frame);
+    writeCategoryPreview(o.png, frame.width, frame.height, hillshade(frame, kPreviewLight), classes,
+                         {{"visible", {255, 170, 0}, 0.7},
+                          {"not visible", {255, 255, 255}, 0.0},
+                          {"beyond --max-distance", {180, 180, 180}, 0.6}},
+                         std::filesystem::path(o.source).filename().string() + ": seen from " +
+                             formatNumber(v.observerX) + ", " + formatNumber(v.observerY) + ", " +
+                             formatNumber(o.observerHeight) + " m up",
+                         stage);
   }
 }
 
@@ -273,12 +266,12 @@ void writeCounts(const ViewshedOptions& o, const Run& run, std::ostream& out, Ou
   const CumulativeViewshed seen = cumulativeViewshed(run.dem, observers, c, termProgress(o.quiet, 0, 1));
   const bool wide = observers.size() >= 65535;
   const double nodata = wide ? 4294967295.0 : 65535.0;
-  std::vector<double> values(seen.count.size()), shade(seen.count.size());
+  std::vector<double> values(seen.count.size()), counts(seen.count.size());
   std::uint32_t most = 0, seenAny = 0;
   for (std::uint32_t k : seen.count) most = std::max(most, k);
   for (std::size_t i = 0; i < values.size(); ++i) {
     values[i] = seen.valid[i] ? seen.count[i] : nodata;
-    shade[i] = !seen.valid[i] ? -1.0 : seen.count[i] == 0 ? 0.3 : 0.65 + 0.35 * seen.count[i] / most;
+    counts[i] = seen.valid[i] ? seen.count[i] : std::numeric_limits<double>::quiet_NaN();
     seenAny += seen.valid[i] && seen.count[i] > 0;
   }
   if (!o.quiet) {
@@ -328,7 +321,11 @@ void writeCounts(const ViewshedOptions& o, const Run& run, std::ostream& out, Ou
     writeRaster(bitsWrite, run.dem, which, stage);
   }
   if (!o.png.empty()) {
-    writeRaster({o.png, "PNG", {}, true, 0.0, true}, run.dem, preview(localFrame(run.dem, run.frame), shade), stage);
+    const LocalFrame frame = localFrame(run.dem, run.frame);
+    writeRampPreview(o.png, frame.width, frame.height, hillshade(frame, kPreviewLight), counts, 0, most, "observers",
+                     std::filesystem::path(o.source).filename().string() + ": how many of " +
+                         std::to_string(observers.size()) + " observers see each pixel",
+                     stage);
   }
 }
 

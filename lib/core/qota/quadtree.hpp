@@ -114,6 +114,21 @@ class Quadtree {
     }
     return nd;
   }
+  // The index in nodes() of the node containing (u, v) at depth maxDepth, or of the leaf above it
+  // (the descent's own cuts, without the jump table): a view of the tree cut at a depth, as
+  // qota render-tree draws it. Precondition: contains(u, v).
+  std::uint32_t nodeIndexAt(double u, double v, std::uint32_t maxDepth) const {
+    std::uint32_t n = 0, d = 0;
+    double lu = root_.ulo, lv = root_.vlo;
+    while (nodes_[n].count == kInner && d < maxDepth) {
+      const Point2 c = cutOf(n, d, lu, lv);
+      const bool hu = u >= c.u, hv = v >= c.v;
+      lu = hu ? c.u : lu, lv = hv ? c.v : lv;
+      n = nodes_[n].first + (static_cast<std::uint32_t>(hv) << 1 | static_cast<std::uint32_t>(hu));
+      ++d;
+    }
+    return n;
+  }
   // A query cursor for temporal coherence: the last leaf found and a box of points known to lie
   // in it, half-open ([ulo, uhi) x [vlo, vhi), the boundary rule's own sides), so that a query a
   // small step from the last one skips the descent. A default cursor matches nothing. One per
