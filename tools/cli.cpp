@@ -50,6 +50,10 @@ void addSourceOptions(CLI::App* app, qota::SourceOptions& source) {
                   "geodetic, enu: what the raster's heights are over: ellipsoid, egm96, egm2008, crs (its vertical "
                   "CRS), radius:R (a sphere of radius R metres) or a geoid grid's path; default: its vertical CRS, "
                   "else EGM96 on the Earth and the ellipsoid elsewhere (said once)");
+  app->add_flag_function(
+      "--fill-voids", [&source](std::int64_t) { source.fillVoids = qota::kFillVoidsPixels; },
+      "A raster's voids filled first by GDAL's fill-nodata (gdal_fillnodata: from the void's rim, up to 100 "
+      "pixels out); the raster is then read whole");
   addTreeOptions(app, source.index);
 }
 
@@ -103,6 +107,10 @@ void addRasterJobOptions(CLI::App* cmd, RasterJobOptions& o, const std::string& 
                   "geoid grid's path; default: the raster's vertical CRS, else EGM96 on the Earth and "
                   "the ellipsoid elsewhere (said in the frame line, recorded in the output)");
   cmd->add_option("--png", o.png, "Also write a PNG preview: " + preview + " over a hillshade");
+  cmd->add_flag("--fill-voids", o.fillVoids,
+                "The DEM's voids filled first by GDAL's fill-nodata (gdal_fillnodata: from the void's rim, up to "
+                "100 pixels out), so that they get values too (recorded in the output); the whole raster in "
+                "memory");
 }
 
 int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostream& out, std::ostream& err) {

@@ -115,6 +115,9 @@ struct RasterJobOptions {
   // On the ellipsoid: what the heights are over (FrameOptions::heightRef); recorded in the output.
   std::string heightRef = {};
   std::string png;  // a PNG preview over a hillshade
+  // The DEM's voids filled first (DemOptions::fillVoids with kFillVoidsPixels): the pixels get
+  // values too; recorded as QOTA_FILL_VOIDS. The whole raster in memory (not by tiles).
+  bool fillVoids = false;
 };
 
 // qota shadow: where a directional light (the sun) is blocked by the terrain, as a raster on the

@@ -195,6 +195,11 @@ Surface openSurface(const SampleOptions& options, TreeSource& source, bool& inte
   // The default mapping's rasters go through the streaming sampler: no index at all.
   const bool asMap = entry.map;
   const Resampling rule = resamplingNamed(options.resampling);
+  if (rule != Resampling::Triangle && options.fillVoids > 0) {
+    throw Error(std::string("-r ") + resamplingName(rule) +
+                " reads the raster's own pixels; --fill-voids fills the triangles' surface (-r triangle), or fill "
+                "the raster first with gdal_fillnodata");
+  }
   if (rule != Resampling::Triangle && (!asMap || isTreeFile(options.source) || !isRaster(options.source))) {
     throw Error(std::string("-r ") + resamplingName(rule) +
                 " samples a raster's pixels in the cartesian mapping; a tree file, a mesh or another mapping "
@@ -202,7 +207,8 @@ Surface openSurface(const SampleOptions& options, TreeSource& source, bool& inte
   }
   if (asMap && !isTreeFile(options.source)) {
     requireSource(options.source);
-    if (isRaster(options.source)) {
+    // (with --fill-voids the raster is read whole: the fill reaches across any tile)
+    if (isRaster(options.source) && options.fillVoids == 0) {
       // GDAL's block cache (5% of the RAM by default) bounded as well: the sampler's tiles are
       // the cache that matters, and memory must not grow with the raster.
       constexpr GIntBig kGdalCacheBytes = GIntBig{64} << 20;

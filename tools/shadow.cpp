@@ -247,6 +247,7 @@ std::vector<std::pair<std::string, std::string>> shadowProvenance(const ShadowOp
                                                          {"QOTA_BAND", std::to_string(band)},
                                                          {"QOTA_FRAME", frame},
                                                          {"QOTA_LIGHT", light}};
+  if (o.fillVoids) items.emplace_back("QOTA_FILL_VOIDS", kFillVoidsText);
   if (!o.time.empty()) items.emplace_back("QOTA_TIME", o.time);
   if (!o.tz.empty()) items.emplace_back("QOTA_TZ", o.tz);
   if (o.hours) {
@@ -276,18 +277,30 @@ int shadow(const ShadowOptions& given, std::ostream& out, std::ostream& err) {
     if (o.lightPoint && (o.tileSize > 0 || o.tile || !o.tilesState.empty())) {
       throw Error("--light-point shades the whole raster in memory; it does not run by tiles");
     }
-    if (!o.lightPoint && runsByTiles(o)) return shadowByTiles(o, format, out, err);
+    if (!o.lightPoint && runsByTiles(o)) {
+      if (o.fillVoids) {
+        throw Error(
+            "--fill-voids fills the whole raster in memory; by tiles, fill it first (gdal_fillnodata) and "
+            "give the filled raster");
+      }
+      return shadowByTiles(o, format, out, err);
+    }
     const std::uint64_t estimate = o.lightPoint ? 0 : wholeEstimate(o, resident);
     DemOptions demOptions;
     demOptions.band = o.band;
     demOptions.lonLatAsCartesian = true;  // read as lon/lat: the frame puts it on its ellipsoid
     demOptions.then = o.lightPoint ? memory::kLinesOfSight : memory::kShadow;
+    demOptions.fillVoids = o.fillVoids ? kFillVoidsPixels : 0;
     refuseBeyondMaxPixels(o, describeDem(o.source, demOptions));
     const DemTerrain dem = loadDem(o.source, demOptions);
     const LocalFrame frame = localFrame(dem, frameOptionsOf(o));
     if (!o.quiet) {
       out << "qota shadow: " << o.source << " -> " << o.output << " (" << format << ")\n"
           << "frame: " << frame.description << '\n';
+      if (o.fillVoids) {
+        out << "voids: " << dem.filledPixels << " pixels filled (GDAL's fill-nodata), " << dem.nodataPixels
+            << " left\n";
+      }
       if (frame.metresPerUnit != 1) {
         out << "heights: " << formatNumber(frame.metresPerUnit) << " m per unit ("
             << (dem.verticalUnit.known() ? "'" + dem.verticalUnit.name + "'" : std::string("-s")) +

@@ -36,6 +36,9 @@ std::uint64_t wholeEstimate(const ShadowOptions& o, std::uint64_t resident);
 // Whether the run goes by tiles: asked for (--tile-size, --tile), or the whole raster would not
 // fit in o.maxMemory (or, without it, in the memory available).
 bool runsByTiles(const ShadowOptions& o);
+// What --fill-voids did, as outputs record it (QOTA_FILL_VOIDS).
+inline constexpr const char* kFillVoidsText = "voids filled first by GDAL's fill-nodata, up to 100 pixels out";
+
 // What a shadow or hours raster records of its making (QOTA_TOOL, QOTA_SOURCE, QOTA_BAND,
 // QOTA_FRAME, QOTA_LIGHT, QOTA_TIME, QOTA_TZ, QOTA_HOURS, QOTA_VALUES); withProvenance adds the
 // version and command line.

@@ -233,6 +233,7 @@ void writeOne(const ViewshedOptions& o, const Run& run, std::ostream& out, Outpu
                  {"QOTA_TARGET_HEIGHT", formatNumber(o.targetHeight)},
                  {"QOTA_MAX_DISTANCE", formatNumber(o.maxDistance)},
                  {"QOTA_REFRACTION", formatNumber(o.refraction)},
+                 {"QOTA_FILL_VOIDS", o.fillVoids ? kFillVoidsText : "no"},
                  {"QOTA_VALUES", "visible=" + std::to_string(o.visibleValue) + ",invisible=" +
                                      std::to_string(o.hiddenValue) + ",nodata=" + std::to_string(o.nodataValue) +
                                      ",out_of_range=" + std::to_string(o.outOfRangeValue)}}};
@@ -290,6 +291,7 @@ void writeCounts(const ViewshedOptions& o, const Run& run, std::ostream& out, Ou
                  {"QOTA_FRAME", seen.frameDescription},
                  {"QOTA_OBSERVERS", o.observersFile},
                  {"QOTA_OBSERVER_COUNT", std::to_string(observers.size())},
+                 {"QOTA_FILL_VOIDS", o.fillVoids ? kFillVoidsText : "no"},
                  {"QOTA_TARGET_HEIGHT", formatNumber(o.targetHeight)},
                  {"QOTA_MAX_DISTANCE", formatNumber(o.maxDistance)},
                  {"QOTA_VALUES", "count of the observers that see the pixel"}},
@@ -350,7 +352,12 @@ int viewshed(const ViewshedOptions& given, std::ostream& out, std::ostream& err)
     demOptions.band = o.band;
     demOptions.lonLatAsCartesian = true;  // read as lon/lat: the frame puts it on its ellipsoid
     demOptions.then = memory::kLinesOfSight;
+    demOptions.fillVoids = o.fillVoids ? kFillVoidsPixels : 0;
     run.dem = loadDem(o.source, demOptions);
+    if (!o.quiet && o.fillVoids) {
+      out << "voids: " << run.dem.filledPixels << " pixels filled (GDAL's fill-nodata), " << run.dem.nodataPixels
+          << " left\n";
+    }
     run.frame = frameOptionsOf(o);
     if (!o.quiet) out << "qota viewshed: " << o.source << " -> " << o.output << " (" << run.format << ")\n";
     OutputStage stage;

@@ -1,6 +1,7 @@
 #include "qota/dem.hpp"
 
 #include <cpl_error.h>
+#include <gdal_alg.h>
 #include <gdal_priv.h>
 #include <ogr_spatialref.h>
 #include <unistd.h>
@@ -10,6 +11,7 @@
 #include <cmath>
 #include <fstream>
 #include <iomanip>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <sstream>
@@ -325,6 +327,32 @@ void DemWindows::read(int col, int row, int w, int h, std::vector<double>& out) 
   readHeights(dem_, open_->band, col, row, w, h, out);
 }
 
+namespace {
+
+// GDAL's fill-nodata over heights in memory (NaN: a void), searching maxDistance pixels out.
+// Returns the voids filled.
+std::uint64_t fillVoidsLikeGdal(std::vector<double>& z, int width, int height, double maxDistance,
+                                const std::string& path) {
+  const std::uint64_t before =
+      static_cast<std::uint64_t>(std::count_if(z.begin(), z.end(), [](double v) { return std::isnan(v); }));
+  if (before == 0) return 0;
+  GDALDriver* mem = GetGDALDriverManager()->GetDriverByName("MEM");
+  std::unique_ptr<GDALDataset> ds(mem ? mem->Create("", width, height, 1, GDT_Float64, nullptr) : nullptr);
+  if (!ds) throw Error(path + ": cannot hold the heights to fill their voids");
+  GDALRasterBand* band = ds->GetRasterBand(1);
+  band->SetNoDataValue(std::numeric_limits<double>::quiet_NaN());
+  if (band->RasterIO(GF_Write, 0, 0, width, height, z.data(), width, height, GDT_Float64, 0, 0) != CE_None ||
+      GDALFillNodata(band, nullptr, maxDistance, 0, 0, nullptr, nullptr, nullptr) != CE_None ||
+      band->RasterIO(GF_Read, 0, 0, width, height, z.data(), width, height, GDT_Float64, 0, 0) != CE_None) {
+    throw Error(path + ": filling the voids failed (" + std::string(CPLGetLastErrorMsg()) + ")");
+  }
+  const std::uint64_t after =
+      static_cast<std::uint64_t>(std::count_if(z.begin(), z.end(), [](double v) { return std::isnan(v); }));
+  return before - after;
+}
+
+}  // namespace
+
 DemTerrain describeDem(const std::string& path, const DemOptions& options) {
   std::unique_ptr<GDALDataset> ds;
   GDALRasterBand* band = nullptr;
@@ -355,6 +383,7 @@ DemTerrain loadDem(const std::string& path, const DemOptions& options) {
 
   std::vector<double> z;
   readHeights(dem, band, 0, 0, dem.width, dem.height, z);
+  if (options.fillVoids > 0) dem.filledPixels = fillVoidsLikeGdal(z, dem.width, dem.height, options.fillVoids, path);
 
   // Vertices: every pixel centre; a nodata pixel gets NaN height and no triangle uses it.
   std::vector<std::uint8_t> valid(vertices);

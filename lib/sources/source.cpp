@@ -246,6 +246,7 @@ TreeFile openIndex(const SourceOptions& o) {
   DemOptions demOptions;
   demOptions.band = o.band;
   demOptions.lonLatAsCartesian = true;
+  demOptions.fillVoids = o.fillVoids;
   const bool cartesian = entry.map;
   demOptions.then = !cartesian ? memory::kCurvedIndex : o.heightsOnly ? memory::kGridIndex : memory::kCartesianIndex;
   if (isTreeFile(o.source)) {

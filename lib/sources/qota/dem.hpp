@@ -62,7 +62,14 @@ struct DemOptions {
   // On an ellipsoid (loadOnEllipsoid): what the heights are over (qota/geoid.hpp: "ellipsoid",
   // "egm96", "egm2008", "crs", a grid's path; "": the raster's own, else assumed). Maps ignore it.
   std::string heightRef = {};
+  // Voids filled before the terrain is made (loadDem only, the whole raster in memory): GDAL's
+  // fill-nodata (gdal_fillnodata: inverse distance weighting from the void's rim, searching this
+  // many pixels out; what is farther from any data stays a void). 0: voids stay holes.
+  double fillVoids = 0;
 };
+
+// The search distance `--fill-voids` takes (gdal_fillnodata's default), in pixels.
+inline constexpr double kFillVoidsPixels = 100;
 
 // The vertical unit of a raster's heights.
 struct VerticalUnit {
@@ -92,8 +99,9 @@ struct DemTerrain {
   std::array<double, 6> geotransform{0, 1, 0, 0, 0, 1};
   std::string crsWkt;  // empty when the raster has no CRS
   std::optional<double> nodata;
-  std::uint64_t nodataPixels = 0;
-  int band = 1;  // the band read (1-based)
+  std::uint64_t nodataPixels = 0;  // voids left (after DemOptions::fillVoids)
+  std::uint64_t filledPixels = 0;  // voids DemOptions::fillVoids filled
+  int band = 1;                    // the band read (1-based)
   // The band holds whole numbers (an integer data type, no scale or offset): heights between
   // pixel centres are interpolated from integers (qota sample prints them without the last-bit
   // noise of that arithmetic).

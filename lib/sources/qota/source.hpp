@@ -25,6 +25,8 @@ struct SourceOptions {
   /// none: the raster's centre at height 0 (a mesh: the centre of its box, at its height).
   std::optional<std::array<double, 3>> origin = {};
   IndexOptions index = {};  ///< the index's options: the quadtree's Maxpoly and Maxdepth, the grid path
+  /// a raster's voids filled first (DemOptions::fillVoids: GDAL's fill-nodata, pixels searched); 0: holes
+  double fillVoids = 0;
 };
 
 /// A tree file is loaded as it is (its own mapping; asking for another is an error). A raster
