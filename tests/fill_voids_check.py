@@ -46,6 +46,15 @@ r = subprocess.run([qota, "sample", crop], input=text, capture_output=True, text
 print("without it:", "all none" if set(r.stdout.split()) == {"none"} else "not all none")
 failures += set(r.stdout.split()) != {"none"}
 
+# info --tree: the terrain built on the filled raster
+r = subprocess.run([qota, "info", crop, "--tree", "--fill-voids", "--json"], capture_output=True, text=True)
+import json  # noqa: E402
+info = json.loads(r.stdout) if r.returncode == 0 else {}
+want = int(((before == nodata) & (after != nodata)).sum())
+ok = info.get("voids_filled") == want and info.get("triangles") == 2 * 249 * 199
+print("info --tree --fill-voids:", "ok" if ok else (info.get("voids_filled"), want, info.get("triangles"), r.stderr))
+failures += not ok
+
 # shadow and viewshed: values where the voids were, recorded
 for tool, args in (("shadow", ["-az", "135", "-alt", "20"]),
                    ("viewshed", ["--observer", "-121.7326,46.8356", "--oz", "10"])):

@@ -341,12 +341,13 @@ void indexFacts(const SourceOptions& so, Facts& f) {
 // A raster's --tree in the default (cartesian) mapping: the index in the raster's own x, y
 // (degrees for a lon/lat raster: the quadtree works in (u, v) whatever their unit).
 void mapTreeFacts(const SourceOptions& so, Facts& f) {
-  const DemTerrain dem = loadDem(so.source, {.band = so.band, .lonLatAsCartesian = true});
+  const DemTerrain dem = loadDem(so.source, {.band = so.band, .lonLatAsCartesian = true, .fillVoids = so.fillVoids});
   const auto start = std::chrono::steady_clock::now();
   const CartesianIndex index(dem.mesh, dem.mapping, so.index);
   const double seconds = secondsSince(start);
   f.add("mapping", index.mapping().describe());
   f.add("walls left out", index.stats().leftOut);
+  if (so.fillVoids > 0) f.add("voids filled", dem.filledPixels);
   f.add("max poly", so.index.tree.maxPoly);
   f.add("max depth", so.index.tree.maxDepth);
   treeFacts(index.stats(), seconds, false, f);

@@ -156,7 +156,7 @@ int renderTree(const RenderTreeOptions& o, std::ostream& out, std::ostream& err)
       }
     } else {
       // Drawn on the raster's own grid: a lon/lat raster's degrees are fine here.
-      dem.emplace(loadDem(so.source, {.band = so.band, .lonLatAsCartesian = true}));
+      dem.emplace(loadDem(so.source, {.band = so.band, .lonLatAsCartesian = true, .fillVoids = so.fillVoids}));
       built.emplace(dem->mesh, dem->mapping, so.index);
       treePtr = &built->tree();
       mapsFrom(*built);
