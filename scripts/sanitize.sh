@@ -25,9 +25,10 @@ if [ "$which" = all ] || [ "$which" = asan ]; then
   # path against the quadtree on Rainier (RotatedAndSyntheticGrids), tiles on a projected grid
   # (the other ShadowTiles.EqualTheWholeRaster*), and the tool building Rainier's whole
   # quadtree to print, draw or save it (cli.info, cli.render_tree.tree_file and
-  # cli.build.spherical_tree run the same code on smaller terrains): five minutes of the run.
+  # cli.build.spherical_tree run the same code on smaller terrains; the README's commands, whose
+  # tools the suite runs on smaller rasters): five minutes of the run.
   ctest --test-dir build-asan -j2 --output-on-failure --timeout 1200 \
-    -E '^(GridFastPath.RainierMatchesTheQuadtree|ShadowTiles.EqualTheWholeRasterOnAProjectedGrid|cli.info.lonlat|cli.render_tree.lonlat|cli.build.sample_tree)$'
+    -E '^(GridFastPath.RainierMatchesTheQuadtree|ShadowTiles.EqualTheWholeRasterOnAProjectedGrid|cli.info.lonlat|cli.render_tree.lonlat|cli.build.sample_tree|cli.readme_commands)$'
 fi
 if [ "$which" = all ] || [ "$which" = tsan ]; then
   # Line tables only: the stacks of a report, without the full debug information's build time.
