@@ -544,6 +544,12 @@ def _sample_frame(frame, source, x, y, name):
     return pd.Series(_sample_xy(source, frame[x].to_numpy(), frame[y].to_numpy()), index=frame.index, name=name)
 
 
+def _sample_geodataframe(frame, path, band, resampling, field):
+    from . import sample as sample_points
+
+    return sample_points(path, frame, band=band, resampling=resampling, field=field)
+
+
 def _sample_rows(points, source):
     return _sample_xy(source, points[:, 0], points[:, 1])
 
@@ -561,7 +567,8 @@ def _block_keys(frame, x, y, inverse, size, across):
     return keys
 
 
-def sample(source, points, *, band=1, x="x", y="y", by_block=False, block=1024, resampling="triangle"):
+def sample(source, points, *, band=1, x="x", y="y", by_block=False, block=1024, resampling="triangle",
+           field="height", chunksize=100_000):
     """Heights of a raster under points, lazily: qota.sample(source, x, y, resampling=...), bit
     for bit (with "triangle", Terrain.from_raster(source).heights(x, y)), NaN where there is no
     terrain (a hole, off the raster).
@@ -570,7 +577,12 @@ def sample(source, points, *, band=1, x="x", y="y", by_block=False, block=1024, 
     points: a dask DataFrame with columns `x` and `y` (the raster's CRS), giving a dask Series
         "height" with the same index and partitions; or a dask array of shape (n, 2), giving a
         dask array (n,) on the same row chunks. Each partition is answered in one batch by its
-        process's sampler, which groups the batch's points by raster tile.
+        process's sampler, which groups the batch's points by raster tile. Or GeoDataFrames of
+        points: a dask DataFrame whose partitions are geopandas GeoDataFrames
+        (`dask.dataframe.from_pandas(gdf, npartitions=...)`, or a dask-geopandas frame), giving
+        the same partitions with a column `field` of heights added, each partition's points taken
+        in its own CRS, as qota.sample(source, gdf) does; a geopandas GeoDataFrame itself is split
+        into partitions of `chunksize` rows first.
     by_block: for a DataFrame: shuffle the points first so that each partition holds the points
         of whole raster blocks of `block` x `block` pixels (where many random points fall on a
         raster larger than a worker's tile cache, each tile is then built once, not once a
@@ -585,6 +597,17 @@ def sample(source, points, *, band=1, x="x", y="y", by_block=False, block=1024, 
     if resampling not in RESAMPLINGS:
         raise Error(f"resampling must be one of {', '.join(RESAMPLINGS)}, got {resampling!r}")
     source = (path, band, resampling)
+    from . import _is_geodataframe
+    if _is_geodataframe(points) and not hasattr(points, "map_partitions"):
+        import dask.dataframe as dd
+        points = dd.from_pandas(points, chunksize=_whole(chunksize, "chunksize"))
+    if hasattr(points, "map_partitions") and _is_geodataframe(getattr(points, "_meta", None)):
+        if by_block:
+            raise Error("by_block takes a dask DataFrame of x, y columns; GeoDataFrames are answered in their own partitions")
+        if field in points.columns:
+            raise Error(f"the GeoDataFrame already has a column {field!r}; name the heights' column with field=")
+        meta = points._meta.assign(**{field: np.zeros(0, dtype=np.float64)})
+        return points.map_partitions(_sample_geodataframe, path, band, resampling, field, meta=meta)
     if hasattr(points, "map_partitions") and hasattr(points, "columns"):
         for column in (x, y):
             if column not in points.columns:
@@ -598,8 +621,8 @@ def sample(source, points, *, band=1, x="x", y="y", by_block=False, block=1024, 
         if len(points.chunks[1]) > 1:
             points = points.rechunk({1: 2})
         return points.map_blocks(_sample_rows, source, drop_axis=1, dtype=np.float64)
-    raise Error(f"points must be a dask DataFrame with columns {x!r} and {y!r}, or a dask array of shape (n, 2); "
-                f"got {type(points).__name__}")
+    raise Error(f"points must be a dask DataFrame with columns {x!r} and {y!r}, a dask array of shape (n, 2), "
+                f"or GeoDataFrames of points; got {type(points).__name__}")
 
 
 #: A point's place in its input: partition number * _PLACE + its row within the partition.

@@ -192,6 +192,40 @@ def test_points_equal_the_whole_terrain(client):
             np.testing.assert_array_equal(got.to_numpy(), expected.to_numpy())
 
 
+
+def test_geodataframes_through_dask(client):
+    gpd = pytest.importorskip("geopandas")
+    # Points in UTM (the frame's CRS, not the raster's), some empty and off the raster; nearest:
+    # the value rasterio reads in the pixel containing each point's longitude and latitude.
+    rng = np.random.default_rng(23)
+    with rasterio.open(RAINIER) as ds:
+        t, values = ds.transform, ds.read(1).astype(np.float64)
+    lon = rng.uniform(t.c + 0.01, t.c + 1 - 0.01, 3000)
+    lat = rng.uniform(t.f - 1 + 0.01, t.f - 0.01, 3000)
+    cols, rows = ~t * (lon, lat)
+    want = values[rows.astype(int), cols.astype(int)]
+    want[want == -32768] = np.nan
+    frame = gpd.GeoDataFrame({"id": np.arange(3000)}, geometry=gpd.points_from_xy(lon, lat), crs="EPSG:4326")
+    frame = frame.to_crs("EPSG:32610")
+    frame.loc[[5, 6], "geometry"] = gpd.points_from_xy([0.0, None], [0.0, None], crs="EPSG:32610")
+    want[[5, 6]] = np.nan
+    lazy = qota.dask.sample(RAINIER, dd.from_pandas(frame, npartitions=4), resampling="nearest", field="elev")
+    assert lazy.npartitions == 4 and list(lazy.columns) == ["id", "geometry", "elev"]
+    got = lazy.compute()
+    assert isinstance(got, gpd.GeoDataFrame) and got.crs == frame.crs and got.index.equals(frame.index)
+    near_edge = np.isclose(cols % 1, 0, atol=1e-6) | np.isclose(rows % 1, 0, atol=1e-6)  # (UTM round trip)
+    np.testing.assert_array_equal(got["elev"].to_numpy()[~near_edge], want[~near_edge])
+    assert np.isnan(want).sum() >= 2 and (~np.isnan(want)).sum() > 2900
+    # A GeoDataFrame itself is split into partitions of chunksize rows; the triangle rule is
+    # qota.sample's.
+    lazy = qota.dask.sample(RAINIER, frame, chunksize=1000)
+    assert lazy.npartitions == 3
+    np.testing.assert_array_equal(lazy.compute()["height"].to_numpy(), qota.sample(RAINIER, frame)["height"].to_numpy())
+    with pytest.raises(qota.Error, match="already has a column"):
+        qota.dask.sample(RAINIER, got, field="elev")
+    with pytest.raises(qota.Error, match="by_block"):
+        qota.dask.sample(RAINIER, frame, by_block=True)
+
 @pytest.fixture(scope="module")
 def wide_void(part, tmp_path_factory):
     """The part with a void 120 pixels across: its fill reaches 60 pixels in, farther than a block's
