@@ -12,19 +12,21 @@
 
 namespace qota::tools {
 
-std::vector<double> hillshade(const LocalFrame& f, const Eigen::Vector3d& light) {
+double hillshadeAt(const LocalFrame& f, int c, int r, const Eigen::Vector3d& light) {
   const int w = f.width, h = f.height;
-  std::vector<double> shade(f.pixelCount(), -1.0);
-  const auto& v = f.mesh.vertices;
-  const auto at = [&](int c, int r) -> const Eigen::Vector3d& {
-    return v[static_cast<std::size_t>(std::clamp(r, 0, h - 1)) * w + std::clamp(c, 0, w - 1)];
+  const auto at = [&](int cc, int rr) -> const Eigen::Vector3d& {
+    return f.mesh.vertices[static_cast<std::size_t>(std::clamp(rr, 0, h - 1)) * w + std::clamp(cc, 0, w - 1)];
   };
-  for (int r = 0; r < h; ++r) {
-    for (int c = 0; c < w; ++c) {
-      const std::size_t i = static_cast<std::size_t>(r) * w + c;
-      if (!f.valid[i]) continue;
-      const Eigen::Vector3d n = (at(c + 1, r) - at(c - 1, r)).cross(at(c, r - 1) - at(c, r + 1));
-      shade[i] = n.squaredNorm() > 0 && std::isfinite(n.squaredNorm()) ? std::max(0.0, n.normalized().dot(light)) : 0.5;
+  const Eigen::Vector3d n = (at(c + 1, r) - at(c - 1, r)).cross(at(c, r - 1) - at(c, r + 1));
+  return n.squaredNorm() > 0 && std::isfinite(n.squaredNorm()) ? std::max(0.0, n.normalized().dot(light)) : 0.5;
+}
+
+std::vector<double> hillshade(const LocalFrame& f, const Eigen::Vector3d& light) {
+  std::vector<double> shade(f.pixelCount(), -1.0);
+  for (int r = 0; r < f.height; ++r) {
+    for (int c = 0; c < f.width; ++c) {
+      const std::size_t i = static_cast<std::size_t>(r) * f.width + c;
+      if (f.valid[i]) shade[i] = hillshadeAt(f, c, r, light);
     }
   }
   return shade;

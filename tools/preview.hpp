@@ -14,8 +14,10 @@
 namespace qota::tools {
 
 // Lambertian shade of each pixel of the frame lit from `light` (frame coordinates, unit), in
-// [0, 1]; -1 where the DEM has no height.
+// [0, 1], from the central differences of its neighbours' positions (clamped at the edges); -1
+// where the DEM has no height. hillshadeAt: one pixel's (0.5 where its normal is undefined).
 std::vector<double> hillshade(const LocalFrame& f, const Eigen::Vector3d& light);
+double hillshadeAt(const LocalFrame& f, int c, int r, const Eigen::Vector3d& light);
 
 struct Colour {
   std::uint8_t r = 0, g = 0, b = 0;

@@ -25,6 +25,7 @@
 #include "qota/mapping_registry.hpp"
 #include "qota/treefile.hpp"
 #include "qota/shadow.hpp"
+#include "preview.hpp"
 #include "qota_tools.hpp"
 #include "text_output.hpp"
 
@@ -47,18 +48,6 @@ std::int64_t cellAt(const Quadtree& tree, double u, double v, std::uint32_t dept
 double leafGrey(std::uint32_t polygons, std::uint32_t maxPoly) {
   const double t = std::min(1.0, std::log1p(polygons) / std::log1p(std::max(maxPoly, 1u)));
   return kEmptyGrey - (kEmptyGrey - kFullGrey) * t;
-}
-
-// Lambert shading in [0, 1] at a DEM pixel under `light` (unit, frame coordinates), from the
-// central differences of its neighbours' positions in the frame's metres.
-double lambert(const LocalFrame& f, int c, int r, const Eigen::Vector3d& light) {
-  const auto at = [&](int cc, int rr) -> const Eigen::Vector3d& {
-    cc = std::clamp(cc, 0, f.width - 1), rr = std::clamp(rr, 0, f.height - 1);
-    return f.mesh.vertices[static_cast<std::size_t>(rr) * f.width + cc];
-  };
-  const Eigen::Vector3d east = at(c + 1, r) - at(c - 1, r), north = at(c, r - 1) - at(c, r + 1);
-  const Eigen::Vector3d n = east.cross(north);
-  return n.squaredNorm() > 0 ? std::max(0.0, n.normalized().dot(light)) : 1.0;
 }
 
 // A one-band Byte image encoded as PNG by GDAL's driver (a MEM dataset copied to an in-memory
@@ -222,7 +211,7 @@ int renderTree(const RenderTreeOptions& o, std::ostream& out, std::ostream& err)
         if (dem) {
           const auto [col, row] = rasterAt(i, j);
           const int c = std::clamp(int(col), 0, gridW - 1), r = std::clamp(int(row), 0, gridH - 1);
-          if (frame->valid[static_cast<std::size_t>(r) * gridW + c]) shade = lambert(*frame, c, r, light);
+          if (frame->valid[static_cast<std::size_t>(r) * gridW + c]) shade = hillshadeAt(*frame, c, r, light);
         }
         px = static_cast<std::uint8_t>(std::lround(fill * (1 - kShadeDepth + kShadeDepth * shade)));
       }

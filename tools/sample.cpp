@@ -26,6 +26,7 @@
 
 #include "index_source.hpp"
 #include "sample_lines.hpp"
+#include "qota/crs_transform.hpp"
 #include "qota/batch.hpp"
 #include "qota/curved.hpp"
 #include "qota/dem.hpp"
@@ -53,16 +54,8 @@ std::unique_ptr<OGRCoordinateTransformation> makeTransform(const std::string& sr
   if (source.crsWkt.empty()) {
     throw Error(source.path + ": the source has no CRS, so points given in --srs cannot be placed on it");
   }
-  OGRSpatialReference from, to;
-  if (from.SetFromUserInput(srs.c_str()) != OGRERR_NONE) {
-    throw Error("--srs '" + srs + "' is not a coordinate reference system GDAL knows");
-  }
-  to.importFromWkt(source.crsWkt.c_str());
-  from.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  to.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  std::unique_ptr<OGRCoordinateTransformation> ct(OGRCreateCoordinateTransformation(&from, &to));
-  if (!ct) throw Error("--srs '" + srs + "': no transformation to the source's CRS");
-  return ct;
+  return transformTo(*crsFromUser(srs, "--srs"), source.crsWkt,
+                     "--srs '" + srs + "': no transformation to the source's CRS");
 }
 
 // A surface answered point by point (a const index: any number of threads at once).

@@ -13,6 +13,7 @@
 
 #include "cancel.hpp"
 #include "gdal_errors.hpp"
+#include "qota/crs_transform.hpp"
 #include "qota/atomic_file.hpp"
 #include "qota/dem.hpp"
 #include "qota/error.hpp"
@@ -47,9 +48,7 @@ std::unique_ptr<OGRCoordinateTransformation> transformFrom(OGRLayer& layer, cons
                                                            const std::string& sourceWkt) {
   OGRSpatialReference from;
   if (!o.srs.empty()) {
-    if (from.SetFromUserInput(o.srs.c_str()) != OGRERR_NONE) {
-      throw Error("--srs '" + o.srs + "' is not a coordinate reference system GDAL knows");
-    }
+    from = *crsFromUser(o.srs, "--srs");
   } else if (const OGRSpatialReference* own = layer.GetSpatialRef()) {
     from = *own;
   } else {
@@ -62,11 +61,7 @@ std::unique_ptr<OGRCoordinateTransformation> transformFrom(OGRLayer& layer, cons
   OGRSpatialReference to;
   to.importFromWkt(sourceWkt.c_str());
   if (from.IsSame(&to)) return nullptr;
-  from.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  to.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  std::unique_ptr<OGRCoordinateTransformation> ct(OGRCreateCoordinateTransformation(&from, &to));
-  if (!ct) throw Error(o.inputFile + ": no transformation from its CRS to the source's");
-  return ct;
+  return transformTo(from, sourceWkt, o.inputFile + ": no transformation from its CRS to the source's");
 }
 
 std::string featureName(const OGRFeature& f) {

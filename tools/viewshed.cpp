@@ -1,4 +1,5 @@
 // qota viewshed: what an observer sees of a DEM (see qota_tools.hpp and qota/viewshed.hpp).
+#include "qota/crs_transform.hpp"
 #include "qota/viewshed.hpp"
 
 #include <Eigen/Geometry>
@@ -36,12 +37,8 @@ void toRasterCrs(const OGRSpatialReference* from, const DemTerrain& dem, std::ve
                  const std::string& what) {
   if (!from || points.empty()) return;
   if (dem.crsWkt.empty()) throw Error(dem.path + ": the raster has no CRS, so " + what + " cannot be placed on it");
-  OGRSpatialReference source(*from), to;
-  to.importFromWkt(dem.crsWkt.c_str());
-  source.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  to.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  const std::unique_ptr<OGRCoordinateTransformation> ct(OGRCreateCoordinateTransformation(&source, &to));
-  if (!ct) throw Error(what + ": no transformation to the raster's CRS");
+  const std::unique_ptr<OGRCoordinateTransformation> ct =
+      transformTo(*from, dem.crsWkt, what + ": no transformation to the raster's CRS");
   for (Observer& p : points) {
     const double x0 = p.x, y0 = p.y;
     if (!ct->Transform(1, &p.x, &p.y) || !std::isfinite(p.x) || !std::isfinite(p.y)) {
@@ -52,12 +49,7 @@ void toRasterCrs(const OGRSpatialReference* from, const DemTerrain& dem, std::ve
 }
 
 std::unique_ptr<OGRSpatialReference> srsOf(const std::string& srs) {
-  if (srs.empty()) return nullptr;
-  auto s = std::make_unique<OGRSpatialReference>();
-  if (s->SetFromUserInput(srs.c_str()) != OGRERR_NONE) {
-    throw Error("--srs '" + srs + "' is not a coordinate reference system GDAL knows");
-  }
-  return s;
+  return srs.empty() ? nullptr : crsFromUser(srs, "--srs");
 }
 
 // Text lines "x y [height]" (spaces, tabs or commas; '#' starts a comment), in --srs or the

@@ -20,6 +20,7 @@
 #include <variant>
 #include <vector>
 
+#include "qota/crs_transform.hpp"
 #include "qota/any_index.hpp"
 #include "qota/batch.hpp"
 #include "qota/curved.hpp"
@@ -676,15 +677,8 @@ class Sampler {
     inverse_ = dem.inverseGeotransform();
     if (!srs.empty()) {
       if (dem.crsWkt.empty()) throw qota::Error(path + ": the raster has no CRS, so points in srs cannot be placed");
-      OGRSpatialReference from, to;
-      if (from.SetFromUserInput(srs.c_str()) != OGRERR_NONE) {
-        throw qota::Error("srs '" + srs + "' is not a coordinate reference system GDAL knows");
-      }
-      to.importFromWkt(dem.crsWkt.c_str());
-      from.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-      to.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-      transform_.reset(OGRCreateCoordinateTransformation(&from, &to));
-      if (!transform_) throw qota::Error("srs '" + srs + "': no transformation to the raster's CRS");
+      transform_ = qota::transformTo(*qota::crsFromUser(srs, "srs"), dem.crsWkt,
+                                     "srs '" + srs + "': no transformation to the raster's CRS");
     }
   }
 
