@@ -14,6 +14,7 @@
 
 #include "qota/error.hpp"
 #include "qota/raster_grid.hpp"
+#include "qota/terrain.hpp"
 #include "qota/viewshed.hpp"
 #include "qota_tools.hpp"
 #include "raster_files.hpp"
@@ -289,6 +290,49 @@ TEST(PointLight, AbsoluteHeightIsTheSameLight) {
   EXPECT_EQ(qota::pointLightMask(dem, above), qota::pointLightMask(dem, absolute));
   above.height = 0;
   EXPECT_THROW(qota::pointLightMask(dem, above), qota::Error);
+}
+
+TEST(SegmentMeets, NamesATriangleTheOracleSaysItMeets) {
+  // Random integer heights on a 24 x 20 grid of quarter metres, two triangles a square; segments
+  // between random points a quarter metre off the integers (never on a vertex's height): the
+  // index says one meets terrain exactly when the oracle finds a triangle it meets, and the
+  // triangle it names is one of those.
+  std::mt19937 rng(20261127);
+  const int w = 24, h = 20;
+  qota::Mesh mesh;
+  std::vector<P3> q;
+  std::uniform_int_distribution<int> height(0, 12);
+  for (int r = 0; r < h; ++r) {
+    for (int c = 0; c < w; ++c) {
+      const P3 p{4LL * c, 4LL * r, 4LL * height(rng)};
+      q.push_back(p);
+      mesh.addVertex({static_cast<double>(p.x), static_cast<double>(p.y), static_cast<double>(p.z)});
+    }
+  }
+  qota::RasterGrid(w, h, {}).appendTriangles(mesh, [](std::uint32_t) { return true; });
+  const qota::CartesianIndex index(mesh, qota::CartesianMapping());
+  std::uniform_int_distribution<int> x(0, 4 * (w - 1)), y(0, 4 * (h - 1)), z(0, 4 * 14);
+  int met = 0, clear = 0;
+  for (int k = 0; k < 4000; ++k) {
+    const P3 a{x(rng), y(rng), 4LL * (z(rng) / 4) + 1}, b{x(rng), y(rng), 4LL * (z(rng) / 4) + 3};
+    std::vector<std::uint32_t> meeting;
+    for (std::size_t t = 0; t < mesh.polygonCount(); ++t) {
+      const auto c = mesh.polygon(t);
+      if (meets(a, b, q[c[0]], q[c[1]], q[c[2]])) meeting.push_back(static_cast<std::uint32_t>(t));
+    }
+    const Eigen::Vector3d da(a.x, a.y, a.z), db(b.x, b.y, b.z);
+    const std::uint32_t which = index.segmentMeetsWhich(da, db);
+    ASSERT_EQ(which != qota::CartesianIndex::kNoPolygon, !meeting.empty()) << k;
+    ASSERT_EQ(index.segmentMeets(da, db), !meeting.empty()) << k;
+    if (meeting.empty()) {
+      ++clear;
+    } else {
+      EXPECT_TRUE(std::count(meeting.begin(), meeting.end(), which)) << k;
+      ++met;
+    }
+  }
+  EXPECT_GT(met, 500);
+  EXPECT_GT(clear, 500);
 }
 
 TEST(Viewshed, FlatPlainSeenFromTheGroundIsVisible) {

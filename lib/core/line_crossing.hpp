@@ -4,6 +4,7 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <limits>
 
 #include "qota/predicates.hpp"
 
@@ -31,6 +32,24 @@ inline bool crossesTriangle(const double q[3][3], const Eigen::Vector3d& d, Line
   if (nd == 0) return false;
   out.t = out.normal.dot(a) / nd;
   return std::isfinite(out.t);
+}
+
+// Whether the open segment O + t d, 0 < t < 1, meets the triangle whose corners are O + q[k]:
+// crossesTriangle's rule, t in floating point. Most triangles near a segment lie clearly to one
+// side of it seen from above: the vertical plane through it (the sign of d x q in the plane,
+// rounded, with a bound on its error) parts them from it before the three exact side tests.
+// The one rule of the planar index's segments (PlanarCore::segmentMeets) and of what tries a
+// triangle before it (viewshed.cpp).
+inline bool segmentMeetsTriangle(const double q[3][3], const Eigen::Vector3d& d) {
+  int left = 0, right = 0;
+  for (int k = 0; k < 3; ++k) {
+    const double a = d.x() * q[k][1], b = d.y() * q[k][0], side = a - b;
+    const double bound = 4 * std::numeric_limits<double>::epsilon() * (std::fabs(a) + std::fabs(b));
+    left += side > bound, right += side < -bound;
+  }
+  if (left == 3 || right == 3) return false;
+  LineCrossing x;
+  return crossesTriangle(q, d, x) && x.t > 0 && x.t < 1;
 }
 
 }  // namespace qota::detail

@@ -103,12 +103,12 @@ void PlanarCore::ensureNodeTops() const {
   deferred_->topsFor.store(generation_ + 1, std::memory_order_release);
 }
 
-bool PlanarCore::segmentMeets(const Eigen::Vector3d& a, const Eigen::Vector3d& b, std::uint32_t endVertex,
-                              std::span<const std::uint32_t> skip) const {
+std::uint32_t PlanarCore::segmentMeetsWhich(const Eigen::Vector3d& a, const Eigen::Vector3d& b, std::uint32_t endVertex,
+                                            std::span<const std::uint32_t> skip) const {
   ensureNodeTops();
   const Eigen::Vector3d O = frame_.toMapped(a);
   const Eigen::Vector3d d = frame_.toMapped(b) - O;
-  if (!O.allFinite() || !d.allFinite()) return false;
+  if (!O.allFinite() || !d.allFinite()) return kNoPolygon;
   // A node is passed over when the segment's lowest height over it is above its highest
   // triangle corner (hhi is rounded up), with a margin far above the rounding of t and h.
   const double margin = 1e-9 * (std::fabs(O.z()) + std::fabs(d.z())) + 1e-9;
@@ -116,6 +116,7 @@ bool PlanarCore::segmentMeets(const Eigen::Vector3d& a, const Eigen::Vector3d& b
     const double top = nodeTops_[node];
     return !(O.z() + std::min(t0 * d.z(), t1 * d.z()) > top + 1e-12 * std::fabs(top) + 2 * margin);
   };
+  std::uint32_t met = kNoPolygon;
   const auto meets = [&](std::span<const std::uint32_t> items) {
     for (std::uint32_t t : items) {
       const Cold& c = cold_[t];
@@ -126,26 +127,14 @@ bool PlanarCore::segmentMeets(const Eigen::Vector3d& a, const Eigen::Vector3d& b
         const std::uint32_t v = c.corner[k];
         q[k][0] = corners2_[v].u - O.x(), q[k][1] = corners2_[v].v - O.y(), q[k][2] = cornerH_[v] - O.z();
       }
-      // Most triangles of a leaf lie clearly to one side of the segment seen from above: the
-      // vertical plane through it (the sign of d x q in the plane, rounded, with a bound on its
-      // error) parts them from it before the three exact side tests.
-      int left = 0, right = 0;
-      for (const auto& k : q) {
-        const double a = d.x() * k[1], b = d.y() * k[0], side = a - b;
-        const double bound = 4 * std::numeric_limits<double>::epsilon() * (std::fabs(a) + std::fabs(b));
-        left += side > bound, right += side < -bound;
+      if (detail::segmentMeetsTriangle(q, d)) {
+        met = c.polygon;
+        return true;
       }
-      if (left == 3 || right == 3) continue;
-      detail::LineCrossing x;
-      if (detail::crossesTriangle(q, d, x) && x.t > 0 && x.t < 1) return true;
     }
     return false;
   };
-  bool met = false;
-  tree_.walkAlong(O.x(), O.y(), O.x() + d.x(), O.y() + d.y(), enter, [&](std::span<const std::uint32_t> items) {
-    met = meets(items);
-    return met;
-  });
+  tree_.walkAlong(O.x(), O.y(), O.x() + d.x(), O.y() + d.y(), enter, meets);
   return met;
 }
 

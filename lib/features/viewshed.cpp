@@ -7,6 +7,7 @@
 #include <memory>
 #include <thread>
 
+#include "line_crossing.hpp"
 #include "qota/error.hpp"
 #include "qota/terrain.hpp"
 #include "shadow_facing.hpp"
@@ -173,7 +174,70 @@ class Sightlines {
       throw Error(dem_.path + ": no terrain to see (no square of pixels with data" +
                   (reach > 0 ? std::string(" within the maximum distance)") : std::string(")")));
     }
+    // Each inner triangle's square and half, both ways (appendTriangles: (TL, BL, BR), then
+    // (TL, BR, TR)), for guessing from a neighbour's blocker (guess()).
+    const std::size_t w = static_cast<std::size_t>(frame_.width);
+    squareOf_.assign(terrain.polygonCount(), CartesianIndex::kNoPolygon);
+    triangleAt_.assign(2 * n, CartesianIndex::kNoPolygon);
+    for (std::size_t p = 0; p < terrain.polygonCount(); ++p) {
+      const auto c = terrain.polygon(p);
+      if (c[0] >= n || c[1] >= n || c[2] >= n) continue;  // (the outer half pixel, a seam, a cap)
+      const std::size_t code = 2 * c[0] + (c[1] == c[0] + w ? 0 : 1);
+      squareOf_[p] = static_cast<std::uint32_t>(code);
+      triangleAt_[code] = static_cast<std::uint32_t>(p);
+    }
     index_ = std::make_unique<CartesianIndex>(terrain, CartesianMapping(), indexOptions_);
+  }
+
+  // The polygon of a triangle in the 3 x 3 squares around `blocker`'s (a triangle that blocked a
+  // neighbouring line of sight) that the open segment from a to b meets, by the index's own rule
+  // (segmentMeetsTriangle; endVertex and skip as segmentMeets), or kNoPolygon. Lines of sight to
+  // neighbouring pixels pass within a pixel of each other before their targets, so a ridge that
+  // hides one mostly hides the other there: one guess, a few dozen side tests, in place of a walk.
+  // A triangle met answers as the walk would (it would find one); none found says nothing.
+  std::uint32_t guess(std::uint32_t blocker, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                      std::uint32_t endVertex, std::span<const std::uint32_t> skip) const {
+    if (blocker >= squareOf_.size() || squareOf_[blocker] == CartesianIndex::kNoPolygon)
+      return CartesianIndex::kNoPolygon;
+    const int w = frame_.width, h = frame_.height;
+    const std::uint32_t tl = squareOf_[blocker] / 2;
+    const int col = static_cast<int>(tl % w), row = static_cast<int>(tl / w);
+    const Eigen::Vector3d d = b - a;
+    const auto& v = frame_.mesh.vertices;
+    static constexpr int kOrder[3] = {0, -1, 1};
+    for (int dr : kOrder) {
+      for (int dc : kOrder) {
+        const int c = col + dc, r = row + dr;
+        if (c < 0 || r < 0 || c > w - 2 || r > h - 2) continue;
+        const std::uint32_t corner = static_cast<std::uint32_t>(r * w + c);
+        const std::uint32_t corners[2][3] = {{corner, corner + w, corner + w + 1},
+                                             {corner, corner + w + 1, corner + 1}};
+        for (int half = 0; half < 2; ++half) {
+          const std::uint32_t p = triangleAt_[2 * corner + half];
+          if (p == CartesianIndex::kNoPolygon) continue;
+          const std::uint32_t* k = corners[half];
+          if (k[0] == endVertex || k[1] == endVertex || k[2] == endVertex) continue;
+          if (!skip.empty() && std::binary_search(skip.begin(), skip.end(), p)) continue;
+          double q[3][3];  // the corners' offsets from a (line_crossing.hpp)
+          for (int j = 0; j < 3; ++j) {
+            for (int i = 0; i < 3; ++i) q[j][i] = v[k[j]][i] - a[i];
+          }
+          if (detail::segmentMeetsTriangle(q, d)) return p;
+        }
+      }
+    }
+    return CartesianIndex::kNoPolygon;
+  }
+
+  // Whether the open segment from a to b meets the terrain (segmentMeets), trying `blocker`'s
+  // neighbourhood first (guess); blocker becomes the triangle met, when one is.
+  bool meets(std::uint32_t& blocker, const Eigen::Vector3d& a, const Eigen::Vector3d& b, std::uint32_t endVertex,
+             std::span<const std::uint32_t> skip = {}) const {
+    std::uint32_t met = guess(blocker, a, b, endVertex, skip);
+    if (met == CartesianIndex::kNoPolygon) met = index_->segmentMeetsWhich(a, b, endVertex, skip);
+    if (met == CartesianIndex::kNoPolygon) return false;
+    blocker = met;
+    return true;
   }
 
   const CartesianIndex& index() const { return *index_; }
@@ -207,6 +271,7 @@ class Sightlines {
       for (std::size_t r; !stop && (r = nextRow++) < static_cast<std::size_t>(h);) {
         // Frame pixel i is the raster's pixel `at` (the frame may be a window of it).
         const std::size_t rowStart = (win.row + r) * static_cast<std::size_t>(dem_.width) + win.col - r * w;
+        std::uint32_t blocker = CartesianIndex::kNoPolygon;  // the last pixel's, along the row
         for (std::size_t i = r * w; i < (r + 1) * w; ++i) {
           if (!frame_.valid[i]) continue;
           const std::size_t at = rowStart + i;
@@ -217,8 +282,8 @@ class Sightlines {
           // A target on the surface is the vertex itself, whose own triangles meet its segment only there.
           const bool onSurface = targetHeight == 0;
           const Eigen::Vector3d target = onSurface ? v[i] : v[i] + targetHeight * frame_.upAt(v[i]);
-          const bool blocked = index.segmentMeets(
-              observer, target, onSurface ? static_cast<std::uint32_t>(i) : CartesianIndex::kNoVertex, standsOn);
+          const bool blocked = meets(blocker, observer, target,
+                                     onSurface ? static_cast<std::uint32_t>(i) : CartesianIndex::kNoVertex, standsOn);
           visit(at, blocked ? Sight::Hidden : Sight::Visible);
         }
         const std::size_t done = ++rowsDone;
@@ -308,6 +373,8 @@ class Sightlines {
   std::vector<std::uint8_t> valid_;
   IndexOptions indexOptions_;
   std::unique_ptr<CartesianIndex> index_;
+  // Each inner triangle's square (its top-left vertex) * 2 + its half, and back (index()).
+  std::vector<std::uint32_t> squareOf_, triangleAt_;
 };
 
 unsigned threadsOr(unsigned threads) {
@@ -437,12 +504,12 @@ std::vector<Light> pointLightMask(const DemTerrain& dem, const PointLightOptions
         shadow::facingOf(f, c, (light - mesh.vertices[c[0]]).normalized(), f.body.ellipsoid ? f.gridWinding : 0);
   }
   std::vector<Light> out(f.pixelCount(), Light::NoData);
-  const CartesianIndex& index = sight.index();
   const int w = f.width, h = f.height;
   std::atomic<std::size_t> nextRow{0}, rowsDone{0};
   std::atomic<bool> stop{false};
   shadow::inThreads(threadsOr(threads), [&](unsigned k) {
     for (std::size_t r; !stop && (r = nextRow++) < static_cast<std::size_t>(h);) {
+      std::uint32_t blocker = CartesianIndex::kNoPolygon;  // the last pixel's, along the row
       for (std::size_t i = r * w; i < (r + 1) * w; ++i) {
         if (!f.valid[i]) continue;
         std::uint32_t ring[RasterGrid::kMaxRing];
@@ -451,7 +518,7 @@ std::vector<Light> pointLightMask(const DemTerrain& dem, const PointLightOptions
         const Eigen::Vector3d& p = mesh.vertices[i];
         const bool attached = shadow::attachedShadow(f, std::span<const std::uint32_t>(ring, count), closed,
                                                      static_cast<std::uint32_t>(i), light - p, facing.data());
-        out[i] = attached || index.segmentMeets(light, p, static_cast<std::uint32_t>(i)) ? Light::Shadow : Light::Lit;
+        out[i] = attached || sight.meets(blocker, light, p, static_cast<std::uint32_t>(i)) ? Light::Shadow : Light::Lit;
       }
       const std::size_t done = ++rowsDone;
       if (k == 0 && progress && !progress(0.1 + 0.9 * static_cast<double>(done) / h, "testing pixels")) stop = true;

@@ -102,7 +102,14 @@ class PlanarCore : public IndexFace<PlanarCore> {
   // triangle met: a viewshed's line of sight, a point light's ray. Thread-safe with queries.
   static constexpr std::uint32_t kNoVertex = 0xffffffffu;
   bool segmentMeets(const Eigen::Vector3d& a, const Eigen::Vector3d& b, std::uint32_t endVertex = kNoVertex,
-                    std::span<const std::uint32_t> skip = {}) const;
+                    std::span<const std::uint32_t> skip = {}) const {
+    return segmentMeetsWhich(a, b, endVertex, skip) != kNoPolygon;
+  }
+  // The same, naming the polygon of the triangle met (the first the walk finds), or kNoPolygon:
+  // a neighbouring line of sight is often blocked by it too (viewshed.cpp tries it first).
+  static constexpr std::uint32_t kNoPolygon = 0xffffffffu;
+  std::uint32_t segmentMeetsWhich(const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                                  std::uint32_t endVertex = kNoVertex, std::span<const std::uint32_t> skip = {}) const;
 
   // Dynamic edits (the paper's dynamic insertion). insertPolygon adds a convex polygon given by
   // its world corners (at least 3, finite; the same rules as the mesh's polygons) and returns its
