@@ -33,7 +33,9 @@ constexpr PerItem kCurvedIndex{40, 360};
 // A shadow mask: the frame's mesh, the facing, the strips, the cell order. Measured up to 53.
 constexpr PerItem kShadow{40, 70};
 // Lines of sight (viewsheds, point lights): the frame, the heights in metres, the blocking
-// triangles' mesh and their CartesianIndex. Measured 300 MB for 556 x 556 pixels, with the process.
+// triangles' mesh and their CartesianIndex, and each triangle's square both ways (8 bytes, for
+// the blocker guess). Measured 300 MB for 556 x 556 pixels, with the process; 2.28 GB for
+// 2000 x 2000 (bench/viewshed_bench.sh), where this says 2.91 GiB.
 constexpr PerItem kLinesOfSight{100, 300};
 
 // Memory available to this process for new work, in bytes: the least of MemAvailable (else
