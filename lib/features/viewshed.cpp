@@ -2,6 +2,7 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cmath>
 #include <memory>
@@ -174,17 +175,16 @@ class Sightlines {
       throw Error(dem_.path + ": no terrain to see (no square of pixels with data" +
                   (reach > 0 ? std::string(" within the maximum distance)") : std::string(")")));
     }
-    // Each inner triangle's square and half, both ways (appendTriangles: (TL, BL, BR), then
-    // (TL, BR, TR)), for guessing from a neighbour's blocker (guess()).
-    const std::size_t w = static_cast<std::size_t>(frame_.width);
+    // Each inner triangle's number in the raster rule (RasterGrid::innerTriangle) and back, for
+    // guessing from a neighbour's blocker (guess()).
     squareOf_.assign(terrain.polygonCount(), CartesianIndex::kNoPolygon);
-    triangleAt_.assign(2 * n, CartesianIndex::kNoPolygon);
+    triangleAt_.assign(frame_.grid.innerTriangleCount(), CartesianIndex::kNoPolygon);
     for (std::size_t p = 0; p < terrain.polygonCount(); ++p) {
       const auto c = terrain.polygon(p);
-      if (c[0] >= n || c[1] >= n || c[2] >= n) continue;  // (the outer half pixel, a seam, a cap)
-      const std::size_t code = 2 * c[0] + (c[1] == c[0] + w ? 0 : 1);
-      squareOf_[p] = static_cast<std::uint32_t>(code);
-      triangleAt_[code] = static_cast<std::uint32_t>(p);
+      if (const auto slot = frame_.grid.innerTriangleWith(c[0], c[1], c[2])) {  // (not the border, a seam, a cap)
+        squareOf_[p] = static_cast<std::uint32_t>(*slot);
+        triangleAt_[*slot] = static_cast<std::uint32_t>(p);
+      }
     }
     index_ = std::make_unique<CartesianIndex>(terrain, CartesianMapping(), indexOptions_);
   }
@@ -200,8 +200,8 @@ class Sightlines {
     if (blocker >= squareOf_.size() || squareOf_[blocker] == CartesianIndex::kNoPolygon)
       return CartesianIndex::kNoPolygon;
     const int w = frame_.width, h = frame_.height;
-    const std::uint32_t tl = squareOf_[blocker] / 2;
-    const int col = static_cast<int>(tl % w), row = static_cast<int>(tl / w);
+    const std::uint32_t square = squareOf_[blocker] / 2;
+    const int col = static_cast<int>(square % (w - 1)), row = static_cast<int>(square / (w - 1));
     const Eigen::Vector3d d = b - a;
     const auto& v = frame_.mesh.vertices;
     static constexpr int kOrder[3] = {0, -1, 1};
@@ -209,13 +209,11 @@ class Sightlines {
       for (int dc : kOrder) {
         const int c = col + dc, r = row + dr;
         if (c < 0 || r < 0 || c > w - 2 || r > h - 2) continue;
-        const std::uint32_t corner = static_cast<std::uint32_t>(r * w + c);
-        const std::uint32_t corners[2][3] = {{corner, corner + w, corner + w + 1},
-                                             {corner, corner + w + 1, corner + 1}};
-        for (int half = 0; half < 2; ++half) {
-          const std::uint32_t p = triangleAt_[2 * corner + half];
+        for (std::uint32_t half = 0; half < 2; ++half) {
+          const std::uint64_t slot = RasterGrid::innerTriangle(w, r, c, half);
+          const std::uint32_t p = triangleAt_[slot];
           if (p == CartesianIndex::kNoPolygon) continue;
-          const std::uint32_t* k = corners[half];
+          const std::array<std::uint32_t, 3> k = frame_.grid.triangle(slot);
           if (k[0] == endVertex || k[1] == endVertex || k[2] == endVertex) continue;
           if (!skip.empty() && std::binary_search(skip.begin(), skip.end(), p)) continue;
           double q[3][3];  // the corners' offsets from a (line_crossing.hpp)
@@ -373,7 +371,7 @@ class Sightlines {
   std::vector<std::uint8_t> valid_;
   IndexOptions indexOptions_;
   std::unique_ptr<CartesianIndex> index_;
-  // Each inner triangle's square (its top-left vertex) * 2 + its half, and back (index()).
+  // Each inner triangle's number in the raster rule, and back (index()).
   std::vector<std::uint32_t> squareOf_, triangleAt_;
 };
 
