@@ -480,7 +480,10 @@ bool Quadtree::splitNode(std::uint32_t node, const Box2& box, std::uint32_t dept
   for (int c = 0; c < 4; ++c) {
     sub[c].clear();
     sub[c].reserve(items.size() / 2);
-    for (std::uint32_t it : items) {
+  }
+  // Item by item (each item's data read once for its four children), in the items' order.
+  for (std::uint32_t it : items) {
+    for (int c = 0; c < 4; ++c) {
       if (overlaps(it, child[c])) sub[c].push_back(it);
     }
   }

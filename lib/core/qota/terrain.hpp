@@ -213,9 +213,26 @@ class PlanarCore : public IndexFace<PlanarCore> {
                   const IndexOptions& options);
   void checkCorners(std::span<const std::uint32_t> idx, std::size_t polygon,
                     std::span<const Eigen::Vector3d> vertices) const;
+  bool nonFiniteVertex_ = false;  // startBuild saw a vertex, or its mapped point, not finite
   void finishBuild(std::vector<Pending>& pending, const Lattice* lattice, const IndexOptions& options);
   Box2 makeRecord(std::uint32_t t, const Pending& q);
-  bool overlaps(std::uint32_t t, const Box2& triangleBox, const Box2& box) const;
+  // A triangle is referenced from a leaf when its closed projection meets the closed leaf box
+  // (separating axes: the box axes, then each edge with its error bound, so that a triangle is
+  // dropped only when the box is certainly outside it). Inline: the build asks it four times
+  // per triangle a level.
+  bool overlaps(std::uint32_t t, const Box2& tb, const Box2& b) const {
+    if (tb.ulo > b.uhi || tb.uhi < b.ulo || tb.vlo > b.vhi || tb.vhi < b.vlo) return false;
+    // A triangle whose box lies in the box along either axis meets it: the box's band along
+    // that axis crosses the triangle (most of a build's tests above the leaves' size).
+    if ((tb.ulo >= b.ulo && tb.uhi <= b.uhi) || (tb.vlo >= b.vlo && tb.vhi <= b.vhi)) return true;
+    const Tri& r = tris_[t];
+    for (int k = 0; k < 3; ++k) {
+      const double u = r.A[k] >= 0 ? b.uhi : b.ulo;
+      const double v = r.B[k] >= 0 ? b.vhi : b.vlo;
+      if (r.A[k] * u + r.B[k] * v + r.C[k] < -r.tol) return false;
+    }
+    return true;
+  }
   Box2 boxOf(std::uint32_t t) const;
   bool prepareLeaf(std::span<std::uint32_t> items) const;
 
@@ -242,7 +259,20 @@ class PlanarCore : public IndexFace<PlanarCore> {
   std::uint32_t nearestIn(std::span<const std::uint32_t> items, bool singleLayer, double u, double v, double z,
                           double& h) const;
   bool contains(const Tri& r, std::uint32_t t, double u, double v) const;
-  bool separated(std::uint32_t a, std::uint32_t b) const;
+  // A triangle's edge equations and corners, as the single-layer check reads them.
+  struct EdgeView {
+    std::uint32_t corner[3];
+    Point2 at[3];
+    double A[3], B[3], C[3], tol;
+  };
+  EdgeView edgeView(std::uint32_t t) const;
+  static bool separated(const EdgeView& a, const EdgeView& b);
+  // This index's build among all in the process (prepareLeaf's table of pairs found apart).
+  std::uint64_t serial_ = nextSerial();
+  static std::uint64_t nextSerial() {
+    static std::atomic<std::uint64_t> next{1};
+    return next++;
+  }
   void prefetchTriangles(std::span<const std::uint32_t> items) const;
 
   PlanarFrame frame_;
