@@ -78,8 +78,19 @@ void expectMatchesScratch(const CartesianIndex& edited, const std::vector<std::o
       ASSERT_EQ(c->polygon, idOf[d->polygon]);
     }
   };
+  std::vector<Point2> points;
+  std::vector<double> zs;
   for (int i = 0; i < 3000; ++i) {
-    check(uniform(rng, box.ulo - 1, box.uhi + 1), uniform(rng, box.vlo - 1, box.vhi + 1), uniform(rng, -10, 10), true);
+    points.push_back({uniform(rng, box.ulo - 1, box.uhi + 1), uniform(rng, box.vlo - 1, box.vhi + 1)});
+    zs.push_back(uniform(rng, -10, 10));
+    check(points.back().u, points.back().v, zs.back(), true);
+  }
+  // The edited tree's batches (a pipelined descent through the jump table the edits refreshed):
+  // the single queries' answers.
+  std::vector<std::optional<double>> batch(points.size());
+  edited.heightsBelow(points, zs, batch);
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    ASSERT_EQ(batch[i], edited.heightBelow(points[i].u, points[i].v, zs[i])) << points[i].u << " " << points[i].v;
   }
   // Exactly at corners (from just above them: a point exactly on the surface is below or above
   // it within rounding): shared edges and vertices must not fall through.

@@ -2,6 +2,7 @@
 // four (Maxpoly, Maxdepth) settings. Fewer polygons per leaf must mean fewer tests per query.
 #include <gtest/gtest.h>
 
+#include <bit>
 #include <cmath>
 #include <cstdio>
 #include <variant>
@@ -85,6 +86,17 @@ TEST(Table4, CostModelCutsAnswerAsMidpointCuts) {
           // (Same height: same polygon, unless several hold the point at that height.)
           ASSERT_EQ(a.below(p.u, p.v, x->height)->height, b.below(p.u, p.v, x->height)->height);
         }
+      }
+    }
+    // A batch descends the stored cuts in steps (Quadtree::stepWalk): the single queries'
+    // answers, bit for bit.
+    std::vector<std::optional<double>> batch(points.size());
+    b.heightsBelow(points, 1e300, batch);
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      const auto one = b.heightBelow(points[i].u, points[i].v, 1e300);
+      ASSERT_EQ(batch[i].has_value(), one.has_value()) << points[i].u << " " << points[i].v;
+      if (one) {
+        ASSERT_EQ(std::bit_cast<std::uint64_t>(*batch[i]), std::bit_cast<std::uint64_t>(*one));
       }
     }
     // The cuts go into tree files and come back.

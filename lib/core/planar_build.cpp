@@ -430,7 +430,7 @@ PlanarCore::EdgeView PlanarCore::edgeView(std::uint32_t t) const {
   EdgeView e;
   for (int k = 0; k < 3; ++k) {
     e.corner[k] = cold_[t].corner[k];
-    e.at[k] = corners2_[e.corner[k]];
+    e.u[k] = corners2_[e.corner[k]].u, e.v[k] = corners2_[e.corner[k]].v;
     e.A[k] = r.A[k], e.B[k] = r.B[k], e.C[k] = r.C[k];
   }
   e.tol = r.tol;
@@ -496,12 +496,12 @@ bool PlanarCore::separated(const EdgeView& a, const EdgeView& b) {
       bool all = true;
       for (int c = 0; c < 3 && all; ++c) {
         if (q.corner[c] == p.corner[k] || q.corner[c] == p.corner[k1]) continue;
-        const Point2 x = q.at[c];
+        const Point2 x{q.u[c], q.v[c]};
         const double e = p.A[k] * x.u + p.B[k] * x.v + p.C[k];
         if (e > p.tol) {
           all = false;
         } else if (e >= -p.tol) {
-          all = orient2dSign(p.at[k], p.at[k1], x) <= 0;
+          all = orient2dSign({p.u[k], p.v[k]}, {p.u[k1], p.v[k1]}, x) <= 0;
         }
       }
       if (all) return true;
@@ -520,7 +520,7 @@ bool PlanarCore::separated(const EdgeView& a, const EdgeView& b) {
       for (int c = 0; c < 3; ++c) {
         // A corner shared with the edge lies on it: the common case of neighbours.
         const bool shared = (q.corner[c] == p.corner[k]) | (q.corner[c] == p.corner[k1]);
-        const double e = p.A[k] * q.at[c].u + p.B[k] * q.at[c].v + p.C[k];
+        const double e = p.A[k] * q.u[c] + p.B[k] * q.v[c] + p.C[k];
         allOut &= shared | (e < -p.tol);
         anyIn |= !shared & (e > p.tol);
       }

@@ -114,6 +114,45 @@ class Quadtree {
     }
     return nd;
   }
+  // leafNode's descent in steps, for batches that overlap the cache misses of many points: each
+  // step names the next node to read and prefetches it, so a batch can start other points'
+  // steps before reading it. startWalk(u, v) starts at the jump table's cell (or the root);
+  // stepWalk reads the node the walk is at: a leaf ends the walk (false, the leaf in `leaf`),
+  // an inner node moves it to the child holding (u, v) (true). The leaf is leafNode(u, v)'s,
+  // by the same expressions. Precondition: contains(u, v).
+  struct Walk {
+    const Node* at;
+    std::uint32_t node, depth;  // node: the index of *at in nodes() (unused in the jump table)
+    double lu, lv;
+  };
+  Walk startWalk(double u, double v) const {
+    Walk w{nodes_.data(), 0, 0, root_.ulo, root_.vlo};
+    if (jumpDepth_) {
+      const std::uint32_t ix = jumpColumn(u, cutU_, jumpScaleU_, root_.ulo);
+      const std::uint32_t iy = jumpColumn(v, cutV_, jumpScaleV_, root_.vlo);
+      w.at = &jump_[(iy << jumpDepth_) | ix];
+      w.lu = cutU_[ix], w.lv = cutV_[iy], w.depth = jumpDepth_;
+    }
+    __builtin_prefetch(w.at);
+    return w;
+  }
+  bool stepWalk(double u, double v, Walk& w, Node& leaf) const {
+    const Node nd = *w.at;
+    if (nd.count != kInner) {
+      leaf = nd;
+      return false;
+    }
+    // (With stored cuts there is no jump table, so w.node is the node's index throughout.)
+    const Point2 c = cutOf(w.node, w.depth, w.lu, w.lv);
+    const bool hu = u >= c.u, hv = v >= c.v;
+    w.lu = hu ? c.u : w.lu;
+    w.lv = hv ? c.v : w.lv;
+    w.node = nd.first + (static_cast<std::uint32_t>(hv) << 1 | static_cast<std::uint32_t>(hu));
+    w.at = &nodes_[w.node];
+    ++w.depth;
+    __builtin_prefetch(w.at);
+    return true;
+  }
   // The index in nodes() of the node containing (u, v) at depth maxDepth, or of the leaf above it
   // (the descent's own cuts, without the jump table): a view of the tree cut at a depth, as
   // qota render-tree draws it. Precondition: contains(u, v).

@@ -260,9 +260,10 @@ class PlanarCore : public IndexFace<PlanarCore> {
                           double& h) const;
   bool contains(const Tri& r, std::uint32_t t, double u, double v) const;
   // A triangle's edge equations and corners, as the single-layer check reads them.
+  // (Plain numbers, no initializers: prepareLeaf keeps 64 of them on its stack uninitialized.)
   struct EdgeView {
     std::uint32_t corner[3];
-    Point2 at[3];
+    double u[3], v[3];
     double A[3], B[3], C[3], tol;
   };
   EdgeView edgeView(std::uint32_t t) const;
