@@ -17,7 +17,9 @@
 // none), else the run fails. Embree's answers (float) are compared for the record.
 //
 // The latency: a pointer chase over a 256 MiB random cycle (huge pages asked for), ns per step:
-// what one dependent cache miss costs a query on a terrain larger than the cache.
+// what one dependent cache miss costs a query on a terrain larger than the cache. Beside it, a
+// model of a random query's dependent loads and the misses they make (printMissModel: this
+// machine's hardware counters are not available to perf).
 //
 // Flags: --quick (a 16k-triangle TIN and Delft, 100k queries; ctest runs it), --large (adds the
 // 4M TIN, the default does too; --no-large leaves it out).
@@ -58,8 +60,9 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 
 // ---- the machine: one dependent DRAM miss ------------------------------------------------------
 
-double dramLatencyNs() {
-  constexpr std::size_t kBytes = std::size_t{256} << 20, kN = kBytes / sizeof(std::uint64_t);
+// ns per step of a pointer chase over a random cycle through kBytes (huge pages asked for).
+double chaseNs(std::size_t kBytes, std::size_t kSteps) {
+  const std::size_t kN = kBytes / sizeof(std::uint64_t);
   void* raw = std::aligned_alloc(std::size_t{2} << 20, kBytes);
   if (!raw) return NAN;
   madvise(raw, kBytes, MADV_HUGEPAGE);
@@ -71,7 +74,6 @@ double dramLatencyNs() {
   for (std::size_t i = kN - 1; i > 0; --i) std::swap(order[i], order[rng() % i]);
   for (std::size_t i = 0; i < kN; ++i) next[order[i]] = order[(i + 1) % kN];
   std::uint64_t at = 0;
-  constexpr std::size_t kSteps = 20'000'000;
   for (std::size_t i = 0; i < kSteps / 10; ++i) at = next[at];  // warm the page tables
   const auto t0 = Clock::now();
   for (std::size_t i = 0; i < kSteps; ++i) at = next[at];
@@ -79,6 +81,20 @@ double dramLatencyNs() {
   if (at == ~std::uint64_t{0}) std::printf("-");  // keep the chase
   std::free(raw);
   return ns;
+}
+
+double dramLatencyNs() { return chaseNs(std::size_t{256} << 20, 20'000'000); }
+
+// The cache a query's arrays can use, as this machine shows it (the sizes the system reports
+// can be a host's, not this machine's share): the largest power-of-two chase, from 1 MiB, that
+// still costs less than half a DRAM miss a step.
+double effectiveCacheBytes(double dramNs) {
+  double cached = 0;
+  for (std::size_t mib = 1; mib <= 128; mib *= 2) {
+    if (chaseNs(mib << 20, 2'000'000) >= 0.5 * dramNs) break;
+    cached = static_cast<double>(mib << 20);
+  }
+  return cached;
 }
 
 // ---- terrains ----------------------------------------------------------------------------------
@@ -341,7 +357,39 @@ Check check(const Oracle& oracle, const Set& s, std::span<const std::optional<do
   return c;
 }
 
-bool run(const Terrain& t, std::size_t n, double latencyNs) {
+// A model of a random query's dependent loads on the quadtree: the jump table's cell, the node
+// levels below it (the leaves' depths weighted by their area), the leaf's references, then the
+// triangles' records (fetched together). Each is a DRAM miss unless its array is cached; with
+// the cache's size C (effectiveCacheBytes), an array of S bytes is counted a miss with
+// probability 1 - C / S (as if it had the cache to itself: a lower bound on the misses).
+void printMissModel(const qota::CartesianIndex& index, double measuredMisses, double cache) {
+  const qota::Quadtree& tree = index.tree();
+  const std::uint32_t k = tree.jumpDepth();
+  const auto nodes = tree.nodes();
+  double below = 0;  // expected node levels read below the table
+  double leafItems = 0;
+  tree.forEachLeaf([&](const qota::Quadtree::Node& leaf, std::uint32_t depth) {
+    const double share = std::ldexp(1.0, -2 * static_cast<int>(depth));
+    below += share * (depth > k ? depth - k : 0);
+    leafItems += share * qota::Quadtree::leafSize(leaf);
+  });
+  const double jumpBytes = k ? std::ldexp(8.0, 2 * static_cast<int>(k)) : 8.0;
+  const double nodeBytes = 8.0 * static_cast<double>(nodes.size());
+  const double refBytes = 4.0 * static_cast<double>(index.stats().tree.references);
+  const double recordBytes = 128.0 * static_cast<double>(index.stats().triangles);
+  const auto miss = [&](double bytes) { return std::max(0.0, 1.0 - cache / bytes); };
+  const double loads = 1 + below + 1 + 1;
+  const double misses = miss(jumpBytes) + below * miss(nodeBytes) + miss(refBytes) + miss(recordBytes);
+  const auto mib = [](double b) { return b / (1 << 20); };
+  std::printf(
+      "  model, a random query: jump cell (%.1f MiB) + %.2f node levels (%.1f MiB) + references (%.1f MiB) +"
+      " %.1f records (%.0f MiB, together) = %.2f dependent loads, at least %.2f DRAM misses beyond a %.0f MiB"
+      " cache; measured %.2f misses' time\n",
+      mib(jumpBytes), below, mib(nodeBytes), mib(refBytes), leafItems, mib(recordBytes), loads, misses, mib(cache),
+      measuredMisses);
+}
+
+bool run(const Terrain& t, std::size_t n, double latencyNs, double cacheBytes) {
   const auto tris = trianglesOf(t.mesh);
   // Builds: the fastest of three each (a build's time varies by a tenth or more here), qota on
   // one thread as Embree, and on every core.
@@ -406,6 +454,7 @@ bool run(const Terrain& t, std::size_t n, double latencyNs) {
   std::printf("  %-16s %9s %9s %8s %12s %9s %8s %11s  %s\n", "ns/query", "qota", "embree", "ratio", "qota batch",
               "embree16", "ratio", "qota/miss", "exact");
   bool ok = true;
+  double randomMisses = 0;
   for (const Set* s : {&random, &below, &walk}) {
     const std::size_t m = s->points.size();
     std::vector<std::optional<double>> single(m), batch(m);
@@ -441,6 +490,7 @@ bool run(const Terrain& t, std::size_t n, double latencyNs) {
         cs.wrong == 0 && same
             ? ("all " + std::to_string(m) + " (" + std::to_string(cs.hits) + " hits)").c_str()
             : ("WRONG: " + std::to_string(cs.wrong) + (same ? "" : ", batch differs") + "; first " + cs.first).c_str());
+    if (s == &random) randomMisses = qs / latencyNs;
     if (s == &walk) {
       qota::Cursor cursor;
       std::vector<std::optional<double>> viaCursor(m);
@@ -457,6 +507,7 @@ bool run(const Terrain& t, std::size_t n, double latencyNs) {
                   qc / latencyNs, sameWalk ? "= plain walk" : "DIFFERS from the plain walk");
     }
   }
+  printMissModel(index, randomMisses, cacheBytes);
   return ok;
 }
 
@@ -480,15 +531,18 @@ int main(int argc, char** argv) {
               RTC_VERSION_MAJOR, RTC_VERSION_MINOR, RTC_VERSION_PATCH, n);
   std::printf("one dependent DRAM miss (pointer chase over 256 MiB): %.1f ns; 'qota/miss' is a query's time in those\n",
               latency);
+  const double cache = effectiveCacheBytes(latency);
+  std::printf("cache a chase still finds (largest power of two under half a miss a step): %.0f MiB\n",
+              cache / (1 << 20));
   bool ok = true;
   if (quick) {
-    ok = run(fractalTin(8192, "Delaunay TIN over a fractal (8k points)"), n, latency) && ok;
-    ok = run(delft(), n, latency) && ok;
+    ok = run(fractalTin(8192, "Delaunay TIN over a fractal (8k points)"), n, latency, cache) && ok;
+    ok = run(delft(), n, latency, cache) && ok;
   } else {
-    ok = run(fractalTin(524288, "Delaunay TIN over a fractal (524k points)"), n, latency) && ok;
-    if (large) ok = run(fractalTin(2097152, "Delaunay TIN over a fractal (2.1M points)"), n, latency) && ok;
-    ok = run(rainierTin(700000), n, latency) && ok;
-    ok = run(delft(), n, latency) && ok;
+    ok = run(fractalTin(524288, "Delaunay TIN over a fractal (524k points)"), n, latency, cache) && ok;
+    if (large) ok = run(fractalTin(2097152, "Delaunay TIN over a fractal (2.1M points)"), n, latency, cache) && ok;
+    ok = run(rainierTin(700000), n, latency, cache) && ok;
+    ok = run(delft(), n, latency, cache) && ok;
   }
   std::printf("\n%s\n", ok ? "every qota answer equals the exact oracle's" : "SOME qota ANSWERS ARE WRONG");
   return ok ? 0 : 1;

@@ -157,20 +157,10 @@ void Quadtree::buildJumpTable() {
   // Depth of the tree, and its leaf count, decide the table's depth: about one cell per leaf (so
   // most queries land on their leaf at once), at most 4^11 cells (16 MiB).
   std::uint32_t depth = 0, leaves = 0;
-  struct Item {
-    std::uint32_t node, depth;
-  };
-  std::vector<Item> stack{{0, 0}};
-  while (!stack.empty()) {
-    const Item it = stack.back();
-    stack.pop_back();
-    if (nodes_[it.node].count == kInner) {
-      for (std::uint32_t c = 0; c < 4; ++c) stack.push_back({nodes_[it.node].first + c, it.depth + 1});
-    } else {
-      ++leaves;
-      depth = std::max(depth, it.depth);
-    }
-  }
+  forEachLeaf([&](const Node&, std::uint32_t d) {
+    ++leaves;
+    depth = std::max(depth, d);
+  });
   std::uint32_t k = 0;
   while (k < depth && k < 11 && (std::uint64_t{1} << (2 * (k + 1))) <= 2ull * leaves) ++k;
   if (k < 2) return;  // a tree this small descends in a few compares anyway

@@ -237,6 +237,27 @@ class Quadtree {
   }
 
   std::span<const Node> nodes() const { return nodes_; }
+  // Calls visit(leaf, depth) for every leaf (the root at depth 0).
+  template <class Visit>
+  void forEachLeaf(Visit&& visit) const {
+    if (nodes_.empty()) return;
+    struct Item {
+      std::uint32_t node, depth;
+    };
+    std::vector<Item> stack{{0, 0}};
+    while (!stack.empty()) {
+      const Item it = stack.back();
+      stack.pop_back();
+      const Node& nd = nodes_[it.node];
+      if (nd.count != kInner) {
+        visit(nd, it.depth);
+        continue;
+      }
+      for (std::uint32_t c = 0; c < 4; ++c) stack.push_back({nd.first + c, it.depth + 1});
+    }
+  }
+  // The jump table's depth (its 4^depth cells hold copies of the nodes there), 0 for none.
+  std::uint32_t jumpDepth() const { return jumpDepth_; }
   std::span<const std::uint32_t> references() const { return refs_; }
   QuadtreeStats stats() const;
 
