@@ -311,6 +311,7 @@ TEST(SegmentMeets, NamesATriangleTheOracleSaysItMeets) {
   }
   qota::RasterGrid(w, h, {}).appendTriangles(mesh, [](std::uint32_t) { return true; });
   const qota::CartesianIndex index(mesh, qota::CartesianMapping());
+  const std::uint64_t before = index.stats().memoryBytes;
   std::uniform_int_distribution<int> x(0, 4 * (w - 1)), y(0, 4 * (h - 1)), z(0, 4 * 14);
   int met = 0, clear = 0;
   for (int k = 0; k < 4000; ++k) {
@@ -333,6 +334,8 @@ TEST(SegmentMeets, NamesATriangleTheOracleSaysItMeets) {
   }
   EXPECT_GT(met, 500);
   EXPECT_GT(clear, 500);
+  // The walks' node heights (a float a node, made on the first segment) count in the memory.
+  EXPECT_EQ(index.stats().memoryBytes, before + index.stats().tree.nodes * sizeof(float));
 }
 
 TEST(Viewshed, FlatPlainSeenFromTheGroundIsVisible) {

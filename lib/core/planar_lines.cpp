@@ -101,6 +101,8 @@ void PlanarCore::ensureNodeTops() const {
   if (!nodes.empty()) topOf(topOf, 0);
   nodeTops_ = std::move(tops);
   deferred_->topsFor.store(generation_ + 1, std::memory_order_release);
+  const std::lock_guard<std::mutex> statsLock(deferred_->stats);
+  treeStatsStale_ = true;  // the memory now counts the heights
 }
 
 std::uint32_t PlanarCore::segmentMeetsWhich(const Eigen::Vector3d& a, const Eigen::Vector3d& b, std::uint32_t endVertex,

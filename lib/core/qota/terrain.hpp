@@ -137,9 +137,11 @@ class PlanarCore : public IndexFace<PlanarCore> {
   const IndexStats& stats() const {
     ensureTree();
     const std::lock_guard<std::mutex> lock(deferred_->stats);
-    if (treeStatsStale_) {  // after edits, or after the deferred build
+    if (treeStatsStale_) {  // after edits, the deferred build, or segmentMeets' node heights
       stats_.tree = tree_.stats();
-      stats_.memoryBytes = baseMemoryBytes_ + tris_.size() * sizeof(Tri) + stats_.tree.memoryBytes;
+      const bool tops = deferred_->topsFor.load(std::memory_order_acquire) == generation_ + 1;
+      stats_.memoryBytes = baseMemoryBytes_ + tris_.size() * sizeof(Tri) + stats_.tree.memoryBytes +
+                           (tops ? nodeTops_.size() * sizeof(float) : 0);
       treeStatsStale_ = false;
     }
     return stats_;
