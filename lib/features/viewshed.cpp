@@ -109,8 +109,8 @@ class Sightlines {
     placeWindow({0, 0, w, h});
   }
 
-  // A pixel's diagonal near the observer in metres (set by place with a reach).
-  double diagonal_ = 0;
+  // A pixel's diagonal near the observer in metres (set by place with a reach; else 0).
+  double diagonal() const { return diagonal_; }
   const LocalFrame& frame() const { return frame_; }
   // Refraction by the standard coefficient model: a line of sight bends toward the body with a
   // curvature k / R, which is the straight line over a body of radius R / (1 - k); so every point
@@ -261,39 +261,50 @@ class Sightlines {
     }
     const Eigen::Vector3d up = frame_.upAt(observer);
     const auto& v = frame_.mesh.vertices;
-    const int w = frame_.width, h = frame_.height;
+    const int w = frame_.width;
     const PixelWindow& win = frame_.window;
+    return inRows(threads, progress, from, span, "testing lines of sight", [&](std::size_t r) {
+      // Frame pixel i is the raster's pixel `at` (the frame may be a window of it).
+      const std::size_t rowStart = (win.row + r) * static_cast<std::size_t>(dem_.width) + win.col - r * w;
+      std::uint32_t blocker = CartesianIndex::kNoPolygon;  // the last pixel's, along the row
+      for (std::size_t i = r * w; i < (r + 1) * w; ++i) {
+        if (!frame_.valid[i]) continue;
+        const std::size_t at = rowStart + i;
+        if (maxDistance > 0 && horizontal(v[i] - observer, up) > maxDistance) {
+          visit(at, Sight::OutOfRange);
+          continue;
+        }
+        // A target on the surface is the vertex itself, whose own triangles meet its segment only there.
+        const bool onSurface = targetHeight == 0;
+        const Eigen::Vector3d target = onSurface ? v[i] : v[i] + targetHeight * frame_.upAt(v[i]);
+        const bool blocked = meets(blocker, observer, target,
+                                   onSurface ? static_cast<std::uint32_t>(i) : CartesianIndex::kNoVertex, standsOn);
+        visit(at, blocked ? Sight::Hidden : Sight::Visible);
+      }
+    });
+  }
+
+  // row(r) for every row of the frame, rows handed out to `threads` threads in turn (a row's
+  // lines of sight share their blocker guess, so a row is one thread's), progress from `from`
+  // over `span` after each. Returns false when progress cancelled.
+  template <class Row>
+  bool inRows(unsigned threads, const Progress& progress, double from, double span, const char* what,
+              const Row& row) const {
+    const auto h = static_cast<std::size_t>(frame_.height);
     std::atomic<std::size_t> nextRow{0}, rowsDone{0};
     std::atomic<bool> stop{false};
     shadow::inThreads(threads, [&](unsigned k) {
-      for (std::size_t r; !stop && (r = nextRow++) < static_cast<std::size_t>(h);) {
-        // Frame pixel i is the raster's pixel `at` (the frame may be a window of it).
-        const std::size_t rowStart = (win.row + r) * static_cast<std::size_t>(dem_.width) + win.col - r * w;
-        std::uint32_t blocker = CartesianIndex::kNoPolygon;  // the last pixel's, along the row
-        for (std::size_t i = r * w; i < (r + 1) * w; ++i) {
-          if (!frame_.valid[i]) continue;
-          const std::size_t at = rowStart + i;
-          if (maxDistance > 0 && horizontal(v[i] - observer, up) > maxDistance) {
-            visit(at, Sight::OutOfRange);
-            continue;
-          }
-          // A target on the surface is the vertex itself, whose own triangles meet its segment only there.
-          const bool onSurface = targetHeight == 0;
-          const Eigen::Vector3d target = onSurface ? v[i] : v[i] + targetHeight * frame_.upAt(v[i]);
-          const bool blocked = meets(blocker, observer, target,
-                                     onSurface ? static_cast<std::uint32_t>(i) : CartesianIndex::kNoVertex, standsOn);
-          visit(at, blocked ? Sight::Hidden : Sight::Visible);
-        }
+      for (std::size_t r; !stop && (r = nextRow++) < h;) {
+        row(r);
         const std::size_t done = ++rowsDone;
-        if (k == 0 && progress && !progress(from + span * static_cast<double>(done) / h, "testing lines of sight")) {
-          stop = true;
-        }
+        if (k == 0 && progress && !progress(from + span * static_cast<double>(done) / h, what)) stop = true;
       }
     });
     return !stop;
   }
 
  private:
+  double diagonal_ = 0;
   // The frame of `window`: the heights in metres there, voids filled (shadows) or at the lowest
   // height (holes, whose triangles are left out); the basis completed from the raster's centre.
   void placeWindow(const PixelWindow& window) {
@@ -408,7 +419,7 @@ Viewshed viewshed(const DemTerrain& dem, const ViewshedOptions& o, const Progres
   const LocalFrame& f = sight.frame();
   out.frameDescription = f.description;
   if (progress && !progress(0.05, "building the quadtree")) throw Error("viewshed cancelled");
-  const double diagonal = std::max(sight.diagonal_, std::hypot(f.pixelSizeX, f.pixelSizeY));
+  const double diagonal = std::max(sight.diagonal(), std::hypot(f.pixelSizeX, f.pixelSizeY));
   sight.index(out.observer, f.upAt(out.observer), o.maxDistance > 0 ? o.maxDistance + 2 * diagonal : 0.0);
   // Pixels with data outside the placed window are beyond the distance.
   const auto& valid = sight.valid();
@@ -502,27 +513,21 @@ std::vector<Light> pointLightMask(const DemTerrain& dem, const PointLightOptions
         shadow::facingOf(f, c, (light - mesh.vertices[c[0]]).normalized(), f.body.ellipsoid ? f.gridWinding : 0);
   }
   std::vector<Light> out(f.pixelCount(), Light::NoData);
-  const int w = f.width, h = f.height;
-  std::atomic<std::size_t> nextRow{0}, rowsDone{0};
-  std::atomic<bool> stop{false};
-  shadow::inThreads(threadsOr(threads), [&](unsigned k) {
-    for (std::size_t r; !stop && (r = nextRow++) < static_cast<std::size_t>(h);) {
-      std::uint32_t blocker = CartesianIndex::kNoPolygon;  // the last pixel's, along the row
-      for (std::size_t i = r * w; i < (r + 1) * w; ++i) {
-        if (!f.valid[i]) continue;
-        std::uint32_t ring[RasterGrid::kMaxRing];
-        bool closed = false;
-        const int count = f.grid.ring(static_cast<int>(r), static_cast<int>(i - r * w), ring, closed);
-        const Eigen::Vector3d& p = mesh.vertices[i];
-        const bool attached = shadow::attachedShadow(f, std::span<const std::uint32_t>(ring, count), closed,
-                                                     static_cast<std::uint32_t>(i), light - p, facing.data());
-        out[i] = attached || sight.meets(blocker, light, p, static_cast<std::uint32_t>(i)) ? Light::Shadow : Light::Lit;
-      }
-      const std::size_t done = ++rowsDone;
-      if (k == 0 && progress && !progress(0.1 + 0.9 * static_cast<double>(done) / h, "testing pixels")) stop = true;
+  const int w = f.width;
+  const bool finished = sight.inRows(threadsOr(threads), progress, 0.1, 0.9, "testing pixels", [&](std::size_t r) {
+    std::uint32_t blocker = CartesianIndex::kNoPolygon;  // the last pixel's, along the row
+    for (std::size_t i = r * w; i < (r + 1) * w; ++i) {
+      if (!f.valid[i]) continue;
+      std::uint32_t ring[RasterGrid::kMaxRing];
+      bool closed = false;
+      const int count = f.grid.ring(static_cast<int>(r), static_cast<int>(i - r * w), ring, closed);
+      const Eigen::Vector3d& p = mesh.vertices[i];
+      const bool attached = shadow::attachedShadow(f, std::span<const std::uint32_t>(ring, count), closed,
+                                                   static_cast<std::uint32_t>(i), light - p, facing.data());
+      out[i] = attached || sight.meets(blocker, light, p, static_cast<std::uint32_t>(i)) ? Light::Shadow : Light::Lit;
     }
   });
-  if (stop) throw Error("shadow computation cancelled");
+  if (!finished) throw Error("shadow computation cancelled");
   if (progress) progress(1.0, "done");
   return out;
 }
