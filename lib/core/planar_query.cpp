@@ -103,9 +103,32 @@ std::uint32_t PlanarCore::nearest(double u, double v, double z, double& h, Curso
   ensureTree();
   if (!tree_.contains(u, v)) return kNoTriangle;  // also rejects NaN
   const Quadtree::Node leaf = cursor ? tree_.leafNode(u, v, *cursor) : tree_.leafNode(u, v);
+  const bool single = Quadtree::singleLayer(leaf);
+  if (cursor && single) {
+    // A walk's next point is often in the last point's triangle. Clearly inside it (beyond the
+    // edge tests' error bound), in a single-layer leaf, that triangle is the answer: it meets
+    // the leaf, so the leaf references it, and no other triangle of the leaf can hold a point
+    // of its interior. Its record is in cache, the leaf's others need not be read.
+    Cursor::Memo& m = cursor->memo;
+    if (m.key == kTreeMemo && m.owner == this && m.generation == generation_) {
+      const Tri& r = tris_[m.item];
+      const double e0 = r.A[0] * u + r.B[0] * v + r.C[0];
+      const double e1 = r.A[1] * u + r.B[1] * v + r.C[1];
+      const double e2 = r.A[2] * u + r.B[2] * v + r.C[2];
+      if (std::min(e0, std::min(e1, e2)) > r.tol) {
+        h = heightOf(r, u, v);
+        return (Below ? h <= z : h >= z) ? m.item : kNoTriangle;
+      }
+    }
+  }
   const auto items = tree_.leafRange(leaf);
   prefetchTriangles(items);
-  return nearestIn<Below>(items, Quadtree::singleLayer(leaf), u, v, z, h);
+  const std::uint32_t t = nearestIn<Below>(items, single, u, v, z, h);
+  if (cursor && single && t != kNoTriangle) {
+    Cursor::Memo& m = cursor->memo;
+    m.owner = this, m.generation = generation_, m.key = kTreeMemo, m.item = t;
+  }
+  return t;
 }
 
 Hit PlanarCore::makeHit(std::uint32_t t, double u, double v, double h) const {

@@ -307,6 +307,8 @@ class PlanarCore : public IndexFace<PlanarCore> {
   // The lean grid's answer at (u, v): the height, and the triangle (kNoTriangle: none; with
   // NeedId false, kFound stands for any triangle, whose id is not looked up).
   static constexpr std::uint32_t kFound = 0xfffffffdu;
+  // Cursor::Memo::key of a quadtree walk's last triangle (a grid's memo keys are its slots).
+  static constexpr std::uint64_t kTreeMemo = ~std::uint64_t{0} - 1;
   // A cursor remembers the last triangle's plane (Cursor::memo).
   template <bool NeedId>
   std::uint32_t gridAnswer(double u, double v, double& h, Cursor* cursor = nullptr) const;
