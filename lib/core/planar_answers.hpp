@@ -104,11 +104,15 @@ inline void PlanarCore::prefetchTriangles(std::span<const std::uint32_t> items) 
   }
 }
 
-inline bool PlanarCore::contains(const Tri& r, std::uint32_t t, double u, double v) const {
+inline double PlanarCore::smallestEdge(const Tri& r, double u, double v) {
   const double e0 = r.A[0] * u + r.B[0] * v + r.C[0];
   const double e1 = r.A[1] * u + r.B[1] * v + r.C[1];
   const double e2 = r.A[2] * u + r.B[2] * v + r.C[2];
-  const double m = std::min(e0, std::min(e1, e2));
+  return std::min(e0, std::min(e1, e2));
+}
+
+inline bool PlanarCore::contains(const Tri& r, std::uint32_t t, double u, double v) const {
+  const double m = smallestEdge(r, u, v);
   if (std::fabs(m) <= r.tol) [[unlikely]]
     return inside(t, u, v);
   return m > 0;
@@ -131,10 +135,7 @@ std::uint32_t PlanarCore::nearestIn(std::span<const std::uint32_t> items, bool s
   double best = Below ? -std::numeric_limits<double>::infinity() : std::numeric_limits<double>::infinity();
   for (std::uint32_t t : items) {
     const Tri& r = tris_[t];
-    const double e0 = r.A[0] * u + r.B[0] * v + r.C[0];
-    const double e1 = r.A[1] * u + r.B[1] * v + r.C[1];
-    const double e2 = r.A[2] * u + r.B[2] * v + r.C[2];
-    const double m = std::min(e0, std::min(e1, e2));
+    const double m = smallestEdge(r, u, v);
     // Inside when the smallest edge value is positive; only within rounding of an edge (|m| at
     // most the error bound, which is rare and so well predicted) is the exact test needed.
     bool in = m > 0;

@@ -112,10 +112,7 @@ std::uint32_t PlanarCore::nearest(double u, double v, double z, double& h, Curso
     Cursor::Memo& m = cursor->memo;
     if (m.key == kTreeMemo && m.owner == this && m.generation == generation_) {
       const Tri& r = tris_[m.item];
-      const double e0 = r.A[0] * u + r.B[0] * v + r.C[0];
-      const double e1 = r.A[1] * u + r.B[1] * v + r.C[1];
-      const double e2 = r.A[2] * u + r.B[2] * v + r.C[2];
-      if (std::min(e0, std::min(e1, e2)) > r.tol) {
+      if (smallestEdge(r, u, v) > r.tol) {
         h = heightOf(r, u, v);
         return (Below ? h <= z : h >= z) ? m.item : kNoTriangle;
       }

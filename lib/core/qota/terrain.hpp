@@ -261,6 +261,8 @@ class PlanarCore : public IndexFace<PlanarCore> {
   std::uint32_t nearestIn(std::span<const std::uint32_t> items, bool singleLayer, double u, double v, double z,
                           double& h) const;
   bool contains(const Tri& r, std::uint32_t t, double u, double v) const;
+  // The smallest of the edge equations' values at (u, v): inside beyond rounding when above tol.
+  static double smallestEdge(const Tri& r, double u, double v);
   // A triangle's edge equations and corners, as the single-layer check reads them.
   // (Plain numbers, no initializers: prepareLeaf keeps 64 of them on its stack uninitialized.)
   struct EdgeView {
