@@ -31,6 +31,16 @@ for md in 0 10000; do
   measure "$qota" viewshed "$dem" --observer "$x,$y" --oz 2 --flat "${qmd[@]}" -o "$work/qota_$md.tif" -q
   secs[qota_$md]=$med
   printf '%-34s %10s %7s%% %10d\n' "qota viewshed, $label" "$med" "$spread" $((mem / 1024))
+  # Once more, to say how the pixels were decided (the sweep, or its exact fallback one by one).
+  "$qota" viewshed "$dem" --observer "$x,$y" --oz 2 --flat "${qmd[@]}" -o "$work/qota_$md.tif" |
+    sed -n 's/^decided: /    decided: /p'
+  # The same viewshed one line of sight per pixel through the quadtree (the way before the
+  # sweep), once: its answers must be the sweep's, pixel for pixel.
+  saved=$runs runs=1
+  measure "$qota" viewshed "$dem" --observer "$x,$y" --oz 2 --flat "${qmd[@]}" --per-pixel \
+    -o "$work/perpixel_$md.tif" -q
+  runs=$saved
+  printf '%-34s %10s %8s %10d\n' "qota viewshed --per-pixel, $label" "$med" "(once)" $((mem / 1024))
   measure gdal_viewshed -q -ox "$x" -oy "$y" -oz 2 -cc 0 -vv 255 -iv 0 -ov 64 "${gmd[@]}" "$dem" "$work/gdal_$md.tif"
   secs[gdal_$md]=$med
   printf '%-34s %10s %7s%% %10d\n' "gdal_viewshed, $label" "$med" "$spread" $((mem / 1024))
@@ -80,6 +90,9 @@ for md in ("0", "10000"):
     inside = (q == 255) | (q == 0)
     print(f"  {'whole raster' if md == '0' else 'within 10 km'}: {inside.sum()} pixels, qota (exact) marks "
           f"{(q[inside] == 255).sum()} visible")
+    p = read(f"perpixel_{md}.tif")
+    print(f"    qota --per-pixel (one line of sight a pixel through the quadtree): differs from the sweep on "
+          f"{(p != q).sum()} pixels of all {q.size}")
     for tool, visible in (("gdal_viewshed", 255), ("r.viewshed", 1)):
         a = read(f"{'gdal' if tool == 'gdal_viewshed' else 'grass'}_{md}.tif", f"qota_{md}.tif")
         if a is None:

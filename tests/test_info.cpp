@@ -167,6 +167,7 @@ TEST(InfoTool, AHugeRasterIsDescribedAndItsTreeRefusedWithTheStreamingTools) {
   // would take hundreds of GiB, refused before anything large is allocated.
   const auto path = qota::test::scratchPath("info_huge.vrt");
   {
+    GDALAllRegister();  // (this test may run alone, before anything of qota's has opened a raster)
     std::unique_ptr<GDALDataset> in(GDALDataset::Open(kRainier.c_str(), GDAL_OF_RASTER));
     const char* args[] = {"-of", "VRT", "-srcwin", "0", "0", "24020", "24020", nullptr};
     GDALTranslateOptions* t = GDALTranslateOptionsNew(const_cast<char**>(args), nullptr);

@@ -6,6 +6,7 @@
 #include <GeographicLib/Geocentric.hpp>
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <fstream>
 #include <iomanip>
@@ -209,6 +210,77 @@ TEST(Viewshed, PixelGridMatchesExactOracle) {
   EXPECT_GT(cases, 250);
   EXPECT_GT(visible, 5000);  // both answers well represented
   EXPECT_GT(hidden, 5000);
+}
+
+// The sweep (ViewshedOptions::sweep, on by default in flat frames) against the oracle on larger
+// grids of the kinds that trouble it: smooth hills, terraces of equal heights (lines of sight that
+// graze flat steps exactly), a plain with spikes, a cliff beside the observer, voids; observers on
+// quarter pixels (on centres, sides and diagonals), low and high. The sweep must also decide most
+// pixels itself (its exact fallback answers the rest).
+TEST(Viewshed, SweepMatchesExactOracleOnHardTerrains) {
+  std::mt19937 rng(20261128);
+  std::size_t tested = 0, swept = 0, visible = 0, hidden = 0;
+  for (int k = 0; k < 24; ++k) {
+    GridCase g;
+    g.w = std::uniform_int_distribution<int>(20, 34)(rng);
+    g.h = std::uniform_int_distribution<int>(20, 34)(rng);
+    g.z.resize(static_cast<std::size_t>(g.w) * g.h);
+    std::uniform_real_distribution<double> unit(0, 1);
+    const double f1 = 0.1 + 0.4 * unit(rng), f2 = 0.1 + 0.4 * unit(rng);
+    for (int r = 0; r < g.h; ++r) {
+      for (int c = 0; c < g.w; ++c) {
+        double z = 0;
+        switch (k % 4) {
+          case 0:
+            z = std::round(12 * std::sin(f1 * c) * std::cos(f2 * r) + 3 * unit(rng));
+            break;  // hills
+          case 1:
+            z = std::floor((c + r) / 5.0) + (c % 7 == 3 ? 2 : 0);
+            break;  // terraces
+          case 2:
+            z = unit(rng) < 0.05 ? 20 : 0;
+            break;  // spikes
+          default:
+            z = c < g.w / 3 ? 30 : std::round(4 * unit(rng));
+            break;  // a cliff
+        }
+        g.z[static_cast<std::size_t>(r) * g.w + c] = z;
+      }
+    }
+    if (k % 6 == 5) {
+      for (double& v : g.z) {
+        if (unit(rng) < 0.04) v = NAN;
+      }
+    }
+    const std::string path = writeGrid(g, "viewshed_sweep.tif");
+    const qota::DemTerrain dem = qota::loadDem(path, {});
+    std::uniform_int_distribution<int> qc(2, 4 * g.w - 2), qr(2, 4 * g.h - 2);
+    for (int tries = 0; tries < 3; ++tries) {
+      const double col = qc(rng) / 4.0, row = qr(rng) / 4.0;
+      const double H = std::array{0.25, 1.0, 2.5, 6.0}[(k + tries) % 4], T = tries == 1 ? 0.5 : 0.0;
+      qota::ViewshedOptions o;
+      o.observerX = col, o.observerY = g.h - row;
+      o.observerHeight = H, o.targetHeight = T;
+      o.frame.pixelSize = 1;
+      qota::Viewshed got;
+      try {
+        got = qota::viewshed(dem, o);
+      } catch (const qota::Error& e) {
+        EXPECT_NE(std::string(e.what()).find("void"), std::string::npos) << e.what();
+        continue;
+      }
+      const std::vector<Sight> want = gridOracle(g, col, row, H, T, 0);
+      std::string where;
+      EXPECT_EQ(countDifferent(got.sight, want, g.w, where), 0)
+          << "case " << k << ": " << g.w << " x " << g.h << ", observer (" << col << ", " << row << ") H " << H << " T "
+          << T << where;
+      tested += got.tested, swept += got.swept;
+      for (Sight s : want) visible += s == Sight::Visible, hidden += s == Sight::Hidden;
+    }
+  }
+  EXPECT_GT(visible, 4000u);
+  EXPECT_GT(hidden, 4000u);
+  EXPECT_GT(swept, tested * 8 / 10) << swept << " of " << tested << " decided by the sweep";
 }
 
 TEST(Viewshed, CumulativeCountsAreTheOraclesSum) {

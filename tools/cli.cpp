@@ -336,6 +336,9 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
       ->add_option("--out-of-range-value,--ov", viewshedOptions.outOfRangeValue,
                    "Output value of pixels beyond --max-distance")
       ->capture_default_str();
+  viewshedCmd->add_flag("--per-pixel", viewshedOptions.perPixel,
+                        "Test every pixel's line of sight through the quadtree instead of the exact sweep (the same "
+                        "answers, slower; for comparison)");
   addTreeOptions(viewshedCmd, viewshedOptions.index);
 
   AssembleOptions assembleOptions;

@@ -205,6 +205,9 @@ struct ViewshedOptions : RasterJobOptions {
   double maxDistance = 0;     // metres; 0: no limit
   double refraction = 0;      // coefficient k (qota/viewshed.hpp); one observer, on an ellipsoid
   int visibleValue = 255, hiddenValue = 0, nodataValue = 128, outOfRangeValue = 64;
+  // Every pixel's line of sight through the quadtree, not the sweep (qota/viewshed.hpp; the same
+  // answers, for comparison).
+  bool perPixel = false;
   IndexOptions index;
 };
 int viewshed(const ViewshedOptions& options, std::ostream& out, std::ostream& err);

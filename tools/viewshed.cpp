@@ -192,13 +192,15 @@ void writeOne(const ViewshedOptions& o, const Run& run, std::ostream& out, Outpu
   v.refraction = o.refraction;
   v.frame = run.frame;
   v.index = o.index;
+  v.sweep = !o.perPixel;
   const Viewshed seen = qota::viewshed(run.dem, v, termProgress(o.quiet, 0, 1));
   if (!o.quiet) {
     out << "frame: " << seen.frameDescription << '\n'
         << "observer: " << formatNumber(v.observerX) << ", " << formatNumber(v.observerY) << ", "
         << formatNumber(o.observerHeight) << " m above the surface at " << formatNumber(seen.surface, 3) << " m\n"
         << "visible: " << seen.visible << " of " << seen.tested << " pixels tested ("
-        << formatNumber(seen.tested ? 100.0 * seen.visible / seen.tested : 0.0, 2) << " %)\n";
+        << formatNumber(seen.tested ? 100.0 * seen.visible / seen.tested : 0.0, 2) << " %)\n"
+        << "decided: " << seen.swept << " by the sweep, " << seen.oneByOne << " one by one\n";
   }
   std::vector<double> values(seen.sight.size());
   std::vector<int> classes(seen.sight.size());
@@ -255,6 +257,7 @@ void writeCounts(const ViewshedOptions& o, const Run& run, std::ostream& out, Ou
   CumulativeOptions c;
   c.targetHeight = o.targetHeight, c.maxDistance = o.maxDistance, c.frame = run.frame, c.index = o.index;
   c.which = !o.whichFile.empty();
+  c.sweep = !o.perPixel;
   if (!o.quiet) out << "observers: " << observers.size() << " from " << o.observersFile << '\n';
   const CumulativeViewshed seen = cumulativeViewshed(run.dem, observers, c, termProgress(o.quiet, 0, 1));
   const bool wide = observers.size() >= 65535;
@@ -345,6 +348,7 @@ int viewshed(const ViewshedOptions& given, std::ostream& out, std::ostream& err)
     demOptions.lonLatAsCartesian = true;  // read as lon/lat: the frame puts it on its ellipsoid
     demOptions.then = memory::kLinesOfSight;
     demOptions.fillVoids = o.fillVoids ? kFillVoidsPixels : 0;
+    demOptions.triangles = false;  // (the frame triangulates the grid)
     run.dem = loadDem(o.source, demOptions);
     if (!o.quiet && o.fillVoids) {
       out << "voids: " << run.dem.filledPixels << " pixels filled (GDAL's fill-nodata), " << run.dem.nodataPixels

@@ -452,7 +452,7 @@ std::vector<Eigen::Vector3d> framePoints(const FrameBasis& b, std::span<const do
 }
 
 LocalFrame windowFrame(const FrameBasis& b, const PixelWindow& window, std::vector<double> z,
-                       std::vector<std::uint8_t> valid) {
+                       std::vector<std::uint8_t> valid, bool triangles) {
   const DemTerrain& dem = b.raster;
   const int w = window.width, h = window.height;
   const std::size_t n = static_cast<std::size_t>(w) * h;
@@ -498,7 +498,7 @@ LocalFrame windowFrame(const FrameBasis& b, const PixelWindow& window, std::vect
   }
   z = {};
   f.mesh.vertices = framePoints(b, col, row, height, pole);
-  f.mesh.indices = f.grid.indices();
+  if (triangles) f.mesh.indices = f.grid.indices();
   return f;
 }
 

@@ -12,6 +12,7 @@
 #include "qota/error.hpp"
 #include "qota/terrain.hpp"
 #include "shadow_facing.hpp"
+#include "viewshed_sweep.hpp"
 
 namespace qota {
 
@@ -284,6 +285,136 @@ class Sightlines {
     });
   }
 
+  // Whether lines of sight from `eye` (placed, `height` metres over the surface) can be decided by
+  // the sweep (viewshed_sweep.hpp): a flat frame, an eye above the surface and strictly inside the
+  // outermost centres' lines (then no line of sight reaches the outer half pixel).
+  bool sweepable(const Placed& eye, double height) const {
+    if (frame_.body.ellipsoid || !(height > 0) || !frame_.gridMesh) return false;
+    const double x = eye.col - 0.5 - frame_.window.col, y = eye.row - 0.5 - frame_.window.row;
+    return x > 0 && y > 0 && x < frame_.width - 1 && y < frame_.height - 1;
+  }
+
+  // Sight of every pixel from a sweepable eye: the sweep's verdicts, and for the pixels it leaves
+  // undecided the exact test of every triangle under the line of sight (walkMeets); visit as
+  // look's. Returns false when progress cancelled.
+  template <class Visit>
+  bool sweepLook(const Placed& eye, double height, double targetHeight, double maxDistance, unsigned threads,
+                 const Progress& progress, double from, double span, const Visit& visit,
+                 qota::sweep::Counts& counts) const {
+    const LocalFrame& f = frame_;
+    const std::size_t n = f.pixelCount();
+    const int w = f.width, h = f.height;
+    std::vector<double> z(n);
+    double steepest = 0;  // the largest height difference between neighbouring pixels (metres)
+    for (std::size_t i = 0; i < n; ++i) z[i] = f.mesh.vertices[i].z();
+    for (int r = 0; r < h; ++r) {
+      for (int c = 0; c < w; ++c) {
+        const std::size_t i = static_cast<std::size_t>(r) * w + c;
+        if (c + 1 < w) steepest = std::max(steepest, std::fabs(z[i + 1] - z[i]));
+        if (r + 1 < h) steepest = std::max(steepest, std::fabs(z[i + w] - z[i]));
+      }
+    }
+    const qota::sweep::Eye at{eye.col - 0.5 - f.window.col, eye.row - 0.5 - f.window.row, eye.point.z(), height};
+    // The frame's ground coordinates are rounded (to a few units in the last place of the
+    // world's coordinates, here bounded with room); a point moved that far in pixels changes a
+    // height by at most the steepest slope times it.
+    const auto& gt = dem_.geotransform;
+    const double units =
+        std::fabs(gt[0]) + std::fabs(gt[3]) +
+        (dem_.width + dem_.height) * (std::fabs(gt[1]) + std::fabs(gt[2]) + std::fabs(gt[4]) + std::fabs(gt[5]));
+    const double metresPerUnit = dem_.crsWkt.empty() ? 1.0 : f.pixelSizeX / std::max(std::hypot(gt[1], gt[4]), 1e-300);
+    const double pixels = (64 * std::numeric_limits<double>::epsilon() * units * metresPerUnit + 1e-12) /
+                          std::max(std::min(f.pixelSizeX, f.pixelSizeY), 1e-300);
+    const double slack = pixels * (4 * steepest + 1);
+    std::vector<qota::sweep::Verdict> verdict(n, qota::sweep::Verdict::Undecided);
+    const auto keepGoing = [&](double fraction) {
+      return !progress || progress(from + 0.8 * span * fraction, "sweeping lines of sight");
+    };
+    if (!qota::sweep::decide(qota::sweep::Grid{w, h, z, f.valid}, at, targetHeight, slack, threads, verdict, counts,
+                             keepGoing)) {
+      return false;
+    }
+    // The undecided, tested one by one.
+    const Eigen::Vector3d up = f.upAt(eye.point);
+    const auto& v = f.mesh.vertices;
+    const PixelWindow& win = f.window;
+    std::vector<std::uint32_t> undecided;
+    counts = {};  // (of the pixels in range)
+    for (std::size_t i = 0; i < n; ++i) {
+      if (!f.valid[i]) continue;
+      const std::size_t atRaster = (win.row + i / w) * static_cast<std::size_t>(dem_.width) + win.col + i % w;
+      if (maxDistance > 0 && horizontal(v[i] - eye.point, up) > maxDistance) {
+        visit(atRaster, Sight::OutOfRange);
+      } else if (verdict[i] == qota::sweep::Verdict::Undecided) {
+        undecided.push_back(static_cast<std::uint32_t>(i));
+      } else {
+        visit(atRaster, verdict[i] == qota::sweep::Verdict::Visible ? Sight::Visible : Sight::Hidden);
+        ++counts.decided;
+      }
+    }
+    counts.undecided = undecided.size();
+    std::atomic<std::size_t> next{0};
+    shadow::inThreads(threads, [&](unsigned) {
+      for (std::size_t k; (k = next++) < undecided.size();) {
+        const std::uint32_t i = undecided[k];
+        const bool onSurface = targetHeight == 0;
+        const Eigen::Vector3d target = onSurface ? v[i] : v[i] + targetHeight * f.upAt(v[i]);
+        const bool blocked = walkMeets(eye.point, target, at.x, at.y, static_cast<double>(i % w),
+                                       static_cast<double>(i / w), onSurface ? i : CartesianIndex::kNoVertex);
+        const std::size_t atRaster = (win.row + i / w) * static_cast<std::size_t>(dem_.width) + win.col + i % w;
+        visit(atRaster, blocked ? Sight::Hidden : Sight::Visible);
+      }
+    });
+    if (progress && !progress(from + span, "testing lines of sight")) return false;
+    return true;
+  }
+
+  // Whether the open segment from frame point a to b meets a triangle with data, testing every
+  // inner triangle of the squares its ground track (ax, ay) to (bx, by) (pixel coordinates of the
+  // frame) touches, each by the index's own rule (segmentMeetsTriangle; endVertex's triangles left
+  // out as segmentMeets leaves them). The same answer as the index's walk, which tests a subset of
+  // these by the same rule, for segments inside the outermost centres' lines.
+  bool walkMeets(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double ax, double ay, double bx, double by,
+                 std::uint32_t endVertex) const {
+    const int w = frame_.width, h = frame_.height;
+    const Eigen::Vector3d d = b - a;
+    const auto& v = frame_.mesh.vertices;
+    constexpr double kPad = 1e-7;  // pixels: far beyond the rounding of the track, a superset
+    const int c0 = std::max(0, static_cast<int>(std::floor(std::min(ax, bx) - kPad)));
+    const int c1 = std::min(w - 2, static_cast<int>(std::floor(std::max(ax, bx) + kPad)));
+    // A square whose corners all lie above the segment's heights over its column, or all below,
+    // by more than any rounding here or in the frame's coordinates, holds no triangle it meets.
+    const double margin = 1e-6 + 1e-9 * (std::fabs(a.z()) + std::fabs(b.z()));
+    for (int c = c0; c <= c1; ++c) {
+      double y0 = ay, y1 = by, z0 = a.z(), z1 = b.z();
+      if (bx != ax) {
+        const double u0 = std::clamp((c - kPad - ax) / (bx - ax), 0.0, 1.0);
+        const double u1 = std::clamp((c + 1 + kPad - ax) / (bx - ax), 0.0, 1.0);
+        y0 = ay + u0 * (by - ay), y1 = ay + u1 * (by - ay);
+        z0 = a.z() + u0 * d.z(), z1 = a.z() + u1 * d.z();
+      }
+      const double lineLow = std::min(z0, z1) - margin, lineHigh = std::max(z0, z1) + margin;
+      const int r0 = std::max(0, static_cast<int>(std::floor(std::min(y0, y1) - kPad)));
+      const int r1 = std::min(h - 2, static_cast<int>(std::floor(std::max(y0, y1) + kPad)));
+      for (int r = r0; r <= r1; ++r) {
+        const std::size_t tl = static_cast<std::size_t>(r) * w + c;
+        const double za = v[tl].z(), zb = v[tl + 1].z(), zc = v[tl + w].z(), zd = v[tl + w + 1].z();
+        if (std::min({za, zb, zc, zd}) > lineHigh || std::max({za, zb, zc, zd}) < lineLow) continue;
+        for (std::uint32_t half = 0; half < 2; ++half) {
+          const std::array<std::uint32_t, 3> k = frame_.grid.triangle(RasterGrid::innerTriangle(w, r, c, half));
+          if (!frame_.valid[k[0]] || !frame_.valid[k[1]] || !frame_.valid[k[2]]) continue;
+          if (k[0] == endVertex || k[1] == endVertex || k[2] == endVertex) continue;
+          double q[3][3];
+          for (int j = 0; j < 3; ++j) {
+            for (int i = 0; i < 3; ++i) q[j][i] = v[k[j]][i] - a[i];
+          }
+          if (detail::segmentMeetsTriangle(q, d)) return true;
+        }
+      }
+    }
+    return false;
+  }
+
   // row(r) for every row of the frame, rows handed out to `threads` threads in turn (a row's
   // lines of sight share their blocker guess, so a row is one thread's), progress from `from`
   // over `span` after each. Returns false when progress cancelled.
@@ -325,7 +456,9 @@ class Sightlines {
     }
     std::vector<double> z = sliceOf(placed_, window);
     std::vector<std::uint8_t> valid = sliceOf(valid_, window);
-    frame_ = windowFrame(basis_, window, std::move(z), std::move(valid));
+    // Viewsheds read the triangles from the grid (index(), guess(), walkMeets()); a point light's
+    // attached shadow needs the mesh's.
+    frame_ = windowFrame(basis_, window, std::move(z), std::move(valid), /*triangles=*/!holes_);
     if (!complete_) {
       // The centre square's frame completes the basis (pixel size, the triangles' turn), as every
       // window's frame of the raster does (shadow_frame.hpp): this one when it holds the centre.
@@ -418,9 +551,6 @@ Viewshed viewshed(const DemTerrain& dem, const ViewshedOptions& o, const Progres
   }
   const LocalFrame& f = sight.frame();
   out.frameDescription = f.description;
-  if (progress && !progress(0.05, "building the quadtree")) throw Error("viewshed cancelled");
-  const double diagonal = std::max(sight.diagonal(), std::hypot(f.pixelSizeX, f.pixelSizeY));
-  sight.index(out.observer, f.upAt(out.observer), o.maxDistance > 0 ? o.maxDistance + 2 * diagonal : 0.0);
   // Pixels with data outside the placed window are beyond the distance.
   const auto& valid = sight.valid();
   out.sight.assign(valid.size(), Sight::NoData);
@@ -428,14 +558,27 @@ Viewshed viewshed(const DemTerrain& dem, const ViewshedOptions& o, const Progres
     if (valid[i] && o.maxDistance > 0) out.sight[i] = Sight::OutOfRange;
   }
   std::atomic<std::size_t> visible{0}, tested{0};
-  const bool finished = sight.look(out.observer, o.observerHeight, o.targetHeight, o.maxDistance, threadsOr(threads),
-                                   progress, 0.1, 0.9, [&](std::size_t i, Sight s) {
-                                     out.sight[i] = s;
-                                     if (s == Sight::Visible) visible.fetch_add(1, std::memory_order_relaxed);
-                                     if (s != Sight::OutOfRange) tested.fetch_add(1, std::memory_order_relaxed);
-                                   });
+  const auto visit = [&](std::size_t i, Sight s) {
+    out.sight[i] = s;
+    if (s == Sight::Visible) visible.fetch_add(1, std::memory_order_relaxed);
+    if (s != Sight::OutOfRange) tested.fetch_add(1, std::memory_order_relaxed);
+  };
+  bool finished = false;
+  if (o.sweep && sight.sweepable(observer, o.observerHeight)) {
+    sweep::Counts counts;
+    finished = sight.sweepLook(observer, o.observerHeight, o.targetHeight, o.maxDistance, threadsOr(threads), progress,
+                               0.05, 0.95, visit, counts);
+    out.swept = counts.decided;
+  } else {
+    if (progress && !progress(0.05, "building the quadtree")) throw Error("viewshed cancelled");
+    const double diagonal = std::max(sight.diagonal(), std::hypot(f.pixelSizeX, f.pixelSizeY));
+    sight.index(out.observer, f.upAt(out.observer), o.maxDistance > 0 ? o.maxDistance + 2 * diagonal : 0.0);
+    finished = sight.look(out.observer, o.observerHeight, o.targetHeight, o.maxDistance, threadsOr(threads), progress,
+                          0.1, 0.9, visit);
+  }
   if (!finished) throw Error("viewshed cancelled");
   out.visible = visible, out.tested = tested;
+  out.oneByOne = out.tested - std::min(out.tested, out.swept);
   if (progress) progress(1.0, "done");
   return out;
 }
@@ -460,10 +603,6 @@ CumulativeViewshed cumulativeViewshed(const DemTerrain& dem, std::span<const Obs
     checkMetres((what + " height").c_str(), ob.height);
     placed.push_back(sight.observerAt(ob.x, ob.y, ob.height, what));
   }
-  if (progress && !progress(0.05, "building the quadtree")) throw Error("viewshed cancelled");
-  // One quadtree for every observer: the whole terrain (each observer's maximum distance is
-  // checked per pixel).
-  sight.index(Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ(), 0.0);
   CumulativeViewshed out;
   const std::size_t n = f.pixelCount();
   out.count.assign(n, 0);
@@ -471,14 +610,30 @@ CumulativeViewshed cumulativeViewshed(const DemTerrain& dem, std::span<const Obs
   out.valid.assign(f.valid.begin(), f.valid.end());
   out.frameDescription = f.description;
   const unsigned workers = threadsOr(threads);
+  bool indexed = false;
   for (std::size_t k = 0; k < observers.size(); ++k) {
     const double from = 0.1 + 0.9 * static_cast<double>(k) / observers.size();
-    const bool finished = sight.look(placed[k].point, observers[k].height, o.targetHeight, o.maxDistance, workers,
-                                     progress, from, 0.9 / observers.size(), [&](std::size_t i, Sight s) {
-                                       if (s != Sight::Visible) return;  // (a pixel is one thread's)
-                                       ++out.count[i];
-                                       if (o.which) out.which[i] |= std::uint64_t{1} << k;
-                                     });
+    const auto visit = [&](std::size_t i, Sight s) {
+      if (s != Sight::Visible) return;  // (a pixel is one thread's)
+      ++out.count[i];
+      if (o.which) out.which[i] |= std::uint64_t{1} << k;
+    };
+    bool finished = false;
+    if (o.sweep && sight.sweepable(placed[k], observers[k].height)) {
+      sweep::Counts counts;
+      finished = sight.sweepLook(placed[k], observers[k].height, o.targetHeight, o.maxDistance, workers, progress, from,
+                                 0.9 / observers.size(), visit, counts);
+    } else {
+      if (!indexed) {
+        if (progress && !progress(from, "building the quadtree")) throw Error("viewshed cancelled");
+        // One quadtree for every observer: the whole terrain (each observer's maximum distance
+        // is checked per pixel).
+        sight.index(Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ(), 0.0);
+        indexed = true;
+      }
+      finished = sight.look(placed[k].point, observers[k].height, o.targetHeight, o.maxDistance, workers, progress,
+                            from, 0.9 / observers.size(), visit);
+    }
     if (!finished) throw Error("viewshed cancelled");
   }
   if (progress) progress(1.0, "done");

@@ -400,7 +400,9 @@ DemTerrain loadDem(const std::string& path, const DemOptions& options) {
   std::vector<double>().swap(z);
 
   // The grid's triangles (raster_grid.hpp), none with a nodata corner.
-  RasterGrid(dem.width, dem.height, {}).appendTriangles(dem.mesh, [&](std::uint32_t i) { return valid[i] != 0; });
+  if (options.triangles) {
+    RasterGrid(dem.width, dem.height, {}).appendTriangles(dem.mesh, [&](std::uint32_t i) { return valid[i] != 0; });
+  }
 
   dem.mapping = dem.centredMapping();
   return dem;

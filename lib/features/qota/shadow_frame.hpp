@@ -159,9 +159,11 @@ FrameBasis frameBasis(const DemTerrain& raster, const FrameOptions& options);
 void heightsInMetres(const FrameBasis& basis, const PixelWindow& window, std::vector<double>& heights,
                      std::vector<std::uint8_t>& valid);
 // The frame of `window`: heights in metres with the voids filled (fillVoids), valid per pixel.
-// A raster closed round the globe has only the whole window.
+// A raster closed round the globe has only the whole window. triangles: false leaves the mesh's
+// triangles out (its vertices and the grid are there; grid.triangle(t) names any triangle's
+// corners), for callers that read the triangulation from the grid (viewsheds).
 LocalFrame windowFrame(const FrameBasis& basis, const PixelWindow& window, std::vector<double> heights,
-                       std::vector<std::uint8_t> valid);
+                       std::vector<std::uint8_t> valid, bool triangles = true);
 // Frame points of raster positions: pixel coordinates (GDAL's: pixel centres at + 0.5) and
 // heights in metres over the frame's reference (the basis's heightRef on an ellipsoid), placed
 // by the arithmetic windowFrame places its vertices with, so a pixel centre at its pixel's height

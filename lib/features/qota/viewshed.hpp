@@ -46,6 +46,10 @@ struct ViewshedOptions {
   double refraction = 0;
   FrameOptions frame;  // flat or on the ellipsoid, units, the heights' reference
   IndexOptions index;  // the quadtree's options
+  // Decide lines of sight by the exact sweep where it applies (a flat frame, an observer above
+  // the surface and inside the outermost pixel centres), testing one by one only the pixels it
+  // leaves undecided; false: every pixel's line of sight through the quadtree. The same answers.
+  bool sweep = true;
 };
 
 struct Viewshed {
@@ -53,6 +57,9 @@ struct Viewshed {
   Eigen::Vector3d observer;  // in the frame
   double surface = 0;        // the terrain's height under the observer, metres over the DEM's reference
   std::size_t visible = 0, tested = 0;
+  // Of the tested pixels: decided by the sweep, and tested one by one (by the sweep's exact
+  // fallback, or all of them without the sweep).
+  std::size_t swept = 0, oneByOne = 0;
   std::string frameDescription;
 };
 
@@ -76,6 +83,7 @@ struct CumulativeOptions {
   bool which = false;
   FrameOptions frame;
   IndexOptions index;
+  bool sweep = true;  // as ViewshedOptions::sweep, for each observer
 };
 constexpr std::size_t kMaxWhich = 64;
 struct CumulativeViewshed {

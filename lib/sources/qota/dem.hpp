@@ -66,6 +66,10 @@ struct DemOptions {
   // fill-nodata (gdal_fillnodata: inverse distance weighting from the void's rim, searching this
   // many pixels out; what is farther from any data stays a void). 0: voids stay holes.
   double fillVoids = 0;
+  // The grid's triangles in the terrain's mesh (loadDem); false: its vertices only, for callers
+  // that triangulate the grid themselves (viewsheds and shadows place their own frame), saving
+  // the time and memory of two triangles a pixel.
+  bool triangles = true;
 };
 
 // The search distance `--fill-voids` takes (gdal_fillnodata's default), in pixels.

@@ -1,0 +1,735 @@
+#include "viewshed_sweep.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <limits>
+#include <thread>
+#include <vector>
+
+namespace qota::sweep {
+
+namespace {
+
+constexpr double kEps = std::numeric_limits<double>::epsilon();
+constexpr double kInf = std::numeric_limits<double>::infinity();
+#ifdef QOTA_SWEEP_NO_SKIP
+constexpr bool kSkip = false;
+#else
+constexpr bool kSkip = true;
+#endif
+
+// A triangle side's line in a quadrant's (m, w) plane: w = a + b m, with a bound on the rounding
+// of that value for |m| <= 1, and `reach`: the slack over the least distance t (in columns) at
+// which a line of sight crosses the side, so that the slack's share of the bound at a value w is
+// reach (1 + |w|) (a height error at distance t is an angle error over t).
+struct Line {
+  double a = -kInf, b = 0, rounding = 0, reach = 0;
+  std::uint64_t id = 0;  // 0: no line (no terrain: minus infinity)
+  double at(double m) const { return a + b * m; }
+};
+
+// A piece of an envelope: on [m0, m1] the highest crossing is on `line`, to within the line's own
+// error bound and `extra` (the bound of a line that came within its error of it).
+struct Piece {
+  double m0, m1;
+  Line line;
+  double extra;
+};
+
+void push(std::vector<Piece>& out, double m0, double m1, const Line& line, double extra) {
+  if (!(m1 > m0)) return;
+  if (!out.empty() && out.back().line.id == line.id && out.back().m1 == m0) {
+    out.back().m1 = m1;
+    out.back().extra = std::max(out.back().extra, extra);
+    return;
+  }
+  out.push_back({m0, m1, line, extra});
+}
+
+class Quadrant {
+ public:
+  // q: 0 east (columns increasing), 1 west, 2 south (rows increasing), 3 north: the quadrant's
+  // columns X run away from the eye, its rows Y across, whatever the grid's axes.
+  Quadrant(const Grid& g, const Eye& eye, int q, double targetHeight, double slack, bool voids, std::span<Verdict> out)
+      : g_(g), eye_(eye), q_(q), target_(targetHeight), slack_(slack), voids_(voids), out_(out) {
+    const int w = g.width, h = g.height;
+    const std::ptrdiff_t W = w;
+    switch (q) {
+      case 0:
+        K_ = w, J_ = h, base_ = 0, sk_ = 1, sj_ = W, ox_ = eye.x, oy_ = eye.y, s_ = 1;
+        break;
+      case 1:
+        K_ = w, J_ = h, base_ = W - 1, sk_ = -1, sj_ = W, ox_ = (w - 1) - eye.x, oy_ = eye.y, s_ = -1;
+        break;
+      case 2:
+        K_ = h, J_ = w, base_ = 0, sk_ = W, sj_ = 1, ox_ = eye.y, oy_ = eye.x, s_ = 1;
+        break;
+      default:
+        K_ = h, J_ = w, base_ = (h - 1) * W, sk_ = -W, sj_ = 1, ox_ = (h - 1) - eye.y, oy_ = eye.x, s_ = -1;
+    }
+    oz_ = eye.z;
+    prevZ_.resize(J_), curZ_.resize(J_), prevV_.resize(J_), curV_.resize(J_);
+  }
+
+  // Sweeps the quadrant; false when keepGoing said stop (asked every few columns when given).
+  bool run(Counts& counts, const std::function<bool()>& keepGoing) {
+    const int k0 = static_cast<int>(std::floor(ox_)) + 1;
+    gather(k0 - 1, prevZ_, prevV_);
+    Line none;
+    envelope_.assign(1, Piece{-1, 1, none, 0});
+    clean_ = sinceHigh_ = sinceLow_ = doneHigh_ = doneLow_ = envelope_;
+    for (int k = k0; k < K_; ++k) {
+      if (keepGoing && (k - k0) % 64 == 63 && !keepGoing()) return false;
+      gather(k, curZ_, curV_);
+      const double t2 = k - ox_, t1 = t2 - 1;
+      if (voids_) addVoids(t1, t2);
+      answer(k, t1, t2, counts);
+      if (k + 1 < K_) {
+        const double lo = std::max(-1.0, -oy_ / (t2 + 1)), hi = std::min(1.0, (J_ - 1 - oy_) / (t2 + 1));
+        strip(k, t1, t2, lo, hi);
+        merge(lo, hi);
+      }
+      std::swap(prevZ_, curZ_);
+      std::swap(prevV_, curV_);
+    }
+    return true;
+  }
+
+ private:
+  std::size_t index(int k, int j) const { return static_cast<std::size_t>(base_ + k * sk_ + j * sj_); }
+
+  // Column k's heights and validity, on the rows its strip and its pixels can need: those
+  // within t + 3 of the eye's row (|m| <= 1).
+  void gather(int k, std::vector<double>& z, std::vector<std::uint8_t>& v) const {
+    const double t = std::max(std::fabs(k - ox_), 1.0) + 3;
+    const int j0 = std::max(0, static_cast<int>(std::floor(oy_ - t))),
+              j1 = std::min(J_ - 1, static_cast<int>(std::ceil(oy_ + t)));
+    for (int j = j0; j <= j1; ++j) {
+      const std::size_t i = index(k, j);
+      z[j] = g_.z[i], v[j] = g_.valid[i];
+    }
+  }
+
+  // Whether this quadrant answers pixel (k, j): the grid's own offsets decide, the same
+  // expressions in every quadrant, so each pixel is exactly one quadrant's (the one under the eye
+  // none's).
+  bool owns(int k, int j) const {
+    const int c = q_ == 0 ? k : q_ == 1 ? g_.width - 1 - k : j;
+    const int r = q_ <= 1 ? j : q_ == 2 ? k : g_.height - 1 - k;
+    const double dx = c - eye_.x, dy = r - eye_.y, ax = std::fabs(dx), ay = std::fabs(dy);
+    switch (q_) {
+      case 0:
+        return dx > 0 && ay <= ax;
+      case 1:
+        return dx < 0 && ay <= ax;
+      case 2:
+        return dy > 0 && ax < ay;
+      default:
+        return dy < 0 && ax < ay;
+    }
+  }
+
+  // The line of the side from (k1, j1) to (k2, j2) (k1 = k - 1 or k, heights from the caches):
+  // the plane through the eye and the side meets every line of sight (1, m, w) where
+  // n . (1, m, w) = 0, n = d1 x d2. Sides whose ground line passes through the eye are left out
+  // (the lines of sight along them cross them only at the eye; their far corner is another
+  // side's end).
+  bool lineOf(int k, int k1, int j1, int k2, int j2, int family, double nearest, Line& out) const {
+    const double z1 = k1 == k ? curZ_[j1] : prevZ_[j1], z2 = k2 == k ? curZ_[j2] : prevZ_[j2];
+    const double ax = k1 - ox_, ay = j1 - oy_, az = z1 - oz_;
+    const double bx = k2 - ox_, by = j2 - oy_, bz = z2 - oz_;
+    const double nx = ay * bz - az * by, ny = az * bx - ax * bz, nz = ax * by - ay * bx;
+    if (nz == 0) return false;
+    out.a = -nx / nz, out.b = -ny / nz;
+    const double size = std::fabs(out.a) + std::fabs(out.b);
+    // Rounding: the differences, the cross product's terms, the divisions and a + b m, with room.
+    const double terms = std::fabs(ay * bz) + std::fabs(az * by) + std::fabs(az * bx) + std::fabs(ax * bz) +
+                         size * (std::fabs(ax * by) + std::fabs(ay * bx));
+    out.rounding = 64 * kEps * (size + terms / std::fabs(nz));
+    if (nearest > 0) {
+      out.reach = slack_ / nearest;
+    } else {
+      // A side of the eye's own strip: its crossings lie at least its distance from the eye away,
+      // which is at most sqrt(2) t along a line of sight with |m| <= 1.
+      const double dx = bx - ax, dy = by - ay, u = std::clamp(-(ax * dx + ay * dy) / (dx * dx + dy * dy), 0.0, 1.0);
+      const double distance = std::hypot(ax + u * dx, ay + u * dy);
+      out.reach = distance > 0 ? slack_ * std::sqrt(2.0) / distance : kInf;
+    }
+    out.id = (static_cast<std::uint64_t>(k) * static_cast<std::uint64_t>(J_) + static_cast<std::uint64_t>(j1)) * 3 +
+             static_cast<std::uint64_t>(family) + 1;
+    return true;
+  }
+
+  // The bound on a line's value error over [m0, m1]: its rounding and the slack, which grows as
+  // the crossing nears the eye (a height error at distance t is an angle error / t).
+  double bound(const Line& l, double m0, double m1) const {
+    if (l.id == 0) return 0;
+    return l.rounding + l.reach * (1 + std::max(std::fabs(l.at(m0)), std::fabs(l.at(m1))));
+  }
+
+  // The sides a line of sight of slope m crosses in strip k (between columns k - 1 and k),
+  // strictly after t = tStart and strictly before column k; with `right`, the column-k side as
+  // well. At most one or two of each kind: a strip is one column wide and |m| <= 1.
+  int crossings(int k, double m, double tStart, bool right, Line* out) const {
+    const double t2 = k - ox_, t1 = t2 - 1;
+    const double x0 = t1 > 0 ? static_cast<double>(k - 1) : ox_ + tStart;
+    const double ya = oy_ + m * tStart, yb = oy_ + m * t2;
+    const double nearest = t1 > 0 ? t1 : 0.0;
+    int n = 0;
+    if (right) {
+      const int j = std::clamp(static_cast<int>(std::floor(yb)), 0, J_ - 2);
+      if (lineOf(k, k, j, k, j + 1, 0, t2, out[n])) ++n;
+    }
+    const double ylo = std::min(ya, yb), yhi = std::max(ya, yb);
+    for (int j = static_cast<int>(std::floor(ylo)) + 1; j < yhi; ++j) {
+      if (j > ylo && j >= 0 && j < J_ && lineOf(k, k - 1, j, k, j, 1, nearest, out[n])) ++n;
+    }
+    // Diagonals: X - Y = c (s = 1, corners (k-1, k-1-c) and (k, k-c)) or X + Y = c (s = -1,
+    // corners (k-1, c-k+1) and (k, c-k)).
+    const double ca = s_ > 0 ? x0 - ya : x0 + ya, cb = s_ > 0 ? k - yb : k + yb;
+    const double clo = std::min(ca, cb), chi = std::max(ca, cb);
+    for (long c = static_cast<long>(std::floor(clo)) + 1; c < chi; ++c) {
+      if (!(c > clo)) continue;
+      const long j1 = s_ > 0 ? k - 1 - c : c - k + 1, j2 = s_ > 0 ? j1 + 1 : j1 - 1;
+      if (j1 < 0 || j2 < 0 || j1 >= J_ || j2 >= J_) continue;
+      if (lineOf(k, k - 1, static_cast<int>(j1), k, static_cast<int>(j2), 2, nearest, out[n])) ++n;
+    }
+    return n;
+  }
+
+  // Squares of strip k with a void corner: the slopes m of the lines of sight that touch them
+  // join voidM_ (sorted, disjoint, closed and padded for rounding).
+  void addVoids(double t1, double t2) {
+    std::vector<std::pair<double, double>>& fresh = freshVoids_;  // this strip's
+    fresh.clear();
+    // Squares that lines of sight with |m| <= 1 can touch in this strip (and that were gathered).
+    const int j0 = std::max(0, static_cast<int>(std::floor(oy_ - t2)) - 1);
+    const int j1 = std::min(J_ - 2, static_cast<int>(std::ceil(oy_ + t2)));
+    for (int j = j0; j <= j1; ++j) {
+      if (prevV_[j] && prevV_[j + 1] && curV_[j] && curV_[j + 1]) continue;
+      double lo, hi;
+      if (t1 > 0) {
+        lo = std::min((j - oy_) / t1, (j - oy_) / t2), hi = std::max((j + 1 - oy_) / t1, (j + 1 - oy_) / t2);
+      } else if (j <= oy_ && oy_ <= j + 1) {
+        lo = -kInf, hi = kInf;  // the eye's own square
+      } else if (j > oy_) {
+        lo = (j - oy_) / t2, hi = kInf;
+      } else {
+        lo = -kInf, hi = (j + 1 - oy_) / t2;
+      }
+      lo -= 1e-12 * (1 + std::fabs(lo)), hi += 1e-12 * (1 + std::fabs(hi));
+      if (!fresh.empty() && lo <= fresh.back().second) {
+        fresh.back().second = std::max(fresh.back().second, hi);
+      } else {
+        fresh.emplace_back(lo, hi);
+      }
+    }
+    if (fresh.empty()) return;
+    // Lines of sight touching a void for the first time: the envelope so far (the columns before
+    // this strip) is their terrain before the first void (clean_).
+    firstTouch_.clear();
+    {
+      std::size_t v = 0;
+      for (auto [a, b] : fresh) {
+        while (v < voidM_.size() && voidM_[v].second < a) ++v;
+        for (std::size_t w = v; a < b; ++w) {
+          if (w >= voidM_.size() || voidM_[w].first > b) {
+            firstTouch_.emplace_back(a, b);
+            break;
+          }
+          if (voidM_[w].first > a) firstTouch_.emplace_back(a, voidM_[w].first);
+          a = std::max(a, voidM_[w].second);
+        }
+      }
+    }
+    if (!firstTouch_.empty()) overlay(clean_, envelope_, firstTouch_);
+    std::vector<std::pair<double, double>> all;
+    all.reserve(voidM_.size() + fresh.size());
+    std::merge(voidM_.begin(), voidM_.end(), fresh.begin(), fresh.end(), std::back_inserter(all));
+    voidM_.clear();
+    for (const auto& v : all) {
+      if (!voidM_.empty() && v.first <= voidM_.back().second) {
+        voidM_.back().second = std::max(voidM_.back().second, v.second);
+      } else {
+        voidM_.push_back(v);
+      }
+    }
+  }
+
+  // The bound of a line's value v at m (bound() at one point).
+  static double boundAt(const Line& l, double v) { return l.rounding + l.reach * (1 + std::fabs(v)); }
+
+  // The sides that the line of sight to pixel (k, j) (slope m) crosses in strip k, to consider.
+  template <class Consider>
+  void localCrossings(int k, double t1, double tStart, int j, double m, Line* lines, const Consider& consider) const {
+    if (t1 > 0) {
+      // A whole strip: a line of sight ending at a corner (k, j) of column k crosses no row
+      // line inside it (|m| <= 1) and one diagonal at most: from (k - 1, j) to (k, j + s),
+      // when it comes from that side (m < 0 for s = 1, m > 0 for s = -1).
+      if ((s_ > 0 ? m < 0 : m > 0) && lineOf(k, k - 1, j, k, j + s_, 2, t1, lines[0])) {
+        const double v = lines[0].at(m);
+        consider(v, boundAt(lines[0], v));
+      }
+      return;
+    }
+    const int n = crossings(k, m, tStart, false, lines);
+    for (int i = 0; i < n; ++i) {
+      const double v = lines[i].at(m);
+      consider(v, boundAt(lines[i], v));
+    }
+  }
+
+  // The verdicts of column k's pixels: the envelope of the columns before (envelope_), then the
+  // sides crossed in this strip.
+  void answer(int k, double t1, double t2, Counts& counts) {
+    const double tStart = std::max(t1, 0.0);
+    const int jlo = std::max(0, static_cast<int>(std::ceil(oy_ - t2))),
+              jhi = std::min(J_ - 1, static_cast<int>(std::floor(oy_ + t2)));
+    std::size_t piece = 0, cleanPiece = 0, highPiece = 0, lowPiece = 0, donePiece = 0, doneLowPiece = 0, gap = 0,
+                freshGap = 0;
+    Line lines[8];
+    // The bound on a height compared at distance t2 (the pixel's own rounding and slack).
+    const double ownSlack = slack_ / t2;
+    for (int j = jlo; j <= jhi; ++j) {
+      if (!curV_[j] || !owns(k, j)) continue;
+      const std::size_t at = index(k, j);
+      const double m = (j - oy_) / t2;
+      Verdict verdict = Verdict::Undecided;
+      while (gap < voidM_.size() && voidM_[gap].second < m) ++gap;
+      const bool touched = gap < voidM_.size() && m >= voidM_[gap].first;  // a void on the way
+      const double wP = (curZ_[j] + target_ - oz_) / t2;
+      const double own = 8 * kEps * std::fabs(wP) + ownSlack * (1 + std::fabs(wP));
+      double upper = -kInf, lower = -kInf;  // the highest crossing lies between them
+      const auto consider = [&](double v, double err) {
+        upper = std::max(upper, v + err), lower = std::max(lower, v - err);
+      };
+      // The envelope's pieces at m: the one that holds it, and a neighbour when m is within
+      // rounding of its end (for the upper bound only: a line is a crossing only on its piece).
+      const auto read = [&](const std::vector<Piece>& env, std::size_t& piece, bool& inside) {
+        while (piece + 1 < env.size() && env[piece].m1 < m) ++piece;
+        const double near = 1e-12 * (1 + std::fabs(m));
+        const Piece& e = env[piece];
+        inside = e.m0 <= m && m <= e.m1;
+        if (e.line.id != 0) {
+          const double v = e.line.at(m), err = std::max(boundAt(e.line, v), e.extra);
+          if (inside) {
+            consider(v, err);
+          } else {
+            upper = std::max(upper, v + err);
+          }
+        }
+        for (std::size_t p : {piece - 1, piece + 1}) {
+          if (p >= env.size()) continue;
+          const Piece& f = env[p];
+          if (f.line.id == 0 || m < f.m0 - near || m > f.m1 + near) continue;
+          const double v = f.line.at(m), err = std::max(boundAt(f.line, v), f.extra);
+          if (f.m0 <= m && m <= f.m1) {
+            consider(v, err);
+          } else {
+            upper = std::max(upper, v + err);
+          }
+        }
+      };
+      bool inside = false;
+      if (touched) {
+        // Hidden by the terrain before the first void; or by one piece of terrain after it
+        // (between voids, or since the last one) with crossings both above and below the line
+        // (the terrain between them meets it); or visible over everything.
+        read(clean_, cleanPiece, inside);
+        bool hidden = lower > wP + own;
+        while (freshGap < freshVoids_.size() && freshVoids_[freshGap].second < m) ++freshGap;
+        const bool here = freshGap < freshVoids_.size() && m >= freshVoids_[freshGap].first;
+        // The highest crossing's lower bound and the lowest's upper bound on an envelope pair.
+        const auto span = [&](const std::vector<Piece>& high, std::size_t& hp, const std::vector<Piece>& low,
+                              std::size_t& lp, double& highest, double& lowest) {
+          upper = lower = -kInf;
+          read(high, hp, inside);
+          highest = lower;
+          upper = lower = -kInf;
+          read(low, lp, inside);
+          lowest = -lower;  // (low holds -w: lower = max(-w - err), so -lower = min(w + err))
+        };
+        if (!hidden) {
+          double highest, lowest;
+          span(doneHigh_, donePiece, doneLow_, doneLowPiece, highest, lowest);
+          hidden = highest > wP + own && lowest < wP - own;
+          if (!hidden) {
+            span(sinceHigh_, highPiece, sinceLow_, lowPiece, highest, lowest);
+            if (!here) {
+              // The run goes on to the pixel: this strip's crossings and column k - 1's (which
+              // the envelopes may have left out below the envelope) join it, and with a target
+              // above the surface the pixel's ground (below the line).
+              upper = lower = -kInf;
+              localCrossings(k, t1, tStart, j, m, lines, [&](double v, double err) {
+                consider(v, err);
+                lowest = std::min(lowest, v + err);
+              });
+              highest = std::max(highest, lower);
+              if (t1 > 0) {
+                const double ya = oy_ + m * t1;
+                const int r = std::clamp(static_cast<int>(std::floor(ya)), 0, J_ - 2);
+                if (lineOf(k, k - 1, r, k - 1, r + 1, 0, t1, lines[1])) {
+                  const double v = lines[1].at(m), err = boundAt(lines[1], v);
+                  lowest = std::min(lowest, v + err), highest = std::max(highest, v - err);
+                }
+              }
+              if (target_ > 0) lowest = std::min(lowest, (curZ_[j] - oz_) / t2 + ownSlack * (1 + std::fabs(wP)));
+            }
+            hidden = highest > wP + own && lowest < wP - own;
+          }
+        }
+        if (hidden) {
+          verdict = Verdict::Hidden;
+        } else {
+          upper = lower = -kInf;
+          read(envelope_, piece, inside);
+          localCrossings(k, t1, tStart, j, m, lines, consider);
+          if (upper < wP - own) verdict = Verdict::Visible;
+        }
+      } else {
+        read(envelope_, piece, inside);
+        if (lower > wP + own && inside) {
+          verdict = Verdict::Hidden;  // hidden already (most pixels)
+        } else {
+          localCrossings(k, t1, tStart, j, m, lines, consider);
+          if (upper < wP - own) {
+            verdict = Verdict::Visible;
+          } else if (lower > wP + own) {
+            verdict = Verdict::Hidden;
+          }
+        }
+      }
+      out_[at] = verdict;
+      if (verdict == Verdict::Undecided) {
+        ++counts.undecided;
+      } else {
+        ++counts.decided;
+      }
+    }
+  }
+
+  // The envelope of strip k's sides (the column-k sides and those across the strip) over the
+  // slopes [lo, hi] of the lines of sight the next columns hold: between consecutive slopes
+  // through a corner of column k - 1 or k, a line of sight crosses the same few sides, whose
+  // upper envelope (at most a few lines) is found directly.
+  void strip(int k, double t1, double t2, double lo, double hi) {
+    const double tStart = std::max(t1, 0.0);
+    strip_.clear();
+    stripLow_.clear();
+    Line lines[8];
+    // Corners' slopes in order: column k - 1 (when ahead of the eye) and column k.
+    int ja = t1 > 0 ? static_cast<int>(std::ceil(oy_ + lo * t1)) : 1, jaEnd = t1 > 0 ? J_ : 0;
+    int jb = static_cast<int>(std::ceil(oy_ + lo * t2));
+    const auto slopeA = [&](int j) { return (j - oy_) / t1; };
+    const auto slopeB = [&](int j) { return (j - oy_) / t2; };
+    double from = lo;
+    std::size_t piece = 0;  // the envelope's piece at `from`
+    while (from < hi) {
+      // A block of lines of sight (up to kBlock rows of column k) below the envelope all along
+      // adds nothing: a crossing's w lies between its side's corners' (w is monotone along a
+      // side ahead of the eye), so when every corner the block's lines of sight can cross is
+      // lower than the envelope's least value there, less its error bound, the block is skipped.
+      double blockEnd = hi;
+      if (kSkip && t1 > 0) {
+        constexpr int kBlock = 32;
+        blockEnd = std::min(hi, slopeB(std::max(jb, static_cast<int>(std::ceil(oy_ + from * t2))) + kBlock));
+        if (blockEnd > from && belowEnvelope(from, blockEnd, t1, t2, piece)) {
+          push(strip_, from, blockEnd, Line{}, 0);
+          if (voids_)
+            push(stripLow_, from, blockEnd, Line{}, 0);  // (leaving crossings out of a
+                                                         // witness only weakens it)
+          from = blockEnd;
+          continue;
+        }
+      }
+      while (from < blockEnd) {
+        double next = blockEnd;
+        while (ja < jaEnd && slopeA(ja) <= from) ++ja;
+        while (jb < J_ && slopeB(jb) <= from) ++jb;
+        if (ja < jaEnd) next = std::min(next, slopeA(ja));
+        if (jb < J_) next = std::min(next, slopeB(jb));
+        const int n = crossings(k, 0.5 * (from + next), tStart, true, lines);
+        envelopeOn(strip_, from, next, lines, n);
+        if (voids_) {
+          // The lower envelope, as the upper one of the lines turned upside down.
+          for (int i = 0; i < n; ++i) lines[i].a = -lines[i].a, lines[i].b = -lines[i].b;
+          envelopeOn(stripLow_, from, next, lines, n);
+        }
+        from = next;
+      }
+    }
+  }
+
+  // Whether every corner of columns k - 1 and k that lines of sight of slopes [m0, m1] can cross
+  // in strip k lies below the envelope there by more than its error bound. piece: where to start
+  // looking in the envelope (moves forward).
+  bool belowEnvelope(double m0, double m1, double t1, double t2, std::size_t& piece) const {
+    while (piece + 1 < envelope_.size() && envelope_[piece].m1 <= m0) ++piece;
+    double least = kInf;
+    for (std::size_t p = piece; p < envelope_.size() && envelope_[p].m0 < m1; ++p) {
+      const Piece& e = envelope_[p];
+      if (e.line.id == 0) return false;
+      const double a = std::max(m0, e.m0), b = std::min(m1, e.m1);
+      const double va = e.line.at(a), vb = e.line.at(b);
+      const double err = bound(e.line, a, b);
+      least = std::min(least, std::min(va, vb) - err - e.extra);
+      if (!(least > -kInf)) return false;
+    }
+    const auto highest = [&](const std::vector<double>& z, double t, double mlo, double mhi) {
+      const int j0 = std::max(0, static_cast<int>(std::floor(oy_ + mlo * t)) - 1);
+      const int j1 = std::min(J_ - 1, static_cast<int>(std::ceil(oy_ + mhi * t)) + 1);
+      double top = -kInf;
+      for (int j = j0; j <= j1; ++j) top = std::max(top, z[j]);
+      return (top - oz_) / t;
+    };
+    // (Heights over the eye divided by t: the corners' w; the largest w of a column is its
+    // highest corner's, t being the same along a column.)
+    const double top = std::max(highest(prevZ_, t1, m0, m1), highest(curZ_, t2, m0, m1));
+    return top + 1e-9 * (1 + std::fabs(top)) < least;
+  }
+
+  // The upper envelope of a few lines over [m0, m1], onto strip_: cut where any two cross, the
+  // highest at each part's middle (lines that meet at a corner, as a corner's sides do at its
+  // slope, are told apart away from it, not by the rounding there).
+  void envelopeOn(std::vector<Piece>& out, double m0, double m1, const Line* lines, int n) {
+    if (n == 0) {
+      push(out, m0, m1, Line{}, 0);
+      return;
+    }
+    double cuts[32];
+    int count = 0;
+    cuts[count++] = m0;
+    for (int i = 0; i < n; ++i) {
+      for (int j = i + 1; j < n; ++j) {
+        if (lines[i].b == lines[j].b) continue;
+        const double x = (lines[i].a - lines[j].a) / (lines[j].b - lines[i].b);
+        if (x > m0 && x < m1) cuts[count++] = x;
+      }
+    }
+    cuts[count++] = m1;
+    std::sort(cuts + 1, cuts + count - 1);
+    for (int c = 0; c + 1 < count; ++c) {
+      const double lo = cuts[c], hi = cuts[c + 1];
+      if (!(hi > lo)) continue;
+      const double mid = 0.5 * (lo + hi);
+      int top = 0;
+      for (int i = 1; i < n; ++i) {
+        if (lines[i].at(mid) > lines[top].at(mid)) top = i;
+      }
+      // Lines within their error bounds of the highest anywhere on the part widen its bound.
+      double extra = 0;
+      const double wt = bound(lines[top], lo, hi);
+      for (int i = 0; i < n; ++i) {
+        if (i == top) continue;
+        const double gap = std::min(lines[top].at(lo) - lines[i].at(lo), lines[top].at(hi) - lines[i].at(hi));
+        const double wi = bound(lines[i], lo, hi);
+        if (gap <= wt + wi) extra = std::max(extra, wi);
+      }
+      push(out, lo, hi, lines[top], extra);
+    }
+  }
+
+  // envelope_ = max(envelope_, strip_) over [lo, hi] (strip_ covers it, envelope_ more).
+  // With voids, the others too: clean_ from strip_ where no line of sight has touched a void;
+  // since the last void, the envelopes emptied where this strip touches one, then joined by the
+  // strip's where it does not.
+  void merge(double lo, double hi) {
+    mergeInto(envelope_, strip_, lo, hi);
+    if (!voids_ || voidM_.empty()) return;
+    // Lines of sight that touch a void in this strip end a piece of terrain: where they had
+    // crossings since the last void, those become the completed piece's (both envelopes, so the
+    // pair stays one piece's), in place of an earlier one.
+    ends_.clear();
+    {
+      std::size_t v = 0;
+      for (const Piece& p : sinceHigh_) {
+        if (p.line.id == 0) continue;
+        while (v < freshVoids_.size() && freshVoids_[v].second < p.m0) ++v;
+        for (std::size_t w = v; w < freshVoids_.size() && freshVoids_[w].first < p.m1; ++w) {
+          const double a = std::max(p.m0, freshVoids_[w].first), b = std::min(p.m1, freshVoids_[w].second);
+          if (b > a) {
+            if (!ends_.empty() && ends_.back().second >= a) {
+              ends_.back().second = std::max(ends_.back().second, b);
+            } else {
+              ends_.emplace_back(a, b);
+            }
+          }
+        }
+      }
+    }
+    if (!ends_.empty()) {
+      overlay(doneHigh_, sinceHigh_, ends_);
+      overlay(doneLow_, sinceLow_, ends_);
+    }
+    // (Only lines of sight that have touched a void need these: elsewhere they stay empty.)
+    complement(voidM_, outside_);
+    for (auto [since, add] : {std::pair{&sinceHigh_, &strip_}, std::pair{&sinceLow_, &stripLow_}}) {
+      mask(*since, freshVoids_, masked_);
+      since->swap(masked_);
+      mask(*add, freshVoids_, merged2_);
+      mask(merged2_, outside_, masked_);
+      mergeInto(*since, masked_, lo, hi);
+    }
+  }
+
+  // dst takes src's pieces on the slopes `where` (sorted, disjoint), keeps its own elsewhere.
+  void overlay(std::vector<Piece>& dst, const std::vector<Piece>& src,
+               const std::vector<std::pair<double, double>>& where) {
+    // src on `where`, nothing elsewhere: the complement masked away.
+    complement(where, complement_);
+    mask(src, complement_, masked_);
+    // dst masked on `where`, then the two joined (each slope is one's or none's).
+    mask(dst, where, merged2_);
+    merged_.clear();
+    std::size_t u = 0, f = 0;
+    double m = std::max(merged2_.front().m0, masked_.front().m0);
+    const double hi = std::min(merged2_.back().m1, masked_.back().m1);
+    while (m < hi && u < merged2_.size() && f < masked_.size()) {
+      const Piece &p = merged2_[u], &q = masked_[f];
+      const double end = std::min({p.m1, q.m1, hi});
+      if (end > m) {
+        const Piece& pick = q.line.id != 0 ? q : p;
+        push(merged_, m, end, pick.line, pick.extra);
+      }
+      m = std::max(m, end);
+      if (p.m1 <= m) ++u;
+      if (q.m1 <= m) ++f;
+    }
+    dst.swap(merged_);
+  }
+
+  static void complement(const std::vector<std::pair<double, double>>& where,
+                         std::vector<std::pair<double, double>>& out) {
+    out.clear();
+    double from = -kInf;
+    for (const auto& [a, b] : where) {
+      if (a > from) out.emplace_back(from, a);
+      from = b;
+    }
+    out.emplace_back(from, kInf);
+  }
+
+  // in with no line (minus infinity) on the slopes of `voids` (sorted, disjoint), onto out.
+  static void mask(const std::vector<Piece>& in, const std::vector<std::pair<double, double>>& voids,
+                   std::vector<Piece>& out) {
+    out.clear();
+    std::size_t v = 0;
+    for (const Piece& p : in) {
+      double from = p.m0;
+      while (v < voids.size() && voids[v].second < from) ++v;
+      for (std::size_t w = v; from < p.m1; ++w) {
+        if (w >= voids.size() || voids[w].first >= p.m1) {
+          push(out, from, p.m1, p.line, p.extra);
+          break;
+        }
+        const auto [a, b] = voids[w];
+        if (a > from) push(out, from, a, p.line, p.extra);
+        push(out, std::max(from, a), std::min(p.m1, b), Line{}, 0);
+        from = std::max(from, std::min(p.m1, b));
+      }
+    }
+  }
+
+  void mergeInto(std::vector<Piece>& envelope, const std::vector<Piece>& add, double lo, double hi) {
+    merged_.clear();
+    std::size_t u = 0, f = 0;
+    while (u + 1 < envelope.size() && envelope[u].m1 <= lo) ++u;
+    double m = lo;
+    while (m < hi && u < envelope.size() && f < add.size()) {
+      const Piece &p = envelope[u], &q = add[f];
+      const double end = std::min({p.m1, q.m1, hi});
+      if (end > m) combine(p, q, m, end);
+      m = std::max(m, end);
+      if (p.m1 <= m) ++u;
+      if (q.m1 <= m) ++f;
+    }
+    envelope.swap(merged_);
+  }
+
+  void combine(const Piece& p, const Piece& q, double m0, double m1) {
+    if (q.line.id == 0) return push(merged_, m0, m1, p.line, p.extra);
+    if (p.line.id == 0) return push(merged_, m0, m1, q.line, q.extra);
+    const double d0 = p.line.at(m0) - q.line.at(m0), d1 = p.line.at(m1) - q.line.at(m1);
+    // The loser's bound joins the winner's where they come within their bounds of each other.
+    const auto close = [&](double gap) {
+      return gap <= bound(p.line, m0, m1) + bound(q.line, m0, m1) + p.extra + q.extra;
+    };
+    if (d0 >= 0 && d1 >= 0) {
+      const double extra = close(std::min(d0, d1)) ? std::max({p.extra, q.extra, bound(q.line, m0, m1)}) : p.extra;
+      return push(merged_, m0, m1, p.line, extra);
+    }
+    if (d0 <= 0 && d1 <= 0) {
+      const double extra = close(-std::max(d0, d1)) ? std::max({p.extra, q.extra, bound(p.line, m0, m1)}) : q.extra;
+      return push(merged_, m0, m1, q.line, extra);
+    }
+    const double x = std::clamp(m0 + (m1 - m0) * d0 / (d0 - d1), m0, m1);
+    const double extra = std::max({p.extra, q.extra, bound(p.line, m0, m1), bound(q.line, m0, m1)});
+    const Piece& first = d0 > 0 ? p : q;
+    const Piece& second = d0 > 0 ? q : p;
+    push(merged_, m0, x, first.line, extra);
+    push(merged_, x, m1, second.line, extra);
+  }
+
+  const Grid& g_;
+  Eye eye_;
+  int q_;
+  double target_, slack_;
+  bool voids_;
+  std::span<Verdict> out_;
+  int K_ = 0, J_ = 0, s_ = 1;
+  std::ptrdiff_t base_ = 0, sk_ = 0, sj_ = 0;
+  double ox_ = 0, oy_ = 0, oz_ = 0;
+  std::vector<double> prevZ_, curZ_;
+  std::vector<std::uint8_t> prevV_, curV_;
+  // envelope_: every side crossed (with voids, their squares' sides too, at the heights given):
+  // a line of sight above it is visible. clean_ (with voids): only the sides crossed before a
+  // line of sight first touches a square with a void corner, which lie in one piece of terrain
+  // with the eye (the eye below it, a crossing above: the terrain between them meets the line):
+  // a line of sight below it is hidden.
+  // sinceHigh_, sinceLow_ (with voids): the highest and (turned upside down) the lowest crossing
+  // since a line of sight last touched a void, all in one piece of terrain that runs on to the
+  // pixel: one above the line and one below it there, and the terrain between them meets it.
+  // doneHigh_, doneLow_: the same for a completed piece of terrain between two voids.
+  std::vector<Piece> envelope_, clean_, sinceHigh_, sinceLow_, doneHigh_, doneLow_, strip_, stripLow_, masked_, merged_,
+      merged2_;
+  std::vector<std::pair<double, double>> ends_, complement_, outside_, firstTouch_;
+  std::vector<std::pair<double, double>> voidM_, freshVoids_;
+};
+
+}  // namespace
+
+bool decide(const Grid& grid, const Eye& eye, double targetHeight, double slack, unsigned threads,
+            std::span<Verdict> out, Counts& counts, const std::function<bool(double)>& keepGoing) {
+  const bool voids = std::find(grid.valid.begin(), grid.valid.end(), 0) != grid.valid.end();
+  std::atomic<int> nextQuadrant{0}, quadrantsDone{0};
+  std::atomic<bool> stop{false};
+  Counts each[4];
+  const unsigned workers = std::max(1u, std::min(4u, threads));
+  const auto work = [&](unsigned worker) {
+    for (int q; !stop && (q = nextQuadrant++) < 4;) {
+      Quadrant quadrant(grid, eye, q, targetHeight, slack, voids, out);
+      std::function<bool()> ask;
+      if (worker == 0 && keepGoing) {
+        ask = [&] {
+          if (stop) return false;
+          if (!keepGoing(quadrantsDone / 4.0)) stop = true;
+          return !stop.load();
+        };
+      } else {
+        ask = [&] { return !stop.load(); };
+      }
+      if (!quadrant.run(each[q], ask)) stop = true;
+      ++quadrantsDone;
+    }
+  };
+  std::vector<std::thread> pool;
+  for (unsigned k = 1; k < workers; ++k) pool.emplace_back(work, k);
+  work(0);
+  for (std::thread& t : pool) t.join();
+  if (stop) return false;
+  for (const Counts& c : each) counts.decided += c.decided, counts.undecided += c.undecided;
+  return true;
+}
+
+}  // namespace qota::sweep
