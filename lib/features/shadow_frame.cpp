@@ -263,12 +263,24 @@ void geoidOver(FrameBasis& b, OGRCoordinateTransformation* toGeo) {
   std::tie(b.geoidLow, b.geoidHigh) = b.geoid->rangeOver(lon0, std::max(lat0, -90.0), lon1, std::min(lat1, 90.0));
 }
 
+// The raster's description without its mesh: copying millions of vertices to drop them took a
+// tenth of a viewshed's time. (Every field of DemTerrain but mesh.)
+DemTerrain describedOnly(const DemTerrain& dem) {
+  DemTerrain d;
+  d.path = dem.path, d.driver = dem.driver, d.width = dem.width, d.height = dem.height;
+  d.geotransform = dem.geotransform, d.crsWkt = dem.crsWkt, d.nodata = dem.nodata;
+  d.nodataPixels = dem.nodataPixels, d.filledPixels = dem.filledPixels, d.band = dem.band;
+  d.integerValues = dem.integerValues, d.estimatedBytes = dem.estimatedBytes;
+  d.verticalUnit = dem.verticalUnit, d.verticalReference = dem.verticalReference, d.lonLat = dem.lonLat;
+  d.mapping = dem.mapping;
+  return d;
+}
+
 }  // namespace
 
 FrameBasis frameBasis(const DemTerrain& dem, const FrameOptions& o) {
   FrameBasis b;
-  b.raster = dem;
-  b.raster.mesh = {};
+  b.raster = describedOnly(dem);
   b.options = o;
   LocalFrame& f = b.shared;
   f.width = dem.width;

@@ -51,8 +51,12 @@ class Quadrant {
  public:
   // q: 0 east (columns increasing), 1 west, 2 south (rows increasing), 3 north: the quadrant's
   // columns X run away from the eye, its rows Y across, whatever the grid's axes.
-  Quadrant(const Grid& g, const Eye& eye, int q, double targetHeight, double slack, bool voids, std::span<Verdict> out)
-      : g_(g), eye_(eye), q_(q), target_(targetHeight), slack_(slack), voids_(voids), out_(out) {
+  // half: 0 the slopes m < 0 of the quadrant (rows before the eye's), 1 those m >= 0; each half
+  // is swept alone (its own envelope over its slopes), so that two threads share four
+  // quadrants evenly.
+  Quadrant(const Grid& g, const Eye& eye, int q, int half, double targetHeight, double slack, bool voids,
+           std::span<Verdict> out)
+      : g_(g), eye_(eye), q_(q), half_(half), target_(targetHeight), slack_(slack), voids_(voids), out_(out) {
     const int w = g.width, h = g.height;
     const std::ptrdiff_t W = w;
     switch (q) {
@@ -77,7 +81,7 @@ class Quadrant {
     const int k0 = static_cast<int>(std::floor(ox_)) + 1;
     gather(k0 - 1, prevZ_, prevV_);
     Line none;
-    envelope_.assign(1, Piece{-1, 1, none, 0});
+    envelope_.assign(1, Piece{half_ == 0 ? -1.0 : 0.0, half_ == 0 ? 0.0 : 1.0, none, 0});
     clean_ = sinceHigh_ = sinceLow_ = doneHigh_ = doneLow_ = envelope_;
     for (int k = k0; k < K_; ++k) {
       if (keepGoing && (k - k0) % 64 == 63 && !keepGoing()) return false;
@@ -86,7 +90,8 @@ class Quadrant {
       if (voids_) addVoids(t1, t2);
       answer(k, t1, t2, counts);
       if (k + 1 < K_) {
-        const double lo = std::max(-1.0, -oy_ / (t2 + 1)), hi = std::min(1.0, (J_ - 1 - oy_) / (t2 + 1));
+        const double lo = half_ == 0 ? std::max(-1.0, -oy_ / (t2 + 1)) : 0.0;
+        const double hi = half_ == 0 ? 0.0 : std::min(1.0, (J_ - 1 - oy_) / (t2 + 1));
         strip(k, t1, t2, lo, hi);
         merge(lo, hi);
       }
@@ -284,8 +289,10 @@ class Quadrant {
   // sides crossed in this strip.
   void answer(int k, double t1, double t2, Counts& counts) {
     const double tStart = std::max(t1, 0.0);
-    const int jlo = std::max(0, static_cast<int>(std::ceil(oy_ - t2))),
-              jhi = std::min(J_ - 1, static_cast<int>(std::floor(oy_ + t2)));
+    // This half's rows: j - oy < 0, or >= 0.
+    const int jlo = half_ == 0 ? std::max(0, static_cast<int>(std::ceil(oy_ - t2))) : static_cast<int>(std::ceil(oy_)),
+              jhi = half_ == 0 ? static_cast<int>(std::ceil(oy_)) - 1
+                               : std::min(J_ - 1, static_cast<int>(std::floor(oy_ + t2)));
     std::size_t piece = 0, cleanPiece = 0, highPiece = 0, lowPiece = 0, donePiece = 0, doneLowPiece = 0, gap = 0,
                 freshGap = 0;
     Line lines[8];
@@ -493,8 +500,8 @@ class Quadrant {
   // highest at each part's middle (lines that meet at a corner, as a corner's sides do at its
   // slope, are told apart away from it, not by the rounding there).
   void envelopeOn(std::vector<Piece>& out, double m0, double m1, const Line* lines, int n) {
-    if (n == 0) {
-      push(out, m0, m1, Line{}, 0);
+    if (n <= 1) {  // (most intervals cross one side: the column's)
+      push(out, m0, m1, n == 0 ? Line{} : lines[0], 0);
       return;
     }
     double cuts[32];
@@ -673,7 +680,7 @@ class Quadrant {
 
   const Grid& g_;
   Eye eye_;
-  int q_;
+  int q_, half_;
   double target_, slack_;
   bool voids_;
   std::span<Verdict> out_;
@@ -704,16 +711,16 @@ bool decide(const Grid& grid, const Eye& eye, double targetHeight, double slack,
   const bool voids = std::find(grid.valid.begin(), grid.valid.end(), 0) != grid.valid.end();
   std::atomic<int> nextQuadrant{0}, quadrantsDone{0};
   std::atomic<bool> stop{false};
-  Counts each[4];
+  Counts each[8];
   const unsigned workers = std::max(1u, std::min(4u, threads));
   const auto work = [&](unsigned worker) {
-    for (int q; !stop && (q = nextQuadrant++) < 4;) {
-      Quadrant quadrant(grid, eye, q, targetHeight, slack, voids, out);
+    for (int q; !stop && (q = nextQuadrant++) < 8;) {
+      Quadrant quadrant(grid, eye, q / 2, q % 2, targetHeight, slack, voids, out);
       std::function<bool()> ask;
       if (worker == 0 && keepGoing) {
         ask = [&] {
           if (stop) return false;
-          if (!keepGoing(quadrantsDone / 4.0)) stop = true;
+          if (!keepGoing(quadrantsDone / 8.0)) stop = true;
           return !stop.load();
         };
       } else {
