@@ -22,7 +22,7 @@ x=593015 y=5185985  # the centre of pixel (934, 800), on the mountain's south-we
 grass=$(command -v grass || true)
 
 echo "viewshed_bench: 2000 x 2000 pixels of 30 m, observer ($x, $y) 2 m up; $runs runs each, medians"
-printf '%-34s %10s %8s %10s\n' "job" "seconds" "spread" "peak MB"
+printf '%-50s %8s %8s %8s\n' "job" "seconds" "spread" "peak MB"
 declare -A secs
 for md in 0 10000; do
   label=$([ "$md" = 0 ] && echo "whole raster" || echo "within 10 km")
@@ -30,7 +30,7 @@ for md in 0 10000; do
   [ "$md" != 0 ] && qmd=(--md "$md") gmd=(-md "$md") rmd=$md
   measure "$qota" viewshed "$dem" --observer "$x,$y" --oz 2 --flat "${qmd[@]}" -o "$work/qota_$md.tif" -q
   secs[qota_$md]=$med
-  printf '%-34s %10s %7s%% %10d\n' "qota viewshed, $label" "$med" "$spread" $((mem / 1024))
+  printf '%-50s %8s %7s%% %8d\n' "qota viewshed, $label" "$med" "$spread" $((mem / 1024))
   # Once more, to say how the pixels were decided (the sweep, or its exact fallback one by one).
   "$qota" viewshed "$dem" --observer "$x,$y" --oz 2 --flat "${qmd[@]}" -o "$work/qota_$md.tif" |
     sed -n 's/^decided: /    decided: /p'
@@ -40,10 +40,10 @@ for md in 0 10000; do
   measure "$qota" viewshed "$dem" --observer "$x,$y" --oz 2 --flat "${qmd[@]}" --per-pixel \
     -o "$work/perpixel_$md.tif" -q
   runs=$saved
-  printf '%-34s %10s %8s %10d\n' "qota viewshed --per-pixel, $label" "$med" "(once)" $((mem / 1024))
+  printf '%-50s %8s %8s %8d\n' "qota viewshed --per-pixel, $label" "$med" "(once)" $((mem / 1024))
   measure gdal_viewshed -q -ox "$x" -oy "$y" -oz 2 -cc 0 -vv 255 -iv 0 -ov 64 "${gmd[@]}" "$dem" "$work/gdal_$md.tif"
   secs[gdal_$md]=$med
-  printf '%-34s %10s %7s%% %10d\n' "gdal_viewshed, $label" "$med" "$spread" $((mem / 1024))
+  printf '%-50s %8s %7s%% %8d\n' "gdal_viewshed, $label" "$med" "$spread" $((mem / 1024))
   if [ -n "$grass" ]; then
     # GRASS needs a project: made once in the scratch folder, the DEM imported; r.viewshed alone timed.
     [ -d "$work/grass" ] || grass -c "$dem" -e "$work/grass" > /dev/null 2>&1
@@ -52,7 +52,7 @@ for md in 0 10000; do
     measure grass "$work/grass/PERMANENT" --exec r.viewshed -b --overwrite --quiet input=dem output=seen \
       coordinates="$x,$y" observer_elevation=2 target_elevation=0 max_distance="$rmd" memory=2000
     secs[grass_$md]=$med
-    printf '%-34s %10s %7s%% %10d\n' "r.viewshed (with GRASS's start-up), $label" "$med" "$spread" $((mem / 1024))
+    printf '%-50s %8s %7s%% %8d\n' "r.viewshed (with GRASS's start-up), $label" "$med" "$spread" $((mem / 1024))
     grass "$work/grass/PERMANENT" --exec r.out.gdal --quiet -f input=seen output="$work/grass_$md.tif" type=Byte \
       nodata=200 > /dev/null 2>&1
   fi

@@ -670,6 +670,37 @@ TEST(Viewshed, RefractionMovesTheHorizonWhereTheModelSays) {
   EXPECT_THROW(qota::viewshed(dem, o), qota::Error);  // a flat frame has no curvature to bend over
 }
 
+// On real terrain with voids (the SRTM tile's glaciers), flat: the sweep's answers are the
+// per-pixel quadtree's (itself held to the oracle above), pixel for pixel, for observers high
+// and low, near voids and across the summit, with and without a maximum distance.
+TEST(Viewshed, SweepAgreesWithEveryLineOfSightOnRainier) {
+  qota::DemOptions read;
+  read.lonLatAsCartesian = true;  // (as the tool reads it: the frame places it)
+  const qota::DemTerrain dem = qota::loadDem(QOTA_DATA_DIR "/mt_rainier_90m.tif", read);
+  const double spots[][4] = {// lon, lat, observer height, maximum distance
+                             {-121.7326, 46.8356, 10, 6000},
+                             {-121.760, 46.853, 2, 5000},
+                             {-121.80, 46.80, 30, 7000},
+                             {-121.70, 46.90, 2, 9000}};
+  std::size_t swept = 0;
+  for (const auto& spot : spots) {
+    qota::ViewshedOptions o;
+    o.observerX = spot[0], o.observerY = spot[1], o.observerHeight = spot[2], o.maxDistance = spot[3];
+    o.frame.flat = true;
+    if (spot[2] == 2) o.targetHeight = 1.5;
+    const qota::Viewshed fast = qota::viewshed(dem, o);
+    o.sweep = false;
+    const qota::Viewshed slow = qota::viewshed(dem, o);
+    int differ = 0;
+    for (std::size_t i = 0; i < fast.sight.size(); ++i) differ += fast.sight[i] != slow.sight[i];
+    EXPECT_EQ(differ, 0) << "observer " << spot[0] << ", " << spot[1];
+    EXPECT_EQ(fast.visible, slow.visible);
+    EXPECT_EQ(slow.swept, 0u);
+    swept += fast.swept;
+  }
+  EXPECT_GT(swept, 50000u);  // (of 95,167 tested: the tile's scattered voids leave many to the exact test)
+}
+
 TEST(Viewshed, MaximumDistanceChangesNothingWithinIt) {
   // A raster much larger than the distance: only a window around the observer is placed and
   // indexed; every pixel within the distance is as the whole raster's viewshed has it.

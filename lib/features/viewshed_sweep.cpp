@@ -443,6 +443,13 @@ class Quadrant {
         blockEnd = std::min(hi, slopeB(std::max(jb, static_cast<int>(std::ceil(oy_ + from * t2))) + kBlock));
         if (blockEnd > from && belowEnvelope(from, blockEnd, t1, t2, piece)) {
           push(strip_, from, blockEnd, Line{}, 0);
+          if (voids_ && touchesVoids(from, blockEnd)) {
+            // The pieces of terrain since a void need low crossings (to pair with a high one):
+            // column k's own, one side a row, cheaper than the whole strip's envelope.
+            lowColumn(k, t2, from, blockEnd);
+            from = blockEnd;
+            continue;
+          }
           if (voids_)
             push(stripLow_, from, blockEnd, Line{}, 0);  // (leaving crossings out of a
                                                          // witness only weakens it)
@@ -464,6 +471,39 @@ class Quadrant {
           envelopeOn(stripLow_, from, next, lines, n);
         }
         from = next;
+      }
+    }
+  }
+
+  // Whether lines of sight of slopes in [m0, m1] have touched a void.
+  bool touchesVoids(double m0, double m1) const {
+    if (voidM_.empty()) return false;
+    const auto after = std::lower_bound(voidM_.begin(), voidM_.end(), std::pair{m0, -kInf});
+    if (after != voidM_.end() && after->first <= m1) return true;
+    return after != voidM_.begin() && std::prev(after)->second >= m0;
+  }
+
+  // Onto stripLow_ over [m0, m1]: the crossing of column k's sides (turned upside down), a real
+  // crossing of every line of sight there though not always the lowest (which only weakens the
+  // witness).
+  void lowColumn(int k, double t2, double m0, double m1) {
+    Line line;
+    double from = m0;
+    int j = std::clamp(static_cast<int>(std::floor(oy_ + m0 * t2)), 0, J_ - 2);
+    while (from < m1) {
+      const double to = std::min(m1, (j + 1 - oy_) / t2);
+      if (to > from) {
+        if (lineOf(k, k, j, k, j + 1, 0, t2, line)) {
+          line.a = -line.a, line.b = -line.b;
+          push(stripLow_, from, to, line, 0);
+        } else {
+          push(stripLow_, from, to, Line{}, 0);
+        }
+        from = to;
+      }
+      if (++j > J_ - 2) {
+        push(stripLow_, from, m1, Line{}, 0);
+        break;
       }
     }
   }
