@@ -204,7 +204,6 @@ class Sightlines {
     const std::uint32_t square = squareOf_[blocker] / 2;
     const int col = static_cast<int>(square % (w - 1)), row = static_cast<int>(square / (w - 1));
     const Eigen::Vector3d d = b - a;
-    const auto& v = frame_.mesh.vertices;
     static constexpr int kOrder[3] = {0, -1, 1};
     for (int dr : kOrder) {
       for (int dc : kOrder) {
@@ -215,17 +214,26 @@ class Sightlines {
           const std::uint32_t p = triangleAt_[slot];
           if (p == CartesianIndex::kNoPolygon) continue;
           const std::array<std::uint32_t, 3> k = frame_.grid.triangle(slot);
-          if (k[0] == endVertex || k[1] == endVertex || k[2] == endVertex) continue;
           if (!skip.empty() && std::binary_search(skip.begin(), skip.end(), p)) continue;
-          double q[3][3];  // the corners' offsets from a (line_crossing.hpp)
-          for (int j = 0; j < 3; ++j) {
-            for (int i = 0; i < 3; ++i) q[j][i] = v[k[j]][i] - a[i];
-          }
-          if (detail::segmentMeetsTriangle(q, d)) return p;
+          if (meetsTriangle(k, a, d, endVertex)) return p;
         }
       }
     }
     return CartesianIndex::kNoPolygon;
+  }
+
+  // Whether the open segment from a to a + d meets the triangle with corners k, by the index's
+  // own rule (segmentMeetsTriangle); a triangle with endVertex as a corner meets it only at its
+  // end and is left out, as segmentMeets leaves it.
+  bool meetsTriangle(const std::array<std::uint32_t, 3>& k, const Eigen::Vector3d& a, const Eigen::Vector3d& d,
+                     std::uint32_t endVertex) const {
+    if (k[0] == endVertex || k[1] == endVertex || k[2] == endVertex) return false;
+    const auto& v = frame_.mesh.vertices;
+    double q[3][3];  // the corners' offsets from a (line_crossing.hpp)
+    for (int j = 0; j < 3; ++j) {
+      for (int i = 0; i < 3; ++i) q[j][i] = v[k[j]][i] - a[i];
+    }
+    return detail::segmentMeetsTriangle(q, d);
   }
 
   // Whether the open segment from a to b meets the terrain (segmentMeets), trying `blocker`'s
@@ -403,12 +411,7 @@ class Sightlines {
         for (std::uint32_t half = 0; half < 2; ++half) {
           const std::array<std::uint32_t, 3> k = frame_.grid.triangle(RasterGrid::innerTriangle(w, r, c, half));
           if (!frame_.valid[k[0]] || !frame_.valid[k[1]] || !frame_.valid[k[2]]) continue;
-          if (k[0] == endVertex || k[1] == endVertex || k[2] == endVertex) continue;
-          double q[3][3];
-          for (int j = 0; j < 3; ++j) {
-            for (int i = 0; i < 3; ++i) q[j][i] = v[k[j]][i] - a[i];
-          }
-          if (detail::segmentMeetsTriangle(q, d)) return true;
+          if (meetsTriangle(k, a, d, endVertex)) return true;
         }
       }
     }

@@ -13,11 +13,6 @@ namespace {
 
 constexpr double kEps = std::numeric_limits<double>::epsilon();
 constexpr double kInf = std::numeric_limits<double>::infinity();
-#ifdef QOTA_SWEEP_NO_SKIP
-constexpr bool kSkip = false;
-#else
-constexpr bool kSkip = true;
-#endif
 
 // A triangle side's line in a quadrant's (m, w) plane: w = a + b m, with a bound on the rounding
 // of that value for |m| <= 1, and `reach`: the slack over the least distance t (in columns) at
@@ -168,9 +163,8 @@ class Quadrant {
 
   // The bound on a line's value error over [m0, m1]: its rounding and the slack, which grows as
   // the crossing nears the eye (a height error at distance t is an angle error / t).
-  double bound(const Line& l, double m0, double m1) const {
-    if (l.id == 0) return 0;
-    return l.rounding + l.reach * (1 + std::max(std::fabs(l.at(m0)), std::fabs(l.at(m1))));
+  static double bound(const Line& l, double m0, double m1) {
+    return l.id == 0 ? 0 : boundAt(l, std::max(std::fabs(l.at(m0)), std::fabs(l.at(m1))));
   }
 
   // The sides a line of sight of slope m crosses in strip k (between columns k - 1 and k),
@@ -438,7 +432,7 @@ class Quadrant {
       // side ahead of the eye), so when every corner the block's lines of sight can cross is
       // lower than the envelope's least value there, less its error bound, the block is skipped.
       double blockEnd = hi;
-      if (kSkip && t1 > 0) {
+      if (t1 > 0) {
         constexpr int kBlock = 32;
         blockEnd = std::min(hi, slopeB(std::max(jb, static_cast<int>(std::ceil(oy_ + from * t2))) + kBlock));
         if (blockEnd > from && belowEnvelope(from, blockEnd, t1, t2, piece)) {
