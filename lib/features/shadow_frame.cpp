@@ -486,30 +486,40 @@ LocalFrame windowFrame(const FrameBasis& b, const PixelWindow& window, std::vect
   f.grid = RasterGrid(w, h, closure);
   f.gridMesh = true;
 
-  // Every vertex: where it stands in the raster's pixel coordinates, and its height in metres.
+  // Every vertex: where it stands in the raster's pixel coordinates, and its height in metres,
+  // placed a block at a time (the positions of a whole raster at once would need as much memory
+  // again as its points).
   const std::size_t vertexCount = f.grid.vertexCount();
-  std::vector<double> col(vertexCount), row(vertexCount), height(vertexCount);
-  std::vector<int> pole(vertexCount, 0);
-  for (std::size_t i = 0; i < n; ++i) {
-    col[i] = static_cast<double>(window.col + static_cast<int>(i % w)) + 0.5;
-    row[i] = static_cast<double>(window.row + static_cast<int>(i / w)) + 0.5;
-    height[i] = z[i];
-  }
-  for (std::size_t k = 0; k < f.grid.extraVertices().size(); ++k) {
-    const RasterGrid::ExtraVertex& e = f.grid.extraVertices()[k];
-    const std::size_t i = n + k;
-    col[i] = e.col + window.col, row[i] = e.row + window.row, pole[i] = e.pole;
-    if (e.pole == 0) {
-      height[i] = z[e.pixel];
-      continue;
+  constexpr std::size_t kBlock = std::size_t{1} << 16;
+  std::vector<double> col, row, height;
+  std::vector<int> pole;
+  f.mesh.vertices.reserve(vertexCount);
+  for (std::size_t first = 0; first < vertexCount; first += kBlock) {
+    const std::size_t count = std::min(kBlock, vertexCount - first);
+    col.resize(count), row.resize(count), height.resize(count), pole.assign(count, 0);
+    for (std::size_t k = 0; k < count; ++k) {
+      const std::size_t i = first + k;
+      if (i < n) {
+        col[k] = static_cast<double>(window.col + static_cast<int>(i % w)) + 0.5;
+        row[k] = static_cast<double>(window.row + static_cast<int>(i / w)) + 0.5;
+        height[k] = z[i];
+        continue;
+      }
+      const RasterGrid::ExtraVertex& e = f.grid.extraVertices()[i - n];
+      col[k] = e.col + window.col, row[k] = e.row + window.row, pole[k] = e.pole;
+      if (e.pole == 0) {
+        height[k] = z[e.pixel];
+        continue;
+      }
+      const std::size_t r = e.pole > 0 ? 0 : static_cast<std::size_t>(h - 1);  // the pole's row
+      double sum = 0;
+      for (std::size_t c = 0; c < static_cast<std::size_t>(w); ++c) sum += z[r * w + c];
+      height[k] = sum / w;
     }
-    const std::size_t r = e.pole > 0 ? 0 : static_cast<std::size_t>(h - 1);  // the pole's row
-    double sum = 0;
-    for (std::size_t c = 0; c < static_cast<std::size_t>(w); ++c) sum += z[r * w + c];
-    height[i] = sum / w;
+    const std::vector<Eigen::Vector3d> points = framePoints(b, col, row, height, pole);
+    f.mesh.vertices.insert(f.mesh.vertices.end(), points.begin(), points.end());
   }
   z = {};
-  f.mesh.vertices = framePoints(b, col, row, height, pole);
   if (triangles) f.mesh.indices = f.grid.indices();
   return f;
 }

@@ -87,9 +87,11 @@ std::uint64_t ShadowTiles::bytesPerWindowPixel(const std::vector<Eigen::Vector3d
 std::uint64_t ShadowTiles::bytesPerWholePixel(const std::vector<Eigen::Vector3d>& lights) {
   // The whole raster in memory (loadDem's mesh, then the frame and the mask): measured on the
   // Rainier DEM 128 to 134 bytes a pixel at altitudes 30 and 60, 157 at 10, 171 at 5, 184 at 2
-  // (peak RSS less the process's); taken with a tenth more.
+  // (peak RSS less the process's) when the frame's pixel positions were made whole before its
+  // points; made a block at a time, about 115 at 45 and 175 at 2 (bench/shadow_memory.sh's
+  // peaks, less the 62 MiB the process takes before); taken with a tenth more.
   // Below the horizon: up to 40 more (250 a pixel measured at 45 degrees below on Rainier).
-  return static_cast<std::uint64_t>(std::ceil(150 + 66 * lowLightShare(lights) + 40 * belowShare(lights)));
+  return static_cast<std::uint64_t>(std::ceil(140 + 66 * lowLightShare(lights) + 40 * belowShare(lights)));
 }
 
 std::array<int, 4> ShadowTiles::halo(const PixelWindow& tile, const std::vector<Eigen::Vector3d>& lights,

@@ -448,16 +448,16 @@ class Sightlines {
         if (valid_[i]) lo = std::min(lo, metres_[i]), hi = std::max(hi, metres_[i]);
       }
       // Holes: voids at the lowest height (their triangles are left out); shadows: filled from
-      // their rims over the whole raster, as localFrame fills them.
-      placed_ = metres_;
+      // their rims over the whole raster, as localFrame fills them. (In place: observerAt reads
+      // only the pixels with data.)
       if (holes_) {
-        for (double& v : placed_) v = std::isnan(v) ? (lo <= hi ? lo : 0.0) : v;
+        for (double& v : metres_) v = std::isnan(v) ? (lo <= hi ? lo : 0.0) : v;
       } else {
-        fillVoids(placed_, dem_.width, dem_.height);
+        fillVoids(metres_, dem_.width, dem_.height);
       }
       lo_ = lo, hi_ = hi;
     }
-    std::vector<double> z = sliceOf(placed_, window);
+    std::vector<double> z = sliceOf(metres_, window);
     std::vector<std::uint8_t> valid = sliceOf(valid_, window);
     // Viewsheds read the triangles from the grid (index(), guess(), walkMeets()); a point light's
     // attached shadow needs the mesh's.
@@ -469,8 +469,12 @@ class Sightlines {
                                std::min((dem_.height - 1) / 2, dem_.height - 2), 2, 2};
       const bool holds = centre.col >= window.col && centre.row >= window.row &&
                          centre.col + 2 <= window.col + window.width && centre.row + 2 <= window.row + window.height;
-      completeBasis(basis_, lo_, hi_,
-                    holds ? frame_ : windowFrame(basis_, centre, sliceOf(placed_, centre), sliceOf(valid_, centre)));
+      // (Not a conditional expression: that would copy the whole frame.)
+      if (holds) {
+        completeBasis(basis_, lo_, hi_, frame_);
+      } else {
+        completeBasis(basis_, lo_, hi_, windowFrame(basis_, centre, sliceOf(metres_, centre), sliceOf(valid_, centre)));
+      }
       complete_ = true;
     }
     adoptBasis(frame_, basis_);
@@ -510,11 +514,12 @@ class Sightlines {
   bool holes_ = true;
   FrameOptions options_;
   bool complete_ = false;
-  double lo_ = 0, hi_ = 0;      // the height range of the pixels with data (metres)
-  std::vector<double> placed_;  // the heights the frame places: voids filled (shadows) or lowest
+  double lo_ = 0, hi_ = 0;  // the height range of the pixels with data (metres)
   FrameBasis basis_;
   LocalFrame frame_;
-  std::vector<double> metres_;  // heights in metres over the whole raster, voids not filled (NaN)
+  // Heights in metres over the whole raster: voids NaN until the frame is first placed, then at
+  // the heights that frame places there (filled for shadows, the lowest for holes).
+  std::vector<double> metres_;
   std::vector<std::uint8_t> valid_;
   IndexOptions indexOptions_;
   std::unique_ptr<CartesianIndex> index_;

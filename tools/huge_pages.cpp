@@ -1,0 +1,51 @@
+// Large blocks on transparent huge pages, for the qota command only (linked into its executable,
+// not the library: a program using the library keeps its own allocator).
+//
+// Why: a whole-raster job touches hundreds of megabytes once (the frame's points, the heights,
+// the verdicts). In 4 KiB pages that is one page fault per 4 KiB, a quarter of a 2000 x 2000
+// viewshed's time on Linux; in 2 MiB pages it is 512 times fewer. Where the kernel's setting is
+// "madvise" (Debian's default) only memory that asks gets huge pages, so a block of 4 MiB or more
+// asks before it is first touched. The blocks still come from malloc and go back with free, so
+// everything else about the heap (mallopt in main.cpp) holds. Sanitizer builds keep their own
+// operator new.
+#if defined(__linux__) && !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)
+
+#include <sys/mman.h>
+
+#include <cstdint>
+#include <cstdlib>
+#include <new>
+
+namespace {
+
+constexpr std::size_t kHugePage = std::size_t{2} << 20;
+constexpr std::size_t kLargeBlock = std::size_t{4} << 20;
+
+void* allocate(std::size_t bytes) {
+  if (bytes == 0) bytes = 1;
+  for (;;) {
+    if (void* p = std::malloc(bytes)) {
+      if (bytes >= kLargeBlock) {
+        // The whole huge pages inside the block (advice only: a failure changes nothing).
+        const auto first = (reinterpret_cast<std::uintptr_t>(p) + kHugePage - 1) & ~(kHugePage - 1);
+        const auto last = (reinterpret_cast<std::uintptr_t>(p) + bytes) & ~(kHugePage - 1);
+        if (last > first) madvise(reinterpret_cast<void*>(first), last - first, MADV_HUGEPAGE);
+      }
+      return p;
+    }
+    const std::new_handler handler = std::get_new_handler();
+    if (!handler) throw std::bad_alloc();
+    handler();
+  }
+}
+
+}  // namespace
+
+void* operator new(std::size_t bytes) { return allocate(bytes); }
+void* operator new[](std::size_t bytes) { return allocate(bytes); }
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete[](void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
+
+#endif
