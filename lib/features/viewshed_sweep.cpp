@@ -101,13 +101,47 @@ class Quadrant {
 
   // Column k's heights and validity, on the rows its strip and its pixels can need: those
   // within t + 3 of the eye's row (|m| <= 1).
-  void gather(int k, std::vector<double>& z, std::vector<std::uint8_t>& v) const {
-    const double t = std::max(std::fabs(k - ox_), 1.0) + 3;
-    const int j0 = std::max(0, static_cast<int>(std::floor(oy_ - t))),
-              j1 = std::min(J_ - 1, static_cast<int>(std::ceil(oy_ + t)));
+  void gather(int k, std::vector<double>& z, std::vector<std::uint8_t>& v) {
+    const auto rows = [&](int column, int& j0, int& j1) {
+      const double t = std::max(std::fabs(column - ox_), 1.0) + 3;
+      j0 = std::max(0, static_cast<int>(std::floor(oy_ - t)));
+      j1 = std::min(J_ - 1, static_cast<int>(std::ceil(oy_ + t)));
+    };
+    int j0, j1;
+    rows(k, j0, j1);
+    if (sj_ == 1) {  // (north and south: a column of the quadrant is a row of the grid)
+      for (int j = j0; j <= j1; ++j) {
+        const std::size_t i = index(k, j);
+        z[j] = g_.z[i], v[j] = g_.valid[i];
+      }
+      return;
+    }
+    // East and west: the quadrant's columns are the grid's, one pixel a row apart; read
+    // kColumns of them in one pass over the rows (a cache line a row instead of one a pixel),
+    // kept for the columns that follow. (The rows the last of them needs hold the others'.)
+    if (k < blockFirst_ || k >= blockFirst_ + kColumns) {
+      blockFirst_ = k;
+      const int count = std::min(kColumns, K_ - k);
+      int b0, b1;
+      rows(k + count - 1, b0, b1);
+      b0 = std::min(b0, j0), b1 = std::max(b1, j1);
+      blockZ_.resize(static_cast<std::size_t>(J_) * kColumns), blockV_.resize(blockZ_.size());
+      constexpr int kAhead = 16;  // rows: the lines lie a page or more apart, out of the prefetcher's sight
+      for (int j = b0; j <= b1; ++j) {
+        if (j + kAhead <= b1) {
+          const std::size_t ahead = index(k, j + kAhead);
+          __builtin_prefetch(&g_.z[ahead]), __builtin_prefetch(&g_.valid[ahead]);
+        }
+        for (int c = 0; c < count; ++c) {
+          const std::size_t i = index(k + c, j), at = static_cast<std::size_t>(j) * kColumns + c;
+          blockZ_[at] = g_.z[i], blockV_[at] = g_.valid[i];
+        }
+      }
+    }
+    const int c = k - blockFirst_;
     for (int j = j0; j <= j1; ++j) {
-      const std::size_t i = index(k, j);
-      z[j] = g_.z[i], v[j] = g_.valid[i];
+      const std::size_t at = static_cast<std::size_t>(j) * kColumns + c;
+      z[j] = blockZ_[at], v[j] = blockV_[at];
     }
   }
 
@@ -723,6 +757,10 @@ class Quadrant {
   double ox_ = 0, oy_ = 0, oz_ = 0;
   std::vector<double> prevZ_, curZ_;
   std::vector<std::uint8_t> prevV_, curV_;
+  static constexpr int kColumns = 8;  // (gather: a cache line of heights)
+  int blockFirst_ = -1 - kColumns;
+  std::vector<double> blockZ_;
+  std::vector<std::uint8_t> blockV_;
   // envelope_: every side crossed (with voids, their squares' sides too, at the heights given):
   // a line of sight above it is visible. clean_ (with voids): only the sides crossed before a
   // line of sight first touches a square with a void corner, which lie in one piece of terrain
