@@ -307,8 +307,7 @@ class Sightlines {
   // look's. Returns false when progress cancelled.
   template <class Visit>
   bool sweepLook(const Placed& eye, double height, double targetHeight, double maxDistance, unsigned threads,
-                 const Progress& progress, double from, double span, const Visit& visit,
-                 qota::sweep::Counts& counts) const {
+                 const Progress& progress, double from, double span, const Visit& visit, qota::sweep::Counts& counts) {
     const LocalFrame& f = frame_;
     const std::size_t n = f.pixelCount();
     const int w = f.width, h = f.height;
@@ -361,6 +360,7 @@ class Sightlines {
       }
     }
     counts.undecided = undecided.size();
+    if (!undecided.empty() && walkLow_.empty()) walkBlocks();
     std::atomic<std::size_t> next{0};
     shadow::inThreads(threads, [&](unsigned) {
       for (std::size_t k; (k = next++) < undecided.size();) {
@@ -393,29 +393,79 @@ class Sightlines {
     // A square whose corners all lie above the segment's heights over its column, or all below,
     // by more than any rounding here or in the frame's coordinates, holds no triangle it meets.
     const double margin = 1e-6 + 1e-9 * (std::fabs(a.z()) + std::fabs(b.z()));
-    for (int c = c0; c <= c1; ++c) {
-      double y0 = ay, y1 = by, z0 = a.z(), z1 = b.z();
+    // The track over squares' columns [from, to] (clamped to the segment, padded): its rows and
+    // the segment's heights there.
+    const auto span = [&](int from, int to, double& y0, double& y1, double& lineLow, double& lineHigh) {
+      double z0 = a.z(), z1 = b.z();
+      y0 = ay, y1 = by;
       if (bx != ax) {
-        const double u0 = std::clamp((c - kPad - ax) / (bx - ax), 0.0, 1.0);
-        const double u1 = std::clamp((c + 1 + kPad - ax) / (bx - ax), 0.0, 1.0);
+        const double u0 = std::clamp((from - kPad - ax) / (bx - ax), 0.0, 1.0);
+        const double u1 = std::clamp((to + 1 + kPad - ax) / (bx - ax), 0.0, 1.0);
         y0 = ay + u0 * (by - ay), y1 = ay + u1 * (by - ay);
         z0 = a.z() + u0 * d.z(), z1 = a.z() + u1 * d.z();
       }
-      const double lineLow = std::min(z0, z1) - margin, lineHigh = std::max(z0, z1) + margin;
-      const int r0 = std::max(0, static_cast<int>(std::floor(std::min(y0, y1) - kPad)));
-      const int r1 = std::min(h - 2, static_cast<int>(std::floor(std::max(y0, y1) + kPad)));
-      for (int r = r0; r <= r1; ++r) {
-        const std::size_t tl = static_cast<std::size_t>(r) * w + c;
-        const double za = v[tl].z(), zb = v[tl + 1].z(), zc = v[tl + w].z(), zd = v[tl + w + 1].z();
-        if (std::min({za, zb, zc, zd}) > lineHigh || std::max({za, zb, zc, zd}) < lineLow) continue;
-        for (std::uint32_t half = 0; half < 2; ++half) {
-          const std::array<std::uint32_t, 3> k = frame_.grid.triangle(RasterGrid::innerTriangle(w, r, c, half));
-          if (!frame_.valid[k[0]] || !frame_.valid[k[1]] || !frame_.valid[k[2]]) continue;
-          if (meetsTriangle(k, a, d, endVertex)) return true;
+      lineLow = std::min(z0, z1) - margin, lineHigh = std::max(z0, z1) + margin;
+    };
+    const auto rows = [&](double y0, double y1, int& r0, int& r1) {
+      r0 = std::max(0, static_cast<int>(std::floor(std::min(y0, y1) - kPad)));
+      r1 = std::min(h - 2, static_cast<int>(std::floor(std::max(y0, y1) + kPad)));
+    };
+    for (int block = c0 / kWalkBlock; block <= c1 / kWalkBlock; ++block) {
+      const int from = std::max(c0, block * kWalkBlock), to = std::min(c1, block * kWalkBlock + kWalkBlock - 1);
+      // The whole block column first: every block of squares it touches wholly above or below
+      // the segment there (a line of sight clear of the terrain for a while) is passed at once.
+      double y0, y1, lineLow, lineHigh;
+      int r0, r1;
+      span(from, to, y0, y1, lineLow, lineHigh);
+      rows(y0, y1, r0, r1);
+      bool clear = true;
+      for (int br = r0 / kWalkBlock; clear && br <= r1 / kWalkBlock; ++br) {
+        const std::size_t at = static_cast<std::size_t>(br) * walkBlocksAcross_ + block;
+        clear = walkLow_[at] > lineHigh || walkHigh_[at] < lineLow;
+      }
+      if (clear) continue;
+      for (int c = from; c <= to; ++c) {
+        span(c, c, y0, y1, lineLow, lineHigh);
+        rows(y0, y1, r0, r1);
+        for (int r = r0; r <= r1; ++r) {
+          const std::size_t tl = static_cast<std::size_t>(r) * w + c;
+          const double za = v[tl].z(), zb = v[tl + 1].z(), zc = v[tl + w].z(), zd = v[tl + w + 1].z();
+          if (std::min({za, zb, zc, zd}) > lineHigh || std::max({za, zb, zc, zd}) < lineLow) continue;
+          for (std::uint32_t half = 0; half < 2; ++half) {
+            const std::array<std::uint32_t, 3> k = frame_.grid.triangle(RasterGrid::innerTriangle(w, r, c, half));
+            if (!frame_.valid[k[0]] || !frame_.valid[k[1]] || !frame_.valid[k[2]]) continue;
+            if (meetsTriangle(k, a, d, endVertex)) return true;
+          }
         }
       }
     }
     return false;
+  }
+
+  // For walkMeets: the lowest and highest frame height over each block of kWalkBlock x
+  // kWalkBlock squares (the corners of its squares), row-major by blocks.
+  void walkBlocks() {
+    const int w = frame_.width, h = frame_.height;
+    const auto& v = frame_.mesh.vertices;
+    walkBlocksAcross_ = static_cast<std::size_t>((w - 2) / kWalkBlock + 1);
+    const std::size_t down = static_cast<std::size_t>((h - 2) / kWalkBlock + 1);
+    walkLow_.assign(walkBlocksAcross_ * down, INFINITY);
+    walkHigh_.assign(walkBlocksAcross_ * down, -INFINITY);
+    for (int r = 0; r < h; ++r) {
+      // A pixel is a corner of the squares on its row and the row above, its column and the one
+      // before: of the blocks those fall in.
+      const int rb0 = std::max(0, r - 1) / kWalkBlock, rb1 = std::min(r, h - 2) / kWalkBlock;
+      for (int c = 0; c < w; ++c) {
+        const double z = v[static_cast<std::size_t>(r) * w + c].z();
+        const int cb0 = std::max(0, c - 1) / kWalkBlock, cb1 = std::min(c, w - 2) / kWalkBlock;
+        for (int rb = rb0; rb <= rb1; ++rb) {
+          for (int cb = cb0; cb <= cb1; ++cb) {
+            const std::size_t at = static_cast<std::size_t>(rb) * walkBlocksAcross_ + cb;
+            walkLow_[at] = std::min(walkLow_[at], z), walkHigh_[at] = std::max(walkHigh_[at], z);
+          }
+        }
+      }
+    }
   }
 
   // row(r) for every row of the frame, rows handed out to `threads` threads in turn (a row's
@@ -462,6 +512,7 @@ class Sightlines {
     // Viewsheds read the triangles from the grid (index(), guess(), walkMeets()); a point light's
     // attached shadow needs the mesh's.
     frame_ = windowFrame(basis_, window, std::move(z), std::move(valid), /*triangles=*/!holes_);
+    walkLow_.clear(), walkHigh_.clear();  // (walkBlocks: of the frame before)
     if (!complete_) {
       // The centre square's frame completes the basis (pixel size, the triangles' turn), as every
       // window's frame of the raster does (shadow_frame.hpp): this one when it holds the centre.
@@ -525,6 +576,10 @@ class Sightlines {
   std::unique_ptr<CartesianIndex> index_;
   // Each inner triangle's number in the raster rule, and back (index()).
   std::vector<std::uint32_t> squareOf_, triangleAt_;
+  // walkBlocks(): squares a block's side, and the blocks' height ranges.
+  static constexpr int kWalkBlock = 8;
+  std::size_t walkBlocksAcross_ = 0;
+  std::vector<double> walkLow_, walkHigh_;
 };
 
 unsigned threadsOr(unsigned threads) {

@@ -637,15 +637,51 @@ class Quadrant {
       overlay(doneHigh_, sinceHigh_, ends_);
       overlay(doneLow_, sinceLow_, ends_);
     }
-    // (Only lines of sight that have touched a void need these: elsewhere they stay empty.)
-    complement(voidM_, outside_);
+    // (Only lines of sight that have touched a void need these: elsewhere they stay empty. So
+    // the strip joins them only on the slopes that touched a void before this strip, found by
+    // search instead of a pass over the whole strip: the voids may be few.)
+    difference(voidM_, freshVoids_, outside_);
     for (auto [since, add] : {std::pair{&sinceHigh_, &strip_}, std::pair{&sinceLow_, &stripLow_}}) {
       mask(*since, freshVoids_, masked_);
       since->swap(masked_);
-      mask(*add, freshVoids_, merged2_);
-      mask(merged2_, outside_, masked_);
+      restrict(*add, outside_, lo, hi, masked_);
       mergeInto(*since, masked_, lo, hi);
     }
+  }
+
+  // The slopes of a that b leaves (both sorted and disjoint), onto out.
+  static void difference(const std::vector<std::pair<double, double>>& a,
+                         const std::vector<std::pair<double, double>>& b, std::vector<std::pair<double, double>>& out) {
+    out.clear();
+    std::size_t v = 0;
+    for (auto [from, to] : a) {
+      while (v < b.size() && b[v].second < from) ++v;
+      for (std::size_t w = v; from < to; ++w) {
+        if (w >= b.size() || b[w].first >= to) {
+          out.emplace_back(from, to);
+          break;
+        }
+        if (b[w].first > from) out.emplace_back(from, b[w].first);
+        from = std::max(from, b[w].second);
+      }
+    }
+  }
+
+  // in (covering [lo, hi]) on the slopes of `keep` (sorted, disjoint), no line elsewhere in
+  // [lo, hi], onto out: as masking it on keep's complement, with a search for each kept span.
+  static void restrict(const std::vector<Piece>& in, const std::vector<std::pair<double, double>>& keep, double lo,
+                       double hi, std::vector<Piece>& out) {
+    out.clear();
+    double from = lo;
+    for (auto [a, b] : keep) {
+      a = std::max(a, lo), b = std::min(b, hi);
+      if (!(b > a)) continue;
+      push(out, from, a, Line{}, 0);
+      auto p = std::upper_bound(in.begin(), in.end(), a, [](double m, const Piece& q) { return m < q.m1; });
+      for (; p != in.end() && p->m0 < b; ++p) push(out, std::max(p->m0, a), std::min(p->m1, b), p->line, p->extra);
+      from = b;
+    }
+    push(out, from, hi, Line{}, 0);
   }
 
   // dst takes src's pieces on the slopes `where` (sorted, disjoint), keeps its own elsewhere.
