@@ -348,7 +348,8 @@ int viewshed(const ViewshedOptions& given, std::ostream& out, std::ostream& err)
     demOptions.lonLatAsCartesian = true;  // read as lon/lat: the frame puts it on its ellipsoid
     demOptions.then = memory::kLinesOfSight;
     demOptions.fillVoids = o.fillVoids ? kFillVoidsPixels : 0;
-    demOptions.triangles = false;  // (the frame triangulates the grid)
+    demOptions.triangles = false;  // (the frame triangulates the grid from the heights)
+    demOptions.vertices = false;
     run.dem = loadDem(o.source, demOptions);
     if (!o.quiet && o.fillVoids) {
       out << "voids: " << run.dem.filledPixels << " pixels filled (GDAL's fill-nodata), " << run.dem.nodataPixels

@@ -575,7 +575,7 @@ LocalFrame localFrame(const DemTerrain& dem, const FrameOptions& o) {
 LocalFrame localFrame(const DemTerrain& dem, const FrameOptions& o, FrameBasis& basis) {
   const int w = dem.width, h = dem.height;
   const std::size_t n = static_cast<std::size_t>(std::max(w, 0)) * static_cast<std::size_t>(std::max(h, 0));
-  if (w < 1 || h < 1 || dem.mesh.vertices.size() != n) {
+  if (w < 1 || h < 1 || (dem.mesh.vertices.size() != n && dem.heights.size() != n)) {
     throw Error(dem.path + ": not a raster grid (" + std::to_string(dem.mesh.vertices.size()) + " vertices for " +
                 std::to_string(w) + " x " + std::to_string(h) + " pixels)");
   }
@@ -584,7 +584,7 @@ LocalFrame localFrame(const DemTerrain& dem, const FrameOptions& o, FrameBasis& 
   // Heights in metres with the voids filled (for occlusion only), and which pixels have data.
   std::vector<double> z(n);
   std::vector<std::uint8_t> valid;
-  for (std::size_t i = 0; i < n; ++i) z[i] = dem.mesh.vertices[i].z();
+  for (std::size_t i = 0; i < n; ++i) z[i] = dem.heightOf(i);
   heightsInMetres(basis, whole, z, valid);
   double lo = INFINITY, hi = -INFINITY;
   for (std::size_t i = 0; i < n; ++i) {

@@ -77,7 +77,7 @@ class Sightlines {
     basis_ = frameBasis(dem, options_);
     const std::size_t n = static_cast<std::size_t>(dem.width) * dem.height;
     metres_.resize(n);
-    for (std::size_t i = 0; i < n; ++i) metres_[i] = dem.mesh.vertices[i].z();
+    for (std::size_t i = 0; i < n; ++i) metres_[i] = dem.heightOf(i);
     heightsInMetres(basis_, PixelWindow{0, 0, dem.width, dem.height}, metres_, valid_);
   }
 

@@ -385,6 +385,12 @@ DemTerrain loadDem(const std::string& path, const DemOptions& options) {
   readHeights(dem, band, 0, 0, dem.width, dem.height, z);
   if (options.fillVoids > 0) dem.filledPixels = fillVoidsLikeGdal(z, dem.width, dem.height, options.fillVoids, path);
 
+  if (!options.vertices) {
+    for (const double v : z) dem.nodataPixels += std::isnan(v);
+    dem.heights = std::move(z);
+    dem.mapping = dem.centredMapping();
+    return dem;
+  }
   // Vertices: every pixel centre; a nodata pixel gets NaN height and no triangle uses it.
   std::vector<std::uint8_t> valid(vertices);
   dem.mesh.vertices.resize(vertices);

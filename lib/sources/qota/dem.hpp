@@ -70,6 +70,9 @@ struct DemOptions {
   // that triangulate the grid themselves (viewsheds and shadows place their own frame), saving
   // the time and memory of two triangles a pixel.
   bool triangles = true;
+  // false: no vertices either (and so no triangles), the heights alone in DemTerrain::heights, a
+  // third of the vertices' memory (viewsheds place their own frame from the heights).
+  bool vertices = true;
 };
 
 // The search distance `--fill-voids` takes (gdal_fillnodata's default), in pixels.
@@ -117,7 +120,11 @@ struct DemTerrain {
   // so onRaster and surfacePoint take x at whichever of x + 360 k lies on the raster (a MOLA grid
   // in 0..360 east answers -9.8 as 350.2; a tile across the antimeridian answers -179.8).
   bool lonLat = false;
-  Mesh mesh;                 // vertex index = row * width + col
+  Mesh mesh;  // vertex index = row * width + col
+  // With DemOptions::vertices false: the pixels' heights, row-major, NaN at voids (mesh empty).
+  std::vector<double> heights;
+  // Pixel i's height (NaN at a void), from the mesh or the heights.
+  double heightOf(std::size_t i) const { return heights.empty() ? mesh.vertices[i].z() : heights[i]; }
   CartesianMapping mapping;  // gravity -Z, origin at the raster centre
 
   // World (x, y) of the centre of pixel (col, row).
