@@ -311,9 +311,12 @@ class Sightlines {
     const LocalFrame& f = frame_;
     const std::size_t n = f.pixelCount();
     const int w = f.width, h = f.height;
-    std::vector<double> z(n);
+    // The grid's heights: in a flat frame a vertex's height is the height it was placed at, so
+    // over the whole raster those are metres_ itself (no copy); a window's, a copy.
+    std::vector<double> windowZ;
+    if (n != metres_.size()) windowZ = sliceOf(metres_, f.window);
+    const std::span<const double> z = windowZ.empty() ? std::span<const double>(metres_) : windowZ;
     double steepest = 0;  // the largest height difference between neighbouring pixels (metres)
-    for (std::size_t i = 0; i < n; ++i) z[i] = f.mesh.vertices[i].z();
     for (int r = 0; r < h; ++r) {
       for (int c = 0; c < w; ++c) {
         const std::size_t i = static_cast<std::size_t>(r) * w + c;
