@@ -7,8 +7,16 @@
 // "madvise" (Debian's default) only memory that asks gets huge pages, so a block of 4 MiB or more
 // asks before it is first touched. The blocks still come from malloc and go back with free, so
 // everything else about the heap (mallopt in main.cpp) holds. Sanitizer builds keep their own
-// operator new.
-#if defined(__linux__) && !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)
+// operator new (GCC says so by __SANITIZE_*__, clang by __has_feature).
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#define QOTA_SANITIZED 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer) || __has_feature(memory_sanitizer)
+#define QOTA_SANITIZED 1
+#endif
+#endif
+
+#if defined(__linux__) && !defined(QOTA_SANITIZED)
 
 #include <sys/mman.h>
 
