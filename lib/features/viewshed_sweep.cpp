@@ -261,21 +261,7 @@ class Quadrant {
     if (fresh.empty()) return;
     // Lines of sight touching a void for the first time: the envelope so far (the columns before
     // this strip) is their terrain before the first void (clean_).
-    firstTouch_.clear();
-    {
-      std::size_t v = 0;
-      for (auto [a, b] : fresh) {
-        while (v < voidM_.size() && voidM_[v].second < a) ++v;
-        for (std::size_t w = v; a < b; ++w) {
-          if (w >= voidM_.size() || voidM_[w].first > b) {
-            firstTouch_.emplace_back(a, b);
-            break;
-          }
-          if (voidM_[w].first > a) firstTouch_.emplace_back(a, voidM_[w].first);
-          a = std::max(a, voidM_[w].second);
-        }
-      }
-    }
+    difference(fresh, voidM_, firstTouch_);
     if (!firstTouch_.empty()) overlay(clean_, envelope_, firstTouch_);
     std::vector<std::pair<double, double>> all;
     all.reserve(voidM_.size() + fresh.size());
@@ -640,11 +626,11 @@ class Quadrant {
     // (Only lines of sight that have touched a void need these: elsewhere they stay empty. So
     // the strip joins them only on the slopes that touched a void before this strip, found by
     // search instead of a pass over the whole strip: the voids may be few.)
-    difference(voidM_, freshVoids_, outside_);
+    difference(voidM_, freshVoids_, touchedBefore_);
     for (auto [since, add] : {std::pair{&sinceHigh_, &strip_}, std::pair{&sinceLow_, &stripLow_}}) {
       mask(*since, freshVoids_, masked_);
       since->swap(masked_);
-      restrict(*add, outside_, lo, hi, masked_);
+      restrict(*add, touchedBefore_, lo, hi, masked_);
       mergeInto(*since, masked_, lo, hi);
     }
   }
@@ -808,7 +794,7 @@ class Quadrant {
   // doneHigh_, doneLow_: the same for a completed piece of terrain between two voids.
   std::vector<Piece> envelope_, clean_, sinceHigh_, sinceLow_, doneHigh_, doneLow_, strip_, stripLow_, masked_, merged_,
       merged2_;
-  std::vector<std::pair<double, double>> ends_, complement_, outside_, firstTouch_;
+  std::vector<std::pair<double, double>> ends_, complement_, touchedBefore_, firstTouch_;
   std::vector<std::pair<double, double>> voidM_, freshVoids_;
 };
 
