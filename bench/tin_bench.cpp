@@ -376,7 +376,7 @@ void printMissModel(const qota::CartesianIndex& index, double measuredMisses, do
   const double jumpBytes = k ? std::ldexp(8.0, 2 * static_cast<int>(k)) : 8.0;
   const double nodeBytes = 8.0 * static_cast<double>(nodes.size());
   const double refBytes = 4.0 * static_cast<double>(index.stats().tree.references);
-  const double recordBytes = 128.0 * static_cast<double>(index.stats().triangles);
+  const double recordBytes = 64.0 * static_cast<double>(index.stats().triangles);  // one line each
   const auto miss = [&](double bytes) { return std::max(0.0, 1.0 - cache / bytes); };
   const double loads = 1 + below + 1 + 1;
   const double misses = miss(jumpBytes) + below * miss(nodeBytes) + miss(refBytes) + miss(recordBytes);

@@ -148,6 +148,24 @@ TEST(TerrainOracle, LargeCoordinates) {
                     6);
 }
 
+TEST(TerrainOracle, TinyAndHugeTriangles) {
+  // The triangle records keep corners 1 and 2 relative to corner 0 in float: at 1e-39 and 1e31
+  // (beyond a normal float) every edge test goes to the exact predicate; at 1e-30 and 1e25 the
+  // float path and its error bound work far from unit scale.
+  for (const double cell : {1e-39, 1e-30, 1e25, 1e31}) {
+    qota::test::RandomTerrainSpec spec;
+    spec.cell = cell;
+    spec.offsetX = 7 * cell, spec.offsetY = -3 * cell;
+    spec.walls = 0;  // their size is absolute
+    const Mesh mesh = qota::test::randomTerrain(spec, 31);
+    OracleStats st;
+    compareWithOracle(mesh, CartesianMapping(Eigen::Vector3d(0.1, 0.2, -1)), {}, 1500, 31, st);
+    SCOPED_TRACE(cell);
+    EXPECT_GT(st.hits, st.queries / 4);
+    EXPECT_LT(st.ambiguous, st.queries / 100);
+  }
+}
+
 // --- Semantics -------------------------------------------------------------------------------
 
 Mesh twoFloors() {

@@ -9,8 +9,10 @@
 
 #include "qota/error.hpp"
 #include "qota/globe.hpp"
+#include "qota/mesh_io.hpp"
 #include "qota/synthetic.hpp"
 #include "qota/treefile.hpp"
+#include "oracle.hpp"
 #include "random_terrain.hpp"
 #include "raster_files.hpp"
 
@@ -100,6 +102,48 @@ TEST(TreeFile, EveryKindRoundTrips) {
     const double u = uniform(rng, -1.2e4, 1.2e4), v = uniform(rng, -1.6e4, 1.6e4), h = uniform(rng, -1e3, 3e3);
     return std::pair(a.below(u, v, h), b.below(u, v, h));
   });
+}
+
+// A version 4 file (128-byte triangle records), written by qota 0.3 before the records became 64
+// bytes, from tests/data/old_tree_mesh.obj (a jittered TIN in map coordinates with a bridge of
+// quads above it): it loads, its records remade from its corners, and answers as the mesh built
+// today does, bit for bit, and as the brute-force oracle does away from edges.
+TEST(TreeFile, VersionFourFilesAreConverted) {
+  const TreeFile old = loadTree(QOTA_SOURCE_DIR "/tests/data/old_tree_v4.qota");
+  ASSERT_TRUE(std::holds_alternative<CartesianIndex>(old.index));
+  const CartesianIndex& back = std::get<CartesianIndex>(old.index);
+  const MeshFile file = loadMeshFile(QOTA_SOURCE_DIR "/tests/data/old_tree_mesh.obj");
+  const CartesianIndex fresh(file.mesh, back.mapping());
+  EXPECT_EQ(back.stats().triangles, fresh.stats().triangles);
+  std::mt19937_64 rng(4);
+  int hits = 0, checked = 0, twoLayers = 0;
+  for (int i = 0; i < 20000; ++i) {
+    // The TIN spans (500000, 4000000) to (500130, 4000130) in the world: the mapping's frame is
+    // found from the world point, as a user's query is.
+    const Eigen::Vector3d world(uniform(rng, 499990, 500140), uniform(rng, 3999990, 4000140), uniform(rng, 60, 200));
+    const auto a = back.belowWorld(world), b = fresh.belowWorld(world);
+    ASSERT_EQ(a.has_value(), b.has_value()) << i;
+    if (!a) continue;
+    ++hits;
+    ASSERT_EQ(a->height, b->height) << i;
+    ASSERT_EQ(a->polygon, b->polygon) << i;
+    const test::OracleResult o = test::bruteForce(file.mesh, back.mapping().gravity(), back.mapping().origin(), world);
+    if (o.nearestEdge < 1e-6) continue;
+    // The highest crossing at or below the point's own height.
+    const double z = -back.mapping().gravity().dot(world - back.mapping().origin());
+    const test::OracleHit* best = nullptr;
+    for (const auto& h : o.hits) {
+      if (h.height <= z && (!best || h.height > best->height)) best = &h;
+    }
+    twoLayers += o.hits.size() > 1;
+    ASSERT_TRUE(best) << i;
+    EXPECT_NEAR(a->height, best->height, 1e-9) << i;
+    EXPECT_EQ(a->polygon, best->polygon) << i;
+    ++checked;
+  }
+  EXPECT_GT(hits, 10000);
+  EXPECT_GT(checked, 10000);
+  EXPECT_GT(twoLayers, 100);  // the bridge's overlaps were met
 }
 
 TEST(TreeFile, DamagedFilesAreClearErrors) {

@@ -97,25 +97,60 @@ inline double PlanarCore::heightOf(const Tri& t, double u, double v) const {
 }
 
 inline void PlanarCore::prefetchTriangles(std::span<const std::uint32_t> items) const {
-  for (std::uint32_t t : items) {
-    const char* p = reinterpret_cast<const char*>(&tris_[t]);
-    __builtin_prefetch(p);
-    __builtin_prefetch(p + 64);
-  }
+  for (std::uint32_t t : items) __builtin_prefetch(&tris_[t]);
 }
 
-inline double PlanarCore::smallestEdge(const Tri& r, double u, double v) {
-  const double e0 = r.A[0] * u + r.B[0] * v + r.C[0];
-  const double e1 = r.A[1] * u + r.B[1] * v + r.C[1];
-  const double e2 = r.A[2] * u + r.B[2] * v + r.C[2];
-  return std::min(e0, std::min(e1, e2));
+// The error bound of the edge values below, relative to s (s + |du| + |dv|), s the sum of the
+// offsets' magnitudes. The stored offsets f are the true ones within 2^-24 |f| each (one rounding
+// to float after an exact or once-rounded difference in double): an edge value of the float
+// triangle differs from the true one by at most about 2^-24 s (|du| + |dv|) (edges 0 and 2, at
+// corner 0) or 2^-23 s (s + |du| + |dv|) (edge 1, through the area), and the arithmetic in double
+// adds a few 2^-53 of the same. 2^-21 leaves a margin of four. The floor covers products that
+// underflow (a point within 1e-300 of corner 0). Offsets a normal float cannot hold are stored as
+// NaN (edgeRecord): every comparison is then false and the exact test decides.
+inline constexpr double kEdgeRelative = 0x1p-21, kEdgeFloor = 0x1p-1000;
+
+// Edge k of the float triangle (corner 0, 0 + f1, 0 + f2, counter-clockwise) at the point d from
+// corner 0: e0 = f1 x d, e2 = d x f2, and e1 from the barycentric identity e0 + e1 + e2 = f1 x f2
+// (the products of floats are exact in double).
+[[gnu::always_inline]] inline PlanarCore::EdgeValues PlanarCore::edgeValues(const Tri& r, double u, double v) {
+  const double du = u - r.u0, dv = v - r.v0;
+  const double u1 = r.du1, v1 = r.dv1, u2 = r.du2, v2 = r.dv2;
+  const double e0 = u1 * dv - v1 * du;
+  const double e2 = v2 * du - u2 * dv;
+  const double e1 = (u1 * v2 - v1 * u2) - e0 - e2;
+  const double s = (std::fabs(u1) + std::fabs(v1)) + (std::fabs(u2) + std::fabs(v2));
+  return {{e0, e1, e2}, kEdgeRelative * s * (s + std::fabs(du) + std::fabs(dv)) + kEdgeFloor};
+}
+
+[[gnu::always_inline]] inline PlanarCore::EdgeTest PlanarCore::edgeTest(const Tri& r, double u, double v) {
+  const EdgeValues x = edgeValues(r, u, v);
+  return {std::min(x.e[0], std::min(x.e[1], x.e[2])), x.tol};
+}
+
+// Each edge at the box corner farthest inside it (by the signs of its gradient), with the bound
+// there: the box is certainly outside when that value is below minus the bound. (NaN offsets
+// compare false: the triangle stays.)
+inline bool PlanarCore::edgesReach(const Tri& r, const Box2& b) {
+  const double u1 = r.du1, v1 = r.dv1, u2 = r.du2, v2 = r.dv2;
+  const double s = (std::fabs(u1) + std::fabs(v1)) + (std::fabs(u2) + std::fabs(v2));
+  const auto bound = [&](double du, double dv) {
+    return kEdgeRelative * s * (s + std::fabs(du) + std::fabs(dv)) + kEdgeFloor;
+  };
+  // Edge 0 (gradient (-v1, u1)), edge 2 ((v2, -u2)), then edge 1 ((v1 - v2, u2 - u1)).
+  double du = (v1 <= 0 ? b.uhi : b.ulo) - r.u0, dv = (u1 >= 0 ? b.vhi : b.vlo) - r.v0;
+  if (u1 * dv - v1 * du < -bound(du, dv)) return false;
+  du = (v2 >= 0 ? b.uhi : b.ulo) - r.u0, dv = (u2 <= 0 ? b.vhi : b.vlo) - r.v0;
+  if (v2 * du - u2 * dv < -bound(du, dv)) return false;
+  du = (v1 >= v2 ? b.uhi : b.ulo) - r.u0, dv = (u2 >= u1 ? b.vhi : b.vlo) - r.v0;
+  return !((u1 * v2 - v1 * u2) - (u1 * dv - v1 * du) - (v2 * du - u2 * dv) < -bound(du, dv));
 }
 
 inline bool PlanarCore::contains(const Tri& r, std::uint32_t t, double u, double v) const {
-  const double m = smallestEdge(r, u, v);
-  if (std::fabs(m) <= r.tol) [[unlikely]]
+  const EdgeTest e = edgeTest(r, u, v);
+  if (e.undecided()) [[unlikely]]
     return inside(t, u, v);
-  return m > 0;
+  return e.m > 0;
 }
 
 template <bool Below>
@@ -135,11 +170,11 @@ std::uint32_t PlanarCore::nearestIn(std::span<const std::uint32_t> items, bool s
   double best = Below ? -std::numeric_limits<double>::infinity() : std::numeric_limits<double>::infinity();
   for (std::uint32_t t : items) {
     const Tri& r = tris_[t];
-    const double m = smallestEdge(r, u, v);
+    const EdgeTest e = edgeTest(r, u, v);
     // Inside when the smallest edge value is positive; only within rounding of an edge (|m| at
     // most the error bound, which is rare and so well predicted) is the exact test needed.
-    bool in = m > 0;
-    if (std::fabs(m) <= r.tol) [[unlikely]] {
+    bool in = e.m > 0;
+    if (e.undecided()) [[unlikely]] {
       in = inside(t, u, v);
     }
     const double ht = heightOf(r, u, v);

@@ -201,7 +201,6 @@ void PlanarCore::heightsBelowBatch(std::span<const Point2> points, const ZOf& zO
           const std::uint32_t t = grid_.triangleIn(first + half);
           if (t == kNoTriangle) continue;
           __builtin_prefetch(&tris_[t]);
-          __builtin_prefetch(reinterpret_cast<const char*>(&tris_[t]) + 64);
         }
       }
       for (std::size_t i = 0; i < n; ++i) {

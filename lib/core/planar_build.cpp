@@ -13,6 +13,7 @@
 #include <thread>
 
 #include "float_bounds.hpp"
+#include "planar_answers.hpp"
 #include "planar_arith.hpp"
 #include "qota/batch.hpp"
 #include "qota/error.hpp"
@@ -326,10 +327,7 @@ void PlanarCore::fanPolygon(std::span<const std::uint32_t> idx, std::uint32_t p,
   }
 }
 
-// The hot and cold records of triangle t. The edge tolerance bounds the rounding error of
-// A u + B v + C for every (u, v) in the domain: the rounded A, B, C (one rounding each, two for
-// C's products) and the evaluation (three roundings) stay within 8 units of the magnitude sum;
-// 16 leaves a margin. Returns the triangle's bounding box.
+// The hot and cold records of triangle t. Returns the triangle's bounding box.
 Box2 PlanarCore::makeRecord(std::uint32_t t, const Pending& q) {
   cold_[t] = Cold{{q.corner[0], q.corner[1], q.corner[2]}, q.polygon};
   tris_[t] = computeRecord(q.corner);
@@ -343,20 +341,23 @@ PlanarCore::Tri PlanarCore::computeRecord(const std::uint32_t corner[3]) const {
   return r;
 }
 
-// The edge equations, their tolerance and corner 0: cheap, recomputed per query on a compact
-// grid.
+// Corner 0 and the other two relative to it, rounded to float; NaN offsets, all four, where one is
+// not a normal float or zero (tiny or huge triangles: their tests all go to the exact predicate).
+// Cheap: recomputed per query on a compact grid.
 void PlanarCore::edgeRecord(const std::uint32_t corner[3], Tri& r) const {
-  double tol = 0;
-  for (int k = 0; k < 3; ++k) {
-    const Point2 p0 = corners2_[corner[k]], p1 = corners2_[corner[(k + 1) % 3]];
-    r.A[k] = p0.v - p1.v;
-    r.B[k] = p1.u - p0.u;
-    r.C[k] = p0.u * p1.v - p1.u * p0.v;
-    tol = std::max(
-        tol, std::fabs(r.A[k]) * umax_ + std::fabs(r.B[k]) * vmax_ + std::fabs(p0.u * p1.v) + std::fabs(p1.u * p0.v));
+  const Point2 p0 = corners2_[corner[0]], p1 = corners2_[corner[1]], p2 = corners2_[corner[2]];
+  r.u0 = p0.u, r.v0 = p0.v, r.h0 = cornerH_[corner[0]];
+  const double offsets[4] = {p1.u - p0.u, p1.v - p0.v, p2.u - p0.u, p2.v - p0.v};
+  float* out[4] = {&r.du1, &r.dv1, &r.du2, &r.dv2};
+  bool normal = true;
+  for (int k = 0; k < 4; ++k) {
+    *out[k] = static_cast<float>(offsets[k]);
+    const double m = std::fabs(static_cast<double>(*out[k]));
+    normal &= m == 0 || (m >= 0x1p-126 && m <= 0x1p100);  // the bound's products stay finite
   }
-  r.tol = 16.0 * planar::kUnitRoundoff * tol;
-  r.u0 = corners2_[corner[0]].u, r.v0 = corners2_[corner[0]].v, r.h0 = cornerH_[corner[0]];
+  if (!normal) {
+    for (float* f : out) *f = std::numeric_limits<float>::quiet_NaN();
+  }
 }
 
 // The plane's slopes and the height range: two divisions, kept per triangle unless the grid is lean.
@@ -425,15 +426,25 @@ bool PlanarCore::prepareLeaf(std::span<std::uint32_t> items) const {
   return true;
 }
 
+// The edge equations A u + B v + C in absolute coordinates, with one error bound for every (u, v)
+// in the domain: the rounded A, B, C (one rounding each, two for C's products) and the evaluation
+// (three roundings) stay within 8 units of the magnitude sum; 16 leaves a margin.
 PlanarCore::EdgeView PlanarCore::edgeView(std::uint32_t t) const {
-  const Tri& r = tris_[t];
   EdgeView e;
+  double tol = 0;
   for (int k = 0; k < 3; ++k) {
     e.corner[k] = cold_[t].corner[k];
     e.u[k] = corners2_[e.corner[k]].u, e.v[k] = corners2_[e.corner[k]].v;
-    e.A[k] = r.A[k], e.B[k] = r.B[k], e.C[k] = r.C[k];
   }
-  e.tol = r.tol;
+  for (int k = 0; k < 3; ++k) {
+    const int k1 = k == 2 ? 0 : k + 1;
+    e.A[k] = e.v[k] - e.v[k1];
+    e.B[k] = e.u[k1] - e.u[k];
+    e.C[k] = e.u[k] * e.v[k1] - e.u[k1] * e.v[k];
+    tol = std::max(tol, std::fabs(e.A[k]) * umax_ + std::fabs(e.B[k]) * vmax_ + std::fabs(e.u[k] * e.v[k1]) +
+                            std::fabs(e.u[k1] * e.v[k]));
+  }
+  e.tol = 16.0 * planar::kUnitRoundoff * tol;
   return e;
 }
 

@@ -11,6 +11,7 @@
 #include <string>
 #include <thread>
 
+#include "planar_answers.hpp"
 #include "planar_arith.hpp"
 #include "qota/error.hpp"
 

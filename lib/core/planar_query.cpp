@@ -54,10 +54,8 @@ std::uint32_t PlanarCore::gridTriangle(double u, double v, Tri& scratch, const T
       // can hold the point.
       const Tri& r = gridRecord(t, scratch);
       rec = &r;
-      if (r.A[0] * u + r.B[0] * v + r.C[0] > 2 * r.tol && r.A[1] * u + r.B[1] * v + r.C[1] > 2 * r.tol &&
-          r.A[2] * u + r.B[2] * v + r.C[2] > 2 * r.tol) {
-        return t;
-      }
+      const EdgeTest e = edgeTest(r, u, v);
+      if (e.m > 2 * e.tol) return t;
     }
   }
   return gridTriangleNearEdge(u, v, g.fc, g.fr, scratch, rec);
@@ -112,7 +110,8 @@ std::uint32_t PlanarCore::nearest(double u, double v, double z, double& h, Curso
     Cursor::Memo& m = cursor->memo;
     if (m.key == kTreeMemo && m.owner == this && m.generation == generation_) {
       const Tri& r = tris_[m.item];
-      if (smallestEdge(r, u, v) > r.tol) {
+      const EdgeTest e = edgeTest(r, u, v);
+      if (e.m > e.tol) {
         h = heightOf(r, u, v);
         return (Below ? h <= z : h >= z) ? m.item : kNoTriangle;
       }

@@ -1,5 +1,6 @@
 #include "qota/treefile.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <fstream>
@@ -14,7 +15,9 @@ namespace qota {
 namespace {
 
 constexpr char kMagic[8] = {'Q', 'O', 'T', 'A', 'T', 'R', 'E', 'E'};
-constexpr std::uint32_t kVersion = 4;        // 2: the grid keeps no plane table; 3: band and unit; 4: height reference
+// 2: the grid keeps no plane table; 3: band and unit; 4: height reference; 5: the planar triangle
+// records are 64 bytes (a version 3 or 4 file's 128-byte records are remade from its corners).
+constexpr std::uint32_t kVersion = 5;
 constexpr std::uint32_t kOldestVersion = 3;  // version 2 stored its statistics with padding
 // Structs written as they are must have no padding, whose bytes would be whatever memory held:
 // the same index must always make the same file.
@@ -95,8 +98,9 @@ class Writer {
 
 class Reader {
  public:
-  Reader(std::ifstream& in, std::string path, std::uint64_t payload)
-      : in_(in), path_(std::move(path)), left_(payload) {}
+  Reader(std::ifstream& in, std::string path, std::uint64_t payload, std::uint32_t version)
+      : in_(in), path_(std::move(path)), left_(payload), version_(version) {}
+  std::uint32_t version() const { return version_; }
   [[noreturn]] void fail(const std::string& what) const {
     throw Error(path_ + ": not a valid qota tree file: " + what);
   }
@@ -130,6 +134,20 @@ class Reader {
     v.resize(n);
     raw(v.data(), n * sizeof(T), what);
   }
+  // An array of records of an older layout, read (and summed) but not kept: their count.
+  std::uint64_t skipArray(std::uint32_t recordSize, const char* what) {
+    const auto n = pod<std::uint64_t>(what);
+    const auto size = pod<std::uint32_t>(what);
+    if (size != recordSize) fail(std::string(what) + " has records of the wrong size");
+    if (n > left_ / size) fail(std::string("truncated in ") + what);
+    std::vector<char> chunk(std::size_t{1} << 20);
+    for (std::uint64_t rest = n * size; rest > 0;) {
+      const std::uint64_t step = std::min<std::uint64_t>(rest, chunk.size());
+      raw(chunk.data(), step, what);
+      rest -= step;
+    }
+    return n;
+  }
   std::uint64_t left() const { return left_; }
   std::uint64_t checksum() const { return sum_.value(); }
 
@@ -137,6 +155,7 @@ class Reader {
   std::ifstream& in_;
   std::string path_;
   std::uint64_t left_;
+  std::uint32_t version_;
   Checksum sum_;
 };
 
@@ -247,7 +266,11 @@ struct TreeFileAccess {
     x.umax_ = r.pod<double>("domain");
     x.vmax_ = r.pod<double>("domain");
     x.stats_ = r.pod<IndexStats>("statistics");
-    r.array(x.tris_, "triangles");
+    if (r.version() >= 5) {
+      r.array(x.tris_, "triangles");
+    } else {
+      x.tris_.resize(r.skipArray(128, "triangles"));  // remade by derive, once the corners are checked
+    }
     r.array(x.cold_, "triangle corners");
     r.array(x.corners2_, "vertices");
     r.array(x.cornerH_, "vertex heights");
@@ -261,12 +284,15 @@ struct TreeFileAccess {
     read(r, x.tree_);
   }
 
-  // What a valid file's arrays determine: the lean grid's tables.
-  static void derive(PlanarCore& x) {
+  // What a valid file's arrays determine: the lean grid's tables, and an older file's records.
+  static void derive(const Reader& r, PlanarCore& x) {
+    if (r.version() < 5) {
+      for (std::size_t t = 0; t < x.tris_.size(); ++t) x.tris_[t] = x.computeRecord(x.cold_[t].corner);
+    }
     if (x.grid_.on()) x.grid_.setUpLean(x.cold_, x.corners2_, x.cornerH_);
   }
   template <class M>
-  static void derive(CurvedIndex<M>&) {}
+  static void derive(const Reader&, CurvedIndex<M>&) {}
 
   static void validate(const Reader& r, const PlanarCore& x) {
     if (x.grid_.on()) {
@@ -426,7 +452,7 @@ TreeFile loadTree(const std::string& path) {
     throw Error(path + ": not a valid qota tree file: truncated or extended (" + std::to_string(fileSize - 32) +
                 " payload bytes, the header says " + std::to_string(payload) + ")");
   }
-  Reader r(in, path, payload);
+  Reader r(in, path, payload, version);
   AnyMapping mapping;
   try {
     mapping = parseMapping(r.str("mapping"));
@@ -457,7 +483,7 @@ TreeFile loadTree(const std::string& path) {
   std::visit(
       [&](auto& index) {
         TreeFileAccess::validate(r, index);
-        TreeFileAccess::derive(index);
+        TreeFileAccess::derive(r, index);
         TreeFileAccess::rebuildJumpTable(TreeFileAccess::tree(index));
       },
       tf.index);

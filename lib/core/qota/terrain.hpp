@@ -3,9 +3,10 @@
 //
 // Build: every vertex is mapped once to (u, v, h) (so polygons sharing a vertex share its mapped
 // coordinates bit for bit); every convex polygon is split into a fan of triangles in the mapped
-// frame; triangles are stored once, in Morton order of their centroids, as packed 128-byte records
-// (edge line equations Au + Bv + C >= 0 with their error bound, and the height plane solved from
-// corner 0; no separate bbox: the three edge tests cost about what four bbox compares do) with
+// frame; triangles are stored once, in Morton order of their centroids, as packed 64-byte records
+// (corner 0, the other two relative to it in float, whose edge tests carry an error bound, and the
+// height plane solved from corner 0; no separate bbox: the three edge tests cost about what four
+// bbox compares do) with
 // their corners and source polygon kept apart; the quadtree references them from every leaf their
 // projection meets. On a regular grid (a raster's triangles) the grid path finds the triangle
 // under a point by arithmetic instead (grid_path.hpp), and the quadtree is built on first need.
@@ -185,19 +186,36 @@ class PlanarCore : public IndexFace<PlanarCore> {
   }
   template <class ZOf>  // z of point i: zOf(i)
   void heightsBelowBatch(std::span<const Point2> points, const ZOf& zOf, std::span<std::optional<double>> out) const;
-  // Hot per-triangle record, one per triangle, 128 bytes (two cache lines), in Morton order.
+  // Hot per-triangle record, one per triangle, 64 bytes (one cache line), in Morton order.
   // The plane is solved from corner 0 (h0 + a (u - u0) + b (v - v0)) rather than as a u + b v + c:
   // exact at that corner and with rounding proportional to the local relief, not to the size of
-  // the coordinates. There is no separate bbox: the three edge tests cost about as much as four
-  // bbox compares and need no extra bytes.
+  // the coordinates. The edges are corners 1 and 2 relative to corner 0, rounded to float: the
+  // edge tests (edgeTest) then work relative to corner 0 too, and their error bound, which covers
+  // the float rounding, is computed from these numbers at the query (a few operations, cheaper
+  // than the second cache line they would take to store). There is no separate bbox: the three
+  // edge tests cost about as much as four bbox compares and need no extra bytes.
   struct alignas(64) Tri {
-    double A[3], B[3], C[3];  // edges: inside is A u + B v + C >= 0 (counter-clockwise order)
-    double u0, v0, h0;        // corner 0
-    double a, b;              // plane slopes: dh/du, dh/dv
-    double tol;               // error bound of the edge evaluations inside the domain
-    float hlo, hhi;           // height range of the corners, rounded outward (clamps the plane)
+    double u0, v0, h0;  // corner 0
+    double a, b;        // plane slopes: dh/du, dh/dv
+    // Corners 1 and 2 less corner 0. All four NaN where one is not a normal float (or zero):
+    // every test of that triangle is then exact.
+    float du1, dv1;
+    float du2, dv2;
+    float hlo, hhi;  // height range of the corners, rounded outward (clamps the plane)
   };
-  static_assert(sizeof(Tri) == 128);
+  static_assert(sizeof(Tri) == 64);
+  // The smallest of a triangle's three edge values at a point and the error bound of the three:
+  // the point is inside beyond rounding when m > tol, outside when m < -tol; otherwise (or when
+  // either is NaN) only the exact predicate decides.
+  struct EdgeTest {
+    double m, tol;
+    bool undecided() const { return !(std::fabs(m) > tol); }
+  };
+  static EdgeTest edgeTest(const Tri& r, double u, double v);
+  struct EdgeValues {  // the three edge values and their bound
+    double e[3], tol;
+  };
+  static EdgeValues edgeValues(const Tri& r, double u, double v);
 
   // Per triangle, its mapped vertex indices (counter-clockwise) and source polygon; the same
   // before it gets its records (Pending, a polygon's fan).
@@ -227,14 +245,11 @@ class PlanarCore : public IndexFace<PlanarCore> {
     // A triangle whose box lies in the box along either axis meets it: the box's band along
     // that axis crosses the triangle (most of a build's tests above the leaves' size).
     if ((tb.ulo >= b.ulo && tb.uhi <= b.uhi) || (tb.vlo >= b.vlo && tb.vhi <= b.vhi)) return true;
-    const Tri& r = tris_[t];
-    for (int k = 0; k < 3; ++k) {
-      const double u = r.A[k] >= 0 ? b.uhi : b.ulo;
-      const double v = r.B[k] >= 0 ? b.vhi : b.vlo;
-      if (r.A[k] * u + r.B[k] * v + r.C[k] < -r.tol) return false;
-    }
-    return true;
+    return edgesReach(tris_[t], b);
   }
+  // Whether the box may meet the triangle's edge half-planes: false only when one edge has the
+  // whole box beyond its error bound outside.
+  static bool edgesReach(const Tri& r, const Box2& b);
   Box2 boxOf(std::uint32_t t) const;
   bool prepareLeaf(std::span<std::uint32_t> items) const;
 
@@ -261,9 +276,8 @@ class PlanarCore : public IndexFace<PlanarCore> {
   std::uint32_t nearestIn(std::span<const std::uint32_t> items, bool singleLayer, double u, double v, double z,
                           double& h) const;
   bool contains(const Tri& r, std::uint32_t t, double u, double v) const;
-  // The smallest of the edge equations' values at (u, v): inside beyond rounding when above tol.
-  static double smallestEdge(const Tri& r, double u, double v);
-  // A triangle's edge equations and corners, as the single-layer check reads them.
+  // A triangle's edge equations (absolute: A u + B v + C, with their bound over the domain) and
+  // corners, as the single-layer check reads them, made from its corners.
   // (Plain numbers, no initializers: prepareLeaf keeps 64 of them on its stack uninitialized.)
   struct EdgeView {
     std::uint32_t corner[3];
@@ -304,7 +318,7 @@ class PlanarCore : public IndexFace<PlanarCore> {
   const Tri& gridRecord(std::uint32_t t, Tri& scratch) const;
   Tri recordOf(std::uint32_t t) const;  // stored, or computed from its corners
   Tri computeRecord(const std::uint32_t corner[3]) const;
-  void edgeRecord(const std::uint32_t corner[3], Tri& r) const;
+  void edgeRecord(const std::uint32_t corner[3], Tri& r) const;  // corner 0 and the offsets
   void planeRecord(const std::uint32_t corner[3], Tri& r) const;
   // The lean grid's answer at (u, v): the height, and the triangle (kNoTriangle: none; with
   // NeedId false, kFound stands for any triangle, whose id is not looked up).
