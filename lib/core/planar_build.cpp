@@ -349,14 +349,12 @@ void PlanarCore::edgeRecord(const std::uint32_t corner[3], Tri& r) const {
   r.u0 = p0.u, r.v0 = p0.v, r.h0 = cornerH_[corner[0]];
   const double offsets[4] = {p1.u - p0.u, p1.v - p0.v, p2.u - p0.u, p2.v - p0.v};
   float* out[4] = {&r.du1, &r.dv1, &r.du2, &r.dv2};
+  // Checked before the conversion (a double beyond float's range does not convert); at most
+  // 2^100 keeps the bound's products finite.
   bool normal = true;
+  for (const double d : offsets) normal &= d == 0 || (std::fabs(d) >= 0x1p-126 && std::fabs(d) <= 0x1p100);
   for (int k = 0; k < 4; ++k) {
-    *out[k] = static_cast<float>(offsets[k]);
-    const double m = std::fabs(static_cast<double>(*out[k]));
-    normal &= m == 0 || (m >= 0x1p-126 && m <= 0x1p100);  // the bound's products stay finite
-  }
-  if (!normal) {
-    for (float* f : out) *f = std::numeric_limits<float>::quiet_NaN();
+    *out[k] = normal ? static_cast<float>(offsets[k]) : std::numeric_limits<float>::quiet_NaN();
   }
 }
 
