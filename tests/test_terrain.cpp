@@ -158,9 +158,9 @@ TEST(TerrainOracle, TinyAndHugeTriangles) {
     spec.offsetX = 7 * cell, spec.offsetY = -3 * cell;
     spec.walls = 0;  // their size is absolute
     const Mesh mesh = qota::test::randomTerrain(spec, 31);
+    SCOPED_TRACE(cell);
     OracleStats st;
     compareWithOracle(mesh, CartesianMapping(Eigen::Vector3d(0.1, 0.2, -1)), {}, 1500, 31, st);
-    SCOPED_TRACE(cell);
     EXPECT_GT(st.hits, st.queries / 4);
     EXPECT_LT(st.ambiguous, st.queries / 100);
   }

@@ -99,6 +99,26 @@ TEST(Watertight, TiltedGravityAndCoarseTree) {
   }
 }
 
+TEST(Watertight, JitteredTinAtAnyScale) {
+  // Irregular triangles (a jittered grid: no edge axis-aligned), so points rounded onto an
+  // interior edge fall within the triangle records' float error bound and go to the exact test;
+  // they must hit, at any scale: 1e31 is beyond the floats' range there (every test exact).
+  for (const double scale : {1e-30, 1.0, 1e25, 1e31}) {
+    SCOPED_TRACE(scale);
+    qota::Heightfield f = qota::fractalHeightfield(120, 120, 1.0, 20.0, 5);
+    f.x0 = 3e5, f.y0 = -2e4;
+    Mesh mesh = f.toMesh();
+    std::mt19937_64 rng(8);
+    std::uniform_real_distribution<double> jitter(-0.2, 0.2);  // a third of a cell's least height
+    for (Eigen::Vector3d& v : mesh.vertices)
+      v = Eigen::Vector3d(v.x() + jitter(rng), v.y() + jitter(rng), v.z()) * scale;
+    const CartesianIndex index(mesh, CartesianMapping(Eigen::Vector3d(0.1, -0.05, -1), mesh.vertices[0]));
+    std::uint64_t exact = 0;
+    EXPECT_EQ(missesOnEdges(mesh, index, 100000, 3, &exact), 0u);
+    EXPECT_GT(exact, 20000u);  // the vertices
+  }
+}
+
 TEST(Watertight, PointsOnQuadtreeCutLines) {
   // A grid whose cut lines fall exactly on its vertices and edges: the quadtree's boundary rule
   // (ties go to the high side, boxes are closed in the build) must keep every point found.

@@ -125,12 +125,13 @@ inline constexpr double kEdgeRelative = 0x1p-21, kEdgeFloor = 0x1p-1000;
 
 [[gnu::always_inline]] inline PlanarCore::EdgeTest PlanarCore::edgeTest(const Tri& r, double u, double v) {
   const EdgeValues x = edgeValues(r, u, v);
-  return {std::min(x.e[0], std::min(x.e[1], x.e[2])), x.tol};
+  // e1 first: it is NaN whenever e0 or e2 is (std::min keeps its first argument's NaN).
+  return {std::min(x.e[1], std::min(x.e[0], x.e[2])), x.tol};
 }
 
 // Each edge at the box corner farthest inside it (by the signs of its gradient), with the bound
 // there: the box is certainly outside when that value is below minus the bound. (NaN offsets
-// compare false: the triangle stays.)
+// compare false: the triangle stays; so does a value that overflowed, with domains beyond 1e270.)
 inline bool PlanarCore::edgesReach(const Tri& r, const Box2& b) {
   const double u1 = r.du1, v1 = r.dv1, u2 = r.du2, v2 = r.dv2;
   const double s = (std::fabs(u1) + std::fabs(v1)) + (std::fabs(u2) + std::fabs(v2));
@@ -139,11 +140,12 @@ inline bool PlanarCore::edgesReach(const Tri& r, const Box2& b) {
   };
   // Edge 0 (gradient (-v1, u1)), edge 2 ((v2, -u2)), then edge 1 ((v1 - v2, u2 - u1)).
   double du = (v1 <= 0 ? b.uhi : b.ulo) - r.u0, dv = (u1 >= 0 ? b.vhi : b.vlo) - r.v0;
-  if (u1 * dv - v1 * du < -bound(du, dv)) return false;
+  const auto outside = [&](double value) { return value < -bound(du, dv) && std::isfinite(value); };
+  if (outside(u1 * dv - v1 * du)) return false;
   du = (v2 >= 0 ? b.uhi : b.ulo) - r.u0, dv = (u2 <= 0 ? b.vhi : b.vlo) - r.v0;
-  if (v2 * du - u2 * dv < -bound(du, dv)) return false;
+  if (outside(v2 * du - u2 * dv)) return false;
   du = (v1 >= v2 ? b.uhi : b.ulo) - r.u0, dv = (u2 >= u1 ? b.vhi : b.vlo) - r.v0;
-  return !((u1 * v2 - v1 * u2) - (u1 * dv - v1 * du) - (v2 * du - u2 * dv) < -bound(du, dv));
+  return !outside((u1 * v2 - v1 * u2) - (u1 * dv - v1 * du) - (v2 * du - u2 * dv));
 }
 
 inline bool PlanarCore::contains(const Tri& r, std::uint32_t t, double u, double v) const {

@@ -18,7 +18,7 @@
 namespace qota {
 
 void PlanarCore::rebuildTree(const Box2& domain) {
-  // The edge tolerances hold for points within the domain: recompute them for the new one.
+  // The single-layer check's edge bound (edgeView) holds for points within the domain: the new one.
   umax_ = std::max(std::fabs(domain.ulo), std::fabs(domain.uhi));
   vmax_ = std::max(std::fabs(domain.vlo), std::fabs(domain.vhi));
   std::vector<Box2> boxes(tris_.size());

@@ -288,6 +288,7 @@ struct TreeFileAccess {
   static void derive(const Reader& r, PlanarCore& x) {
     if (r.version() < 5) {
       for (std::size_t t = 0; t < x.tris_.size(); ++t) x.tris_[t] = x.computeRecord(x.cold_[t].corner);
+      x.stats_.memoryBytes -= x.tris_.size() * (128 - sizeof(PlanarCore::Tri));  // counted at 128 bytes each
     }
     if (x.grid_.on()) x.grid_.setUpLean(x.cold_, x.corners2_, x.cornerH_);
   }

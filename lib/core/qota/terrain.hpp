@@ -300,7 +300,7 @@ class PlanarCore : public IndexFace<PlanarCore> {
   BigVector<Point2> corners2_;                 // mapped (u, v) of each vertex, for the exact predicate
   BigVector<double> cornerH_;                  // mapped h of each vertex (for lines not along gravity)
   double hmin_ = INFINITY, hmax_ = -INFINITY;  // the triangles' height range
-  double umax_ = 0, vmax_ = 0;                 // largest |u|, |v| of the domain: sets the edge tolerances
+  double umax_ = 0, vmax_ = 0;                 // largest |u|, |v| of the domain: edgeView's bound
   PolygonLedger ledger_;                       // edits: the removed polygons, each polygon's triangles
   void rebuildTree(const Box2& domain);
   // The grid fast path (IndexOptions::gridFastPath, grid_path.hpp): where a point falls on a
