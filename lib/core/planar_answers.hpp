@@ -110,6 +110,14 @@ inline void PlanarCore::prefetchTriangles(std::span<const std::uint32_t> items) 
 // NaN (edgeRecord): every comparison is then false and the exact test decides.
 inline constexpr double kEdgeRelative = 0x1p-21, kEdgeFloor = 0x1p-1000;
 
+[[gnu::always_inline]] inline double PlanarCore::offsetSum(const Tri& r) {
+  return (std::fabs(double{r.du1}) + std::fabs(double{r.dv1})) + (std::fabs(double{r.du2}) + std::fabs(double{r.dv2}));
+}
+
+[[gnu::always_inline]] inline double PlanarCore::edgeBound(double s, double du, double dv) {
+  return kEdgeRelative * s * (s + std::fabs(du) + std::fabs(dv)) + kEdgeFloor;
+}
+
 // Edge k of the float triangle (corner 0, 0 + f1, 0 + f2, counter-clockwise) at the point d from
 // corner 0: e0 = f1 x d, e2 = d x f2, and e1 from the barycentric identity e0 + e1 + e2 = f1 x f2
 // (the products of floats are exact in double).
@@ -119,8 +127,7 @@ inline constexpr double kEdgeRelative = 0x1p-21, kEdgeFloor = 0x1p-1000;
   const double e0 = u1 * dv - v1 * du;
   const double e2 = v2 * du - u2 * dv;
   const double e1 = (u1 * v2 - v1 * u2) - e0 - e2;
-  const double s = (std::fabs(u1) + std::fabs(v1)) + (std::fabs(u2) + std::fabs(v2));
-  return {{e0, e1, e2}, kEdgeRelative * s * (s + std::fabs(du) + std::fabs(dv)) + kEdgeFloor};
+  return {{e0, e1, e2}, edgeBound(offsetSum(r), du, dv)};
 }
 
 [[gnu::always_inline]] inline PlanarCore::EdgeTest PlanarCore::edgeTest(const Tri& r, double u, double v) {
@@ -134,13 +141,10 @@ inline constexpr double kEdgeRelative = 0x1p-21, kEdgeFloor = 0x1p-1000;
 // compare false: the triangle stays; so does a value that overflowed, with domains beyond 1e270.)
 inline bool PlanarCore::edgesReach(const Tri& r, const Box2& b) {
   const double u1 = r.du1, v1 = r.dv1, u2 = r.du2, v2 = r.dv2;
-  const double s = (std::fabs(u1) + std::fabs(v1)) + (std::fabs(u2) + std::fabs(v2));
-  const auto bound = [&](double du, double dv) {
-    return kEdgeRelative * s * (s + std::fabs(du) + std::fabs(dv)) + kEdgeFloor;
-  };
+  const double s = offsetSum(r);
   // Edge 0 (gradient (-v1, u1)), edge 2 ((v2, -u2)), then edge 1 ((v1 - v2, u2 - u1)).
   double du = (v1 <= 0 ? b.uhi : b.ulo) - r.u0, dv = (u1 >= 0 ? b.vhi : b.vlo) - r.v0;
-  const auto outside = [&](double value) { return value < -bound(du, dv) && std::isfinite(value); };
+  const auto outside = [&](double value) { return value < -edgeBound(s, du, dv) && std::isfinite(value); };
   if (outside(u1 * dv - v1 * du)) return false;
   du = (v2 >= 0 ? b.uhi : b.ulo) - r.u0, dv = (u2 <= 0 ? b.vhi : b.vlo) - r.v0;
   if (outside(v2 * du - u2 * dv)) return false;

@@ -463,13 +463,15 @@ void PlanarCore::setTreeFloor(const std::vector<Box2>& boxes) const {
   floorV_ = 0.5 * dv[dv.size() / 2];
 }
 
+void PlanarCore::remakeRecords() const {
+  tris_.resize(cold_.size());
+  batch::inSlices(cold_.size(), buildThreads_, 1u << 15, [this](std::size_t lo, std::size_t hi) {
+    for (std::size_t t = lo; t < hi; ++t) tris_[t] = computeRecord(cold_[t].corner);
+  });
+}
+
 void PlanarCore::buildDeferredTree() const {
-  if (tris_.size() != cold_.size()) {
-    tris_.resize(cold_.size());
-    batch::inSlices(cold_.size(), buildThreads_, 1u << 15, [this](std::size_t lo, std::size_t hi) {
-      for (std::size_t t = lo; t < hi; ++t) tris_[t] = computeRecord(cold_[t].corner);
-    });
-  }
+  if (tris_.size() != cold_.size()) remakeRecords();
   // The boxes once: the build tests each triangle against four children a level (1.6x faster
   // than computing them each time; 32 bytes a triangle while the tree is built, in
   // memory::kCartesianIndex).

@@ -18,7 +18,8 @@ constexpr char kMagic[8] = {'Q', 'O', 'T', 'A', 'T', 'R', 'E', 'E'};
 // 2: the grid keeps no plane table; 3: band and unit; 4: height reference; 5: the planar triangle
 // records are 64 bytes (a version 3 or 4 file's 128-byte records are remade from its corners).
 constexpr std::uint32_t kVersion = 5;
-constexpr std::uint32_t kOldestVersion = 3;  // version 2 stored its statistics with padding
+constexpr std::uint32_t kOldestVersion = 3;       // version 2 stored its statistics with padding
+constexpr std::uint32_t kOldTriangleBytes = 128;  // a planar triangle record before version 5
 // Structs written as they are must have no padding, whose bytes would be whatever memory held:
 // the same index must always make the same file.
 static_assert(sizeof(QuadtreeOptions) == 12 && sizeof(QuadtreeStats) == 64 && sizeof(Quadtree::Node) == 8);
@@ -269,7 +270,7 @@ struct TreeFileAccess {
     if (r.version() >= 5) {
       r.array(x.tris_, "triangles");
     } else {
-      x.tris_.resize(r.skipArray(128, "triangles"));  // remade by derive, once the corners are checked
+      x.tris_.resize(r.skipArray(kOldTriangleBytes, "triangles"));  // remade by derive, once the corners are checked
     }
     r.array(x.cold_, "triangle corners");
     r.array(x.corners2_, "vertices");
@@ -287,8 +288,9 @@ struct TreeFileAccess {
   // What a valid file's arrays determine: the lean grid's tables, and an older file's records.
   static void derive(const Reader& r, PlanarCore& x) {
     if (r.version() < 5) {
-      for (std::size_t t = 0; t < x.tris_.size(); ++t) x.tris_[t] = x.computeRecord(x.cold_[t].corner);
-      x.stats_.memoryBytes -= x.tris_.size() * (128 - sizeof(PlanarCore::Tri));  // counted at 128 bytes each
+      x.remakeRecords();
+      x.stats_.memoryBytes -=
+          x.tris_.size() * (kOldTriangleBytes - sizeof(PlanarCore::Tri));  // counted at the old size
     }
     if (x.grid_.on()) x.grid_.setUpLean(x.cold_, x.corners2_, x.cornerH_);
   }

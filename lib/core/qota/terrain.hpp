@@ -6,9 +6,8 @@
 // frame; triangles are stored once, in Morton order of their centroids, as packed 64-byte records
 // (corner 0, the other two relative to it in float, whose edge tests carry an error bound, and the
 // height plane solved from corner 0; no separate bbox: the three edge tests cost about what four
-// bbox compares do) with
-// their corners and source polygon kept apart; the quadtree references them from every leaf their
-// projection meets. On a regular grid (a raster's triangles) the grid path finds the triangle
+// bbox compares do) with their corners and source polygon kept apart; the quadtree references them
+// from every leaf their projection meets. On a regular grid (a raster's triangles) the grid path finds the triangle
 // under a point by arithmetic instead (grid_path.hpp), and the quadtree is built on first need.
 //
 // Query: descend to the leaf of (u, v) (two compares a level), then for each referenced
@@ -216,6 +215,8 @@ class PlanarCore : public IndexFace<PlanarCore> {
     double e[3], tol;
   };
   static EdgeValues edgeValues(const Tri& r, double u, double v);
+  static double offsetSum(const Tri& r);                    // s: the offsets' magnitudes summed
+  static double edgeBound(double s, double du, double dv);  // the bound at (du, dv) from corner 0
 
   // Per triangle, its mapped vertex indices (counter-clockwise) and source polygon; the same
   // before it gets its records (Pending, a polygon's fan).
@@ -318,6 +319,7 @@ class PlanarCore : public IndexFace<PlanarCore> {
   const Tri& gridRecord(std::uint32_t t, Tri& scratch) const;
   Tri recordOf(std::uint32_t t) const;  // stored, or computed from its corners
   Tri computeRecord(const std::uint32_t corner[3]) const;
+  void remakeRecords() const;  // every triangle's record from its corners (cold_, on buildThreads_)
   void edgeRecord(const std::uint32_t corner[3], Tri& r) const;  // corner 0 and the offsets
   void planeRecord(const std::uint32_t corner[3], Tri& r) const;
   // The lean grid's answer at (u, v): the height, and the triangle (kNoTriangle: none; with
