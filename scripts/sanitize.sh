@@ -12,7 +12,8 @@ cd "$(dirname "$0")/.."
 which=${1:-all}
 # The sanitizers' own rules: a report is fatal, with a stack; leaks are checked. An allocation's
 # stack is kept 8 frames deep (of 30): a quarter off the suite's time (the index builds allocate
-# in deep recursions) and still the caller that matters.
+# in deep recursions) and still the caller that matters. (UBSan's checks on each use of a
+# pointer are left out of the build: CMakeLists.txt says why.)
 export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1:malloc_context_size=8}
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
 export LSAN_OPTIONS=${LSAN_OPTIONS:-suppressions=$PWD/tests/fuzz/lsan.supp}
