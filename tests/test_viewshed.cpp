@@ -29,13 +29,15 @@ struct P3 {
   long long x, y, z;
 };
 
-// Sign of det[b - a, c - a, d - a], exact: coordinates of a few hundred quarter metres stay far
-// from 64-bit overflow.
+// Sign of det[b - a, c - a, d - a], exact in 128-bit integers: the differences fit in 64 bits,
+// and a product of three stays far from 128-bit overflow for grids of a few hundred quarter
+// metres with heights up to the limit of 1e9 m (4e9 quarter metres: a product near 1e22).
+__extension__ typedef __int128 Int128;
 int orient(const P3& a, const P3& b, const P3& c, const P3& d) {
-  const long long bx = b.x - a.x, by = b.y - a.y, bz = b.z - a.z;
-  const long long cx = c.x - a.x, cy = c.y - a.y, cz = c.z - a.z;
-  const long long dx = d.x - a.x, dy = d.y - a.y, dz = d.z - a.z;
-  const long long det = bx * (cy * dz - cz * dy) - by * (cx * dz - cz * dx) + bz * (cx * dy - cy * dx);
+  const Int128 bx = b.x - a.x, by = b.y - a.y, bz = b.z - a.z;
+  const Int128 cx = c.x - a.x, cy = c.y - a.y, cz = c.z - a.z;
+  const Int128 dx = d.x - a.x, dy = d.y - a.y, dz = d.z - a.z;
+  const Int128 det = bx * (cy * dz - cz * dy) - by * (cx * dz - cz * dx) + bz * (cx * dy - cy * dx);
   return det > 0 ? 1 : det < 0 ? -1 : 0;
 }
 
@@ -459,6 +461,45 @@ TEST(Viewshed, RefusesWhatItCannotPlace) {
   EXPECT_NE(message(o).find("observer height"), std::string::npos) << message(o);
   o.observerHeight = 2, o.targetHeight = -1;
   EXPECT_NE(message(o).find("target height"), std::string::npos) << message(o);
+  // Beyond any terrain (1e9 m): refused at once, not hours of exact tests.
+  o.targetHeight = 0, o.observerHeight = 1.5e9;
+  EXPECT_NE(message(o).find("observer height must be a finite number of metres from 0 to 1e9"), std::string::npos)
+      << message(o);
+  o.observerHeight = 2, o.targetHeight = 1e300;
+  EXPECT_NE(message(o).find("target height must be a finite number of metres from 0 to 1e9"), std::string::npos)
+      << message(o);
+  qota::PointLightOptions light;
+  light.x = 4.5, light.y = 1.5, light.height = 1e20, light.frame.pixelSize = 1;
+  EXPECT_THROW(qota::pointLightMask(dem, light), qota::Error);
+  light.height = -2e9, light.aboveSurface = false;
+  EXPECT_THROW(qota::pointLightMask(dem, light), qota::Error);
+}
+
+// Observers and targets up to the limit (1e9 m: lines of sight nearly vertical, the eye's height
+// far beyond the terrain's) are answered exactly, as the oracle says.
+TEST(Viewshed, HeightsUpToTheLimitMatchTheOracle) {
+  std::mt19937 rng(20261128);
+  int cases = 0;
+  for (int k = 0; k < 8; ++k) {
+    const GridCase g = randomGrid(rng, k % 2 == 1);
+    const std::string path = writeGrid(g, "viewshed_high.tif");
+    std::uniform_int_distribution<int> qc(0, 4 * g.w), qr(0, 4 * g.h);
+    for (const auto& [H, T] : {std::pair{1e9, 0.0}, std::pair{3e5, 0.0}, std::pair{2.0, 1e9}, std::pair{1e9, 1e9}}) {
+      const double col = qc(rng) / 4.0, row = qr(rng) / 4.0;
+      std::vector<Sight> got;
+      try {
+        got = gridViewshed(path, col, row, H, T, 0, g.h);
+      } catch (const qota::Error& e) {
+        EXPECT_NE(std::string(e.what()).find("void"), std::string::npos) << e.what();
+        continue;
+      }
+      std::string where;
+      EXPECT_EQ(countDifferent(got, gridOracle(g, col, row, H, T, 0), g.w, where), 0)
+          << "case " << k << ": observer (" << col << ", " << row << ") H " << H << " T " << T << where;
+      ++cases;
+    }
+  }
+  EXPECT_GT(cases, 20);
 }
 
 // ---- On a body: straight geocentric segments (GeographicLib) against the triangles.
@@ -590,6 +631,17 @@ TEST(Viewshed, Wgs84MatchesStraightGeocentricSegments) {
   EXPECT_GT(compared, 4000);
   EXPECT_GT(visible, 400);
   EXPECT_LT(visible, compared - 400);
+}
+
+TEST(Viewshed, Wgs84FromTheHeightLimitMatchesStraightSegments) {
+  // An eye 1e9 m up (the limit; on the ellipsoid the lines of sight are tested one by one, and
+  // beyond some 1e13 m each test would go to the exact predicates: hours). From so high nearly
+  // every pixel is seen: what this checks is the answers and the time at the limit.
+  int compared = 0, visible = 0;
+  const BodyCase b{"EPSG:4326", 6378137.0, 1 / 298.257223563, 40, 40, 7.0, 46.5, 0.01, hills(40, 40, 1500, 2)};
+  compareOnBody(b, "viewshed_wgs84_high.tif", 9.25, 19.5, 1e9, 0, compared, visible);
+  EXPECT_GT(compared, 1500);
+  EXPECT_GT(visible, 1000);
 }
 
 TEST(Viewshed, MoonSizedSphereMatchesStraightSegments) {
@@ -759,6 +811,14 @@ TEST(ViewshedTool, WritesByteRasterAndRefusesBadValues) {
   err.str("");
   EXPECT_EQ(qota::tools::viewshed(o, out, err), 2);
   EXPECT_NE(err.str().find("not on"), std::string::npos) << err.str();
+  EXPECT_FALSE(std::filesystem::exists(outPath));
+  // An observer beyond any terrain's height (the probe's --oz 1e300 ran for hours): refused.
+  o.observer = {2.5, 5 - 2.5}, o.observerHeight = 1e300;
+  err.str("");
+  EXPECT_EQ(qota::tools::viewshed(o, out, err), 2);
+  EXPECT_NE(err.str().find("observer height must be a finite number of metres from 0 to 1e9, got 1e+300"),
+            std::string::npos)
+      << err.str();
   EXPECT_FALSE(std::filesystem::exists(outPath));
 }
 

@@ -313,9 +313,11 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
       ->capture_default_str();
   viewshedCmd->add_option("--srs", viewshedOptions.srs, "CRS of --observer (EPSG:4326, WKT, PROJ; x = lon/easting)");
   viewshedCmd
-      ->add_option("--observer-height,--oz", viewshedOptions.observerHeight, "Metres above the surface at the observer")
+      ->add_option("--observer-height,--oz", viewshedOptions.observerHeight,
+                   "Metres above the surface at the observer (0 to 1e9)")
       ->capture_default_str();
-  viewshedCmd->add_option("--target-height,--tz", viewshedOptions.targetHeight, "Metres above each pixel's surface")
+  viewshedCmd
+      ->add_option("--target-height,--tz", viewshedOptions.targetHeight, "Metres above each pixel's surface (0 to 1e9)")
       ->capture_default_str();
   viewshedCmd
       ->add_option("--max-distance,--md", viewshedOptions.maxDistance,

@@ -23,8 +23,6 @@ namespace {
 constexpr double kDeg = M_PI / 180.0;
 // gdaldem's convention for -s on a geographic raster: metres per degree.
 constexpr double kMetresPerDegree = 111120.0;
-// Heights beyond this (in metres) are not terrain: a million kilometres is past the Moon.
-constexpr double kMaxHeight = 1e9;
 
 // A raster's axes are x = easting or longitude, y = northing or latitude (GDAL's convention for
 // rasters), whatever the CRS's official axis order.

@@ -30,6 +30,13 @@ void checkMetres(const char* name, double value) {
   }
 }
 
+// A height above the surface: metres, 0 up to kMaxHeight (no terrain reaches beyond it).
+void checkHeight(const std::string& name, double value) {
+  if (!std::isfinite(value) || value < 0 || value > kMaxHeight) {
+    throw Error(name + " must be a finite number of metres from 0 to 1e9, got " + number(value));
+  }
+}
+
 // The triangulated surface's height (metres) at pixel position (col, row), by the raster rule
 // (raster_grid.hpp: squares split from top-left to bottom-right; the outer half pixel flat to the
 // edge), from the heights in metres; NaN over a void. A point on a square's side or corner lies in
@@ -592,8 +599,8 @@ unsigned threadsOr(unsigned threads) {
 }  // namespace
 
 Viewshed viewshed(const DemTerrain& dem, const ViewshedOptions& o, const Progress& progress, unsigned threads) {
-  checkMetres("observer height", o.observerHeight);
-  checkMetres("target height", o.targetHeight);
+  checkHeight("observer height", o.observerHeight);
+  checkHeight("target height", o.targetHeight);
   checkMetres("maximum distance", o.maxDistance);
   Sightlines sight(dem, o.frame, o.index, progress);
   Viewshed out;
@@ -651,7 +658,7 @@ Viewshed viewshed(const DemTerrain& dem, const ViewshedOptions& o, const Progres
 
 CumulativeViewshed cumulativeViewshed(const DemTerrain& dem, std::span<const Observer> observers,
                                       const CumulativeOptions& o, const Progress& progress, unsigned threads) {
-  checkMetres("target height", o.targetHeight);
+  checkHeight("target height", o.targetHeight);
   checkMetres("maximum distance", o.maxDistance);
   if (observers.empty()) throw Error("no observers given");
   if (o.which && observers.size() > kMaxWhich) {
@@ -666,7 +673,7 @@ CumulativeViewshed cumulativeViewshed(const DemTerrain& dem, std::span<const Obs
   for (std::size_t k = 0; k < observers.size(); ++k) {
     const Observer& ob = observers[k];
     const std::string what = ob.name.empty() ? "observer " + std::to_string(k + 1) : ob.name;
-    checkMetres((what + " height").c_str(), ob.height);
+    checkHeight(what + " height", ob.height);
     placed.push_back(sight.observerAt(ob.x, ob.y, ob.height, what));
   }
   CumulativeViewshed out;
@@ -714,6 +721,9 @@ std::vector<Light> pointLightMask(const DemTerrain& dem, const PointLightOptions
   }
   if (o.aboveSurface && !(o.height > 0)) {
     throw Error("the light's height above the surface must be more than 0 m, got " + number(o.height));
+  }
+  if (std::fabs(o.height) > kMaxHeight) {
+    throw Error("the light's height must be within 1e9 m (beyond any terrain), got " + number(o.height));
   }
   Sightlines sight(dem, o.frame, o.index, progress, /*holes=*/false);
   sight.place();

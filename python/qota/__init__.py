@@ -39,6 +39,10 @@ __all__ = ["Terrain", "Hits", "Error", "__version__", "sample", "shadow", "views
 #: surface every qota tool sees), or GDAL's rules "nearest", "bilinear", "cubic".
 RESAMPLINGS: tuple = ("triangle", "nearest", "bilinear", "cubic")
 
+#: Heights beyond this (metres) are not terrain: a raster's, an observer's, a target's (a million
+#: kilometres, past the Moon; the library holds every height to it).
+MAX_HEIGHT: float = 1e9
+
 #: The mappings a terrain can be built in (Terrain.mapping is one of these): the library's mapping
 #: registry, as the tools' --mapping takes them.
 MAPPINGS: tuple = _qota.MAPPINGS
@@ -557,7 +561,7 @@ def viewshed(dem, observer, *, observer_height=2.0, target_height=0.0, max_dista
     dem: a raster file, or an xarray.DataArray (rioxarray) or an open rasterio dataset.
     observer: (x, y) in the raster's CRS, or in `srs` (EPSG:4326, WKT, PROJ; x = longitude or
     easting). observer_height and target_height: metres above the surface at the observer and at
-    each pixel centre; max_distance: metres (horizontal), 0 for no limit. height_ref: on the
+    each pixel centre (0 to MAX_HEIGHT, 1e9); max_distance: metres (horizontal), 0 for no limit. height_ref: on the
     ellipsoid, what the heights are over (as qota.shadow's; a raster file only). Returns uint8
     pixels on the DEM's grid: 255 visible, 0 not visible, 128 nodata, 64 beyond max_distance; a
     numpy array (rows, columns) for a file, an xarray.DataArray for a DataArray or a rasterio
@@ -573,6 +577,8 @@ def viewshed(dem, observer, *, observer_height=2.0, target_height=0.0, max_dista
     for name, value in heights.items():
         if not value >= 0:
             raise Error(f"{name} must be a number of metres, 0 or more, got {value!r}")
+        if name != "max_distance" and not value <= MAX_HEIGHT:
+            raise Error(f"{name} must be a number of metres from 0 to 1e9 (beyond any terrain), got {value!r}")
     if srs is not None and not isinstance(srs, str):
         raise Error(f"srs must be a text (EPSG:4326, WKT, PROJ), got {srs!r}")
 

@@ -341,3 +341,13 @@ def test_viewsheds_count_the_single_viewsheds(client):
     assert (got[~voids] >= 1).sum() > 1000
     with pytest.raises(qota.Error, match="observers must be"):
         qota.dask.viewsheds(RAINIER, np.zeros((0, 2)))
+    # Bad observers are refused on the client, before a graph is made.
+    high = points.copy()
+    high[3, 2] = 1e300
+    with pytest.raises(qota.Error, match=r"observers\[3\]: the height must be a number of metres from 0 to 1e9"):
+        qota.dask.viewsheds(RAINIER, high)
+    high[3, 2], high[1, 0] = 2, np.nan
+    with pytest.raises(qota.Error, match=r"observers\[1\]: x, y must be finite"):
+        qota.dask.viewsheds(RAINIER, high)
+    with pytest.raises(qota.Error, match="target_height must be"):
+        qota.dask.viewsheds(RAINIER, points, target_height=-1)

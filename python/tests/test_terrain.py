@@ -260,6 +260,9 @@ def test_viewshed_is_the_tools_raster(tmp_path):
     assert {0, 64, 255} <= set(np.unique(got)) <= {0, 64, 128, 255}
     with pytest.raises(qota.Error, match="observer_height"):
         qota.viewshed(RAINIER, observer=(-121.78, 46.83), observer_height=-1)
+    for name in ("observer_height", "target_height"):  # beyond any terrain: refused at once
+        with pytest.raises(qota.Error, match=f"{name} must be a number of metres from 0 to 1e9"):
+            qota.viewshed(RAINIER, observer=(-121.78, 46.83), **{name: 1e300})
     with pytest.raises(qota.Error, match="not on"):
         qota.viewshed(RAINIER, observer=(-130, 46.83))
     # Refraction lets the observer see over more of the terrain (a triangle's corners are raised by

@@ -154,8 +154,13 @@ struct FrameBasis {
 // Throws qota::Error as localFrame does (a CRS that cannot be read, a raster without CRS and no
 // pixelSize, -z/-s out of range).
 FrameBasis frameBasis(const DemTerrain& raster, const FrameOptions& options);
+// Heights beyond this (metres, either way) are not terrain: a million kilometres is past the Moon.
+// A raster's heights, an observer's, a target's and a light's are held to it: far beyond it
+// the lines of sight's floating-point filters fail and every test goes to the exact predicates,
+// hours for one raster.
+inline constexpr double kMaxHeight = 1e9;
 // Raw heights of `window` (row-major; NaN where no data) to metres in place, and which have data.
-// Throws qota::Error naming the pixel for a height beyond 1e9 m.
+// Throws qota::Error naming the pixel for a height beyond kMaxHeight.
 void heightsInMetres(const FrameBasis& basis, const PixelWindow& window, std::vector<double>& heights,
                      std::vector<std::uint8_t>& valid);
 // The frame of `window`: heights in metres with the voids filled (fillVoids), valid per pixel.
