@@ -42,7 +42,7 @@ if [ "$which" = all ] || [ "$which" = tsan ]; then
   # shadow memory makes the process itself hundreds of MiB), nor the largest repeats of threaded
   # code other tests run (Rainier's whole grid against the quadtree; tiles on a projected grid,
   # on the ellipsoid and without a CRS, after tiles flat): four minutes of the run under TSan.
-  # Nor three more whose time under TSan goes to what runs on one thread (three minutes of a
+  # Nor three more whose time under TSan goes to what runs on one thread (some two minutes of a
   # shard): the outputs' provenance tags on whole Rainier runs (the threaded runs are the other
   # ShadowTool tests'), the ray-march oracle on Rainier (the shadow's threads run in every Shadow
   # test), the strip walk on the ellipsoid (StripWalkIdenticalToQuadtree runs it flat).

@@ -61,6 +61,14 @@ def _local_file(path):
     return text
 
 
+def _height(value, name):
+    """A height above the surface, in metres from 0 to MAX_HEIGHT (no terrain reaches beyond it)."""
+    value = _number(value, name)
+    if not 0 <= value <= MAX_HEIGHT:
+        raise Error(f"{name} must be a number of metres from 0 to 1e9 (beyond any terrain), got {value!r}")
+    return value
+
+
 def _mapping(mapping) -> str:
     if mapping not in MAPPINGS:
         raise Error(f"mapping {mapping!r} is not one of {', '.join(MAPPINGS)}")
@@ -561,8 +569,8 @@ def viewshed(dem, observer, *, observer_height=2.0, target_height=0.0, max_dista
     dem: a raster file, or an xarray.DataArray (rioxarray) or an open rasterio dataset.
     observer: (x, y) in the raster's CRS, or in `srs` (EPSG:4326, WKT, PROJ; x = longitude or
     easting). observer_height and target_height: metres above the surface at the observer and at
-    each pixel centre (0 to MAX_HEIGHT, 1e9); max_distance: metres (horizontal), 0 for no limit. height_ref: on the
-    ellipsoid, what the heights are over (as qota.shadow's; a raster file only). Returns uint8
+    each pixel centre (0 to MAX_HEIGHT, 1e9); max_distance: metres (horizontal), 0 for no limit.
+    height_ref: on the ellipsoid, what the heights are over (as qota.shadow's; a raster file only). Returns uint8
     pixels on the DEM's grid: 255 visible, 0 not visible, 128 nodata, 64 beyond max_distance; a
     numpy array (rows, columns) for a file, an xarray.DataArray for a DataArray or a rasterio
     dataset. With `output` the raster is kept there too. refraction: the coefficient k of the
@@ -571,14 +579,11 @@ def viewshed(dem, observer, *, observer_height=2.0, target_height=0.0, max_dista
     if observer is None:
         raise Error("observer must be (x, y), got None")
     x, y = _vector(observer, "observer", 2)
-    heights = {name: _number(value, name) for name, value in
-               (("observer_height", observer_height), ("target_height", target_height),
-                ("max_distance", max_distance))}
-    for name, value in heights.items():
-        if not value >= 0:
-            raise Error(f"{name} must be a number of metres, 0 or more, got {value!r}")
-        if name != "max_distance" and not value <= MAX_HEIGHT:
-            raise Error(f"{name} must be a number of metres from 0 to 1e9 (beyond any terrain), got {value!r}")
+    heights = {"observer_height": _height(observer_height, "observer_height"),
+               "target_height": _height(target_height, "target_height"),
+               "max_distance": _number(max_distance, "max_distance")}
+    if not heights["max_distance"] >= 0:
+        raise Error(f"max_distance must be a number of metres, 0 or more, got {heights['max_distance']!r}")
     if srs is not None and not isinstance(srs, str):
         raise Error(f"srs must be a text (EPSG:4326, WKT, PROJ), got {srs!r}")
 

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import MAX_HEIGHT, _hours_span, _interop, _local_file, _number, _qota, _whole
+from . import MAX_HEIGHT, _height, _hours_span, _interop, _local_file, _number, _qota, _whole
 from ._qota import Error
 
 __all__ = ["shadow", "tiles", "Tiles", "sample", "to_geotiff", "to_zarr"]
@@ -705,9 +705,9 @@ def viewsheds(source, observers, *, observer_height=2.0, target_height=0.0, max_
     if points.ndim != 2 or points.shape[1] not in (2, 3) or len(points) == 0:
         raise Error(f"observers must be an (n, 2) or (n, 3) array of x, y [, height] with n > 0; got shape "
                     f"{points.shape}")
-    height = _number(observer_height, "observer_height")
+    height = _height(observer_height, "observer_height")
     heights = points[:, 2].copy() if points.shape[1] == 3 else np.full(len(points), height)
-    target, distance = _number(target_height, "target_height"), _number(max_distance, "max_distance")
+    target, distance = _height(target_height, "target_height"), _number(max_distance, "max_distance")
     # Checked here, on the client, before any task runs: a bad observer would fail its task only
     # once the graph is computed (as qota.viewshed checks them).
     unplaced = ~np.isfinite(points[:, :2]).all(axis=1)
@@ -719,8 +719,6 @@ def viewsheds(source, observers, *, observer_height=2.0, target_height=0.0, max_
         i = int(np.argmax(wrong))
         raise Error(f"observers[{i}]: the height must be a number of metres from 0 to 1e9 (beyond any terrain), "
                     f"got {heights[i]!r}")
-    if not 0 <= target <= MAX_HEIGHT:
-        raise Error(f"target_height must be a number of metres from 0 to 1e9 (beyond any terrain), got {target!r}")
     if not distance >= 0:
         raise Error(f"max_distance must be a number of metres, 0 or more, got {distance!r}")
     reference = "" if height_ref is None else os.fspath(height_ref)
