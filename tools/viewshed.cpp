@@ -203,14 +203,12 @@ void writeOne(const ViewshedOptions& o, const Run& run, std::ostream& out, Outpu
         << "decided: " << seen.swept << " by the sweep, " << seen.oneByOne << " one by one\n";
   }
   std::vector<double> values(seen.sight.size());
-  std::vector<int> classes(seen.sight.size());
   for (std::size_t i = 0; i < values.size(); ++i) {
     const Sight s = seen.sight[i];
     values[i] = s == Sight::Visible  ? o.visibleValue
                 : s == Sight::Hidden ? o.hiddenValue
                 : s == Sight::NoData ? o.nodataValue
                                      : o.outOfRangeValue;
-    classes[i] = s == Sight::Visible ? 0 : s == Sight::Hidden ? 1 : s == Sight::NoData ? -1 : 2;
   }
   RasterWrite w{o.output,
                 run.format,
@@ -234,6 +232,11 @@ void writeOne(const ViewshedOptions& o, const Run& run, std::ostream& out, Outpu
   w.bandDescription = "viewshed";
   writeRaster(w, run.dem, values, stage);
   if (!o.png.empty()) {
+    std::vector<int> classes(seen.sight.size());
+    for (std::size_t i = 0; i < classes.size(); ++i) {
+      const Sight s = seen.sight[i];
+      classes[i] = s == Sight::Visible ? 0 : s == Sight::Hidden ? 1 : s == Sight::NoData ? -1 : 2;
+    }
     const LocalFrame frame = localFrame(run.dem, run.frame);
     writeCategoryPreview(o.png, frame.width, frame.height, hillshade(frame, kPreviewLight), classes,
                          {{"visible", {255, 170, 0}, 0.7},

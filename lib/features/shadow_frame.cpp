@@ -463,6 +463,14 @@ std::vector<Eigen::Vector3d> framePoints(const FrameBasis& b, std::span<const do
 
 LocalFrame windowFrame(const FrameBasis& b, const PixelWindow& window, std::vector<double> z,
                        std::vector<std::uint8_t> valid, bool triangles) {
+  LocalFrame f = windowFrame(b, window, std::span<const double>(z), std::move(valid), false);
+  z = {};  // (before the triangles: a raster's heights and its triangles need not be held at once)
+  if (triangles) f.mesh.indices = f.grid.indices();
+  return f;
+}
+
+LocalFrame windowFrame(const FrameBasis& b, const PixelWindow& window, std::span<const double> z,
+                       std::vector<std::uint8_t> valid, bool triangles) {
   const DemTerrain& dem = b.raster;
   const int w = window.width, h = window.height;
   const std::size_t n = static_cast<std::size_t>(w) * h;
@@ -517,7 +525,6 @@ LocalFrame windowFrame(const FrameBasis& b, const PixelWindow& window, std::vect
     const std::vector<Eigen::Vector3d> points = framePoints(b, col, row, height, pole);
     f.mesh.vertices.insert(f.mesh.vertices.end(), points.begin(), points.end());
   }
-  z = {};
   if (triangles) f.mesh.indices = f.grid.indices();
   return f;
 }

@@ -517,11 +517,12 @@ class Sightlines {
       }
       lo_ = lo, hi_ = hi;
     }
-    std::vector<double> z = sliceOf(metres_, window);
     std::vector<std::uint8_t> valid = sliceOf(valid_, window);
     // Viewsheds read the triangles from the grid (index(), guess(), walkMeets()); a point light's
-    // attached shadow needs the mesh's.
-    frame_ = windowFrame(basis_, window, std::move(z), std::move(valid), /*triangles=*/!holes_);
+    // attached shadow needs the mesh's. (The whole raster's heights are metres_ itself.)
+    const bool whole = window.width == dem_.width && window.height == dem_.height;
+    frame_ = whole ? windowFrame(basis_, window, std::span<const double>(metres_), std::move(valid), !holes_)
+                   : windowFrame(basis_, window, sliceOf(metres_, window), std::move(valid), !holes_);
     walkLow_.clear(), walkHigh_.clear();  // (walkBlocks: of the frame before)
     if (!complete_) {
       // The centre square's frame completes the basis (pixel size, the triangles' turn), as every

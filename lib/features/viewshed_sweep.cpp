@@ -361,44 +361,52 @@ class Quadrant {
         bool hidden = lower > wP + own;
         while (freshGap < freshVoids_.size() && freshVoids_[freshGap].second < m) ++freshGap;
         const bool here = freshGap < freshVoids_.size() && m >= freshVoids_[freshGap].first;
-        // The highest crossing's lower bound and the lowest's upper bound on an envelope pair.
-        const auto span = [&](const std::vector<Piece>& high, std::size_t& hp, const std::vector<Piece>& low,
-                              std::size_t& lp, double& highest, double& lowest) {
-          upper = lower = -kInf;
-          read(high, hp, inside);
-          highest = lower;
-          upper = lower = -kInf;
-          read(low, lp, inside);
-          lowest = -lower;  // (low holds -w: lower = max(-w - err), so -lower = min(w + err))
-        };
-        if (!hidden) {
-          double highest, lowest;
-          span(doneHigh_, donePiece, doneLow_, doneLowPiece, highest, lowest);
-          hidden = highest > wP + own && lowest < wP - own;
-          if (!hidden) {
-            span(sinceHigh_, highPiece, sinceLow_, lowPiece, highest, lowest);
-            if (!here) {
-              // The run goes on to the pixel: this strip's crossings and column k - 1's (which
-              // the envelopes may have left out below the envelope) join it, and with a target
-              // above the surface the pixel's ground (below the line).
-              upper = lower = -kInf;
-              localCrossings(k, t1, tStart, j, m, lines, [&](double v, double err) {
-                consider(v, err);
-                lowest = std::min(lowest, v + err);
-              });
-              highest = std::max(highest, lower);
-              if (t1 > 0) {
-                const double ya = oy_ + m * t1;
-                const int r = std::clamp(static_cast<int>(std::floor(ya)), 0, J_ - 2);
-                if (lineOf(k, k - 1, r, k - 1, r + 1, 0, t1, lines[1])) {
-                  const double v = lines[1].at(m), err = boundAt(lines[1], v);
-                  lowest = std::min(lowest, v + err), highest = std::max(highest, v - err);
-                }
-              }
-              if (target_ > 0) lowest = std::min(lowest, (curZ_[j] - oz_) / t2 + ownSlack * (1 + std::fabs(wP)));
-            }
-            hidden = highest > wP + own && lowest < wP - own;
+        // A pair of envelopes (the highest crossings and, turned upside down, the lowest) read on
+        // one side of m: the pieces just before it (side < 0) or just after (side > 0), the same
+        // piece where m lies inside one. At a piece's end the pieces on either side may hold
+        // different pieces of terrain (completed between different voids), and a witness needs
+        // both its crossings in one. Returns the highest crossing's lower bound and the lowest's
+        // upper bound there (minus and plus infinity where that side has none).
+        const auto sideOf = [&](const std::vector<Piece>& env, std::size_t& p, int side) {
+          while (p + 1 < env.size() && env[p].m1 < m) ++p;
+          const Piece* e = &env[p];
+          if (side < 0 ? !(e->m0 < m && m <= e->m1) : !(e->m0 <= m && m < e->m1)) {
+            e = side > 0 && p + 1 < env.size() && env[p + 1].m0 <= m && m < env[p + 1].m1 ? &env[p + 1] : nullptr;
           }
+          if (!e || e->line.id == 0) return -kInf;
+          const double v = e->line.at(m);
+          return v - std::max(boundAt(e->line, v), e->extra);
+        };
+        const auto pairHides = [&](const std::vector<Piece>& high, std::size_t& hp, const std::vector<Piece>& low,
+                                   std::size_t& lp, double localHigh, double localLow) {
+          for (int side : {-1, 1}) {
+            const double highest = std::max(sideOf(high, hp, side), localHigh);
+            const double lowest = std::min(-sideOf(low, lp, side), localLow);  // (low holds -w)
+            if (highest > wP + own && lowest < wP - own) return true;
+          }
+          return false;
+        };
+        if (!hidden) hidden = pairHides(doneHigh_, donePiece, doneLow_, doneLowPiece, -kInf, kInf);
+        if (!hidden) {
+          double localHigh = -kInf, localLow = kInf;
+          if (!here) {
+            // The run goes on to the pixel: this strip's crossings and column k - 1's (which the
+            // envelopes may have left out below the envelope) join it, and with a target above
+            // the surface the pixel's ground (below the line).
+            localCrossings(k, t1, tStart, j, m, lines, [&](double v, double err) {
+              localHigh = std::max(localHigh, v - err), localLow = std::min(localLow, v + err);
+            });
+            if (t1 > 0) {
+              const double ya = oy_ + m * t1;
+              const int r = std::clamp(static_cast<int>(std::floor(ya)), 0, J_ - 2);
+              if (lineOf(k, k - 1, r, k - 1, r + 1, 0, t1, lines[1])) {
+                const double v = lines[1].at(m), err = boundAt(lines[1], v);
+                localLow = std::min(localLow, v + err), localHigh = std::max(localHigh, v - err);
+              }
+            }
+            if (target_ > 0) localLow = std::min(localLow, (curZ_[j] - oz_) / t2 + ownSlack * (1 + std::fabs(wP)));
+          }
+          hidden = pairHides(sinceHigh_, highPiece, sinceLow_, lowPiece, localHigh, localLow);
         }
         if (hidden) {
           verdict = Verdict::Hidden;
@@ -477,6 +485,18 @@ class Quadrant {
         while (jb < J_ && slopeB(jb) <= from) ++jb;
         if (ja < jaEnd) next = std::min(next, slopeA(ja));
         if (jb < J_) next = std::min(next, slopeB(jb));
+        // The block's test on this interval alone, and the same steps when it holds: a block
+        // with terrain above the envelope somewhere mostly holds rows below it elsewhere.
+        if (t1 > 0 && belowEnvelope(from, next, t1, t2, piece)) {
+          push(strip_, from, next, Line{}, 0);
+          if (voids_ && touchesVoids(from, next)) {
+            lowColumn(k, t2, from, next);
+          } else if (voids_) {
+            push(stripLow_, from, next, Line{}, 0);
+          }
+          from = next;
+          continue;
+        }
         const int n = crossings(k, 0.5 * (from + next), tStart, true, lines);
         envelopeOn(strip_, from, next, lines, n);
         if (voids_) {

@@ -169,6 +169,9 @@ void heightsInMetres(const FrameBasis& basis, const PixelWindow& window, std::ve
 // corners), for callers that read the triangulation from the grid (viewsheds).
 LocalFrame windowFrame(const FrameBasis& basis, const PixelWindow& window, std::vector<double> heights,
                        std::vector<std::uint8_t> valid, bool triangles = true);
+// The same over heights the caller keeps (a viewshed's over the whole raster: no copy of them).
+LocalFrame windowFrame(const FrameBasis& basis, const PixelWindow& window, std::span<const double> heights,
+                       std::vector<std::uint8_t> valid, bool triangles = true);
 // Frame points of raster positions: pixel coordinates (GDAL's: pixel centres at + 0.5) and
 // heights in metres over the frame's reference (the basis's heightRef on an ellipsoid), placed
 // by the arithmetic windowFrame places its vertices with, so a pixel centre at its pixel's height
