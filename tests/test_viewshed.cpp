@@ -6,8 +6,10 @@
 #include <GeographicLib/Geocentric.hpp>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdlib>
 #include <fstream>
 #include <iomanip>
 #include <random>
@@ -219,13 +221,21 @@ TEST(Viewshed, PixelGridMatchesExactOracle) {
 // graze flat steps exactly), a plain with spikes, a cliff beside the observer, voids; observers on
 // quarter pixels (on centres, sides and diagonals), low and high. The sweep must also decide most
 // pixels itself (its exact fallback answers the rest).
+// A longer run on demand (CONTRIBUTING.md): QOTA_SWEEP_CASES terrains (24), from QOTA_SWEEP_SEED,
+// of at least QOTA_SWEEP_SIZE pixels a side (20; the blocks the sweep skips are 32 rows).
+int fromEnvironment(const char* name, int otherwise) {
+  const char* value = std::getenv(name);
+  return value && *value ? std::atoi(value) : otherwise;
+}
+
 TEST(Viewshed, SweepMatchesExactOracleOnHardTerrains) {
-  std::mt19937 rng(20261128);
+  std::mt19937 rng(static_cast<std::mt19937::result_type>(fromEnvironment("QOTA_SWEEP_SEED", 20261128)));
   std::size_t tested = 0, swept = 0, visible = 0, hidden = 0;
-  for (int k = 0; k < 24; ++k) {
+  const int cases = fromEnvironment("QOTA_SWEEP_CASES", 24), size = std::max(fromEnvironment("QOTA_SWEEP_SIZE", 20), 4);
+  for (int k = 0; k < cases; ++k) {
     GridCase g;
-    g.w = std::uniform_int_distribution<int>(20, 34)(rng);
-    g.h = std::uniform_int_distribution<int>(20, 34)(rng);
+    g.w = std::uniform_int_distribution<int>(size, size + 14)(rng);
+    g.h = std::uniform_int_distribution<int>(size, size + 14)(rng);
     g.z.resize(static_cast<std::size_t>(g.w) * g.h);
     std::uniform_real_distribution<double> unit(0, 1);
     const double f1 = 0.1 + 0.4 * unit(rng), f2 = 0.1 + 0.4 * unit(rng);
