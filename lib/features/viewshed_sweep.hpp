@@ -15,13 +15,19 @@
 // its line crosses in its own column, and compares. Columns are far fewer than pixels, and the
 // envelope stays short (the horizon).
 //
+// Voids are holes: across one the terrain may be above a line of sight that meets no triangle.
+// So a line that passes over or touches a square with a void corner is visible when it clears
+// every crossing, and hidden only by a witness in one piece of terrain: a crossing above it
+// before its first void (the eye is above the terrain), or a crossing above it and one below it
+// with no void between them (kept per slope for the piece since the last void and for the last
+// completed one); else it is left undecided.
+//
 // What it leaves to an exact test. The envelope is computed in floating point with a bound on
 // its error, so pixels whose line passes within that bound of the terrain are left undecided,
-// as are pixels whose line passes over or touches a square with a void corner (across a hole
-// the terrain may be above a line that meets no triangle), and the pixel under the eye. The
-// caller tests those exactly, triangle by triangle (viewshed.cpp). The bound covers the
-// rounding here and the difference between this grid and the frame's own coordinates
-// (`slack` metres), which the exact test uses.
+// as are the pixels over voids no witness decides and the pixel under the eye. The caller tests
+// those exactly, triangle by triangle (viewshed.cpp). The bound covers the rounding here and the
+// difference between this grid and the frame's own coordinates (`slack` metres), which the exact
+// test uses.
 #pragma once
 
 #include <cstdint>
