@@ -464,7 +464,6 @@ std::vector<Eigen::Vector3d> framePoints(const FrameBasis& b, std::span<const do
 LocalFrame windowFrame(const FrameBasis& b, const PixelWindow& window, std::vector<double> z,
                        std::vector<std::uint8_t> valid, bool triangles) {
   LocalFrame f = windowFrame(b, window, std::span<const double>(z), std::move(valid), false);
-  z = {};  // (before the triangles: a raster's heights and its triangles need not be held at once)
   if (triangles) f.mesh.indices = f.grid.indices();
   return f;
 }

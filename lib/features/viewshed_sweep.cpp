@@ -464,17 +464,7 @@ class Quadrant {
         constexpr int kBlock = 32;
         blockEnd = std::min(hi, slopeB(std::max(jb, static_cast<int>(std::ceil(oy_ + from * t2))) + kBlock));
         if (blockEnd > from && belowEnvelope(from, blockEnd, t1, t2, piece)) {
-          push(strip_, from, blockEnd, Line{}, 0);
-          if (voids_ && touchesVoids(from, blockEnd)) {
-            // The pieces of terrain since a void need low crossings (to pair with a high one):
-            // column k's own, one side a row, cheaper than the whole strip's envelope.
-            lowColumn(k, t2, from, blockEnd);
-            from = blockEnd;
-            continue;
-          }
-          if (voids_)
-            push(stripLow_, from, blockEnd, Line{}, 0);  // (leaving crossings out of a
-                                                         // witness only weakens it)
+          skipBelow(k, t2, from, blockEnd);
           from = blockEnd;
           continue;
         }
@@ -488,12 +478,7 @@ class Quadrant {
         // The block's test on this interval alone, and the same steps when it holds: a block
         // with terrain above the envelope somewhere mostly holds rows below it elsewhere.
         if (t1 > 0 && belowEnvelope(from, next, t1, t2, piece)) {
-          push(strip_, from, next, Line{}, 0);
-          if (voids_ && touchesVoids(from, next)) {
-            lowColumn(k, t2, from, next);
-          } else if (voids_) {
-            push(stripLow_, from, next, Line{}, 0);
-          }
+          skipBelow(k, t2, from, next);
           from = next;
           continue;
         }
@@ -506,6 +491,20 @@ class Quadrant {
         }
         from = next;
       }
+    }
+  }
+
+  // Strip k over slopes [m0, m1] whose sides all lie below the envelope (belowEnvelope): nothing
+  // for the envelope. The pieces of terrain since a void need low crossings there (to pair with
+  // a high one): column k's own, one side a row, cheaper than the whole strip's envelope; where
+  // no line of sight has touched a void, none (leaving crossings out of a witness only weakens it).
+  void skipBelow(int k, double t2, double m0, double m1) {
+    push(strip_, m0, m1, Line{}, 0);
+    if (!voids_) return;
+    if (touchesVoids(m0, m1)) {
+      lowColumn(k, t2, m0, m1);
+    } else {
+      push(stripLow_, m0, m1, Line{}, 0);
     }
   }
 
