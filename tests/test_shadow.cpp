@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <cstring>
 #include <filesystem>
 #include <random>
 #include <sstream>
@@ -324,6 +325,61 @@ TEST(Shadow, AgreesWithRayMarchOnTheRealDem) {
     EXPECT_GT(compared, 200000u);
     EXPECT_LE(differ * 1000, compared);  // at least 99.9 % agree
   }
+}
+
+// A flat frame's points placed on demand (FlatPlacement: a viewshed's sweep keeps no vertex
+// array) are the frame's vertices bit for bit: on a pixel grid, degrees scaled flat and a
+// projected grid, over the whole raster and a window of it. A frame on an ellipsoid has no such
+// placement.
+TEST(Frame, FlatPlacementIsTheFramesVertices) {
+  const auto expectSame = [](const qota::DemTerrain& dem, const qota::FrameOptions& options) {
+    qota::FrameBasis basis;
+    const LocalFrame whole = qota::localFrame(dem, options, basis);
+    const qota::FlatPlacement flat(basis);
+    const auto bitsEqual = [](const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+      return std::memcmp(a.data(), b.data(), sizeof(double) * 3) == 0;
+    };
+    std::size_t differ = 0;
+    for (int r = 0; r < dem.height; ++r) {
+      for (int c = 0; c < dem.width; ++c) {
+        const std::size_t i = static_cast<std::size_t>(r) * dem.width + c;
+        const Eigen::Vector3d& v = whole.mesh.vertices[i];
+        differ += !bitsEqual(flat.at(c + 0.5, r + 0.5, v.z()), v);
+      }
+    }
+    EXPECT_EQ(differ, 0u) << dem.path;
+    const qota::PixelWindow window{dem.width / 3, dem.height / 4, dem.width / 2, dem.height / 2};
+    std::vector<double> z;
+    std::vector<std::uint8_t> valid;
+    for (int r = window.row; r < window.row + window.height; ++r) {
+      for (int c = window.col; c < window.col + window.width; ++c) {
+        const std::size_t i = static_cast<std::size_t>(r) * dem.width + c;
+        z.push_back(whole.mesh.vertices[i].z()), valid.push_back(whole.valid[i]);
+      }
+    }
+    const LocalFrame part = qota::windowFrame(basis, window, z, valid);
+    const LocalFrame shell = qota::gridFrame(basis, window, valid);
+    EXPECT_TRUE(shell.mesh.vertices.empty());
+    EXPECT_EQ(shell.pixelCount(), part.pixelCount());
+    for (std::size_t i = 0; i < part.pixelCount(); ++i) {
+      const double col = window.col + static_cast<int>(i % window.width) + 0.5;
+      const double row = window.row + static_cast<int>(i / window.width) + 0.5;
+      differ += !bitsEqual(flat.at(col, row, z[i]), part.mesh.vertices[i]);
+    }
+    EXPECT_EQ(differ, 0u) << dem.path << ", a window";
+  };
+  qota::FrameOptions pixels;
+  pixels.pixelSize = 7.5;
+  qota::DemTerrain grid = gridDem(31, 23, qota::fractalHeightfield(31, 23, 1.0, 40, 3).z);
+  expectSame(grid, pixels);
+  qota::FrameOptions flat;
+  flat.flat = true;
+  const qota::DemTerrain rainier = qota::loadDem(QOTA_DATA_DIR "/mt_rainier_90m.tif", {.lonLatAsCartesian = true});
+  expectSame(rainier, flat);
+  expectSame(qota::loadDem(QOTA_DATA_DIR "/SainteHelens.dem", {}), flat);
+  qota::FrameBasis curved;
+  qota::localFrame(rainier, qota::FrameOptions{}, curved);
+  EXPECT_THROW(qota::FlatPlacement{curved}, qota::Error);
 }
 
 TEST(Shadow, CurvatureLowersDistantTerrain) {

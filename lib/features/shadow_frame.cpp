@@ -387,78 +387,97 @@ std::vector<Eigen::Vector3d> framePoints(const FrameBasis& b, std::span<const do
     x = gt[0] + col[i] * gt[1] + row[i] * gt[2];
     y = gt[3] + col[i] * gt[4] + row[i] * gt[5];
   };
-  const double cc = (dem.width - 1) / 2.0, cr = (dem.height - 1) / 2.0;
-  const auto centre = dem.pixelCentre(cc, cr);
-
   std::vector<Eigen::Vector3d> out(vertexCount);
-  if (dem.crsWkt.empty()) {
-    // Pixel grid, rows running south.
-    const double s = b.options.pixelSize;
+  if (!f.body.ellipsoid) {
+    // A flat frame: one expression a point (a geographic raster's poles at their longitude and
+    // latitude; other rasters have none).
+    const FlatPlacement flat(b);
     for (std::size_t i = 0; i < vertexCount; ++i) {
-      out[i] = {(col[i] - 0.5 - cc) * s, -(row[i] - 0.5 - cr) * s, height[i]};
+      out[i] = poleOf(i) && flat.lonLat() ? flat.atLonLat(0, 90.0 * poleOf(i), height[i])
+                                          : flat.at(col[i], row[i], height[i]);
     }
-  } else {
-    const OGRSpatialReference srs = basisCrs(b);
-    const bool ellipsoid = f.body.ellipsoid;
-    // Longitude and latitude of every vertex, on the CRS's own ellipsoid.
-    std::vector<double> lon(vertexCount), lat(vertexCount);
-    for (std::size_t i = 0; i < vertexCount; ++i) source(i, lon[i], lat[i]);
-    if (!b.geographic && ellipsoid) {
-      OGRSpatialReference geo;
-      geo.CopyGeogCSFrom(&srs);
-      geo.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-      std::unique_ptr<OGRCoordinateTransformation> toGeo(OGRCreateCoordinateTransformation(&srs, &geo));
-      if (!toGeo) throw Error(dem.path + ": its CRS cannot be converted to longitude/latitude");
-      std::vector<int> ok(vertexCount, 0);
-      toGeo->Transform(vertexCount, lon.data(), lat.data(), nullptr, ok.data());
-      for (std::size_t i = 0; i < vertexCount; ++i) {
-        if (!ok[i] || !std::isfinite(lon[i]) || !std::isfinite(lat[i])) {
-          throw Error(dem.path + ": pixel (" + std::to_string(col[i]) + ", " + std::to_string(row[i]) +
-                      ") cannot be converted to longitude/latitude; shadow it with --flat");
-        }
-      }
-    }
+    return out;
+  }
+  const OGRSpatialReference srs = basisCrs(b);
+  // Longitude and latitude of every vertex, on the CRS's own ellipsoid.
+  std::vector<double> lon(vertexCount), lat(vertexCount);
+  for (std::size_t i = 0; i < vertexCount; ++i) source(i, lon[i], lat[i]);
+  if (!b.geographic) {
+    OGRSpatialReference geo;
+    geo.CopyGeogCSFrom(&srs);
+    geo.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+    std::unique_ptr<OGRCoordinateTransformation> toGeo(OGRCreateCoordinateTransformation(&srs, &geo));
+    if (!toGeo) throw Error(dem.path + ": its CRS cannot be converted to longitude/latitude");
+    std::vector<int> ok(vertexCount, 0);
+    toGeo->Transform(vertexCount, lon.data(), lat.data(), nullptr, ok.data());
     for (std::size_t i = 0; i < vertexCount; ++i) {
-      if (poleOf(i)) lon[i] = 0, lat[i] = 90.0 * poleOf(i);
-    }
-    const double lon0 = f.centreLon, lat0 = f.centreLat;
-    if (ellipsoid) {
-      const GeographicLib::Geocentric earth(b.a, b.flattening);
-      for (std::size_t i = 0; i < vertexCount; ++i) {
-        if (!(std::fabs(lat[i]) <= 90.0)) {
-          throw Error(dem.path + ": pixel (" + std::to_string(col[i]) + ", " + std::to_string(row[i]) +
-                      ") is at latitude " + std::to_string(lat[i]) + ", beyond the pole");
-        }
-        // Over the ellipsoid: the height over the geoid plus the geoid's undulation there.
-        const double n = b.geoid ? b.geoid->undulation(lon[i], lat[i]) : 0.0;
-        if (std::isnan(n)) {
-          throw Error(dem.path + ": pixel (" + std::to_string(col[i]) + ", " + std::to_string(row[i]) + ") at " +
-                      std::to_string(lon[i]) + ", " + std::to_string(lat[i]) + " is outside the geoid grid " +
-                      b.heightRef.grid);
-        }
-        Eigen::Vector3d X;
-        earth.Forward(lat[i], lon[i], height[i] + n, X.x(), X.y(), X.z());
-        out[i] = f.body.rotation * (X - f.body.origin);
-      }
-    } else if (b.geographic) {
-      // Longitude and latitude scaled linearly by the ellipsoid's radii of curvature at the
-      // centre: no curvature.
-      const double fl = b.flattening, e2 = fl * (2 - fl), s = std::sin(lat0 * kDeg);
-      const double wq = std::sqrt(1 - e2 * s * s);
-      const double nRad = b.a / wq, mRad = b.a * (1 - e2) / (wq * wq * wq);
-      for (std::size_t i = 0; i < vertexCount; ++i) {
-        out[i] = {(lon[i] - lon0) * kDeg * nRad * std::cos(lat0 * kDeg), (lat[i] - lat0) * kDeg * mRad, height[i]};
-      }
-    } else {
-      const double unit = srs.GetLinearUnits();
-      for (std::size_t i = 0; i < vertexCount; ++i) {
-        double x, y;
-        source(i, x, y);
-        out[i] = {(x - centre[0]) * unit, (y - centre[1]) * unit, height[i]};
+      if (!ok[i] || !std::isfinite(lon[i]) || !std::isfinite(lat[i])) {
+        throw Error(dem.path + ": pixel (" + std::to_string(col[i]) + ", " + std::to_string(row[i]) +
+                    ") cannot be converted to longitude/latitude; shadow it with --flat");
       }
     }
   }
+  for (std::size_t i = 0; i < vertexCount; ++i) {
+    if (poleOf(i)) lon[i] = 0, lat[i] = 90.0 * poleOf(i);
+  }
+  const GeographicLib::Geocentric earth(b.a, b.flattening);
+  for (std::size_t i = 0; i < vertexCount; ++i) {
+    if (!(std::fabs(lat[i]) <= 90.0)) {
+      throw Error(dem.path + ": pixel (" + std::to_string(col[i]) + ", " + std::to_string(row[i]) +
+                  ") is at latitude " + std::to_string(lat[i]) + ", beyond the pole");
+    }
+    // Over the ellipsoid: the height over the geoid plus the geoid's undulation there.
+    const double n = b.geoid ? b.geoid->undulation(lon[i], lat[i]) : 0.0;
+    if (std::isnan(n)) {
+      throw Error(dem.path + ": pixel (" + std::to_string(col[i]) + ", " + std::to_string(row[i]) + ") at " +
+                  std::to_string(lon[i]) + ", " + std::to_string(lat[i]) + " is outside the geoid grid " +
+                  b.heightRef.grid);
+    }
+    Eigen::Vector3d X;
+    earth.Forward(lat[i], lon[i], height[i] + n, X.x(), X.y(), X.z());
+    out[i] = f.body.rotation * (X - f.body.origin);
+  }
   return out;
+}
+
+FlatPlacement::FlatPlacement(const FrameBasis& b) {
+  const DemTerrain& dem = b.raster;
+  const LocalFrame& f = b.shared;
+  if (f.body.ellipsoid) throw Error(dem.path + ": a frame on an ellipsoid is not placed flat");
+  std::copy(dem.geotransform.begin(), dem.geotransform.end(), gt_);
+  cc_ = (dem.width - 1) / 2.0, cr_ = (dem.height - 1) / 2.0;
+  if (dem.crsWkt.empty()) {
+    // Pixel grid, rows running south.
+    kind_ = Kind::Pixels;
+    pixel_ = b.options.pixelSize;
+  } else if (b.geographic) {
+    // Longitude and latitude scaled linearly by the ellipsoid's radii of curvature at the
+    // centre: no curvature.
+    kind_ = Kind::LonLat;
+    lon0_ = f.centreLon, lat0_ = f.centreLat;
+    const double fl = b.flattening, e2 = fl * (2 - fl), s = std::sin(lat0_ * kDeg);
+    const double wq = std::sqrt(1 - e2 * s * s);
+    nRad_ = b.a / wq, mRad_ = b.a * (1 - e2) / (wq * wq * wq);
+    cosLat0_ = std::cos(lat0_ * kDeg);
+  } else {
+    kind_ = Kind::Projected;
+    const auto centre = dem.pixelCentre(cc_, cr_);
+    centreX_ = centre[0], centreY_ = centre[1];
+    unit_ = basisCrs(b).GetLinearUnits();
+  }
+}
+
+Eigen::Vector3d FlatPlacement::atLonLat(double lon, double lat, double height) const {
+  return {(lon - lon0_) * kDeg * nRad_ * cosLat0_, (lat - lat0_) * kDeg * mRad_, height};
+}
+
+Eigen::Vector3d FlatPlacement::at(double col, double row, double height) const {
+  if (kind_ == Kind::Pixels) return {(col - 0.5 - cc_) * pixel_, -(row - 0.5 - cr_) * pixel_, height};
+  // The raster's position (its CRS's units or degrees).
+  const double x = gt_[0] + col * gt_[1] + row * gt_[2];
+  const double y = gt_[3] + col * gt_[4] + row * gt_[5];
+  if (kind_ == Kind::LonLat) return atLonLat(x, y, height);
+  return {(x - centreX_) * unit_, (y - centreY_) * unit_, height};
 }
 
 LocalFrame windowFrame(const FrameBasis& b, const PixelWindow& window, std::vector<double> z,
@@ -470,11 +489,18 @@ LocalFrame windowFrame(const FrameBasis& b, const PixelWindow& window, std::vect
 
 LocalFrame windowFrame(const FrameBasis& b, const PixelWindow& window, std::span<const double> z,
                        std::vector<std::uint8_t> valid, bool triangles) {
+  LocalFrame f = gridFrame(b, window, std::move(valid));
+  placeVertices(f, b, z);
+  if (triangles) f.mesh.indices = f.grid.indices();
+  return f;
+}
+
+LocalFrame gridFrame(const FrameBasis& b, const PixelWindow& window, std::vector<std::uint8_t> valid) {
   const DemTerrain& dem = b.raster;
   const int w = window.width, h = window.height;
-  const std::size_t n = static_cast<std::size_t>(w) * h;
+  const std::size_t n = static_cast<std::size_t>(std::max(w, 0)) * std::max(h, 0);
   if (w < 1 || h < 1 || window.col < 0 || window.row < 0 || window.col + w > dem.width || window.row + h > dem.height ||
-      z.size() != n || valid.size() != n) {
+      valid.size() != n) {
     throw Error(dem.path + ": window (" + std::to_string(window.col) + ", " + std::to_string(window.row) + ") of " +
                 std::to_string(w) + " x " + std::to_string(h) + " pixels is not on the raster or not its heights");
   }
@@ -490,7 +516,17 @@ LocalFrame windowFrame(const FrameBasis& b, const PixelWindow& window, std::span
   }
   f.grid = RasterGrid(w, h, closure);
   f.gridMesh = true;
+  return f;
+}
 
+void placeVertices(LocalFrame& f, const FrameBasis& b, std::span<const double> z) {
+  const int w = f.width, h = f.height;
+  const PixelWindow& window = f.window;
+  const std::size_t n = f.pixelCount();
+  if (z.size() != n) {
+    throw Error(b.raster.path + ": " + std::to_string(z.size()) + " heights for a window of " + std::to_string(n) +
+                " pixels");
+  }
   // Every vertex: where it stands in the raster's pixel coordinates, and its height in metres,
   // placed a block at a time (the positions of a whole raster at once would need as much memory
   // again as its points).
@@ -498,6 +534,7 @@ LocalFrame windowFrame(const FrameBasis& b, const PixelWindow& window, std::span
   constexpr std::size_t kBlock = std::size_t{1} << 16;
   std::vector<double> col, row, height;
   std::vector<int> pole;
+  f.mesh.vertices.clear();
   f.mesh.vertices.reserve(vertexCount);
   for (std::size_t first = 0; first < vertexCount; first += kBlock) {
     const std::size_t count = std::min(kBlock, vertexCount - first);
@@ -524,8 +561,6 @@ LocalFrame windowFrame(const FrameBasis& b, const PixelWindow& window, std::span
     const std::vector<Eigen::Vector3d> points = framePoints(b, col, row, height, pole);
     f.mesh.vertices.insert(f.mesh.vertices.end(), points.begin(), points.end());
   }
-  if (triangles) f.mesh.indices = f.grid.indices();
-  return f;
 }
 
 void completeBasis(FrameBasis& b, double minHeight, double maxHeight, const LocalFrame& centre) {

@@ -6,6 +6,7 @@
 #include <atomic>
 #include <cmath>
 #include <memory>
+#include <optional>
 #include <thread>
 
 #include "line_crossing.hpp"
@@ -82,6 +83,13 @@ class Sightlines {
     if (report) report(0.0, "placing the terrain");
     options_.fillVoids = !holes;
     basis_ = frameBasis(dem, options_);
+    // A flat frame of a viewshed places its points on demand: the sweep reads the heights, and
+    // its exact tests the few points under their lines of sight (a whole raster's points would
+    // be 24 bytes a pixel). Frames closed round the globe (extra vertices) keep them all.
+    const RasterGrid::Closure& closure = basis_.closure;
+    if (holes && !basis_.shared.body.ellipsoid && !closure.wrapsColumns && !closure.northCap && !closure.southCap) {
+      flat_.emplace(basis_);
+    }
     const std::size_t n = static_cast<std::size_t>(dem.width) * dem.height;
     metres_.resize(n);
     for (std::size_t i = 0; i < n; ++i) metres_[i] = dem.heightOf(i);
@@ -164,9 +172,24 @@ class Sightlines {
   }
   const DemTerrain& dem() const { return dem_; }
 
+  // Frame vertex i (a pixel's, or with every vertex placed any of them): the placed one, or in a
+  // flat frame without its vertices the same bits placed now.
+  Eigen::Vector3d vertex(std::size_t i) const {
+    if (!frame_.mesh.vertices.empty()) return frame_.mesh.vertices[i];
+    const int w = frame_.width;
+    const PixelWindow& win = frame_.window;
+    return flat_->at(static_cast<double>(win.col + static_cast<int>(i % w)) + 0.5,
+                     static_cast<double>(win.row + static_cast<int>(i / w)) + 0.5, heights_[i]);
+  }
+  // Its height (a flat frame places a pixel's vertex at the pixel's height).
+  double vertexZ(std::size_t i) const {
+    return frame_.mesh.vertices.empty() ? heights_[i] : frame_.mesh.vertices[i].z();
+  }
+
   // The quadtree over the triangles with data; with reach > 0, only those whose corners all lie
   // within reach of `near` seen from above (along `up`).
   void index(const Eigen::Vector3d& near, const Eigen::Vector3d& up, double reach) {
+    if (frame_.mesh.vertices.empty()) placeVertices(frame_, basis_, heights_);
     const std::size_t n = frame_.pixelCount();
     const auto& v = frame_.mesh.vertices;
     const auto& extra = frame_.grid.extraVertices();
@@ -235,10 +258,10 @@ class Sightlines {
   bool meetsTriangle(const std::array<std::uint32_t, 3>& k, const Eigen::Vector3d& a, const Eigen::Vector3d& d,
                      std::uint32_t endVertex) const {
     if (k[0] == endVertex || k[1] == endVertex || k[2] == endVertex) return false;
-    const auto& v = frame_.mesh.vertices;
     double q[3][3];  // the corners' offsets from a (line_crossing.hpp)
     for (int j = 0; j < 3; ++j) {
-      for (int i = 0; i < 3; ++i) q[j][i] = v[k[j]][i] - a[i];
+      const Eigen::Vector3d corner = vertex(k[j]);
+      for (int i = 0; i < 3; ++i) q[j][i] = corner[i] - a[i];
     }
     return detail::segmentMeetsTriangle(q, d);
   }
@@ -318,11 +341,8 @@ class Sightlines {
     const LocalFrame& f = frame_;
     const std::size_t n = f.pixelCount();
     const int w = f.width, h = f.height;
-    // The grid's heights: in a flat frame a vertex's height is the height it was placed at, so
-    // over the whole raster those are metres_ itself (no copy); a window's, a copy.
-    std::vector<double> windowZ;
-    if (n != metres_.size()) windowZ = sliceOf(metres_, f.window);
-    const std::span<const double> z = windowZ.empty() ? std::span<const double>(metres_) : windowZ;
+    // The grid's heights: in a flat frame a vertex's height is the height it was placed at.
+    const std::span<const double> z = heights_;
     double steepest = 0;  // the largest height difference between neighbouring pixels (metres)
     for (int r = 0; r < h; ++r) {
       for (int c = 0; c < w; ++c) {
@@ -353,14 +373,13 @@ class Sightlines {
     }
     // The undecided, tested one by one.
     const Eigen::Vector3d up = f.upAt(eye.point);
-    const auto& v = f.mesh.vertices;
     const PixelWindow& win = f.window;
     std::vector<std::uint32_t> undecided;
     counts = {};  // (of the pixels in range)
     for (std::size_t i = 0; i < n; ++i) {
       if (!f.valid[i]) continue;
       const std::size_t atRaster = (win.row + i / w) * static_cast<std::size_t>(dem_.width) + win.col + i % w;
-      if (maxDistance > 0 && horizontal(v[i] - eye.point, up) > maxDistance) {
+      if (maxDistance > 0 && horizontal(vertex(i) - eye.point, up) > maxDistance) {
         visit(atRaster, Sight::OutOfRange);
       } else if (verdict[i] == qota::sweep::Verdict::Undecided) {
         undecided.push_back(static_cast<std::uint32_t>(i));
@@ -376,7 +395,8 @@ class Sightlines {
       for (std::size_t k; (k = next++) < undecided.size();) {
         const std::uint32_t i = undecided[k];
         const bool onSurface = targetHeight == 0;
-        const Eigen::Vector3d target = onSurface ? v[i] : v[i] + targetHeight * f.upAt(v[i]);
+        const Eigen::Vector3d p = vertex(i);
+        const Eigen::Vector3d target = onSurface ? p : p + targetHeight * f.upAt(p);
         const bool blocked = walkMeets(eye.point, target, at.x, at.y, static_cast<double>(i % w),
                                        static_cast<double>(i / w), onSurface ? i : CartesianIndex::kNoVertex);
         const std::size_t atRaster = (win.row + i / w) * static_cast<std::size_t>(dem_.width) + win.col + i % w;
@@ -396,7 +416,6 @@ class Sightlines {
                  std::uint32_t endVertex) const {
     const int w = frame_.width, h = frame_.height;
     const Eigen::Vector3d d = b - a;
-    const auto& v = frame_.mesh.vertices;
     constexpr double kPad = 1e-7;  // pixels: far beyond the rounding of the track, a superset
     const int c0 = std::max(0, static_cast<int>(std::floor(std::min(ax, bx) - kPad)));
     const int c1 = std::min(w - 2, static_cast<int>(std::floor(std::max(ax, bx) + kPad)));
@@ -439,7 +458,7 @@ class Sightlines {
         rows(y0, y1, r0, r1);
         for (int r = r0; r <= r1; ++r) {
           const std::size_t tl = static_cast<std::size_t>(r) * w + c;
-          const double za = v[tl].z(), zb = v[tl + 1].z(), zc = v[tl + w].z(), zd = v[tl + w + 1].z();
+          const double za = vertexZ(tl), zb = vertexZ(tl + 1), zc = vertexZ(tl + w), zd = vertexZ(tl + w + 1);
           if (std::min({za, zb, zc, zd}) > lineHigh || std::max({za, zb, zc, zd}) < lineLow) continue;
           for (std::uint32_t half = 0; half < 2; ++half) {
             const std::array<std::uint32_t, 3> k = frame_.grid.triangle(RasterGrid::innerTriangle(w, r, c, half));
@@ -456,7 +475,6 @@ class Sightlines {
   // kWalkBlock squares (the corners of its squares), row-major by blocks.
   void walkBlocks() {
     const int w = frame_.width, h = frame_.height;
-    const auto& v = frame_.mesh.vertices;
     walkBlocksAcross_ = static_cast<std::size_t>((w - 2) / kWalkBlock + 1);
     const std::size_t down = static_cast<std::size_t>((h - 2) / kWalkBlock + 1);
     walkLow_.assign(walkBlocksAcross_ * down, INFINITY);
@@ -466,7 +484,7 @@ class Sightlines {
       // before: of the blocks those fall in.
       const int rb0 = std::max(0, r - 1) / kWalkBlock, rb1 = std::min(r, h - 2) / kWalkBlock;
       for (int c = 0; c < w; ++c) {
-        const double z = v[static_cast<std::size_t>(r) * w + c].z();
+        const double z = vertexZ(static_cast<std::size_t>(r) * w + c);
         const int cb0 = std::max(0, c - 1) / kWalkBlock, cb1 = std::min(c, w - 2) / kWalkBlock;
         for (int rb = rb0; rb <= rb1; ++rb) {
           for (int cb = cb0; cb <= cb1; ++cb) {
@@ -518,11 +536,14 @@ class Sightlines {
       lo_ = lo, hi_ = hi;
     }
     std::vector<std::uint8_t> valid = sliceOf(valid_, window);
-    // Viewsheds read the triangles from the grid (index(), guess(), walkMeets()); a point light's
-    // attached shadow needs the mesh's. (The whole raster's heights are metres_ itself.)
+    // The frame's heights: the whole raster's are metres_ itself (no copy).
     const bool whole = window.width == dem_.width && window.height == dem_.height;
-    frame_ = whole ? windowFrame(basis_, window, std::span<const double>(metres_), std::move(valid), !holes_)
-                   : windowFrame(basis_, window, sliceOf(metres_, window), std::move(valid), !holes_);
+    windowHeights_ = whole ? std::vector<double>() : sliceOf(metres_, window);
+    heights_ = whole ? std::span<const double>(metres_) : std::span<const double>(windowHeights_);
+    // Viewsheds read the triangles from the grid (index(), guess(), walkMeets()); a point light's
+    // attached shadow needs the mesh's.
+    frame_ = flat_ ? gridFrame(basis_, window, std::move(valid))
+                   : windowFrame(basis_, window, heights_, std::move(valid), !holes_);
     walkLow_.clear(), walkHigh_.clear();  // (walkBlocks: of the frame before)
     if (!complete_) {
       // The centre square's frame completes the basis (pixel size, the triangles' turn), as every
@@ -532,7 +553,7 @@ class Sightlines {
       const bool holds = centre.col >= window.col && centre.row >= window.row &&
                          centre.col + 2 <= window.col + window.width && centre.row + 2 <= window.row + window.height;
       // (Not a conditional expression: that would copy the whole frame.)
-      if (holds) {
+      if (holds && !frame_.mesh.vertices.empty()) {
         completeBasis(basis_, lo_, hi_, frame_);
       } else {
         completeBasis(basis_, lo_, hi_, windowFrame(basis_, centre, sliceOf(metres_, centre), sliceOf(valid_, centre)));
@@ -558,7 +579,7 @@ class Sightlines {
     const LocalFrame& f = frame_;
     const Eigen::Vector3d up = f.upAt(p);
     const auto beyond = [&](int c, int r) {
-      return horizontal(f.mesh.vertices[static_cast<std::size_t>(r) * f.width + c] - p, up) > reach;
+      return horizontal(vertex(static_cast<std::size_t>(r) * f.width + c) - p, up) > reach;
     };
     const PixelWindow& win = f.window;
     for (int c = 0; c < f.width; ++c) {
@@ -583,6 +604,11 @@ class Sightlines {
   // the heights that frame places there (filled for shadows, the lowest for holes).
   std::vector<double> metres_;
   std::vector<std::uint8_t> valid_;
+  // The frame's heights in metres (metres_ for the whole raster, else windowHeights_), and for a
+  // flat viewshed's frame, its placement: frame_ then has no vertices until index() needs them.
+  std::vector<double> windowHeights_;
+  std::span<const double> heights_;
+  std::optional<FlatPlacement> flat_;
   IndexOptions indexOptions_;
   std::unique_ptr<CartesianIndex> index_;
   // Each inner triangle's number in the raster rule, and back (index()).

@@ -172,6 +172,11 @@ LocalFrame windowFrame(const FrameBasis& basis, const PixelWindow& window, std::
 // The same over heights the caller keeps (a viewshed's over the whole raster: no copy of them).
 LocalFrame windowFrame(const FrameBasis& basis, const PixelWindow& window, std::span<const double> heights,
                        std::vector<std::uint8_t> valid, bool triangles = true);
+// The frame of `window` without its points (mesh empty; the grid, valid, body and units as
+// windowFrame's), for callers that place the points they need on demand (FlatPlacement);
+// placeVertices then adds them all, as windowFrame places them.
+LocalFrame gridFrame(const FrameBasis& basis, const PixelWindow& window, std::vector<std::uint8_t> valid);
+void placeVertices(LocalFrame& frame, const FrameBasis& basis, std::span<const double> heights);
 // Frame points of raster positions: pixel coordinates (GDAL's: pixel centres at + 0.5) and
 // heights in metres over the frame's reference (the basis's heightRef on an ellipsoid), placed
 // by the arithmetic windowFrame places its vertices with, so a pixel centre at its pixel's height
@@ -180,6 +185,26 @@ LocalFrame windowFrame(const FrameBasis& basis, const PixelWindow& window, std::
 std::vector<Eigen::Vector3d> framePoints(const FrameBasis& basis, std::span<const double> col,
                                          std::span<const double> row, std::span<const double> height,
                                          std::span<const int> pole = {});
+// A flat frame's placement (no body: FrameBasis::shared.body.ellipsoid false), which is one
+// expression per point: framePoints places such frames' points through it, so a point placed
+// here on demand is the frame's vertex, bit for bit. (A viewshed's sweep keeps no vertex array:
+// 24 bytes a pixel it never needs whole.)
+class FlatPlacement {
+ public:
+  explicit FlatPlacement(const FrameBasis& basis);  // throws qota::Error on a frame on an ellipsoid
+  // The frame point at pixel position (col, row), `height` metres up.
+  Eigen::Vector3d at(double col, double row, double height) const;
+  // The same at a longitude and latitude (degrees) of a geographic raster (the poles' points).
+  Eigen::Vector3d atLonLat(double lon, double lat, double height) const;
+  bool lonLat() const { return kind_ == Kind::LonLat; }
+
+ private:
+  enum class Kind { Pixels, LonLat, Projected } kind_ = Kind::Pixels;
+  double gt_[6] = {};
+  double cc_ = 0, cr_ = 0, pixel_ = 1;                              // Pixels: the centre pixel, metres a pixel
+  double centreX_ = 0, centreY_ = 0, unit_ = 1;                     // Projected: the centre, metres a CRS unit
+  double lon0_ = 0, lat0_ = 0, nRad_ = 0, mRad_ = 0, cosLat0_ = 1;  // LonLat: radii of curvature at the centre
+};
 void completeBasis(FrameBasis& basis, double minHeight, double maxHeight, const LocalFrame& centre);
 // localFrame(dem, options), and the basis it was made on (for framePoints).
 LocalFrame localFrame(const DemTerrain& dem, const FrameOptions& options, FrameBasis& basis);
