@@ -382,6 +382,72 @@ TEST(Frame, FlatPlacementIsTheFramesVertices) {
   EXPECT_THROW(qota::FlatPlacement{curved}, qota::Error);
 }
 
+// fillVoids against onion peeling as written plainly (every void left looked at in every pass):
+// the same heights bit for bit and the same passes, on voids of every shape: specks, blobs, a
+// band across the raster, a void with nothing known in its raster, the raster's edges.
+TEST(Frame, FillVoidsIsOnionPeeling) {
+  const auto peel = [](std::vector<double>& z, int w, int h, std::vector<std::uint32_t>& levels) {
+    levels.assign(z.size(), 0);
+    std::vector<std::size_t> todo;
+    for (std::size_t i = 0; i < z.size(); ++i) {
+      if (!std::isfinite(z[i])) todo.push_back(i);
+    }
+    for (std::uint32_t pass = 1; !todo.empty(); ++pass) {
+      std::vector<std::pair<std::size_t, double>> fills;
+      std::vector<std::size_t> still;
+      for (std::size_t i : todo) {
+        const int c = static_cast<int>(i % w), r = static_cast<int>(i / w);
+        double sum = 0;
+        int count = 0;
+        for (int dr = -1; dr <= 1; ++dr) {
+          for (int dc = -1; dc <= 1; ++dc) {
+            const int cc = c + dc, rr = r + dr;
+            if ((dr || dc) && cc >= 0 && rr >= 0 && cc < w && rr < h && std::isfinite(z[rr * w + cc])) {
+              sum += z[rr * w + cc], ++count;
+            }
+          }
+        }
+        if (count) {
+          fills.emplace_back(i, sum / count);
+        } else {
+          still.push_back(i);
+        }
+      }
+      if (fills.empty()) {
+        for (std::size_t i : still) z[i] = 0, levels[i] = qota::kNeverFilled;
+        break;
+      }
+      for (const auto& [i, v] : fills) z[i] = v, levels[i] = pass;
+      todo.swap(still);
+    }
+  };
+  std::mt19937_64 rng(17);
+  for (int k = 0; k < 60; ++k) {
+    const int w = 1 + static_cast<int>(rng() % 70), h = 1 + static_cast<int>(rng() % 50);
+    std::vector<double> z(static_cast<std::size_t>(w) * h);
+    for (double& v : z) v = std::uniform_real_distribution<double>(-50, 3000)(rng);
+    const int kind = k % 5;
+    for (int r = 0; r < h; ++r) {
+      for (int c = 0; c < w; ++c) {
+        double& v = z[static_cast<std::size_t>(r) * w + c];
+        const bool speck = rng() % 7 == 0;
+        const bool blob = std::hypot(c - w / 3.0, r - h / 2.0) < 0.3 * std::min(w, h) + 1;
+        const bool band = c > w / 4 && c < w / 2;
+        if ((kind == 0 && speck) || (kind == 1 && blob) || (kind == 2 && (band || speck)) || kind == 3 ||
+            (kind == 4 && (blob || c == 0 || r == h - 1))) {
+          v = k % 2 ? NAN : INFINITY;
+        }
+      }
+    }
+    std::vector<double> want = z, got = z;
+    std::vector<std::uint32_t> wantLevels, gotLevels;
+    peel(want, w, h, wantLevels);
+    qota::fillVoids(got, w, h, &gotLevels);
+    ASSERT_EQ(std::memcmp(want.data(), got.data(), want.size() * sizeof(double)), 0) << "case " << k;
+    ASSERT_EQ(wantLevels, gotLevels) << "case " << k;
+  }
+}
+
 TEST(Shadow, CurvatureLowersDistantTerrain) {
   // On the ellipsoid, terrain far away drops below the tangent plane (about 8 m at 10 km), so
   // fewer pixels are shaded at a low sun than on the flat frame.

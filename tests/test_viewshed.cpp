@@ -10,12 +10,14 @@
 #include <array>
 #include <cmath>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <iomanip>
 #include <random>
 #include <sstream>
 
 #include "qota/error.hpp"
+#include "qota/memory_budget.hpp"
 #include "qota/raster_grid.hpp"
 #include "qota/terrain.hpp"
 #include "qota/viewshed.hpp"
@@ -889,6 +891,47 @@ TEST(ViewshedTool, WritesByteRasterAndRefusesBadValues) {
   EXPECT_NE(err.str().find("observer height must be a finite number of metres from 0 to 1e9, got 1e+300"),
             std::string::npos)
       << err.str();
+  EXPECT_FALSE(std::filesystem::exists(outPath));
+}
+
+// The sweep keeps no quadtree, and the memory a job is refused for says so. Under a budget that
+// holds the sweep's estimate and not a quadtree's: a flat viewshed runs; --per-pixel is refused
+// before the raster is read; an observer the sweep cannot take (within a pixel of the raster's
+// edge) is refused, with the reason, before its quadtree is built. Nothing is written when refused.
+TEST(ViewshedTool, TheSweepIsEstimatedWithoutAQuadtree) {
+  const int w = 1000, h = 1000;
+  GridCase g{w, h, std::vector<double>(static_cast<std::size_t>(w) * h)};
+  for (int r = 0; r < h; ++r) {
+    for (int c = 0; c < w; ++c)
+      g.z[static_cast<std::size_t>(r) * w + c] = std::round(50 + 20 * std::sin(c * 0.05) * std::cos(r * 0.07));
+  }
+  const std::string dem = writeGrid(g, "viewshed_budget.tif");
+  const auto outPath = qota::test::scratchPath("viewshed_budget_out.tif");
+  std::filesystem::remove(outPath);
+  namespace memory = qota::memory;
+  const std::uint64_t v = static_cast<std::uint64_t>(w) * h, t = 2 * static_cast<std::uint64_t>(w - 1) * (h - 1);
+  const std::uint64_t sweep = memory::kProcessBase + (memory::kDemHeights + memory::kSweptLinesOfSight).bytes(v, 0);
+  const std::uint64_t quadtree = memory::kLinesOfSight.bytes(v, t);
+  ASSERT_LT(2 * sweep, quadtree);
+  struct Budget {
+    explicit Budget(std::uint64_t bytes) { memory::setLimit(memory::residentBytes() + bytes); }
+    ~Budget() { memory::setLimit(0); }
+  } budget((sweep + quadtree) / 2);
+  qota::tools::ViewshedOptions o;
+  o.source = dem, o.output = outPath.string(), o.quiet = true, o.pixelSize = 1, o.flat = true;
+  o.observer = {500.5, h - 500.5};
+  std::ostringstream out, err;
+  ASSERT_EQ(qota::tools::viewshed(o, out, err), 0) << err.str();
+  ASSERT_TRUE(std::filesystem::exists(outPath));
+  std::filesystem::remove(outPath);
+  o.perPixel = true;
+  EXPECT_EQ(qota::tools::viewshed(o, out, err), 2);
+  EXPECT_NE(err.str().find("for this job, more than the"), std::string::npos) << err.str();
+  EXPECT_FALSE(std::filesystem::exists(outPath));
+  o.perPixel = false, o.observer = {0.3, h - 500.5};
+  err.str("");
+  EXPECT_EQ(qota::tools::viewshed(o, out, err), 2);
+  EXPECT_NE(err.str().find("an observer the sweep cannot take"), std::string::npos) << err.str();
   EXPECT_FALSE(std::filesystem::exists(outPath));
 }
 

@@ -263,7 +263,10 @@ void memoryFacts(const DemTerrain& dem, const SourceOptions& so, Facts& f) {
   const bool curved = !mappingEntry(so.mapping).map;
   const std::uint64_t tree = memory::kProcessBase + memory::kDemMesh.bytes(v, t) +
                              (curved ? memory::kCurvedIndex : memory::kCartesianIndex).bytes(v, t);
-  const std::uint64_t sight = memory::kProcessBase + memory::kDemMesh.bytes(v, t) + memory::kLinesOfSight.bytes(v, t);
+  // (qota viewshed reads the heights alone: on the ellipsoid each line of sight goes through the
+  // quadtree; a flat frame's are swept, with no quadtree.)
+  const std::uint64_t sight = memory::kProcessBase + (memory::kDemHeights + memory::kLinesOfSight).bytes(v, t);
+  const std::uint64_t swept = memory::kProcessBase + (memory::kDemHeights + memory::kSweptLinesOfSight).bytes(v, t);
   std::uint64_t shadow = 0;
   try {
     ShadowOptions s;
@@ -279,6 +282,7 @@ void memoryFacts(const DemTerrain& dem, const SourceOptions& so, Facts& f) {
         shadow ? memory::gib(shadow) + " (the whole raster; by tiles when more than available)" : "unknown",
         "memory_shadow_bytes");
   f.add("memory for viewshed", sight, memory::gib(sight), "memory_viewshed_bytes");
+  f.add("memory for viewshed --flat", swept, memory::gib(swept) + " (the sweep)", "memory_viewshed_flat_bytes");
   f.add("memory for sample", nullptr, "streams by blocks (GDAL's block cache)", "memory_sample_bytes");
   f.add("memory available", available ? Json(available) : Json(nullptr), available ? memory::gib(available) : "unknown",
         "memory_available_bytes");

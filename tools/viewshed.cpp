@@ -237,7 +237,8 @@ void writeOne(const ViewshedOptions& o, const Run& run, std::ostream& out, Outpu
       const Sight s = seen.sight[i];
       classes[i] = s == Sight::Visible ? 0 : s == Sight::Hidden ? 1 : s == Sight::NoData ? -1 : 2;
     }
-    const LocalFrame frame = localFrame(run.dem, run.frame);
+    FrameBasis basis;
+    const LocalFrame frame = localFrame(run.dem, run.frame, basis, /*triangles=*/false);  // (a hillshade's)
     writeCategoryPreview(o.png, frame.width, frame.height, hillshade(frame, kPreviewLight), classes,
                          {{"visible", {255, 170, 0}, 0.7},
                           {"not visible", {255, 255, 255}, 0.0},
@@ -321,7 +322,8 @@ void writeCounts(const ViewshedOptions& o, const Run& run, std::ostream& out, Ou
     writeRaster(bitsWrite, run.dem, which, stage);
   }
   if (!o.png.empty()) {
-    const LocalFrame frame = localFrame(run.dem, run.frame);
+    FrameBasis basis;
+    const LocalFrame frame = localFrame(run.dem, run.frame, basis, /*triangles=*/false);  // (a hillshade's)
     writeRampPreview(o.png, frame.width, frame.height, hillshade(frame, kPreviewLight), counts, 0, most, "observers",
                      std::filesystem::path(o.source).filename().string() + ": how many of " +
                          std::to_string(observers.size()) + " observers see each pixel",
@@ -349,7 +351,14 @@ int viewshed(const ViewshedOptions& given, std::ostream& out, std::ostream& err)
     DemOptions demOptions;
     demOptions.band = o.band;
     demOptions.lonLatAsCartesian = true;  // read as lon/lat: the frame puts it on its ellipsoid
-    demOptions.then = memory::kLinesOfSight;
+    // The sweep (a flat frame, not --per-pixel) keeps no quadtree: a cost of its own, a tenth of
+    // a quadtree's or less. An observer it cannot take (at the raster's edge, on the surface) is
+    // checked again before its quadtree is built (qota::viewshed).
+    memory::PerItem then = o.flat && !o.perPixel ? memory::kSweptLinesOfSight : memory::kLinesOfSight;
+    if (!o.png.empty()) then = then + memory::kPreview;
+    if (!o.observersFile.empty()) then = then + memory::kCounts;
+    if (!o.whichFile.empty()) then = then + memory::kWhich;
+    demOptions.then = then;
     demOptions.fillVoids = o.fillVoids ? kFillVoidsPixels : 0;
     demOptions.triangles = false;  // (the frame triangulates the grid from the heights)
     demOptions.vertices = false;

@@ -149,47 +149,70 @@ Eigen::Vector3d LocalFrame::towardSun(const SunPosition& sun) const {
 // Onion peeling (shadow_frame.hpp).
 void fillVoids(std::vector<double>& z, int w, int h, std::vector<std::uint32_t>* levels) {
   if (levels) levels->assign(z.size(), 0);
-  std::uint32_t pass = 0;
-  std::vector<std::size_t> todo;
-  for (std::size_t i = 0; i < z.size(); ++i) {
-    if (!std::isfinite(z[i])) todo.push_back(i);
-  }
-  std::vector<std::pair<std::size_t, double>> fills;
-  while (!todo.empty()) {
-    fills.clear();
-    std::vector<std::size_t> still;
-    for (std::size_t i : todo) {
-      const int c = static_cast<int>(i % w), r = static_cast<int>(i / w);
-      double sum = 0;
-      int count = 0;
-      for (int dr = -1; dr <= 1; ++dr) {
-        for (int dc = -1; dc <= 1; ++dc) {
-          const int cc = c + dc, rr = r + dr;
-          if ((dr || dc) && cc >= 0 && rr >= 0 && cc < w && rr < h) {
-            const double v = z[static_cast<std::size_t>(rr) * w + cc];
-            if (std::isfinite(v)) sum += v, ++count;
-          }
+  // The mean of a void pixel's known neighbours (the 8 round it, in one order: the same sum
+  // whatever the pass), and whether it has any.
+  const auto meanOfKnown = [&](std::size_t i, double& mean) {
+    const int c = static_cast<int>(i % w), r = static_cast<int>(i / w);
+    double sum = 0;
+    int count = 0;
+    for (int dr = -1; dr <= 1; ++dr) {
+      for (int dc = -1; dc <= 1; ++dc) {
+        const int cc = c + dc, rr = r + dr;
+        if ((dr || dc) && cc >= 0 && rr >= 0 && cc < w && rr < h) {
+          const double v = z[static_cast<std::size_t>(rr) * w + cc];
+          if (std::isfinite(v)) sum += v, ++count;
         }
       }
-      if (count) {
-        fills.push_back({i, sum / count});
-      } else {
-        still.push_back(i);
-      }
     }
-    if (fills.empty()) {  // nothing known anywhere
-      for (std::size_t i : still) z[i] = 0;
-      if (levels) {
-        for (std::size_t i : still) (*levels)[i] = kNeverFilled;
-      }
-      break;
-    }
+    if (count) mean = sum / count;
+    return count > 0;
+  };
+  // Pass 1 fills the voids next to known pixels; pass p + 1 only voids next to those pass p
+  // filled (a void with a known neighbour before pass p + 1 but none before pass p has one that
+  // pass p filled). So each pass looks at its rim alone, not at every void left: a void hundreds
+  // of pixels wide took hundreds of passes over all of it.
+  std::vector<std::size_t> rim;
+  for (std::size_t i = 0; i < z.size(); ++i) {
+    double mean;
+    if (!std::isfinite(z[i]) && meanOfKnown(i, mean)) rim.push_back(i);
+  }
+  std::vector<std::uint8_t> queued(z.size(), 0);  // in the next pass's rim already
+  std::vector<std::pair<std::size_t, double>> fills;
+  std::vector<std::size_t> next;
+  std::uint32_t pass = 0;
+  while (!rim.empty()) {
     ++pass;
+    // Every fill of a pass from the heights before it, in the order of the pixels.
+    std::sort(rim.begin(), rim.end());
+    fills.clear();
+    for (std::size_t i : rim) {
+      double mean = 0;
+      meanOfKnown(i, mean);
+      fills.emplace_back(i, mean);
+    }
     for (const auto& [i, v] : fills) {
       z[i] = v;
       if (levels) (*levels)[i] = pass;
     }
-    todo.swap(still);
+    next.clear();
+    for (const auto& [i, v] : fills) {
+      const int c = static_cast<int>(i % w), r = static_cast<int>(i / w);
+      for (int dr = -1; dr <= 1; ++dr) {
+        for (int dc = -1; dc <= 1; ++dc) {
+          const int cc = c + dc, rr = r + dr;
+          if (cc < 0 || rr < 0 || cc >= w || rr >= h) continue;
+          const std::size_t k = static_cast<std::size_t>(rr) * w + cc;
+          if (!std::isfinite(z[k]) && !queued[k]) queued[k] = 1, next.push_back(k);
+        }
+      }
+    }
+    rim.swap(next);
+  }
+  // Voids with nothing known anywhere around them: flat at 0.
+  for (std::size_t i = 0; i < z.size(); ++i) {
+    if (std::isfinite(z[i])) continue;
+    z[i] = 0;
+    if (levels) (*levels)[i] = kNeverFilled;
   }
 }
 
@@ -611,7 +634,7 @@ LocalFrame localFrame(const DemTerrain& dem, const FrameOptions& o) {
   return localFrame(dem, o, basis);
 }
 
-LocalFrame localFrame(const DemTerrain& dem, const FrameOptions& o, FrameBasis& basis) {
+LocalFrame localFrame(const DemTerrain& dem, const FrameOptions& o, FrameBasis& basis, bool triangles) {
   const int w = dem.width, h = dem.height;
   const std::size_t n = static_cast<std::size_t>(std::max(w, 0)) * static_cast<std::size_t>(std::max(h, 0));
   if (w < 1 || h < 1 || (dem.mesh.vertices.size() != n && dem.heights.size() != n)) {
@@ -634,7 +657,7 @@ LocalFrame localFrame(const DemTerrain& dem, const FrameOptions& o, FrameBasis& 
   } else {
     for (double& v : z) v = std::isnan(v) ? (lo <= hi ? lo : 0.0) : v;
   }
-  LocalFrame f = windowFrame(basis, whole, std::move(z), std::move(valid));
+  LocalFrame f = windowFrame(basis, whole, std::move(z), std::move(valid), triangles);
   completeBasis(basis, lo, hi, f);
   adoptBasis(f, basis);
   return f;

@@ -11,6 +11,7 @@
 
 #include "line_crossing.hpp"
 #include "qota/error.hpp"
+#include "qota/memory_budget.hpp"
 #include "qota/terrain.hpp"
 #include "shadow_facing.hpp"
 #include "viewshed_sweep.hpp"
@@ -619,6 +620,20 @@ class Sightlines {
   std::vector<double> walkLow_, walkHigh_;
 };
 
+// Before lines of sight go through the quadtree: its memory, unless the job's estimate counted
+// it (loadDem's: a job estimated for the sweep can meet an observer the sweep cannot take, which
+// `unswept` says).
+void requireQuadtree(const DemTerrain& dem, bool unswept) {
+  const std::uint64_t w = static_cast<std::uint64_t>(dem.width), h = static_cast<std::uint64_t>(dem.height);
+  const std::uint64_t vertices = w * h, triangles = 2 * (w - 1) * (h - 1);
+  if (dem.estimatedBytes >= memory::kProcessBase + memory::kLinesOfSight.bytes(vertices, triangles)) return;
+  memory::require(dem.path + ": lines of sight through the quadtree" +
+                      (unswept ? std::string(" (an observer the sweep cannot take: on the surface, or within a "
+                                             "pixel of the raster's edge)")
+                               : std::string()),
+                  memory::kLinesOfSight, vertices, triangles);
+}
+
 unsigned threadsOr(unsigned threads) {
   return threads ? threads : std::max(1u, std::min(8u, std::thread::hardware_concurrency()));
 }
@@ -670,6 +685,7 @@ Viewshed viewshed(const DemTerrain& dem, const ViewshedOptions& o, const Progres
                                0.05, 0.95, visit, counts);
     out.swept = counts.decided;
   } else {
+    requireQuadtree(dem, o.sweep && !f.body.ellipsoid);
     if (progress && !progress(0.05, "building the quadtree")) throw Error("viewshed cancelled");
     const double diagonal = std::max(sight.diagonal(), std::hypot(f.pixelSizeX, f.pixelSizeY));
     sight.index(out.observer, f.upAt(out.observer), o.maxDistance > 0 ? o.maxDistance + 2 * diagonal : 0.0);
@@ -725,6 +741,7 @@ CumulativeViewshed cumulativeViewshed(const DemTerrain& dem, std::span<const Obs
                                  0.9 / observers.size(), visit, counts);
     } else {
       if (!indexed) {
+        requireQuadtree(dem, o.sweep && !f.body.ellipsoid);
         if (progress && !progress(from, "building the quadtree")) throw Error("viewshed cancelled");
         // One quadtree for every observer: the whole terrain (each observer's maximum distance
         // is checked per pixel).

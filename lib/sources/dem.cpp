@@ -370,8 +370,9 @@ DemTerrain loadDem(const std::string& path, const DemOptions& options) {
   const std::uint64_t h = static_cast<std::uint64_t>(dem.height);
   const std::uint64_t vertices = w * h;
   const std::uint64_t triangles = w > 1 && h > 1 ? 2 * (w - 1) * (h - 1) : 0;
+  const memory::PerItem read = options.vertices ? memory::kDemMesh : memory::kDemHeights;
   const std::uint64_t need =
-      memory::kProcessBase + memory::kDemMesh.bytes(vertices, triangles) + options.then.bytes(vertices, triangles);
+      memory::kProcessBase + read.bytes(vertices, triangles) + options.then.bytes(vertices, triangles);
   dem.estimatedBytes = need;
   const std::uint64_t limit = options.memoryLimitBytes ? options.memoryLimitBytes : memory::availableBytes();
   if (vertices >= 0xffffffffull || (limit && need > limit)) {

@@ -476,7 +476,10 @@ py::array_t<std::int64_t> cumulative(const std::string& path, py::array_t<double
     qota::DemOptions demOptions;
     demOptions.band = band;
     demOptions.lonLatAsCartesian = true;
-    demOptions.then = qota::memory::kLinesOfSight;
+    demOptions.triangles = false;  // (the frame triangulates the grid from the heights, as qota viewshed)
+    demOptions.vertices = false;
+    // (As qota viewshed --observers estimates it: flat frames sweep.)
+    demOptions.then = (flat ? qota::memory::kSweptLinesOfSight : qota::memory::kLinesOfSight) + qota::memory::kCounts;
     const qota::DemTerrain dem = qota::loadDem(path, demOptions);
     width = dem.width, height = dem.height;
     seen = qota::cumulativeViewshed(dem, observers, o);

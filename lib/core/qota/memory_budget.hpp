@@ -14,6 +14,10 @@ struct PerItem {
   std::uint64_t bytes(std::uint64_t vertices, std::uint64_t triangles) const {
     return vertices * perVertex + triangles * perTriangle;
   }
+  // Steps that run together (their memory held at once).
+  friend constexpr PerItem operator+(PerItem a, PerItem b) {
+    return {a.perVertex + b.perVertex, a.perTriangle + b.perTriangle};
+  }
 };
 
 // The process before any terrain: the C++ runtime, GDAL, PROJ, Assimp and their caches (measured
@@ -22,6 +26,8 @@ constexpr std::uint64_t kProcessBase = 80ull << 20;
 // A raster read into a terrain (loadDem): the vertices, the pixels read as doubles while they are
 // placed, the triangles' indices.
 constexpr PerItem kDemMesh{36, 13};
+// A raster read as heights alone (DemOptions::vertices false): the heights as doubles.
+constexpr PerItem kDemHeights{10, 0};
 // A CartesianIndex with its quadtree, at its build's peak (records, pending list, Morton keys,
 // references, the triangles' boxes). Measured 203 to 247 bytes a triangle (Rainier's 1201 x 1201
 // and 500 x 500 of it, Mount St. Helens; the peak varies from run to run by the build's threads).
@@ -37,6 +43,16 @@ constexpr PerItem kShadow{40, 70};
 // the blocker guess). Measured 300 MB for 556 x 556 pixels, with the process; 2.28 GB for
 // 2000 x 2000 (bench/viewshed_bench.sh), where this says 2.91 GiB.
 constexpr PerItem kLinesOfSight{100, 300};
+// A viewshed by the sweep (a flat frame; viewshed_sweep.hpp), which keeps no vertices, triangles
+// or quadtree: the heights in metres, which pixels have data, the verdicts, the classes written.
+// With the heights read (kDemHeights), measured 21 bytes a pixel (bench/viewshed_bench.sh's DEM
+// and a 6000 x 6000 one like it); with a PNG preview over a hillshade 85 (kPreview adds the
+// difference), counting many observers 36 (kCounts), and which observers see each pixel 49 (kWhich
+// more).
+constexpr PerItem kSweptLinesOfSight{16, 0};
+constexpr PerItem kPreview{45, 0};
+constexpr PerItem kCounts{18, 0};
+constexpr PerItem kWhich{16, 0};
 
 // Memory available to this process for new work, in bytes: the least of MemAvailable (else
 // physical memory), what the memory control group (a container's limit) and ulimit -v still

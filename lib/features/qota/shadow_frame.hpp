@@ -207,7 +207,8 @@ class FlatPlacement {
 };
 void completeBasis(FrameBasis& basis, double minHeight, double maxHeight, const LocalFrame& centre);
 // localFrame(dem, options), and the basis it was made on (for framePoints).
-LocalFrame localFrame(const DemTerrain& dem, const FrameOptions& options, FrameBasis& basis);
+// triangles: false leaves the mesh's triangles out, as windowFrame's (a hillshade's frame).
+LocalFrame localFrame(const DemTerrain& dem, const FrameOptions& options, FrameBasis& basis, bool triangles = true);
 // Copies what completeBasis found into a frame made before it.
 void adoptBasis(LocalFrame& frame, const FrameBasis& basis);
 
