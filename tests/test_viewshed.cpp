@@ -895,9 +895,11 @@ TEST(ViewshedTool, WritesByteRasterAndRefusesBadValues) {
 }
 
 // The sweep keeps no quadtree, and the memory a job is refused for says so. Under a budget that
-// holds the sweep's estimate and not a quadtree's: a flat viewshed runs; --per-pixel is refused
-// before the raster is read; an observer the sweep cannot take (within a pixel of the raster's
-// edge) is refused, with the reason, before its quadtree is built. Nothing is written when refused.
+// holds the sweep's estimate and not a quadtree's: a viewshed of a raster without CRS (a flat
+// frame without --flat) runs; --per-pixel is refused before the raster is read; an observer the
+// sweep cannot take (outside the outermost pixel centres) is refused, with the reason, before its
+// quadtree is built, unless a maximum distance makes that quadtree small. Nothing is written when
+// refused.
 TEST(ViewshedTool, TheSweepIsEstimatedWithoutAQuadtree) {
   const int w = 1000, h = 1000;
   GridCase g{w, h, std::vector<double>(static_cast<std::size_t>(w) * h)};
@@ -918,7 +920,7 @@ TEST(ViewshedTool, TheSweepIsEstimatedWithoutAQuadtree) {
     ~Budget() { memory::setLimit(0); }
   } budget((sweep + quadtree) / 2);
   qota::tools::ViewshedOptions o;
-  o.source = dem, o.output = outPath.string(), o.quiet = true, o.pixelSize = 1, o.flat = true;
+  o.source = dem, o.output = outPath.string(), o.quiet = true, o.pixelSize = 1;
   o.observer = {500.5, h - 500.5};
   std::ostringstream out, err;
   ASSERT_EQ(qota::tools::viewshed(o, out, err), 0) << err.str();
@@ -933,6 +935,9 @@ TEST(ViewshedTool, TheSweepIsEstimatedWithoutAQuadtree) {
   EXPECT_EQ(qota::tools::viewshed(o, out, err), 2);
   EXPECT_NE(err.str().find("an observer the sweep cannot take"), std::string::npos) << err.str();
   EXPECT_FALSE(std::filesystem::exists(outPath));
+  o.maxDistance = 30;
+  EXPECT_EQ(qota::tools::viewshed(o, out, err), 0) << err.str();
+  EXPECT_TRUE(std::filesystem::exists(outPath));
 }
 
 TEST(ViewshedTool, ObserversFromTextLayersAndCsv) {

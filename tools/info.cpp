@@ -264,7 +264,7 @@ void memoryFacts(const DemTerrain& dem, const SourceOptions& so, Facts& f) {
   const std::uint64_t tree = memory::kProcessBase + memory::kDemMesh.bytes(v, t) +
                              (curved ? memory::kCurvedIndex : memory::kCartesianIndex).bytes(v, t);
   // (qota viewshed reads the heights alone: on the ellipsoid each line of sight goes through the
-  // quadtree; a flat frame's are swept, with no quadtree.)
+  // quadtree; a flat frame's (--flat, or a raster without CRS) are swept, with no quadtree.)
   const std::uint64_t sight = memory::kProcessBase + (memory::kDemHeights + memory::kLinesOfSight).bytes(v, t);
   const std::uint64_t swept = memory::kProcessBase + (memory::kDemHeights + memory::kSweptLinesOfSight).bytes(v, t);
   std::uint64_t shadow = 0;
@@ -281,7 +281,9 @@ void memoryFacts(const DemTerrain& dem, const SourceOptions& so, Facts& f) {
   f.add("memory for shadow", shadow ? Json(shadow) : Json(nullptr),
         shadow ? memory::gib(shadow) + " (the whole raster; by tiles when more than available)" : "unknown",
         "memory_shadow_bytes");
-  f.add("memory for viewshed", sight, memory::gib(sight), "memory_viewshed_bytes");
+  const bool flat = dem.crsWkt.empty();  // (its frame is flat without --flat)
+  f.add("memory for viewshed", flat ? swept : sight,
+        memory::gib(flat ? swept : sight) + (flat ? " (a flat frame: the sweep)" : ""), "memory_viewshed_bytes");
   f.add("memory for viewshed --flat", swept, memory::gib(swept) + " (the sweep)", "memory_viewshed_flat_bytes");
   f.add("memory for sample", nullptr, "streams by blocks (GDAL's block cache)", "memory_sample_bytes");
   f.add("memory available", available ? Json(available) : Json(nullptr), available ? memory::gib(available) : "unknown",

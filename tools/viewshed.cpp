@@ -351,14 +351,17 @@ int viewshed(const ViewshedOptions& given, std::ostream& out, std::ostream& err)
     DemOptions demOptions;
     demOptions.band = o.band;
     demOptions.lonLatAsCartesian = true;  // read as lon/lat: the frame puts it on its ellipsoid
-    // The sweep (a flat frame, not --per-pixel) keeps no quadtree: a cost of its own, a tenth of
-    // a quadtree's or less. An observer it cannot take (at the raster's edge, on the surface) is
-    // checked again before its quadtree is built (qota::viewshed).
-    memory::PerItem then = o.flat && !o.perPixel ? memory::kSweptLinesOfSight : memory::kLinesOfSight;
-    if (!o.png.empty()) then = then + memory::kPreview;
-    if (!o.observersFile.empty()) then = then + memory::kCounts;
-    if (!o.whichFile.empty()) then = then + memory::kWhich;
-    demOptions.then = then;
+    // The sweep (a flat frame: --flat, or a raster without CRS; not --per-pixel) keeps no
+    // quadtree: a cost of its own, a tenth of a quadtree's or less. An observer it cannot take (on
+    // the surface, or outside the outermost pixel centres) is checked again before its quadtree is
+    // built (qota::viewshed).
+    memory::PerItem extra;
+    if (!o.png.empty()) extra = extra + memory::kPreview;
+    if (!o.observersFile.empty()) extra = extra + memory::kCounts;
+    if (!o.whichFile.empty()) extra = extra + memory::kWhich;
+    const memory::PerItem swept = memory::kSweptLinesOfSight + extra, quadtree = memory::kLinesOfSight + extra;
+    demOptions.then = o.perPixel || !o.flat ? quadtree : swept;
+    demOptions.thenWithoutCrs = o.perPixel ? quadtree : swept;
     demOptions.fillVoids = o.fillVoids ? kFillVoidsPixels : 0;
     demOptions.triangles = false;  // (the frame triangulates the grid from the heights)
     demOptions.vertices = false;

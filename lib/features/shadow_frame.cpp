@@ -182,7 +182,8 @@ void fillVoids(std::vector<double>& z, int w, int h, std::vector<std::uint32_t>*
   std::uint32_t pass = 0;
   while (!rim.empty()) {
     ++pass;
-    // Every fill of a pass from the heights before it, in the order of the pixels.
+    // Every fill of a pass from the heights before it (so their order does not matter; sorted,
+    // the neighbours are read in memory order).
     std::sort(rim.begin(), rim.end());
     fills.clear();
     for (std::size_t i : rim) {

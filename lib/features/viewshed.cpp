@@ -65,6 +65,9 @@ double surfaceAt(const std::vector<double>& z, const std::vector<std::uint8_t>& 
 // metres of `near` seen from above when reach > 0).
 class Sightlines {
  public:
+  // (Not copied: heights_ views metres_ or windowHeights_.)
+  Sightlines(const Sightlines&) = delete;
+  Sightlines& operator=(const Sightlines&) = delete;
   // An observer (or a light) placed: its frame point, the surface under it and where it is.
   struct Placed {
     Eigen::Vector3d point;
@@ -84,13 +87,10 @@ class Sightlines {
     if (report) report(0.0, "placing the terrain");
     options_.fillVoids = !holes;
     basis_ = frameBasis(dem, options_);
-    // A flat frame of a viewshed places its points on demand: the sweep reads the heights, and
-    // its exact tests the few points under their lines of sight (a whole raster's points would
-    // be 24 bytes a pixel). Frames closed round the globe (extra vertices) keep them all.
-    const RasterGrid::Closure& closure = basis_.closure;
-    if (holes && !basis_.shared.body.ellipsoid && !closure.wrapsColumns && !closure.northCap && !closure.southCap) {
-      flat_.emplace(basis_);
-    }
+    // A flat frame of a viewshed places its pixels' points on demand: the sweep reads the
+    // heights, and its exact tests the few points under their lines of sight (a whole raster's
+    // points would be 24 bytes a pixel). index() places every vertex (the border's too).
+    if (holes && !basis_.shared.body.ellipsoid) flat_.emplace(basis_);
     const std::size_t n = static_cast<std::size_t>(dem.width) * dem.height;
     metres_.resize(n);
     for (std::size_t i = 0; i < n; ++i) metres_[i] = dem.heightOf(i);
@@ -173,8 +173,8 @@ class Sightlines {
   }
   const DemTerrain& dem() const { return dem_; }
 
-  // Frame vertex i (a pixel's, or with every vertex placed any of them): the placed one, or in a
-  // flat frame without its vertices the same bits placed now.
+  // Frame vertex i: the placed one, or in a flat frame without its vertices a pixel's (i below
+  // pixelCount(): the sweep's exact tests read the inner triangles alone), the same bits placed now.
   Eigen::Vector3d vertex(std::size_t i) const {
     if (!frame_.mesh.vertices.empty()) return frame_.mesh.vertices[i];
     const int w = frame_.width;
@@ -548,7 +548,8 @@ class Sightlines {
     walkLow_.clear(), walkHigh_.clear();  // (walkBlocks: of the frame before)
     if (!complete_) {
       // The centre square's frame completes the basis (pixel size, the triangles' turn), as every
-      // window's frame of the raster does (shadow_frame.hpp): this one when it holds the centre.
+      // window's frame of the raster does (shadow_frame.hpp): this one when it holds the centre
+      // and its vertices are placed.
       const PixelWindow centre{std::min((dem_.width - 1) / 2, dem_.width - 2),
                                std::min((dem_.height - 1) / 2, dem_.height - 2), 2, 2};
       const bool holds = centre.col >= window.col && centre.row >= window.row &&
@@ -623,13 +624,15 @@ class Sightlines {
 // Before lines of sight go through the quadtree: its memory, unless the job's estimate counted
 // it (loadDem's: a job estimated for the sweep can meet an observer the sweep cannot take, which
 // `unswept` says).
-void requireQuadtree(const DemTerrain& dem, bool unswept) {
-  const std::uint64_t w = static_cast<std::uint64_t>(dem.width), h = static_cast<std::uint64_t>(dem.height);
-  const std::uint64_t vertices = w * h, triangles = 2 * (w - 1) * (h - 1);
+// `frame` is what the quadtree is built over (a window round the observer within a maximum
+// distance).
+void requireQuadtree(const DemTerrain& dem, const LocalFrame& frame, bool unswept) {
+  const std::uint64_t w = static_cast<std::uint64_t>(frame.width), h = static_cast<std::uint64_t>(frame.height);
+  const std::uint64_t vertices = w * h, triangles = w > 1 && h > 1 ? 2 * (w - 1) * (h - 1) : 0;
   if (dem.estimatedBytes >= memory::kProcessBase + memory::kLinesOfSight.bytes(vertices, triangles)) return;
   memory::require(dem.path + ": lines of sight through the quadtree" +
-                      (unswept ? std::string(" (an observer the sweep cannot take: on the surface, or within a "
-                                             "pixel of the raster's edge)")
+                      (unswept ? std::string(" (an observer the sweep cannot take: on the surface, or outside the "
+                                             "outermost pixel centres)")
                                : std::string()),
                   memory::kLinesOfSight, vertices, triangles);
 }
@@ -685,7 +688,7 @@ Viewshed viewshed(const DemTerrain& dem, const ViewshedOptions& o, const Progres
                                0.05, 0.95, visit, counts);
     out.swept = counts.decided;
   } else {
-    requireQuadtree(dem, o.sweep && !f.body.ellipsoid);
+    requireQuadtree(dem, f, o.sweep && !f.body.ellipsoid);
     if (progress && !progress(0.05, "building the quadtree")) throw Error("viewshed cancelled");
     const double diagonal = std::max(sight.diagonal(), std::hypot(f.pixelSizeX, f.pixelSizeY));
     sight.index(out.observer, f.upAt(out.observer), o.maxDistance > 0 ? o.maxDistance + 2 * diagonal : 0.0);
@@ -741,7 +744,7 @@ CumulativeViewshed cumulativeViewshed(const DemTerrain& dem, std::span<const Obs
                                  0.9 / observers.size(), visit, counts);
     } else {
       if (!indexed) {
-        requireQuadtree(dem, o.sweep && !f.body.ellipsoid);
+        requireQuadtree(dem, f, o.sweep && !f.body.ellipsoid);
         if (progress && !progress(from, "building the quadtree")) throw Error("viewshed cancelled");
         // One quadtree for every observer: the whole terrain (each observer's maximum distance
         // is checked per pixel).

@@ -371,8 +371,8 @@ DemTerrain loadDem(const std::string& path, const DemOptions& options) {
   const std::uint64_t vertices = w * h;
   const std::uint64_t triangles = w > 1 && h > 1 ? 2 * (w - 1) * (h - 1) : 0;
   const memory::PerItem read = options.vertices ? memory::kDemMesh : memory::kDemHeights;
-  const std::uint64_t need =
-      memory::kProcessBase + read.bytes(vertices, triangles) + options.then.bytes(vertices, triangles);
+  const memory::PerItem then = dem.crsWkt.empty() ? options.thenWithoutCrs.value_or(options.then) : options.then;
+  const std::uint64_t need = memory::kProcessBase + read.bytes(vertices, triangles) + then.bytes(vertices, triangles);
   dem.estimatedBytes = need;
   const std::uint64_t limit = options.memoryLimitBytes ? options.memoryLimitBytes : memory::availableBytes();
   if (vertices >= 0xffffffffull || (limit && need > limit)) {

@@ -480,6 +480,7 @@ py::array_t<std::int64_t> cumulative(const std::string& path, py::array_t<double
     demOptions.vertices = false;
     // (As qota viewshed --observers estimates it: flat frames sweep.)
     demOptions.then = (flat ? qota::memory::kSweptLinesOfSight : qota::memory::kLinesOfSight) + qota::memory::kCounts;
+    demOptions.thenWithoutCrs = qota::memory::kSweptLinesOfSight + qota::memory::kCounts;
     const qota::DemTerrain dem = qota::loadDem(path, demOptions);
     width = dem.width, height = dem.height;
     seen = qota::cumulativeViewshed(dem, observers, o);

@@ -46,7 +46,7 @@ constexpr PerItem kLinesOfSight{100, 300};
 // A viewshed by the sweep (a flat frame; viewshed_sweep.hpp), which keeps no vertices, triangles
 // or quadtree: the heights in metres, which pixels have data, the verdicts, the classes written.
 // With the heights read (kDemHeights), measured 21 bytes a pixel (bench/viewshed_bench.sh's DEM
-// and a 6000 x 6000 one like it); with a PNG preview over a hillshade 85 (kPreview adds the
+// and a 6000 x 6000 one like it); with a PNG preview over a hillshade 60 (kPreview adds the
 // difference), counting many observers 36 (kCounts), and which observers see each pixel 49 (kWhich
 // more).
 constexpr PerItem kSweptLinesOfSight{16, 0};

@@ -59,6 +59,8 @@ struct DemOptions {
   // What the caller builds on the terrain, for the memory check (qota/memory_budget.hpp): by
   // default a CartesianIndex with its quadtree.
   memory::PerItem then = memory::kCartesianIndex;
+  // The same for a raster without CRS, when that differs (a viewshed sweeps its flat frame).
+  std::optional<memory::PerItem> thenWithoutCrs = {};
   // On an ellipsoid (loadOnEllipsoid): what the heights are over (qota/geoid.hpp: "ellipsoid",
   // "egm96", "egm2008", "crs", a grid's path; "": the raster's own, else assumed). Maps ignore it.
   std::string heightRef = {};
