@@ -1,4 +1,5 @@
 // Shadow masks: exact cases, the brute-force oracle, a ray march on the real DEM, the tool.
+#include <GeographicLib/Geodesic.hpp>
 #include <gdal_priv.h>
 #include <gtest/gtest.h>
 
@@ -377,6 +378,45 @@ TEST(Frame, FlatPlacementIsTheFramesVertices) {
   const qota::DemTerrain rainier = qota::loadDem(QOTA_DATA_DIR "/mt_rainier_90m.tif", {.lonLatAsCartesian = true});
   expectSame(rainier, flat);
   expectSame(qota::loadDem(QOTA_DATA_DIR "/SainteHelens.dem", {}), flat);
+  // And the points themselves, from elsewhere: a pixel grid's centres 7.5 m apart about the
+  // middle pixel; a projected grid's as GDAL's geotransform places them (metres); degrees scaled
+  // so that a pixel's step at the centre is GeographicLib's geodesic over it.
+  const auto placement = [](const qota::DemTerrain& dem, const qota::FrameOptions& options) {
+    qota::FrameBasis basis;
+    qota::localFrame(dem, options, basis);
+    return qota::FlatPlacement(basis);
+  };
+  const qota::FlatPlacement onGrid = placement(grid, pixels);
+  for (const auto& [c, r] : {std::pair{0, 0}, std::pair{15, 11}, std::pair{30, 22}, std::pair{7, 19}}) {
+    const Eigen::Vector3d p = onGrid.at(c + 0.5, r + 0.5, 12.0);
+    EXPECT_NEAR(p.x(), (c - 15) * 7.5, 1e-12);
+    EXPECT_NEAR(p.y(), -(r - 11) * 7.5, 1e-12);
+    EXPECT_EQ(p.z(), 12.0);
+  }
+  const qota::DemTerrain helens = qota::loadDem(QOTA_DATA_DIR "/SainteHelens.dem", {});
+  const qota::FlatPlacement projected = placement(helens, flat);
+  const auto gdal = [&](double c, double r) {
+    double x = 0, y = 0;
+    GDALApplyGeoTransform(const_cast<double*>(helens.geotransform.data()), c, r, &x, &y);
+    return Eigen::Vector2d(x, y);
+  };
+  const Eigen::Vector3d a = projected.at(3.5, 4.5, 0), b = projected.at(200.5, 300.5, 0);
+  EXPECT_LT(((b - a).head<2>() - (gdal(200.5, 300.5) - gdal(3.5, 4.5))).norm(), 1e-6);
+  const qota::FlatPlacement degrees = placement(rainier, flat);
+  const double cc = (rainier.width - 1) / 2.0 + 0.5, cr = (rainier.height - 1) / 2.0 + 0.5;
+  const Eigen::Vector2d centre = [&] {
+    double lon = 0, lat = 0;
+    GDALApplyGeoTransform(const_cast<double*>(rainier.geotransform.data()), cc, cr, &lon, &lat);
+    return Eigen::Vector2d(lon, lat);
+  }();
+  const GeographicLib::Geodesic& wgs84 = GeographicLib::Geodesic::WGS84();
+  double east = 0, north = 0;
+  wgs84.Inverse(centre.y(), centre.x(), centre.y(), centre.x() + rainier.geotransform[1], east);
+  wgs84.Inverse(centre.y(), centre.x(), centre.y() + rainier.geotransform[5], centre.x(), north);
+  const Eigen::Vector3d o = degrees.at(cc, cr, 0);
+  EXPECT_NEAR((degrees.at(cc + 1, cr, 0) - o).norm(), east, 1e-6 * east);
+  EXPECT_NEAR((degrees.at(cc, cr + 1, 0) - o).norm(), north, 1e-6 * north);
+
   qota::FrameBasis curved;
   qota::localFrame(rainier, qota::FrameOptions{}, curved);
   EXPECT_THROW(qota::FlatPlacement{curved}, qota::Error);
