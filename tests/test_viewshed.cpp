@@ -220,9 +220,10 @@ TEST(Viewshed, PixelGridMatchesExactOracle) {
 
 // The sweep (ViewshedOptions::sweep, on by default in flat frames) against the oracle on larger
 // grids of the kinds that trouble it: smooth hills, terraces of equal heights (lines of sight that
-// graze flat steps exactly), a plain with spikes, a cliff beside the observer, voids; observers on
-// quarter pixels (on centres, sides and diagonals), low and high. The sweep must also decide most
-// pixels itself (its exact fallback answers the rest).
+// graze flat steps exactly), a plain with spikes, a cliff beside the observer, voids (scattered,
+// and margins round a tilted tile); observers on quarter pixels (on centres, sides and
+// diagonals), low and high. The sweep must also decide most pixels itself (its exact fallback
+// answers the rest).
 // A longer run on demand (CONTRIBUTING.md): QOTA_SWEEP_CASES terrains (24), from QOTA_SWEEP_SEED,
 // of at least QOTA_SWEEP_SIZE pixels a side (20; the blocks the sweep skips are 32 rows).
 int fromEnvironment(const char* name, int otherwise) {
@@ -264,6 +265,19 @@ TEST(Viewshed, SweepMatchesExactOracleOnHardTerrains) {
     if (k % 3 == 2) {  // (voids: the envelopes of the terrain between them)
       for (double& v : g.z) {
         if (unit(rng) < 0.04) v = NAN;
+      }
+    }
+    if (k % 6 == 5) {
+      // Void margins as a reprojected tile has, on every side: lines of sight that leave the
+      // data for good (the sweep keeps no envelope for them).
+      const double turn = 0.1 + 0.4 * unit(rng), cx = g.w / 2.0, cy = g.h / 2.0;
+      const double halfW = g.w * (0.28 + 0.1 * unit(rng)), halfH = g.h * (0.28 + 0.1 * unit(rng));
+      for (int r = 0; r < g.h; ++r) {
+        for (int c = 0; c < g.w; ++c) {
+          const double x = (c - cx) * std::cos(turn) + (r - cy) * std::sin(turn);
+          const double y = (r - cy) * std::cos(turn) - (c - cx) * std::sin(turn);
+          if (std::fabs(x) > halfW || std::fabs(y) > halfH) g.z[static_cast<std::size_t>(r) * g.w + c] = NAN;
+        }
       }
     }
     const std::string path = writeGrid(g, "viewshed_sweep.tif");

@@ -12,6 +12,7 @@ namespace qota::sweep {
 namespace {
 
 constexpr double kEps = std::numeric_limits<double>::epsilon();
+constexpr std::uint64_t kFlatId = std::uint64_t{1} << 63;  // (lineOf's ids stay below)
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
 // A triangle side's line in a quadrant's (m, w) plane: w = a + b m, with a bound on the rounding
@@ -42,6 +43,23 @@ void push(std::vector<Piece>& out, double m0, double m1, const Line& line, doubl
   out.push_back({m0, m1, line, extra});
 }
 
+// Where each grid row and column has data: the first and last valid pixel (first > last: none).
+struct Extents {
+  std::vector<int> rowFirst, rowLast, columnFirst, columnLast;
+
+  explicit Extents(const Grid& g)
+      : rowFirst(g.height, g.width), rowLast(g.height, -1), columnFirst(g.width, g.height), columnLast(g.width, -1) {
+    for (int r = 0; r < g.height; ++r) {
+      const std::uint8_t* v = g.valid.data() + static_cast<std::size_t>(r) * g.width;
+      for (int c = 0; c < g.width; ++c) {
+        if (!v[c]) continue;
+        rowFirst[r] = std::min(rowFirst[r], c), rowLast[r] = c;
+        columnFirst[c] = std::min(columnFirst[c], r), columnLast[c] = r;
+      }
+    }
+  }
+};
+
 class Quadrant {
  public:
   // q: 0 east (columns increasing), 1 west, 2 south (rows increasing), 3 north: the quadrant's
@@ -49,8 +67,8 @@ class Quadrant {
   // half: 0 the slopes m < 0 of the quadrant (rows before the eye's), 1 those m >= 0; each half
   // is swept alone (its own envelope over its slopes), so that two threads share four
   // quadrants evenly.
-  Quadrant(const Grid& g, const Eye& eye, int q, int half, double targetHeight, double slack, bool voids,
-           std::span<Verdict> out)
+  Quadrant(const Grid& g, const Extents& extents, const Eye& eye, int q, int half, double targetHeight, double slack,
+           bool voids, std::span<Verdict> out)
       : g_(g), eye_(eye), q_(q), half_(half), target_(targetHeight), slack_(slack), voids_(voids), out_(out) {
     const int w = g.width, h = g.height;
     const std::ptrdiff_t W = w;
@@ -69,6 +87,7 @@ class Quadrant {
     }
     oz_ = eye.z;
     prevZ_.resize(J_), curZ_.resize(J_), prevV_.resize(J_), curV_.resize(J_);
+    live(extents);
   }
 
   // Sweeps the quadrant; false when keepGoing said stop (asked every few columns when given).
@@ -85,8 +104,12 @@ class Quadrant {
       if (voids_) addVoids(t1, t2);
       answer(k, t1, t2, counts);
       if (k + 1 < K_) {
-        const double lo = half_ == 0 ? std::max(-1.0, -oy_ / (t2 + 1)) : 0.0;
-        const double hi = half_ == 0 ? 0.0 : std::min(1.0, (J_ - 1 - oy_) / (t2 + 1));
+        // The slopes of the pixels with data in the columns ahead, in this half: no pixel is
+        // answered elsewhere, so the envelopes are neither kept nor read there (on a DEM with
+        // void margins, lines of sight that have left the data for good). None: the half is done.
+        const double lo = std::max(liveLo_[k + 1], half_ == 0 ? std::max(-1.0, -oy_ / (t2 + 1)) : 0.0);
+        const double hi = std::min(liveHi_[k + 1], half_ == 0 ? 0.0 : std::min(1.0, (J_ - 1 - oy_) / (t2 + 1)));
+        if (!(hi > lo)) break;
         strip(k, t1, t2, lo, hi);
         merge(lo, hi);
       }
@@ -98,6 +121,26 @@ class Quadrant {
 
  private:
   std::size_t index(int k, int j) const { return static_cast<std::size_t>(base_ + k * sk_ + j * sj_); }
+
+  // liveLo_[k], liveHi_[k]: slopes below and above those of every pixel with data in columns k
+  // and beyond (a row's margin each way, so that the range has width wherever it holds a
+  // pixel); empty (lo > hi) where no pixel ahead has data.
+  void live(const Extents& e) {
+    liveLo_.assign(static_cast<std::size_t>(K_) + 1, kInf);
+    liveHi_.assign(static_cast<std::size_t>(K_) + 1, -kInf);
+    const bool rows = q_ >= 2;  // a quadrant column is a grid row
+    for (int k = K_ - 1; k >= 0; --k) {
+      liveLo_[k] = liveLo_[k + 1], liveHi_[k] = liveHi_[k + 1];
+      const double t = k - ox_;
+      if (!(t > 0)) continue;  // (the sweep reads columns ahead of the eye only)
+      const int line = (q_ == 0 || q_ == 2) ? k : K_ - 1 - k;
+      const int first = rows ? e.rowFirst[line] : e.columnFirst[line];
+      const int last = rows ? e.rowLast[line] : e.columnLast[line];
+      if (first > last) continue;
+      liveLo_[k] = std::min(liveLo_[k], (first - 1 - oy_) / t);
+      liveHi_[k] = std::max(liveHi_[k], (last + 1 - oy_) / t);
+    }
+  }
 
   // Column k's heights and validity, on the rows its strip and its pixels can need: those
   // within t + 3 of the eye's row (|m| <= 1).
@@ -464,7 +507,7 @@ class Quadrant {
         constexpr int kBlock = 32;
         blockEnd = std::min(hi, slopeB(std::max(jb, static_cast<int>(std::ceil(oy_ + from * t2))) + kBlock));
         if (blockEnd > from && belowEnvelope(from, blockEnd, t1, t2, piece)) {
-          skipBelow(k, t2, from, blockEnd);
+          skipBelow(t2, from, blockEnd);
           from = blockEnd;
           continue;
         }
@@ -478,7 +521,7 @@ class Quadrant {
         // The block's test on this interval alone, and the same steps when it holds: a block
         // with terrain above the envelope somewhere mostly holds rows below it elsewhere.
         if (t1 > 0 && belowEnvelope(from, next, t1, t2, piece)) {
-          skipBelow(k, t2, from, next);
+          skipBelow(t2, from, next);
           from = next;
           continue;
         }
@@ -496,13 +539,24 @@ class Quadrant {
 
   // Strip k over slopes [m0, m1] whose sides all lie below the envelope (belowEnvelope): nothing
   // for the envelope. The pieces of terrain since a void need low crossings there (to pair with
-  // a high one): column k's own, one side a row, cheaper than the whole strip's envelope; where
-  // no line of sight has touched a void, none (leaving crossings out of a witness only weakens it).
-  void skipBelow(int k, double t2, double m0, double m1) {
+  // a high one): a bound on column k's own, the one its blocks' test has read, cheaper than the
+  // strip's envelope or a line a row; where no line of sight has touched a void, none (leaving
+  // crossings out of a witness, or bounding them from above, only weakens it).
+  void skipBelow(double t2, double m0, double m1) {
     push(strip_, m0, m1, Line{}, 0);
     if (!voids_) return;
     if (touchesVoids(m0, m1)) {
-      lowColumn(k, t2, m0, m1);
+      // Every line of sight here crosses a side of column k whose corners belowEnvelope has
+      // just read, at a w no more than their highest's (w is linear along the side). A crossing
+      // known to be no higher than that is all a witness's low crossing needs: in the lower
+      // envelope (turned upside down), a flat line at minus that w, with its error bound.
+      const double w = (columnTop_ - oz_) / t2;
+      Line flat;
+      flat.a = -w, flat.b = 0;
+      flat.rounding = 64 * kEps * ((std::fabs(columnTop_) + std::fabs(oz_)) / t2 + std::fabs(w));
+      flat.reach = slack_ / t2;
+      flat.id = kFlatId | ++flats_;  // (its own: push joins neighbours only on one line)
+      push(stripLow_, m0, m1, flat, 0);
     } else {
       push(stripLow_, m0, m1, Line{}, 0);
     }
@@ -516,35 +570,10 @@ class Quadrant {
     return after != voidM_.begin() && std::prev(after)->second >= m0;
   }
 
-  // Onto stripLow_ over [m0, m1]: the crossing of column k's sides (turned upside down), a real
-  // crossing of every line of sight there though not always the lowest (which only weakens the
-  // witness).
-  void lowColumn(int k, double t2, double m0, double m1) {
-    Line line;
-    double from = m0;
-    int j = std::clamp(static_cast<int>(std::floor(oy_ + m0 * t2)), 0, J_ - 2);
-    while (from < m1) {
-      const double to = std::min(m1, (j + 1 - oy_) / t2);
-      if (to > from) {
-        if (lineOf(k, k, j, k, j + 1, 0, t2, line)) {
-          line.a = -line.a, line.b = -line.b;
-          push(stripLow_, from, to, line, 0);
-        } else {
-          push(stripLow_, from, to, Line{}, 0);
-        }
-        from = to;
-      }
-      if (++j > J_ - 2) {
-        push(stripLow_, from, m1, Line{}, 0);
-        break;
-      }
-    }
-  }
-
   // Whether every corner of columns k - 1 and k that lines of sight of slopes [m0, m1] can cross
   // in strip k lies below the envelope there by more than its error bound. piece: where to start
   // looking in the envelope (moves forward).
-  bool belowEnvelope(double m0, double m1, double t1, double t2, std::size_t& piece) const {
+  bool belowEnvelope(double m0, double m1, double t1, double t2, std::size_t& piece) {
     while (piece + 1 < envelope_.size() && envelope_[piece].m1 <= m0) ++piece;
     double least = kInf;
     for (std::size_t p = piece; p < envelope_.size() && envelope_[p].m0 < m1; ++p) {
@@ -561,11 +590,12 @@ class Quadrant {
       const int j1 = std::min(J_ - 1, static_cast<int>(std::ceil(oy_ + mhi * t)) + 1);
       double top = -kInf;
       for (int j = j0; j <= j1; ++j) top = std::max(top, z[j]);
-      return (top - oz_) / t;
+      return top;
     };
     // (Heights over the eye divided by t: the corners' w; the largest w of a column is its
-    // highest corner's, t being the same along a column.)
-    const double top = std::max(highest(prevZ_, t1, m0, m1), highest(curZ_, t2, m0, m1));
+    // highest corner's, t being the same along a column. Column k's is kept for skipBelow.)
+    columnTop_ = highest(curZ_, t2, m0, m1);
+    const double top = std::max((highest(prevZ_, t1, m0, m1) - oz_) / t1, (columnTop_ - oz_) / t2);
     return top + 1e-9 * (1 + std::fabs(top)) < least;
   }
 
@@ -731,9 +761,16 @@ class Quadrant {
                    std::vector<Piece>& out) {
     out.clear();
     std::size_t v = 0;
-    for (const Piece& p : in) {
+    for (std::size_t i = 0; i < in.size();) {
+      const Piece& p = in[i++];
       double from = p.m0;
       while (v < voids.size() && voids[v].second < from) ++v;
+      if (v >= voids.size() || voids[v].first >= p.m1) {
+        // No void on this piece: it and the next ones up to the next void are kept whole.
+        push(out, from, p.m1, p.line, p.extra);
+        copyWhole(in, i, v < voids.size() ? voids[v].first : kInf, out, p.m1);
+        continue;
+      }
       for (std::size_t w = v; from < p.m1; ++w) {
         if (w >= voids.size() || voids[w].first >= p.m1) {
           push(out, from, p.m1, p.line, p.extra);
@@ -754,6 +791,15 @@ class Quadrant {
     double m = lo;
     while (m < hi && u < envelope.size() && f < add.size()) {
       const Piece &p = envelope[u], &q = add[f];
+      if (q.line.id == 0 && p.m1 < q.m1 && p.m1 < hi) {
+        // Where the strip adds nothing (most slopes: its terrain below the envelope), the
+        // envelope's pieces that end before the strip's piece does are copied as they are.
+        const double end = std::min(q.m1, hi);
+        push(merged_, m, p.m1, p.line, p.extra);
+        m = p.m1;
+        m = copyWhole(envelope, ++u, end, merged_, m);
+        continue;
+      }
       const double end = std::min({p.m1, q.m1, hi});
       if (end > m) combine(p, q, m, end);
       m = std::max(m, end);
@@ -761,6 +807,17 @@ class Quadrant {
       if (q.m1 <= m) ++f;
     }
     envelope.swap(merged_);
+  }
+
+  // Appends in's pieces from i on that end before `end`, whole (i moves past them); returns where
+  // the last of them ends (m when none). (As push would, piece by piece: in holds no two
+  // neighbours on one line, which push would have joined.)
+  static double copyWhole(const std::vector<Piece>& in, std::size_t& i, double end, std::vector<Piece>& out, double m) {
+    const std::size_t from = i;
+    while (i < in.size() && in[i].m1 < end) ++i;
+    if (i == from) return m;
+    out.insert(out.end(), in.begin() + static_cast<std::ptrdiff_t>(from), in.begin() + static_cast<std::ptrdiff_t>(i));
+    return in[i - 1].m1;
   }
 
   void combine(const Piece& p, const Piece& q, double m0, double m1) {
@@ -798,7 +855,10 @@ class Quadrant {
   double ox_ = 0, oy_ = 0, oz_ = 0;
   std::vector<double> prevZ_, curZ_;
   std::vector<std::uint8_t> prevV_, curV_;
-  static constexpr int kColumns = 8;  // (gather: a cache line of heights)
+  std::vector<double> liveLo_, liveHi_;  // (live)
+  double columnTop_ = 0;                 // belowEnvelope's: the highest corner of column k it read
+  std::uint64_t flats_ = 0;              // (skipBelow's lines: each its id)
+  static constexpr int kColumns = 8;     // (gather: a cache line of heights)
   int blockFirst_ = -1 - kColumns;
   std::vector<double> blockZ_;
   std::vector<std::uint8_t> blockV_;
@@ -810,6 +870,7 @@ class Quadrant {
   // sinceHigh_, sinceLow_ (with voids): the highest and (turned upside down) the lowest crossing
   // since a line of sight last touched a void, all in one piece of terrain that runs on to the
   // pixel: one above the line and one below it there, and the terrain between them meets it.
+  // (The lowest may be a bound above a crossing, skipBelow's: still a crossing below the line.)
   // doneHigh_, doneLow_: the same for a completed piece of terrain between two voids.
   std::vector<Piece> envelope_, clean_, sinceHigh_, sinceLow_, doneHigh_, doneLow_, strip_, stripLow_, masked_, merged_,
       merged2_;
@@ -822,13 +883,14 @@ class Quadrant {
 bool decide(const Grid& grid, const Eye& eye, double targetHeight, double slack, unsigned threads,
             std::span<Verdict> out, Counts& counts, const std::function<bool(double)>& keepGoing) {
   const bool voids = std::find(grid.valid.begin(), grid.valid.end(), 0) != grid.valid.end();
+  const Extents extents(grid);
   std::atomic<int> nextQuadrant{0}, quadrantsDone{0};
   std::atomic<bool> stop{false};
   Counts each[8];
   const unsigned workers = std::max(1u, std::min(4u, threads));
   const auto work = [&](unsigned worker) {
     for (int q; !stop && (q = nextQuadrant++) < 8;) {
-      Quadrant quadrant(grid, eye, q / 2, q % 2, targetHeight, slack, voids, out);
+      Quadrant quadrant(grid, extents, eye, q / 2, q % 2, targetHeight, slack, voids, out);
       std::function<bool()> ask;
       if (worker == 0 && keepGoing) {
         ask = [&] {
