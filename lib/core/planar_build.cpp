@@ -487,10 +487,13 @@ void PlanarCore::buildDeferredTree() const {
 
 void PlanarCore::buildTreeOver(const std::vector<Box2>& boxes, const Box2& domain, const QuadtreeOptions& options,
                                double minU, double minV, unsigned threads) const {
+  // (A fresh index has removed nothing: its build reads no triangle's polygon id, four times an
+  // item a level.)
+  const bool anyRemoved = ledger_.anyRemoved();
   tree_.build(
       static_cast<std::uint32_t>(boxes.size()), domain, options,
-      [this, &boxes](std::uint32_t t, const Box2& b) {
-        return !ledger_.removed(cold_[t].polygon) && overlaps(t, boxes[t], b);
+      [this, &boxes, anyRemoved](std::uint32_t t, const Box2& b) {
+        return !(anyRemoved && ledger_.removed(cold_[t].polygon)) && overlaps(t, boxes[t], b);
       },
       minU, minV, [&boxes](std::uint32_t t) { return boxes[t]; }, threads);
   tree_.markLeaves([this](std::span<std::uint32_t> items) { return prepareLeaf(items); }, threads);

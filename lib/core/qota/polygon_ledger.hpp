@@ -14,6 +14,8 @@ namespace qota {
 class PolygonLedger {
  public:
   bool removed(std::uint32_t polygon) const { return polygon < removed_.size() && removed_[polygon]; }
+  // False while no polygon was ever removed: then no lookup is needed (nor the polygon's id).
+  bool anyRemoved() const { return !removed_.empty(); }
 
   // Triangle `triangle` was added for `polygon` (an insertion).
   void added(std::uint32_t polygon, std::uint32_t triangle) {

@@ -298,6 +298,12 @@ class Quadtree {
   void buildFromTheRootInParallel(const Box2& root, std::vector<std::uint32_t>& items, Overlaps& overlaps,
                                   unsigned threads);
   [[noreturn]] void tooManyReferences() const;
+  // buildNode's lists of the children's items, one set a depth, kept from node to node while
+  // a build runs (lists_ never moves under a recursion: sized to Maxdepth first).
+  struct ChildLists {
+    std::vector<std::uint32_t> sub[4];
+  };
+  std::vector<ChildLists> lists_;
 
   Box2 root_;
   QuadtreeOptions options_;
@@ -498,6 +504,7 @@ void Quadtree::build(std::uint32_t itemCount, Box2 root, const QuadtreeOptions& 
     buildNode(0, root, 0, items, overlaps);
   }
   boxOf_ = nullptr;
+  std::vector<ChildLists>().swap(lists_);
   nodes_.shrink_to_fit();
   cut_.shrink_to_fit();
   refs_.shrink_to_fit();
@@ -508,7 +515,10 @@ template <class Overlaps>
 void Quadtree::buildNode(std::uint32_t node, const Box2& box, std::uint32_t depth, std::vector<std::uint32_t>& items,
                          Overlaps& overlaps) {
   Box2 child[4];
-  std::vector<std::uint32_t> sub[4];
+  // The children's lists in this depth's scratch lists: a node's subtree is built before its
+  // next sibling's, so they are free again by then, and no node allocates its own.
+  if (lists_.size() <= depth) lists_.resize(std::max<std::size_t>(depth + 1, options_.maxDepth + 1));
+  std::vector<std::uint32_t>(&sub)[4] = lists_[depth].sub;
   if (!splitNode(node, box, depth, items, overlaps, child, sub)) return;
   const std::uint32_t first = nodes_[node].first;
   for (int c = 0; c < 4; ++c) buildNode(first + c, child[c], depth + 1, sub[c], overlaps);
@@ -567,7 +577,7 @@ bool Quadtree::splitNode(std::uint32_t node, const Box2& box, std::uint32_t dept
   }
   if (refs_.size() + items.size() > refBudget_ || nodes_.size() > refBudget_) tooManyReferences();
   if ((first >> memoryCheckShift_) != ((first + 4) >> memoryCheckShift_)) checkMemoryLeft();
-  std::vector<std::uint32_t>().swap(items);  // free the parent's list before descending
+  if (depth == 0) std::vector<std::uint32_t>().swap(items);  // free the root's list (all items) before descending
   return true;
 }
 
