@@ -2,10 +2,13 @@
 // index built from scratch on the live polygons.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <numbers>
 #include <random>
+#include <span>
 
 #include "qota/error.hpp"
+#include "qota/quadtree.hpp"
 #include "qota/terrain.hpp"
 #include "random_terrain.hpp"
 
@@ -254,3 +257,30 @@ TEST(Edits, StationGrows) {
 }
 
 }  // namespace
+
+// The build keeps its children's item lists a set a depth, sized once for every depth a build can
+// reach. A tree built and edited with a small Maxdepth, then built again deeper, must size them
+// again before the recursion holds any (sanitizers see a use after free otherwise); the deeper tree
+// then finds every item where its box is.
+TEST(Edits, RebuildDeeperAfterAnInsert) {
+  std::vector<qota::Box2> boxes;
+  for (int i = 0; i < 64; ++i) {
+    for (int j = 0; j < 64; ++j) boxes.push_back({i / 64.0, j / 64.0, (i + 0.5) / 64.0, (j + 0.5) / 64.0});
+  }
+  const auto meets = [&boxes](std::uint32_t t, const qota::Box2& b) {
+    const qota::Box2& a = boxes[t];
+    return !(a.ulo > b.uhi || a.uhi < b.ulo || a.vlo > b.vhi || a.vhi < b.vlo);
+  };
+  qota::Quadtree tree;
+  const qota::Box2 square{0, 0, 1, 1};
+  tree.build(static_cast<std::uint32_t>(boxes.size()), square, qota::QuadtreeOptions{4, 3}, meets);
+  boxes.push_back({0.1, 0.1, 0.11, 0.11});
+  tree.insert(static_cast<std::uint32_t>(boxes.size() - 1), meets, [](std::span<std::uint32_t>) { return false; });
+  tree.build(static_cast<std::uint32_t>(boxes.size()), square, qota::QuadtreeOptions{1, 12}, meets);
+  EXPECT_GT(tree.stats().depth, 3u);
+  for (std::uint32_t t = 0; t < boxes.size(); ++t) {
+    const qota::Box2& b = boxes[t];
+    const auto items = tree.leafItems(0.5 * (b.ulo + b.uhi), 0.5 * (b.vlo + b.vhi));
+    EXPECT_NE(std::find(items.begin(), items.end(), t), items.end()) << t;
+  }
+}

@@ -210,6 +210,10 @@ struct TreeFileAccess {
     for (const auto& h : t.half_) {
       if (!std::isfinite(h.u) || !std::isfinite(h.v)) r.fail("a quadtree cut size is not finite");
     }
+    // (A build keeps a cut size for every depth to Maxdepth; an insert splits down to it.)
+    if (!t.half_.empty() && t.half_.size() != std::uint64_t{t.options_.maxDepth} + 1) {
+      r.fail("the quadtree's Maxdepth does not match its table of cut sizes");
+    }
     if (!t.cut_.empty() && t.cut_.size() != t.nodes_.size()) r.fail("the quadtree's cut table has the wrong size");
     for (const auto& c : t.cut_) {
       if (!std::isfinite(c.u) || !std::isfinite(c.v)) r.fail("a quadtree cut is not finite");

@@ -517,7 +517,10 @@ void Quadtree::buildNode(std::uint32_t node, const Box2& box, std::uint32_t dept
   Box2 child[4];
   // The children's lists in this depth's scratch lists: a node's subtree is built before its
   // next sibling's, so they are free again by then, and no node allocates its own.
-  if (lists_.size() <= depth) lists_.resize(std::max<std::size_t>(depth + 1, options_.maxDepth + 1));
+  // (Sized on the first call for every depth a build can reach: never again under a `sub` of a
+  // shallower call, whatever an earlier build or insert left.)
+  const std::size_t depths = std::max<std::size_t>(depth + 1, std::size_t{options_.maxDepth} + 1);
+  if (lists_.size() < depths) lists_.resize(depths);
   std::vector<std::uint32_t>(&sub)[4] = lists_[depth].sub;
   if (!splitNode(node, box, depth, items, overlaps, child, sub)) return;
   const std::uint32_t first = nodes_[node].first;
