@@ -44,9 +44,11 @@ void push(std::vector<Piece>& out, double m0, double m1, const Line& line, doubl
 }
 
 // Where each grid row and column has data: the first and last valid pixel (first > last: none).
+// (Left empty without voids: every row and column has data to its ends.)
 struct Extents {
   std::vector<int> rowFirst, rowLast, columnFirst, columnLast;
 
+  Extents() = default;
   explicit Extents(const Grid& g)
       : rowFirst(g.height, g.width), rowLast(g.height, -1), columnFirst(g.width, g.height), columnLast(g.width, -1) {
     for (int r = 0; r < g.height; ++r) {
@@ -126,6 +128,11 @@ class Quadrant {
   // and beyond (a row's margin each way, so that the range has width wherever it holds a
   // pixel); empty (lo > hi) where no pixel ahead has data.
   void live(const Extents& e) {
+    if (e.rowFirst.empty()) {  // (no voids: every slope the raster holds)
+      liveLo_.assign(static_cast<std::size_t>(K_) + 1, -kInf);
+      liveHi_.assign(static_cast<std::size_t>(K_) + 1, kInf);
+      return;
+    }
     liveLo_.assign(static_cast<std::size_t>(K_) + 1, kInf);
     liveHi_.assign(static_cast<std::size_t>(K_) + 1, -kInf);
     const bool rows = q_ >= 2;  // a quadrant column is a grid row
@@ -497,6 +504,7 @@ class Quadrant {
     const auto slopeB = [&](int j) { return (j - oy_) / t2; };
     double from = lo;
     std::size_t piece = 0;  // the envelope's piece at `from`
+    double top = 0;         // (belowEnvelope's highest corner of column k, for skipBelow)
     while (from < hi) {
       // A block of lines of sight (up to kBlock rows of column k) below the envelope all along
       // adds nothing: a crossing's w lies between its side's corners' (w is monotone along a
@@ -506,8 +514,8 @@ class Quadrant {
       if (t1 > 0) {
         constexpr int kBlock = 32;
         blockEnd = std::min(hi, slopeB(std::max(jb, static_cast<int>(std::ceil(oy_ + from * t2))) + kBlock));
-        if (blockEnd > from && belowEnvelope(from, blockEnd, t1, t2, piece)) {
-          skipBelow(t2, from, blockEnd);
+        if (blockEnd > from && belowEnvelope(from, blockEnd, t1, t2, piece, top)) {
+          skipBelow(t2, from, blockEnd, top);
           from = blockEnd;
           continue;
         }
@@ -520,8 +528,8 @@ class Quadrant {
         if (jb < J_) next = std::min(next, slopeB(jb));
         // The block's test on this interval alone, and the same steps when it holds: a block
         // with terrain above the envelope somewhere mostly holds rows below it elsewhere.
-        if (t1 > 0 && belowEnvelope(from, next, t1, t2, piece)) {
-          skipBelow(t2, from, next);
+        if (t1 > 0 && belowEnvelope(from, next, t1, t2, piece, top)) {
+          skipBelow(t2, from, next, top);
           from = next;
           continue;
         }
@@ -542,7 +550,7 @@ class Quadrant {
   // a high one): a bound on column k's own, the one its blocks' test has read, cheaper than the
   // strip's envelope or a line a row; where no line of sight has touched a void, none (leaving
   // crossings out of a witness, or bounding them from above, only weakens it).
-  void skipBelow(double t2, double m0, double m1) {
+  void skipBelow(double t2, double m0, double m1, double columnTop) {
     push(strip_, m0, m1, Line{}, 0);
     if (!voids_) return;
     if (touchesVoids(m0, m1)) {
@@ -550,10 +558,10 @@ class Quadrant {
       // just read, at a w no more than their highest's (w is linear along the side). A crossing
       // known to be no higher than that is all a witness's low crossing needs: in the lower
       // envelope (turned upside down), a flat line at minus that w, with its error bound.
-      const double w = (columnTop_ - oz_) / t2;
+      const double w = (columnTop - oz_) / t2;
       Line flat;
       flat.a = -w, flat.b = 0;
-      flat.rounding = 64 * kEps * ((std::fabs(columnTop_) + std::fabs(oz_)) / t2 + std::fabs(w));
+      flat.rounding = 64 * kEps * ((std::fabs(columnTop) + std::fabs(oz_)) / t2 + std::fabs(w));
       flat.reach = slack_ / t2;
       flat.id = kFlatId | ++flats_;  // (its own: push joins neighbours only on one line)
       push(stripLow_, m0, m1, flat, 0);
@@ -572,8 +580,8 @@ class Quadrant {
 
   // Whether every corner of columns k - 1 and k that lines of sight of slopes [m0, m1] can cross
   // in strip k lies below the envelope there by more than its error bound. piece: where to start
-  // looking in the envelope (moves forward).
-  bool belowEnvelope(double m0, double m1, double t1, double t2, std::size_t& piece) {
+  // looking in the envelope (moves forward). columnTop: when true, column k's highest corner there.
+  bool belowEnvelope(double m0, double m1, double t1, double t2, std::size_t& piece, double& columnTop) const {
     while (piece + 1 < envelope_.size() && envelope_[piece].m1 <= m0) ++piece;
     double least = kInf;
     for (std::size_t p = piece; p < envelope_.size() && envelope_[p].m0 < m1; ++p) {
@@ -593,9 +601,9 @@ class Quadrant {
       return top;
     };
     // (Heights over the eye divided by t: the corners' w; the largest w of a column is its
-    // highest corner's, t being the same along a column. Column k's is kept for skipBelow.)
-    columnTop_ = highest(curZ_, t2, m0, m1);
-    const double top = std::max((highest(prevZ_, t1, m0, m1) - oz_) / t1, (columnTop_ - oz_) / t2);
+    // highest corner's, t being the same along a column. Column k's is skipBelow's.)
+    columnTop = highest(curZ_, t2, m0, m1);
+    const double top = std::max((highest(prevZ_, t1, m0, m1) - oz_) / t1, (columnTop - oz_) / t2);
     return top + 1e-9 * (1 + std::fabs(top)) < least;
   }
 
@@ -856,7 +864,6 @@ class Quadrant {
   std::vector<double> prevZ_, curZ_;
   std::vector<std::uint8_t> prevV_, curV_;
   std::vector<double> liveLo_, liveHi_;  // (live)
-  double columnTop_ = 0;                 // belowEnvelope's: the highest corner of column k it read
   std::uint64_t flats_ = 0;              // (skipBelow's lines: each its id)
   static constexpr int kColumns = 8;     // (gather: a cache line of heights)
   int blockFirst_ = -1 - kColumns;
@@ -883,7 +890,7 @@ class Quadrant {
 bool decide(const Grid& grid, const Eye& eye, double targetHeight, double slack, unsigned threads,
             std::span<Verdict> out, Counts& counts, const std::function<bool(double)>& keepGoing) {
   const bool voids = std::find(grid.valid.begin(), grid.valid.end(), 0) != grid.valid.end();
-  const Extents extents(grid);
+  const Extents extents = voids ? Extents(grid) : Extents();
   std::atomic<int> nextQuadrant{0}, quadrantsDone{0};
   std::atomic<bool> stop{false};
   Counts each[8];
