@@ -32,17 +32,17 @@ cmake --build build-asan -j2 --target $(printf 'qota_fuzz_%s ' "${harnesses[@]}"
 export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:allocator_may_return_null=1:quarantine_size_mb=64:allocator_release_to_os_interval_ms=1000}
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
 export LSAN_OPTIONS=${LSAN_OPTIONS:-suppressions=$PWD/tests/fuzz/lsan.supp}
-failed=0
-for name in "${harnesses[@]}"; do
-  bin=build-asan/tests/fuzz/fuzz_$name
+# One harness: its seeds and past crashes replayed, then SECONDS of fuzzing; prints its line
+# (and the report's lines on a crash) and exits 1 when it crashed.
+fuzz_one() {
+  local name=$1
+  local bin=build-asan/tests/fuzz/fuzz_$name
   # Absolute paths: a harness may change its working folder (fuzz_cli runs in its own).
-  seeds=$PWD/tests/fuzz/corpus/$name known=$PWD/tests/fuzz/crashes/$name
-  work=$PWD/build-fuzz/corpus/$name artifacts=$PWD/build-fuzz/crashes/$name
+  local seeds=$PWD/tests/fuzz/corpus/$name known=$PWD/tests/fuzz/crashes/$name
+  local work=$PWD/build-fuzz/corpus/$name artifacts=$PWD/build-fuzz/crashes/$name
   mkdir -p "$seeds" "$known" "$work" "$artifacts"
-  log=build-fuzz/$name.log
-  timeout=20
+  local log=build-fuzz/$name.log timeout=20 crashes=0 runs=0
   [ "$name" = raster ] && timeout=120
-  crashes=0 runs=0
   # Every input ever kept, once: the seeds and the crashes of the past must all pass now.
   if ! "$bin" -runs=0 -timeout=$timeout -rss_limit_mb=3072 -artifact_prefix="$artifacts/" "$seeds" "$known" > "$log" 2>&1; then
     crashes=1
@@ -57,8 +57,23 @@ for name in "${harnesses[@]}"; do
   fi
   echo "$name: ${runs:-0} runs, $crashes crashes"
   if [ "$crashes" -ne 0 ]; then
-    failed=1
     grep -E 'ERROR|SUMMARY|runtime error|Test unit written|deadly signal|ALARM|==[0-9]+==' "$log" | head -20 | sed 's/^/  /'
+    return 1
   fi
+}
+
+# The harnesses run side by side, one a core (QOTA_FUZZ_JOBS; each is one process on one
+# thread, with a scratch folder of its own): the same fuzzing in half the time on two cores.
+# Their lines are printed in the order given.
+jobs=${QOTA_FUZZ_JOBS:-$(nproc)}
+for name in "${harnesses[@]}"; do
+  while [ "$(jobs -rp | wc -l)" -ge "$jobs" ]; do wait -n || true; done
+  (if fuzz_one "$name" > "build-fuzz/$name.summary"; then echo 0; else echo 1; fi > "build-fuzz/$name.status") &
+done
+wait
+failed=0
+for name in "${harnesses[@]}"; do
+  cat "build-fuzz/$name.summary"
+  [ "$(cat "build-fuzz/$name.status")" = 0 ] || failed=1
 done
 exit $failed
