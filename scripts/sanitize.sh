@@ -33,7 +33,8 @@ if [ "$which" = all ] || [ "$which" = asan ]; then
 fi
 if [ "$which" = all ] || [ "$which" = tsan ]; then
   # Line tables only: the stacks of a report, without the full debug information's build time.
-  cmake -S . -B build-tsan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -g1 -DNDEBUG" \
+  # -O1: 40 s less to build from nothing than -O2, 10 s more to run these tests.
+  cmake -S . -B build-tsan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" \
     -DQOTA_SANITIZE=thread -DQOTA_BUILD_TESTS=ON -DQOTA_BUILD_EXAMPLES=OFF -DQOTA_BUILD_BENCH=OFF > /dev/null
   cmake --build build-tsan -j2 --target qota_tsan_tests  # (the test files that run threads)
   # The tests whose code runs threads: shadows (the strips and cell passes), parallel batches and
