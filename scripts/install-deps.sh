@@ -26,6 +26,7 @@ packages=(
   libcgal-dev                   # bench/tin_bench: Delaunay TINs and exact predicates for its oracle
   pybind11-dev python3-dev python3-numpy python3-venv python3-pip python3-setuptools python3-wheel python3-pytest python3-gdal
                                 # the Python package (python/) and its tests
+  python3-pytest-xdist          # those tests on every core (scripts/python-test.sh)
   python3-rasterio python3-xarray python3-rioxarray python3-affine
                                 # Python interop (rasterio datasets, DataArrays), optional at runtime
   python3-dask python3-distributed python3-pandas python3-zarr python3-mypy python3-geopandas
