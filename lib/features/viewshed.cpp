@@ -440,6 +440,23 @@ class Sightlines {
       r0 = std::max(0, static_cast<int>(std::floor(std::min(y0, y1) - kPad)));
       r1 = std::min(h - 2, static_cast<int>(std::floor(std::max(y0, y1) + kPad)));
     };
+    // The segment's heights over the part of its track within squares' columns [from, to] and
+    // rows [top, bottom] (padded; false when the track does not come that near).
+    const auto cellSpan = [&](int from, int to, int top, int bottom, double& lineLow, double& lineHigh) {
+      double u0 = 0, u1 = 1;
+      const auto within = [&](double start, double step, double lo, double hi) {
+        if (step == 0) return;  // (the whole segment: the blocks were chosen along the track)
+        const double ua = (lo - kPad - start) / step, ub = (hi + kPad - start) / step;
+        u0 = std::max(u0, std::min(ua, ub)), u1 = std::min(u1, std::max(ua, ub));
+      };
+      within(ax, bx - ax, from, to + 1);
+      within(ay, by - ay, top, bottom + 1);
+      if (!(u0 <= u1)) return false;
+      const double z0 = a.z() + u0 * d.z(), z1 = a.z() + u1 * d.z();
+      lineLow = std::min(z0, z1) - margin, lineHigh = std::max(z0, z1) + margin;
+      return true;
+    };
+    std::vector<std::uint8_t> cellClear;  // of the block column's blocks, from its first row's
     for (int block = c0 / kWalkBlock; block <= c1 / kWalkBlock; ++block) {
       const int from = std::max(c0, block * kWalkBlock), to = std::min(c1, block * kWalkBlock + kWalkBlock - 1);
       // The whole block column first: every block of squares it touches wholly above or below
@@ -454,10 +471,26 @@ class Sightlines {
         clear = walkLow_[at] > lineHigh || walkHigh_[at] < lineLow;
       }
       if (clear) continue;
+      // Else each block on its own, with the segment's heights over that block alone: a steep
+      // line's track crosses many blocks of rows in one block of columns, and passes most of
+      // them well above or below.
+      const int br0 = r0 / kWalkBlock, br1 = r1 / kWalkBlock;
+      cellClear.assign(static_cast<std::size_t>(br1 - br0 + 1), 0);
+      for (int br = br0; br <= br1; ++br) {
+        const std::size_t at = static_cast<std::size_t>(br) * walkBlocksAcross_ + block;
+        double low, high;
+        cellClear[br - br0] = !cellSpan(from, to, br * kWalkBlock, br * kWalkBlock + kWalkBlock - 1, low, high) ||
+                              walkLow_[at] > high || walkHigh_[at] < low;
+      }
       for (int c = from; c <= to; ++c) {
         span(c, c, y0, y1, lineLow, lineHigh);
         rows(y0, y1, r0, r1);
         for (int r = r0; r <= r1; ++r) {
+          const int br = r / kWalkBlock;
+          if (br >= br0 && br <= br1 && cellClear[br - br0]) {
+            r = br * kWalkBlock + kWalkBlock - 1;  // (the block's last row; the loop steps past it)
+            continue;
+          }
           const std::size_t tl = static_cast<std::size_t>(r) * w + c;
           const double za = vertexZ(tl), zb = vertexZ(tl + 1), zc = vertexZ(tl + w), zd = vertexZ(tl + w + 1);
           if (std::min({za, zb, zc, zd}) > lineHigh || std::max({za, zb, zc, zd}) < lineLow) continue;
