@@ -28,7 +28,7 @@ fi
 (cd "$root/python" && MYPYPATH=. /usr/bin/python3 -m mypy --strict --no-error-summary \
   qota/__init__.pyi qota/dask.pyi tests/typed_example.py)
 cd /
-# On every core (pytest-xdist; QOTA_JOBS): 64 s to 46 s on two. (Each worker process starts the
+# On every core (pytest-xdist; QOTA_JOBS): 64 s to 45 s on two. (Each worker process starts the
 # module fixtures' Dask clusters of its own; the dashboard's port goes to the first.)
 QOTA_DATA_DIR="$root/data" "$venv/bin/python" -m pytest -q -n "${QOTA_JOBS:-$(nproc)}" \
   -W "ignore:Port 8787 is already in use:UserWarning" "$root/python/tests"

@@ -459,29 +459,25 @@ class Sightlines {
     std::vector<std::uint8_t> cellClear;  // of the block column's blocks, from its first row's
     for (int block = c0 / kWalkBlock; block <= c1 / kWalkBlock; ++block) {
       const int from = std::max(c0, block * kWalkBlock), to = std::min(c1, block * kWalkBlock + kWalkBlock - 1);
-      // The whole block column first: every block of squares it touches wholly above or below
-      // the segment there (a line of sight clear of the terrain for a while) is passed at once.
+      // The blocks of squares the track touches in this block column first, each with the
+      // segment's heights over that block alone: one wholly above or below the segment there (a
+      // line of sight clear of the terrain for a while; a steep line's track crosses many blocks
+      // of rows in one block column) is passed at once.
       double y0, y1, lineLow, lineHigh;
       int r0, r1;
       span(from, to, y0, y1, lineLow, lineHigh);
       rows(y0, y1, r0, r1);
-      bool clear = true;
-      for (int br = r0 / kWalkBlock; clear && br <= r1 / kWalkBlock; ++br) {
-        const std::size_t at = static_cast<std::size_t>(br) * walkBlocksAcross_ + block;
-        clear = walkLow_[at] > lineHigh || walkHigh_[at] < lineLow;
-      }
-      if (clear) continue;
-      // Else each block on its own, with the segment's heights over that block alone: a steep
-      // line's track crosses many blocks of rows in one block of columns, and passes most of
-      // them well above or below.
       const int br0 = r0 / kWalkBlock, br1 = r1 / kWalkBlock;
       cellClear.assign(static_cast<std::size_t>(br1 - br0 + 1), 0);
+      bool clear = true;
       for (int br = br0; br <= br1; ++br) {
         const std::size_t at = static_cast<std::size_t>(br) * walkBlocksAcross_ + block;
         double low, high;
         cellClear[br - br0] = !cellSpan(from, to, br * kWalkBlock, br * kWalkBlock + kWalkBlock - 1, low, high) ||
                               walkLow_[at] > high || walkHigh_[at] < low;
+        clear = clear && cellClear[br - br0];
       }
+      if (clear) continue;
       for (int c = from; c <= to; ++c) {
         span(c, c, y0, y1, lineLow, lineHigh);
         rows(y0, y1, r0, r1);
