@@ -839,6 +839,39 @@ TEST(Viewshed, SweepAgreesWithEveryLineOfSightOnRainier) {
   EXPECT_GT(swept, 50000u);  // (of 95,167 tested: the tile's scattered voids leave many to the exact test)
 }
 
+// The sweep cuts each quadrant into slices of slopes, which the threads take in turn. The slices
+// do not depend on the number of threads, so neither does any verdict or count. A DEM moved in
+// (its heights taken over, not copied) gives the same viewshed, and is refused afterwards.
+TEST(Viewshed, TheSameOnAnyThreadsAndWithTheHeightsMovedIn) {
+  qota::DemOptions read;
+  read.lonLatAsCartesian = true;
+  read.vertices = read.triangles = false;  // (the heights alone, as qota viewshed reads them)
+  qota::DemTerrain dem = qota::loadDem(QOTA_DATA_DIR "/mt_rainier_90m.tif", read);
+  ASSERT_EQ(dem.heights.size(), 1201u * 1201u);
+  qota::ViewshedOptions o;
+  o.observerX = -121.760, o.observerY = 46.853, o.observerHeight = 2, o.maxDistance = 20000;
+  o.frame.flat = true;
+  const qota::Viewshed one = qota::viewshed(dem, o, {}, 1);
+  EXPECT_GT(one.swept, 100000u);
+  for (const unsigned threads : {2u, 3u, 8u}) {
+    const qota::Viewshed many = qota::viewshed(dem, o, {}, threads);
+    EXPECT_TRUE(many.sight == one.sight) << threads << " threads";
+    EXPECT_EQ(many.swept, one.swept) << threads << " threads";
+    EXPECT_EQ(many.visible, one.visible) << threads << " threads";
+  }
+  const qota::Viewshed moved = qota::viewshed(std::move(dem), o);
+  EXPECT_TRUE(moved.sight == one.sight);
+  // The moved-from DEM keeps its geometry and no heights (the overload's contract).
+  EXPECT_TRUE(dem.heights.empty());  // NOLINT(bugprone-use-after-move)
+  EXPECT_EQ(dem.width, 1201);        // NOLINT(bugprone-use-after-move)
+  try {
+    qota::viewshed(dem, o);  // NOLINT(bugprone-use-after-move)
+    ADD_FAILURE() << "a DEM without heights was taken";
+  } catch (const qota::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("holds no heights"), std::string::npos) << e.what();
+  }
+}
+
 TEST(Viewshed, MaximumDistanceChangesNothingWithinIt) {
   // A raster much larger than the distance: only a window around the observer is placed and
   // indexed; every pixel within the distance is as the whole raster's viewshed has it.

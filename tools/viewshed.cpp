@@ -183,7 +183,7 @@ struct Run {
 };
 
 // The values of a single observer's viewshed, its summary, its raster.
-void writeOne(const ViewshedOptions& o, const Run& run, std::ostream& out, OutputStage& stage) {
+void writeOne(const ViewshedOptions& o, Run& run, std::ostream& out, OutputStage& stage) {
   std::vector<Observer> at{{(*o.observer)[0], (*o.observer)[1], o.observerHeight, "--observer"}};
   toRasterCrs(srsOf(o.srs).get(), run.dem, at, "--observer");
   qota::ViewshedOptions v;
@@ -193,7 +193,10 @@ void writeOne(const ViewshedOptions& o, const Run& run, std::ostream& out, Outpu
   v.frame = run.frame;
   v.index = o.index;
   v.sweep = !o.perPixel;
-  const Viewshed seen = qota::viewshed(run.dem, v, termProgress(o.quiet, 0, 1));
+  // The viewshed takes the DEM's heights over (a raster of doubles not copied) unless the
+  // preview's hillshade needs them after it.
+  const Viewshed seen = o.png.empty() ? qota::viewshed(std::move(run.dem), v, termProgress(o.quiet, 0, 1))
+                                      : qota::viewshed(run.dem, v, termProgress(o.quiet, 0, 1));
   if (!o.quiet) {
     out << "frame: " << seen.frameDescription << '\n'
         << "observer: " << formatNumber(v.observerX) << ", " << formatNumber(v.observerY) << ", "

@@ -77,12 +77,18 @@ class Sightlines {
   // holes: voids are holes, their triangles left out (viewsheds); else they are filled from their
   // rims and block, as for shadows (light cannot pass under the terrain). The frame is placed by
   // place() (the basis and the heights in metres are ready for observerAt before it).
+  // takeHeights: the DEM's own heights (dem.heights), moved here instead of copied.
   Sightlines(const DemTerrain& dem, const FrameOptions& frameOptions, const IndexOptions& indexOptions,
-             const Progress& report, bool holes = true)
+             const Progress& report, bool holes = true, std::vector<double>* takeHeights = nullptr)
       : dem_(dem), holes_(holes), options_(frameOptions), indexOptions_(indexOptions) {
     if (dem.width < 2 || dem.height < 2) {
       throw Error(dem.path + ": a viewshed needs a raster of at least 2 x 2 pixels, this one has " +
                   std::to_string(dem.width) + " x " + std::to_string(dem.height));
+    }
+    const std::size_t n = static_cast<std::size_t>(dem.width) * dem.height;
+    if (dem.heights.size() != n && dem.mesh.vertices.size() != n) {
+      throw Error(dem.path + ": the DEM holds no heights for its " + std::to_string(dem.width) + " x " +
+                  std::to_string(dem.height) + " pixels (an earlier viewshed took them over); load it again");
     }
     if (report) report(0.0, "placing the terrain");
     options_.fillVoids = !holes;
@@ -91,9 +97,13 @@ class Sightlines {
     // heights, and its exact tests the few points under their lines of sight (a whole raster's
     // points would be 24 bytes a pixel). index() places every vertex (the border's too).
     if (holes && !basis_.shared.body.ellipsoid) flat_.emplace(basis_);
-    const std::size_t n = static_cast<std::size_t>(dem.width) * dem.height;
-    metres_.resize(n);
-    for (std::size_t i = 0; i < n; ++i) metres_[i] = dem.heightOf(i);
+    if (takeHeights && takeHeights == &dem.heights && dem.heights.size() == n) {
+      metres_ = std::move(*takeHeights);  // (dem_ is not asked for its heights again)
+      takeHeights->clear();
+    } else {
+      metres_.resize(n);
+      for (std::size_t i = 0; i < n; ++i) metres_[i] = dem.heightOf(i);
+    }
     heightsInMetres(basis_, PixelWindow{0, 0, dem.width, dem.height}, metres_, valid_);
   }
 
@@ -344,14 +354,19 @@ class Sightlines {
     const int w = f.width, h = f.height;
     // The grid's heights: in a flat frame a vertex's height is the height it was placed at.
     const std::span<const double> z = heights_;
-    double steepest = 0;  // the largest height difference between neighbouring pixels (metres)
-    for (int r = 0; r < h; ++r) {
-      for (int c = 0; c < w; ++c) {
-        const std::size_t i = static_cast<std::size_t>(r) * w + c;
-        if (c + 1 < w) steepest = std::max(steepest, std::fabs(z[i + 1] - z[i]));
-        if (r + 1 < h) steepest = std::max(steepest, std::fabs(z[i + w] - z[i]));
+    // The largest height difference between neighbouring pixels (metres), rows on the threads.
+    std::vector<double> steepestOf(std::max(1u, threads), 0.0);
+    shadow::inThreads(static_cast<unsigned>(steepestOf.size()), [&](unsigned k) {
+      double across = 0, down = 0;
+      for (std::size_t r = k; r < static_cast<std::size_t>(h); r += steepestOf.size()) {
+        const double* row = z.data() + r * w;
+        for (int c = 0; c + 1 < w; ++c) across = std::max(across, std::fabs(row[c + 1] - row[c]));
+        if (r + 1 == static_cast<std::size_t>(h)) continue;
+        for (int c = 0; c < w; ++c) down = std::max(down, std::fabs(row[c + w] - row[c]));
       }
-    }
+      steepestOf[k] = std::max(across, down);
+    });
+    const double steepest = *std::max_element(steepestOf.begin(), steepestOf.end());
     const qota::sweep::Eye at{eye.col - 0.5 - f.window.col, eye.row - 0.5 - f.window.row, eye.point.z(), height};
     // The frame's ground coordinates are rounded (to a few units in the last place of the
     // world's coordinates, here bounded with room); a point moved that far in pixels changes a
@@ -377,20 +392,24 @@ class Sightlines {
     const PixelWindow& win = f.window;
     std::vector<std::uint32_t> undecided;
     counts = {};  // (of the pixels in range)
-    for (std::size_t i = 0; i < n; ++i) {
-      if (!f.valid[i]) continue;
-      const std::size_t atRaster = (win.row + i / w) * static_cast<std::size_t>(dem_.width) + win.col + i % w;
-      if (maxDistance > 0 && horizontal(vertex(i) - eye.point, up) > maxDistance) {
-        visit(atRaster, Sight::OutOfRange);
-      } else if (verdict[i] == qota::sweep::Verdict::Undecided) {
-        undecided.push_back(static_cast<std::uint32_t>(i));
-      } else {
-        visit(atRaster, verdict[i] == qota::sweep::Verdict::Visible ? Sight::Visible : Sight::Hidden);
-        ++counts.decided;
+    for (int r = 0; r < h; ++r) {
+      const std::size_t rowAt = static_cast<std::size_t>(r) * w;
+      const std::size_t rasterAt = static_cast<std::size_t>(win.row + r) * dem_.width + win.col;
+      for (int c = 0; c < w; ++c) {
+        const std::size_t i = rowAt + c;
+        if (!f.valid[i]) continue;
+        if (maxDistance > 0 && horizontal(vertex(i) - eye.point, up) > maxDistance) {
+          visit(rasterAt + c, Sight::OutOfRange);
+        } else if (verdict[i] == qota::sweep::Verdict::Undecided) {
+          undecided.push_back(static_cast<std::uint32_t>(i));
+        } else {
+          visit(rasterAt + c, verdict[i] == qota::sweep::Verdict::Visible ? Sight::Visible : Sight::Hidden);
+          ++counts.decided;
+        }
       }
     }
     counts.undecided = undecided.size();
-    if (!undecided.empty() && walkLow_.empty()) walkBlocks();
+    if (!undecided.empty() && walkLow_.empty()) walkBlocks(threads);
     std::atomic<std::size_t> next{0};
     shadow::inThreads(threads, [&](unsigned) {
       for (std::size_t k; (k = next++) < undecided.size();) {
@@ -502,28 +521,37 @@ class Sightlines {
   }
 
   // For walkMeets: the lowest and highest frame height over each block of kWalkBlock x
-  // kWalkBlock squares (the corners of its squares), row-major by blocks.
-  void walkBlocks() {
+  // kWalkBlock squares (the corners of its squares), row-major by blocks; block rows on
+  // `threads` threads.
+  void walkBlocks(unsigned threads) {
     const int w = frame_.width, h = frame_.height;
     walkBlocksAcross_ = static_cast<std::size_t>((w - 2) / kWalkBlock + 1);
-    const std::size_t down = static_cast<std::size_t>((h - 2) / kWalkBlock + 1);
-    walkLow_.assign(walkBlocksAcross_ * down, INFINITY);
-    walkHigh_.assign(walkBlocksAcross_ * down, -INFINITY);
-    for (int r = 0; r < h; ++r) {
-      // A pixel is a corner of the squares on its row and the row above, its column and the one
-      // before: of the blocks those fall in.
-      const int rb0 = std::max(0, r - 1) / kWalkBlock, rb1 = std::min(r, h - 2) / kWalkBlock;
-      for (int c = 0; c < w; ++c) {
-        const double z = vertexZ(static_cast<std::size_t>(r) * w + c);
-        const int cb0 = std::max(0, c - 1) / kWalkBlock, cb1 = std::min(c, w - 2) / kWalkBlock;
-        for (int rb = rb0; rb <= rb1; ++rb) {
-          for (int cb = cb0; cb <= cb1; ++cb) {
-            const std::size_t at = static_cast<std::size_t>(rb) * walkBlocksAcross_ + cb;
-            walkLow_[at] = std::min(walkLow_[at], z), walkHigh_[at] = std::max(walkHigh_[at], z);
+    const std::size_t across = walkBlocksAcross_, down = static_cast<std::size_t>((h - 2) / kWalkBlock + 1);
+    walkLow_.assign(across * down, INFINITY);
+    walkHigh_.assign(across * down, -INFINITY);
+    const double* z = frame_.mesh.vertices.empty() ? heights_.data() : nullptr;
+    threads = std::max(1u, threads);
+    shadow::inThreads(threads, [&](unsigned k) {
+      for (std::size_t b = k; b < down; b += threads) {
+        // Block b's squares' corners: pixel rows 8 b to 8 b + 8, and for block column c pixel
+        // columns 8 c to 8 c + 8 (within the raster). A pixel on a block's side is a corner of
+        // the blocks on both sides.
+        const int rowEnd = std::min(static_cast<int>(b) * kWalkBlock + kWalkBlock, h - 1);
+        for (int r = static_cast<int>(b) * kWalkBlock; r <= rowEnd; ++r) {
+          const std::size_t row = static_cast<std::size_t>(r) * w;
+          for (std::size_t c = 0; c < across; ++c) {
+            const int x0 = static_cast<int>(c) * kWalkBlock, x1 = std::min(x0 + kWalkBlock, w - 1);
+            double lo = INFINITY, hi = -INFINITY;
+            for (int x = x0; x <= x1; ++x) {
+              const double v = z ? z[row + x] : vertexZ(row + x);
+              lo = std::min(lo, v), hi = std::max(hi, v);
+            }
+            const std::size_t at = b * across + c;
+            walkLow_[at] = std::min(walkLow_[at], lo), walkHigh_[at] = std::max(walkHigh_[at], hi);
           }
         }
       }
-    }
+    });
   }
 
   // row(r) for every row of the frame, rows handed out to `threads` threads in turn (a row's
@@ -672,11 +700,14 @@ unsigned threadsOr(unsigned threads) {
 
 }  // namespace
 
-Viewshed viewshed(const DemTerrain& dem, const ViewshedOptions& o, const Progress& progress, unsigned threads) {
+namespace {
+
+Viewshed viewshedOf(const DemTerrain& dem, std::vector<double>* takeHeights, const ViewshedOptions& o,
+                    const Progress& progress, unsigned threads) {
   checkHeight("observer height", o.observerHeight);
   checkHeight("target height", o.targetHeight);
   checkMetres("maximum distance", o.maxDistance);
-  Sightlines sight(dem, o.frame, o.index, progress);
+  Sightlines sight(dem, o.frame, o.index, progress, /*holes=*/true, takeHeights);
   Viewshed out;
   const Sightlines::Placed observer = sight.observerAt(o.observerX, o.observerY, o.observerHeight, "the observer");
   out.observer = observer.point, out.surface = observer.surface;
@@ -704,12 +735,8 @@ Viewshed viewshed(const DemTerrain& dem, const ViewshedOptions& o, const Progres
   for (std::size_t i = 0; i < valid.size(); ++i) {
     if (valid[i] && o.maxDistance > 0) out.sight[i] = Sight::OutOfRange;
   }
-  std::atomic<std::size_t> visible{0}, tested{0};
-  const auto visit = [&](std::size_t i, Sight s) {
-    out.sight[i] = s;
-    if (s == Sight::Visible) visible.fetch_add(1, std::memory_order_relaxed);
-    if (s != Sight::OutOfRange) tested.fetch_add(1, std::memory_order_relaxed);
-  };
+  // (Counted once at the end: a count shared by the threads would be a contended atomic a pixel.)
+  const auto visit = [&](std::size_t i, Sight s) { out.sight[i] = s; };
   bool finished = false;
   if (o.sweep && sight.sweepable(observer, o.observerHeight)) {
     sweep::Counts counts;
@@ -725,10 +752,23 @@ Viewshed viewshed(const DemTerrain& dem, const ViewshedOptions& o, const Progres
                           0.1, 0.9, visit);
   }
   if (!finished) throw Error("viewshed cancelled");
-  out.visible = visible, out.tested = tested;
+  for (const Sight s : out.sight) {
+    out.visible += s == Sight::Visible;
+    out.tested += s == Sight::Visible || s == Sight::Hidden;
+  }
   out.oneByOne = out.tested - std::min(out.tested, out.swept);
   if (progress) progress(1.0, "done");
   return out;
+}
+
+}  // namespace
+
+Viewshed viewshed(const DemTerrain& dem, const ViewshedOptions& o, const Progress& progress, unsigned threads) {
+  return viewshedOf(dem, nullptr, o, progress, threads);
+}
+
+Viewshed viewshed(DemTerrain&& dem, const ViewshedOptions& o, const Progress& progress, unsigned threads) {
+  return viewshedOf(dem, &dem.heights, o, progress, threads);
 }
 
 CumulativeViewshed cumulativeViewshed(const DemTerrain& dem, std::span<const Observer> observers,

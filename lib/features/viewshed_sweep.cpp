@@ -66,12 +66,13 @@ class Quadrant {
  public:
   // q: 0 east (columns increasing), 1 west, 2 south (rows increasing), 3 north: the quadrant's
   // columns X run away from the eye, its rows Y across, whatever the grid's axes.
-  // half: 0 the slopes m < 0 of the quadrant (rows before the eye's), 1 those m >= 0; each half
-  // is swept alone (its own envelope over its slopes), so that two threads share four
+  // [mLo, mHi): the part of the quadrant's slopes m this sweep answers (minus and plus infinity
+  // at the ends). Each part is swept alone, with its own envelopes over its own slopes (a line of
+  // sight's verdict needs the terrain under it alone), so that any number of threads share the
   // quadrants evenly.
-  Quadrant(const Grid& g, const Extents& extents, const Eye& eye, int q, int half, double targetHeight, double slack,
-           bool voids, std::span<Verdict> out)
-      : g_(g), eye_(eye), q_(q), half_(half), target_(targetHeight), slack_(slack), voids_(voids), out_(out) {
+  Quadrant(const Grid& g, const Extents& extents, const Eye& eye, int q, double mLo, double mHi, double targetHeight,
+           double slack, bool voids, std::span<Verdict> out)
+      : g_(g), eye_(eye), q_(q), mLo_(mLo), mHi_(mHi), target_(targetHeight), slack_(slack), voids_(voids), out_(out) {
     const int w = g.width, h = g.height;
     const std::ptrdiff_t W = w;
     switch (q) {
@@ -97,7 +98,7 @@ class Quadrant {
     const int k0 = static_cast<int>(std::floor(ox_)) + 1;
     gather(k0 - 1, prevZ_, prevV_);
     Line none;
-    envelope_.assign(1, Piece{half_ == 0 ? -1.0 : 0.0, half_ == 0 ? 0.0 : 1.0, none, 0});
+    envelope_.assign(1, Piece{std::max(-1.0, mLo_), std::min(1.0, mHi_), none, 0});
     clean_ = sinceHigh_ = sinceLow_ = doneHigh_ = doneLow_ = envelope_;
     for (int k = k0; k < K_; ++k) {
       if (keepGoing && (k - k0) % 64 == 63 && !keepGoing()) return false;
@@ -106,11 +107,11 @@ class Quadrant {
       if (voids_) addVoids(t1, t2);
       answer(k, t1, t2, counts);
       if (k + 1 < K_) {
-        // The slopes of the pixels with data in the columns ahead, in this half: no pixel is
+        // The slopes of the pixels with data in the columns ahead, in this part: no pixel is
         // answered elsewhere, so the envelopes are neither kept nor read there (on a DEM with
-        // void margins, lines of sight that have left the data for good). None: the half is done.
-        const double lo = std::max(liveLo_[k + 1], half_ == 0 ? std::max(-1.0, -oy_ / (t2 + 1)) : 0.0);
-        const double hi = std::min(liveHi_[k + 1], half_ == 0 ? 0.0 : std::min(1.0, (J_ - 1 - oy_) / (t2 + 1)));
+        // void margins, lines of sight that have left the data for good). None: the part is done.
+        const double lo = std::max({liveLo_[k + 1], -1.0, -oy_ / (t2 + 1), mLo_});
+        const double hi = std::min({liveHi_[k + 1], 1.0, (J_ - 1 - oy_) / (t2 + 1), mHi_});
         if (!(hi > lo)) break;
         strip(k, t1, t2, lo, hi);
         merge(lo, hi);
@@ -150,12 +151,13 @@ class Quadrant {
   }
 
   // Column k's heights and validity, on the rows its strip and its pixels can need: those
-  // within t + 3 of the eye's row (|m| <= 1).
+  // within kMargin rows of the lines of sight of this part's slopes (and |m| <= 1) at the column.
+  static constexpr int kMargin = 5;
   void gather(int k, std::vector<double>& z, std::vector<std::uint8_t>& v) {
     const auto rows = [&](int column, int& j0, int& j1) {
-      const double t = std::max(std::fabs(column - ox_), 1.0) + 3;
-      j0 = std::max(0, static_cast<int>(std::floor(oy_ - t)));
-      j1 = std::min(J_ - 1, static_cast<int>(std::ceil(oy_ + t)));
+      const double t = std::max(std::fabs(column - ox_), 1.0);
+      j0 = std::max(0, static_cast<int>(std::floor(oy_ + std::max(-1.0, mLo_) * t)) - kMargin);
+      j1 = std::min(J_ - 1, static_cast<int>(std::ceil(oy_ + std::min(1.0, mHi_) * t)) + kMargin);
     };
     int j0, j1;
     rows(k, j0, j1);
@@ -286,9 +288,11 @@ class Quadrant {
   void addVoids(double t1, double t2) {
     std::vector<std::pair<double, double>>& fresh = freshVoids_;  // this strip's
     fresh.clear();
-    // Squares that lines of sight with |m| <= 1 can touch in this strip (and that were gathered).
-    const int j0 = std::max(0, static_cast<int>(std::floor(oy_ - t2)) - 1);
-    const int j1 = std::min(J_ - 2, static_cast<int>(std::ceil(oy_ + t2)));
+    // Squares that lines of sight of this part's slopes (|m| <= 1) can touch in this strip
+    // (and that were gathered): a square j holds slopes from (j - oy) / t to (j + 1 - oy) / t,
+    // t in [t1, t2], and m t1 differs from m t2 by at most 1.
+    const int j0 = std::max(0, static_cast<int>(std::floor(oy_ + std::max(-1.0, mLo_) * t2)) - 2);
+    const int j1 = std::min(J_ - 2, static_cast<int>(std::ceil(oy_ + std::min(1.0, mHi_) * t2)) + 1);
     for (int j = j0; j <= j1; ++j) {
       if (prevV_[j] && prevV_[j + 1] && curV_[j] && curV_[j + 1]) continue;
       double lo, hi;
@@ -353,19 +357,19 @@ class Quadrant {
   // sides crossed in this strip.
   void answer(int k, double t1, double t2, Counts& counts) {
     const double tStart = std::max(t1, 0.0);
-    // This half's rows: j - oy < 0, or >= 0.
-    const int jlo = half_ == 0 ? std::max(0, static_cast<int>(std::ceil(oy_ - t2))) : static_cast<int>(std::ceil(oy_)),
-              jhi = half_ == 0 ? static_cast<int>(std::ceil(oy_)) - 1
-                               : std::min(J_ - 1, static_cast<int>(std::floor(oy_ + t2)));
+    // This part's rows: those whose slope m = (j - oy) / t2 lies in [mLo, mHi) (the same
+    // expression in every part, so each pixel is one part's), |m| <= 1.
+    const int jlo = std::max(0, static_cast<int>(std::floor(oy_ + std::max(-1.0, mLo_) * t2)) - 1),
+              jhi = std::min(J_ - 1, static_cast<int>(std::ceil(oy_ + std::min(1.0, mHi_) * t2)) + 1);
     std::size_t piece = 0, cleanPiece = 0, highPiece = 0, lowPiece = 0, donePiece = 0, doneLowPiece = 0, gap = 0,
                 freshGap = 0;
     Line lines[8];
     // The bound on a height compared at distance t2 (the pixel's own rounding and slack).
     const double ownSlack = slack_ / t2;
     for (int j = jlo; j <= jhi; ++j) {
-      if (!curV_[j] || !owns(k, j)) continue;
-      const std::size_t at = index(k, j);
       const double m = (j - oy_) / t2;
+      if (!(m >= mLo_ && m < mHi_) || !curV_[j] || !owns(k, j)) continue;
+      const std::size_t at = index(k, j);
       Verdict verdict = Verdict::Undecided;
       while (gap < voidM_.size() && voidM_[gap].second < m) ++gap;
       const bool touched = gap < voidM_.size() && m >= voidM_[gap].first;  // a void on the way
@@ -854,7 +858,8 @@ class Quadrant {
 
   const Grid& g_;
   Eye eye_;
-  int q_, half_;
+  int q_;
+  double mLo_, mHi_;
   double target_, slack_;
   bool voids_;
   std::span<Verdict> out_;
@@ -891,25 +896,53 @@ bool decide(const Grid& grid, const Eye& eye, double targetHeight, double slack,
             std::span<Verdict> out, Counts& counts, const std::function<bool(double)>& keepGoing) {
   const bool voids = std::find(grid.valid.begin(), grid.valid.end(), 0) != grid.valid.end();
   const Extents extents = voids ? Extents(grid) : Extents();
-  std::atomic<int> nextQuadrant{0}, quadrantsDone{0};
+  // Each quadrant in kParts parts of equal slope ranges, swept one by one by the threads, the
+  // parts with the most pixels first. (kParts does not depend on the threads, so neither do the
+  // sweep's verdicts: the parts' envelopes are cut at the same slopes whatever the count.)
+  constexpr int kParts = 8;
+  struct Part {
+    int q;
+    double mLo, mHi, pixels;
+  };
+  std::vector<Part> parts;
+  for (int q = 0; q < 4; ++q) {
+    // The quadrant's columns run from the eye to K, its rows across 0..J (as Quadrant's).
+    const bool across = q < 2;
+    const double K = across ? grid.width : grid.height, J = across ? grid.height : grid.width;
+    const double ox = q == 0 ? eye.x : q == 1 ? grid.width - 1 - eye.x : q == 2 ? eye.y : grid.height - 1 - eye.y;
+    const double oy = across ? eye.y : eye.x;
+    for (int p = 0; p < kParts; ++p) {
+      const double a = -1.0 + 2.0 * p / kParts, b = -1.0 + 2.0 * (p + 1) / kParts;
+      // Its pixels, near enough: the rows of slopes [a, b] within the grid, column by column.
+      double pixels = 0;
+      for (double t = 1; t < K - ox; t += 8) {
+        pixels += 8 * std::max(0.0, std::min(J, oy + b * t) - std::max(0.0, oy + a * t));
+      }
+      parts.push_back({q, p == 0 ? -kInf : a, p + 1 == kParts ? kInf : b, pixels});
+    }
+  }
+  std::stable_sort(parts.begin(), parts.end(), [](const Part& x, const Part& y) { return x.pixels > y.pixels; });
+  const int count = static_cast<int>(parts.size());
+  std::atomic<int> nextPart{0}, partsDone{0};
   std::atomic<bool> stop{false};
-  Counts each[8];
-  const unsigned workers = std::max(1u, std::min(4u, threads));
+  std::vector<Counts> each(parts.size());
+  const unsigned workers = std::max(1u, std::min(static_cast<unsigned>(count), threads));
   const auto work = [&](unsigned worker) {
-    for (int q; !stop && (q = nextQuadrant++) < 8;) {
-      Quadrant quadrant(grid, extents, eye, q / 2, q % 2, targetHeight, slack, voids, out);
+    for (int k; !stop && (k = nextPart++) < count;) {
+      const Part& part = parts[k];
+      Quadrant quadrant(grid, extents, eye, part.q, part.mLo, part.mHi, targetHeight, slack, voids, out);
       std::function<bool()> ask;
       if (worker == 0 && keepGoing) {
         ask = [&] {
           if (stop) return false;
-          if (!keepGoing(quadrantsDone / 8.0)) stop = true;
+          if (!keepGoing(static_cast<double>(partsDone) / count)) stop = true;
           return !stop.load();
         };
       } else {
         ask = [&] { return !stop.load(); };
       }
-      if (!quadrant.run(each[q], ask)) stop = true;
-      ++quadrantsDone;
+      if (!quadrant.run(each[k], ask)) stop = true;
+      ++partsDone;
     }
   };
   std::vector<std::thread> pool;

@@ -60,7 +60,7 @@ struct Counts {
 // pixel has no data). targetHeight: metres over each pixel's surface. slack: metres the frame's
 // heights at a point may differ from this grid's through rounding of its coordinates.
 // keepGoing(fraction) is asked from time to time on the calling thread; false stops the sweep and
-// the call returns false. threads: up to 4 quadrants at once.
+// the call returns false. threads: the parts of the quadrants (slices of their slopes) swept at once.
 bool decide(const Grid& grid, const Eye& eye, double targetHeight, double slack, unsigned threads,
             std::span<Verdict> out, Counts& counts, const std::function<bool(double)>& keepGoing);
 

@@ -68,6 +68,11 @@ struct Viewshed {
 // threads: 0 = one per core (at most 8).
 Viewshed viewshed(const DemTerrain& dem, const ViewshedOptions& options, const Progress& progress = {},
                   unsigned threads = 0);
+// The same, taking the DEM's heights over instead of copying them (a raster of doubles less, and
+// the time to fill it): dem.heights is left empty (its size, geotransform and CRS stay), and a
+// DEM without heights is refused by every call that needs them.
+Viewshed viewshed(DemTerrain&& dem, const ViewshedOptions& options, const Progress& progress = {},
+                  unsigned threads = 0);
 
 // Cumulative viewsheds: how many of a list of observers, each with its own height, see each
 // pixel (the same rule). The DEM is placed and indexed once for all of them.
