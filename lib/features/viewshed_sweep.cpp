@@ -662,8 +662,10 @@ class Quadrant {
     // Lines of sight that touch a void in this strip end a piece of terrain: where they had
     // crossings since the last void, those become the completed piece's (both envelopes, so the
     // pair stays one piece's), in place of an earlier one.
+    // (Most strips of a slice touch no void: then nothing ends, and masking copies alone.)
+    const bool fresh = !freshVoids_.empty();
     ends_.clear();
-    {
+    if (fresh) {
       std::size_t v = 0;
       for (const Piece& p : sinceHigh_) {
         if (p.line.id == 0) continue;
@@ -689,8 +691,10 @@ class Quadrant {
     // search instead of a pass over the whole strip: the voids may be few.)
     difference(voidM_, freshVoids_, touchedBefore_);
     for (auto [since, add] : {std::pair{&sinceHigh_, &strip_}, std::pair{&sinceLow_, &stripLow_}}) {
-      mask(*since, freshVoids_, masked_);
-      since->swap(masked_);
+      if (fresh) {
+        mask(*since, freshVoids_, masked_);
+        since->swap(masked_);
+      }
       restrict(*add, touchedBefore_, lo, hi, masked_);
       mergeInto(*since, masked_, lo, hi);
     }
