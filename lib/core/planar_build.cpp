@@ -11,6 +11,7 @@
 #include <numeric>
 #include <string>
 #include <thread>
+#include <utility>
 
 #include "float_bounds.hpp"
 #include "planar_answers.hpp"
@@ -81,6 +82,22 @@ int convexOrientation(std::span<const std::uint32_t> idx, std::span<const Point2
     if (s != 0 && s != sign) return notConvex();
   }
   return sign;
+}
+
+// keyed (code << 32 | t, in increasing t) in increasing order: a stable sort by the code alone,
+// in two passes of 16 bits, keeps equal codes in t's order, which is the order of the whole keys
+// (std::sort's, at a fraction of its time on a million keys).
+void sortByCode(std::vector<std::uint64_t>& keyed) {
+  std::vector<std::uint64_t> other(keyed.size());
+  std::vector<std::size_t> start(std::size_t{1} << 16);
+  for (const int shift : {32, 48}) {
+    std::fill(start.begin(), start.end(), 0);
+    for (const std::uint64_t k : keyed) ++start[(k >> shift) & 0xffffu];
+    std::size_t at = 0;
+    for (std::size_t& s : start) at += std::exchange(s, at);
+    for (const std::uint64_t k : keyed) other[start[(k >> shift) & 0xffffu]++] = k;
+    keyed.swap(other);
+  }
 }
 
 }  // namespace
@@ -233,30 +250,36 @@ void PlanarCore::finishBuild(std::vector<Pending>& pending, const Lattice* latti
   const std::span<const std::uint32_t> slots =
       onLattice ? std::span<const std::uint32_t>(lattice->slots) : std::span<const std::uint32_t>(recognised);
   if (!pending.empty()) {
+    constexpr std::size_t kPerSlice = 1u << 15;
+    const unsigned threads = options.buildThreads;
     const double su = domain.uhi > domain.ulo ? 65535.0 / (domain.uhi - domain.ulo) : 0.0;
     const double sv = domain.vhi > domain.vlo ? 65535.0 / (domain.vhi - domain.vlo) : 0.0;
     std::vector<std::uint64_t> keyed(pending.size());
-    for (std::size_t t = 0; t < pending.size(); ++t) {
-      std::uint64_t code = 0;
-      if (slots.empty()) {
-        double cu = 0, cv = 0;
-        for (std::uint32_t c : pending[t].corner) {
-          cu += corners2_[c].u / 3;
-          cv += corners2_[c].v / 3;
+    batch::inSlices(pending.size(), threads, kPerSlice, [&](std::size_t lo, std::size_t hi) {
+      for (std::size_t t = lo; t < hi; ++t) {
+        std::uint64_t code = 0;
+        if (slots.empty()) {
+          double cu = 0, cv = 0;
+          for (std::uint32_t c : pending[t].corner) {
+            cu += corners2_[c].u / 3;
+            cv += corners2_[c].v / 3;
+          }
+          const auto iu = static_cast<std::uint32_t>(std::clamp((cu - domain.ulo) * su, 0.0, 65535.0));
+          const auto iv = static_cast<std::uint32_t>(std::clamp((cv - domain.vlo) * sv, 0.0, 65535.0));
+          code = spreadBits16(iu) | (spreadBits16(iv) << 1);
+        } else {
+          code = slots[t];
         }
-        const auto iu = static_cast<std::uint32_t>(std::clamp((cu - domain.ulo) * su, 0.0, 65535.0));
-        const auto iv = static_cast<std::uint32_t>(std::clamp((cv - domain.vlo) * sv, 0.0, 65535.0));
-        code = spreadBits16(iu) | (spreadBits16(iv) << 1);
-      } else {
-        code = slots[t];
+        keyed[t] = code << 32 | t;
       }
-      keyed[t] = code << 32 | t;
-    }
+    });
     // A raster's triangles usually come in row order already: then there is nothing to move.
     if (!std::is_sorted(keyed.begin(), keyed.end())) {
-      std::sort(keyed.begin(), keyed.end());
+      sortByCode(keyed);
       std::vector<Pending> sorted(pending.size());
-      for (std::size_t t = 0; t < keyed.size(); ++t) sorted[t] = pending[keyed[t] & 0xffffffffu];
+      batch::inSlices(keyed.size(), threads, kPerSlice, [&](std::size_t lo, std::size_t hi) {
+        for (std::size_t t = lo; t < hi; ++t) sorted[t] = pending[keyed[t] & 0xffffffffu];
+      });
       pending.swap(sorted);
     }
     if (!slots.empty()) {
@@ -452,15 +475,20 @@ void PlanarCore::setTreeFloor(const std::vector<Box2>& boxes) const {
   // grazing light, a fan), they only multiply references.
   floorU_ = floorV_ = 0;
   if (boxes.empty()) return;
-  std::vector<double> du(boxes.size()), dv(boxes.size());
-  for (std::size_t t = 0; t < boxes.size(); ++t) {
-    du[t] = boxes[t].uhi - boxes[t].ulo;
-    dv[t] = boxes[t].vhi - boxes[t].vlo;
-  }
-  std::nth_element(du.begin(), du.begin() + du.size() / 2, du.end());
-  std::nth_element(dv.begin(), dv.begin() + dv.size() / 2, dv.end());
-  floorU_ = 0.5 * du[du.size() / 2];
-  floorV_ = 0.5 * dv[dv.size() / 2];
+  // (Each axis on a thread of its own when the build has two.)
+  std::vector<double> extent[2];
+  batch::inSlices(2, buildThreads_, 1, [&](std::size_t lo, std::size_t hi) {
+    for (std::size_t axis = lo; axis < hi; ++axis) {
+      std::vector<double>& e = extent[axis];
+      e.resize(boxes.size());
+      for (std::size_t t = 0; t < boxes.size(); ++t) {
+        e[t] = axis == 0 ? boxes[t].uhi - boxes[t].ulo : boxes[t].vhi - boxes[t].vlo;
+      }
+      std::nth_element(e.begin(), e.begin() + static_cast<std::ptrdiff_t>(e.size() / 2), e.end());
+    }
+  });
+  floorU_ = 0.5 * extent[0][boxes.size() / 2];
+  floorV_ = 0.5 * extent[1][boxes.size() / 2];
 }
 
 void PlanarCore::remakeRecords() const {
