@@ -39,7 +39,8 @@ if [ "$which" = all ] || [ "$which" = tsan ]; then
   cmake --build build-tsan -j2 --target qota_tsan_tests  # (the test files that run threads)
   # The tests whose code runs threads: shadows (the strips and cell passes), parallel batches and
   # builds,
-  # the deferred quadtree, statistics read while others query. Not the memory budgets (TSan's
+  # the deferred quadtree, statistics read while others query, the viewshed sweep's slices and
+  # its exact tests (some 20 s under TSan). Not the memory budgets (TSan's
   # shadow memory makes the process itself hundreds of MiB), nor the largest repeats of threaded
   # code other tests run (Rainier's whole grid against the quadtree; tiles on a projected grid,
   # on the ellipsoid and without a CRS, after tiles flat): four minutes of the run under TSan.
@@ -53,7 +54,8 @@ if [ "$which" = all ] || [ "$which" = tsan ]; then
   slow+=:ShadowTool.OutputsRecordTheirMaking:Shadow.AgreesWithRayMarchOnTheRealDem
   slow+=:Shadow.StripWalkIdenticalToQuadtreeOnTheEllipsoid
   # In two shards at once (GoogleTest's own sharding), one a core.
-  filter="*Thread*:*Parallel*:*Concurren*:Shadow*:*Deferred*:GridFast*:*Batch*:RasterSampler.*:SampleTool.*-$slow"
+  filter="*Thread*:*Parallel*:*Concurren*:Shadow*:*Deferred*:GridFast*:*Batch*:RasterSampler.*:SampleTool.*"
+  filter+=":Viewshed.Sweep*:Viewshed.Cumulative*-$slow"
   pids=()
   for shard in 0 1; do
     GTEST_TOTAL_SHARDS=2 GTEST_SHARD_INDEX=$shard build-tsan/tests/qota_tsan_tests --gtest_filter="$filter" \
