@@ -35,9 +35,10 @@ void* allocate(std::size_t bytes) {
     if (void* p = std::malloc(bytes)) {
       if (bytes >= kLargeBlock) {
         // The whole huge pages inside the block (advice only: a failure changes nothing).
-        const auto first = (reinterpret_cast<std::uintptr_t>(p) + kHugePage - 1) & ~(kHugePage - 1);
-        const auto last = (reinterpret_cast<std::uintptr_t>(p) + bytes) & ~(kHugePage - 1);
-        if (last > first) madvise(reinterpret_cast<void*>(first), last - first, MADV_HUGEPAGE);
+        const auto base = reinterpret_cast<std::uintptr_t>(p);
+        const std::uintptr_t first = (base + kHugePage - 1) & ~(kHugePage - 1),
+                             last = (base + bytes) & ~(kHugePage - 1);
+        if (last > first) madvise(static_cast<char*>(p) + (first - base), last - first, MADV_HUGEPAGE);
       }
       return p;
     }

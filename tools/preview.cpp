@@ -73,22 +73,22 @@ struct Canvas {
     }
     cairo_surface_mark_dirty(surface.get());
   }
-  void text(double x, double y, const std::string& s) {
+  void text(double x, double y, const std::string& s) const {
     cairo_set_source_rgb(cr.get(), 0.1, 0.1, 0.1);
     cairo_move_to(cr.get(), x, y);
     cairo_show_text(cr.get(), s.c_str());
   }
-  double textWidth(const std::string& s) {
+  double textWidth(const std::string& s) const {
     cairo_text_extents_t e;
     cairo_text_extents(cr.get(), s.c_str(), &e);
     return e.x_advance;
   }
-  void fill(double x, double y, double w, double h, Colour k) {
+  void fill(double x, double y, double w, double h, Colour k) const {
     cairo_set_source_rgb(cr.get(), k.r / 255.0, k.g / 255.0, k.b / 255.0);
     cairo_rectangle(cr.get(), x, y, w, h);
     cairo_fill(cr.get());
   }
-  void swatch(double x, double y, double w, double h, Colour k) {
+  void swatch(double x, double y, double w, double h, Colour k) const {
     cairo_set_source_rgb(cr.get(), k.r / 255.0, k.g / 255.0, k.b / 255.0);
     cairo_rectangle(cr.get(), x, y, w, h);
     cairo_fill_preserve(cr.get());
@@ -96,7 +96,7 @@ struct Canvas {
     cairo_set_line_width(cr.get(), 0.5);
     cairo_stroke(cr.get());
   }
-  void write(const std::string& path, OutputStage& stage) {
+  void write(const std::string& path, OutputStage& stage) const {
     cairo_surface_flush(surface.get());
     const std::string staged = stage.stage(path).string();
     if (cairo_surface_write_to_png(surface.get(), staged.c_str()) != CAIRO_STATUS_SUCCESS) {
@@ -120,7 +120,9 @@ Colour ramp(double t) {
   t = std::clamp(std::isfinite(t) ? t : 0.0, 0.0, 1.0) * 4;
   const int i = std::min(3, static_cast<int>(t));
   const double u = t - i;
-  const auto mix = [&](std::uint8_t a, std::uint8_t b) { return static_cast<std::uint8_t>(a + (b - a) * u + 0.5); };
+  const auto mix = [&](std::uint8_t a, std::uint8_t b) {
+    return static_cast<std::uint8_t>(std::lround(a + (b - a) * u));
+  };
   return {mix(stops[i].r, stops[i + 1].r), mix(stops[i].g, stops[i + 1].g), mix(stops[i].b, stops[i + 1].b)};
 }
 

@@ -79,7 +79,10 @@ std::vector<Observer> observersFromText(const ViewshedOptions& o) {
     if (fields.empty()) continue;
     const std::string name = o.observersFile + ":" + std::to_string(number);
     if (fields.size() < 2 || fields.size() > 3) {
-      throw Error(name + ": expected 'x y [height]' (numbers), got '" + line + "'");
+      std::string message = name + ": expected 'x y [height]' (numbers), got '";
+      message += line;
+      message += '\'';
+      throw Error(message);
     }
     points.push_back({fields[0], fields[1], fields.size() == 3 ? fields[2] : o.observerHeight, name});
   }

@@ -414,12 +414,13 @@ class Sightlines {
     shadow::inThreads(threads, [&](unsigned) {
       for (std::size_t k; (k = next++) < undecided.size();) {
         const std::uint32_t i = undecided[k];
+        const std::size_t col = i % static_cast<std::size_t>(w), row = i / static_cast<std::size_t>(w);
         const bool onSurface = targetHeight == 0;
         const Eigen::Vector3d p = vertex(i);
         const Eigen::Vector3d target = onSurface ? p : p + targetHeight * f.upAt(p);
-        const bool blocked = walkMeets(eye.point, target, at.x, at.y, static_cast<double>(i % w),
-                                       static_cast<double>(i / w), onSurface ? i : CartesianIndex::kNoVertex);
-        const std::size_t atRaster = (win.row + i / w) * static_cast<std::size_t>(dem_.width) + win.col + i % w;
+        const bool blocked = walkMeets(eye.point, target, at.x, at.y, static_cast<double>(col),
+                                       static_cast<double>(row), onSurface ? i : CartesianIndex::kNoVertex);
+        const std::size_t atRaster = (win.row + row) * static_cast<std::size_t>(dem_.width) + win.col + col;
         visit(atRaster, blocked ? Sight::Hidden : Sight::Visible);
       }
     });
@@ -487,7 +488,7 @@ class Sightlines {
       span(from, to, y0, y1, lineLow, lineHigh);
       rows(y0, y1, r0, r1);
       const int br0 = r0 / kWalkBlock, br1 = r1 / kWalkBlock;
-      cellClear.assign(static_cast<std::size_t>(br1 - br0 + 1), 0);
+      cellClear.assign(static_cast<std::size_t>(br1 - br0) + 1, 0);
       bool clear = true;
       for (int br = br0; br <= br1; ++br) {
         const std::size_t at = static_cast<std::size_t>(br) * walkBlocksAcross_ + block;
@@ -525,8 +526,8 @@ class Sightlines {
   // `threads` threads.
   void walkBlocks(unsigned threads) {
     const int w = frame_.width, h = frame_.height;
-    walkBlocksAcross_ = static_cast<std::size_t>((w - 2) / kWalkBlock + 1);
-    const std::size_t across = walkBlocksAcross_, down = static_cast<std::size_t>((h - 2) / kWalkBlock + 1);
+    walkBlocksAcross_ = static_cast<std::size_t>((w - 2) / kWalkBlock) + 1;
+    const std::size_t across = walkBlocksAcross_, down = static_cast<std::size_t>((h - 2) / kWalkBlock) + 1;
     walkLow_.assign(across * down, INFINITY);
     walkHigh_.assign(across * down, -INFINITY);
     const double* z = frame_.mesh.vertices.empty() ? heights_.data() : nullptr;
