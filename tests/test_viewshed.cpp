@@ -839,31 +839,47 @@ TEST(Viewshed, SweepAgreesWithEveryLineOfSightOnRainier) {
   EXPECT_GT(swept, 50000u);  // (of 95,167 tested: the tile's scattered voids leave many to the exact test)
 }
 
-// The sweep cuts each quadrant into slices of slopes, which the threads take in turn. The slices
-// do not depend on the number of threads, so neither does any verdict or count. A DEM moved in
-// (its heights taken over, not copied) gives the same viewshed, and is refused afterwards.
+// The sweep cuts each quadrant into slices of slopes, which the threads take in turn. Every
+// thread count gives the oracle's pixels, and the same count of pixels decided by the sweep (the
+// slices do not depend on the threads). A DEM moved in (its heights taken over, not copied) gives
+// the oracle's pixels too, and is refused afterwards.
 TEST(Viewshed, TheSameOnAnyThreadsAndWithTheHeightsMovedIn) {
+  std::mt19937 rng(31);
+  std::uniform_real_distribution<double> unit(0, 1);
+  GridCase g;
+  g.w = 60, g.h = 48;
+  g.z.resize(static_cast<std::size_t>(g.w) * g.h);
+  for (int r = 0; r < g.h; ++r) {
+    for (int c = 0; c < g.w; ++c) {
+      const double z = std::round(12 * std::sin(0.23 * c) * std::cos(0.31 * r) + 3 * unit(rng));
+      g.z[static_cast<std::size_t>(r) * g.w + c] = unit(rng) < 0.04 ? NAN : z;
+    }
+  }
+  const std::string path = writeGrid(g, "viewshed_threads.tif");
+  const double col = 27.25, row = 20.5, H = 2.5;
+  const std::vector<Sight> want = gridOracle(g, col, row, H, 0, 0);
   qota::DemOptions read;
-  read.lonLatAsCartesian = true;
   read.vertices = read.triangles = false;  // (the heights alone, as qota viewshed reads them)
-  qota::DemTerrain dem = qota::loadDem(QOTA_DATA_DIR "/mt_rainier_90m.tif", read);
-  ASSERT_EQ(dem.heights.size(), 1201u * 1201u);
+  qota::DemTerrain dem = qota::loadDem(path, read);
+  ASSERT_EQ(dem.heights.size(), want.size());
   qota::ViewshedOptions o;
-  o.observerX = -121.760, o.observerY = 46.853, o.observerHeight = 2, o.maxDistance = 20000;
-  o.frame.flat = true;
-  const qota::Viewshed one = qota::viewshed(dem, o, {}, 1);
-  EXPECT_GT(one.swept, 100000u);
-  for (const unsigned threads : {2u, 3u, 8u}) {
-    const qota::Viewshed many = qota::viewshed(dem, o, {}, threads);
-    EXPECT_TRUE(many.sight == one.sight) << threads << " threads";
-    EXPECT_EQ(many.swept, one.swept) << threads << " threads";
-    EXPECT_EQ(many.visible, one.visible) << threads << " threads";
+  o.observerX = col, o.observerY = g.h - row, o.observerHeight = H;
+  o.frame.pixelSize = 1;
+  std::size_t swept = 0;
+  for (const unsigned threads : {1u, 2u, 3u, 8u}) {
+    const qota::Viewshed got = qota::viewshed(dem, o, {}, threads);
+    std::string where;
+    EXPECT_EQ(countDifferent(got.sight, want, g.w, where), 0) << threads << " threads" << where;
+    if (threads == 1) swept = got.swept;
+    EXPECT_EQ(got.swept, swept) << threads << " threads";
+    EXPECT_GT(got.swept, got.tested * 8 / 10) << threads << " threads";
   }
   const qota::Viewshed moved = qota::viewshed(std::move(dem), o);
-  EXPECT_TRUE(moved.sight == one.sight);
+  std::string where;
+  EXPECT_EQ(countDifferent(moved.sight, want, g.w, where), 0) << "moved in" << where;
   // The moved-from DEM keeps its geometry and no heights (the overload's contract).
   EXPECT_TRUE(dem.heights.empty());  // NOLINT(bugprone-use-after-move)
-  EXPECT_EQ(dem.width, 1201);        // NOLINT(bugprone-use-after-move)
+  EXPECT_EQ(dem.width, g.w);         // NOLINT(bugprone-use-after-move)
   try {
     qota::viewshed(dem, o);  // NOLINT(bugprone-use-after-move)
     ADD_FAILURE() << "a DEM without heights was taken";
