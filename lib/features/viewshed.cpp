@@ -6,10 +6,12 @@
 #include <atomic>
 #include <cmath>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <thread>
 
 #include "line_crossing.hpp"
+#include "qota/batch.hpp"
 #include "qota/error.hpp"
 #include "qota/memory_budget.hpp"
 #include "qota/terrain.hpp"
@@ -354,19 +356,21 @@ class Sightlines {
     const int w = f.width, h = f.height;
     // The grid's heights: in a flat frame a vertex's height is the height it was placed at.
     const std::span<const double> z = heights_;
-    // The largest height difference between neighbouring pixels (metres), rows on the threads.
-    std::vector<double> steepestOf(std::max(1u, threads), 0.0);
-    shadow::inThreads(static_cast<unsigned>(steepestOf.size()), [&](unsigned k) {
-      double across = 0, down = 0;
-      for (std::size_t r = k; r < static_cast<std::size_t>(h); r += steepestOf.size()) {
+    // The largest height difference between neighbouring pixels (metres), slices of rows on the
+    // threads.
+    double steepest = 0;
+    std::mutex steepestLock;
+    batch::inSlices(static_cast<std::size_t>(h), threads, 64, [&](std::size_t lo, std::size_t hi) {
+      double most = 0;
+      for (std::size_t r = lo; r < hi; ++r) {
         const double* row = z.data() + r * w;
-        for (int c = 0; c + 1 < w; ++c) across = std::max(across, std::fabs(row[c + 1] - row[c]));
+        for (int c = 0; c + 1 < w; ++c) most = std::max(most, std::fabs(row[c + 1] - row[c]));
         if (r + 1 == static_cast<std::size_t>(h)) continue;
-        for (int c = 0; c < w; ++c) down = std::max(down, std::fabs(row[c + w] - row[c]));
+        for (int c = 0; c < w; ++c) most = std::max(most, std::fabs(row[c + w] - row[c]));
       }
-      steepestOf[k] = std::max(across, down);
+      const std::lock_guard<std::mutex> hold(steepestLock);
+      steepest = std::max(steepest, most);
     });
-    const double steepest = *std::max_element(steepestOf.begin(), steepestOf.end());
     const qota::sweep::Eye at{eye.col - 0.5 - f.window.col, eye.row - 0.5 - f.window.row, eye.point.z(), height};
     // The frame's ground coordinates are rounded (to a few units in the last place of the
     // world's coordinates, here bounded with room); a point moved that far in pixels changes a
@@ -522,8 +526,8 @@ class Sightlines {
   }
 
   // For walkMeets: the lowest and highest frame height over each block of kWalkBlock x
-  // kWalkBlock squares (the corners of its squares), row-major by blocks; block rows on
-  // `threads` threads.
+  // kWalkBlock squares (the corners of its squares), row-major by blocks; slices of block rows
+  // on `threads` threads.
   void walkBlocks(unsigned threads) {
     const int w = frame_.width, h = frame_.height;
     walkBlocksAcross_ = static_cast<std::size_t>((w - 2) / kWalkBlock) + 1;
@@ -531,9 +535,8 @@ class Sightlines {
     walkLow_.assign(across * down, INFINITY);
     walkHigh_.assign(across * down, -INFINITY);
     const double* z = frame_.mesh.vertices.empty() ? heights_.data() : nullptr;
-    threads = std::max(1u, threads);
-    shadow::inThreads(threads, [&](unsigned k) {
-      for (std::size_t b = k; b < down; b += threads) {
+    batch::inSlices(down, threads, 8, [&](std::size_t first, std::size_t end) {
+      for (std::size_t b = first; b < end; ++b) {
         // Block b's squares' corners: pixel rows 8 b to 8 b + 8, and for block column c pixel
         // columns 8 c to 8 c + 8 (within the raster). A pixel on a block's side is a corner of
         // the blocks on both sides.
