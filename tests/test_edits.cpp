@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <numbers>
+#include <limits>
 #include <random>
 #include <span>
 
@@ -17,6 +18,7 @@ namespace {
 using namespace qota;
 
 using Polygon = std::vector<Eigen::Vector3d>;
+constexpr double kInf = std::numeric_limits<double>::infinity();
 
 double uniform(std::mt19937_64& rng, double lo, double hi) {
   return std::uniform_real_distribution<double>(lo, hi)(rng);
@@ -248,12 +250,63 @@ TEST(Edits, StationGrows) {
                            z);
   };
   EXPECT_FALSE(index.top(45, 60).has_value());
+  // A cursor kept across the edits sees them as the plain queries do (its leaf is of the tree
+  // before them).
+  Cursor cursor;
+  EXPECT_FALSE(index.height(cursor, 45, 60).has_value());
+  EXPECT_FALSE(index.height(cursor, 45.01, 60).has_value());
   const std::uint32_t id = index.insertPolygon(Polygon{at(30, 55), at(60, 55), at(60, 65), at(30, 65)});
   ASSERT_TRUE(index.top(45, 60).has_value());
   EXPECT_EQ(index.top(45, 60)->polygon, id);
+  ASSERT_TRUE(index.height(cursor, 45.02, 60).has_value());
+  EXPECT_EQ(*index.height(cursor, 45.02, 60), index.top(45.02, 60)->height);
   EXPECT_TRUE(index.removePolygon(id));
   EXPECT_FALSE(index.top(45, 60).has_value());
+  EXPECT_FALSE(index.height(cursor, 45.03, 60).has_value());
   EXPECT_TRUE(index.top(45, 0).has_value());
+}
+
+// A flat square of n x n jittered cells (no regular grid: the quadtree answers) at height z.
+Mesh jitteredFlat(int n, double z) {
+  Mesh mesh;
+  for (int y = 0; y <= n; ++y) {
+    for (int x = 0; x <= n; ++x) mesh.addVertex({x + 0.01 * ((x * 7 + y * 3) % 5), y + 0.01 * ((x * 5 + y) % 3), z});
+  }
+  const auto at = [n](int x, int y) { return static_cast<std::uint32_t>(y * (n + 1) + x); };
+  for (int y = 0; y < n; ++y) {
+    for (int x = 0; x < n; ++x) {
+      mesh.addTriangle(at(x, y), at(x + 1, y), at(x + 1, y + 1));
+      mesh.addTriangle(at(x, y), at(x + 1, y + 1), at(x, y + 1));
+    }
+  }
+  return mesh;
+}
+
+// A cursor kept across insertions and removals, or taken from one index to another and back,
+// answers the terrain there now: the plates stacked over a point by construction, and the other
+// index's own height.
+TEST(Edits, CursorsKeptAcrossEditsOrTakenToAnotherIndex) {
+  CartesianIndex index(jitteredFlat(40, 0.0), CartesianMapping());
+  const CartesianIndex other(jitteredFlat(40, 7.0), CartesianMapping());
+  Cursor cursor;
+  double u = 10.2;
+  const auto next = [&u] { return u += 0.001; };  // steps well inside one leaf
+  for (int k = 0; k < 5; ++k) EXPECT_EQ(index.height(cursor, next(), 10.2), 0.0);
+  std::vector<std::uint32_t> ids;
+  for (int k = 0; k < 20; ++k) {
+    const double z = 5.0 + k;
+    ids.push_back(index.insertPolygon(Polygon{{10.0, 10.0, z}, {10.6, 10.0, z}, {10.0, 10.6, z}}));
+    EXPECT_EQ(index.height(cursor, next(), 10.2), z) << "after inserting plate " << k;
+    const auto hit = index.below(cursor, next(), 10.2, kInf);
+    ASSERT_TRUE(hit.has_value());
+    EXPECT_EQ(hit->polygon, ids.back());
+    EXPECT_EQ(index.heightBelow(cursor, next(), 10.2, z - 0.5), k == 0 ? 0.0 : z - 1);
+    EXPECT_EQ(other.height(cursor, next(), 10.2), 7.0) << "the other index, after plate " << k;
+  }
+  for (int k = 19; k >= 0; --k) {
+    ASSERT_TRUE(index.removePolygon(ids[static_cast<std::size_t>(k)]));
+    EXPECT_EQ(index.height(cursor, next(), 10.2), k == 0 ? 0.0 : 4.0 + k) << "after removing plate " << k;
+  }
 }
 
 }  // namespace

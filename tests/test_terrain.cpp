@@ -2,6 +2,9 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <limits>
 #include <random>
 #include <type_traits>
 
@@ -18,6 +21,7 @@ using qota::CartesianMapping;
 using qota::Hit;
 using qota::Mesh;
 using qota::test::bruteForce;
+constexpr double kInf = std::numeric_limits<double>::infinity();
 
 // Compares every query kind at random world points with the oracle. Points within `ambiguous` of
 // a polygon edge (where the answer depends on rounding) are counted, and their heights are
@@ -312,6 +316,64 @@ TEST(TerrainQueries, ATreeOutgrowingTheMemoryLeftStopsWithAnError) {
 }
 
 // --- Input rules -----------------------------------------------------------------------------
+
+// Walks through a cursor over a tree larger than a cache holds, where the cursor fetches the
+// leaves ahead of a walk: straight runs of small steps (the course it predicts), turns, reversals,
+// steps as large as a leaf, jumps, points off the terrain, over a heightfield with holes and
+// overlapping plates. Every answer is the plain query's; the oracle checks the plain answers at
+// some of the points.
+TEST(TerrainQueries, LongCursorWalksOverALargeTreeAnswerAsPlainQueries) {
+  const Mesh mesh = qota::test::randomTerrain({.grid = 400, .plates = 12, .walls = 5}, 23);
+  const CartesianIndex index(mesh, CartesianMapping());
+  ASSERT_FALSE(index.gridFastPath());
+  ASSERT_GT(index.stats().tree.memoryBytes, std::uint64_t{8} << 20) << "too small a tree to fetch ahead";
+  std::mt19937_64 rng(29);
+  std::uniform_real_distribution<double> unit(0, 1);
+  qota::Cursor cursor;
+  double u = 20, v = 30, du = 0.02, dv = 0.007;
+  int checked = 0;
+  for (int i = 0; i < 150000; ++i) {
+    if (i % 4000 == 0) {  // a new course: steps from a thousandth of a cell to half a dozen cells
+      const double length = std::pow(10.0, -3 + 3.8 * unit(rng)), angle = 2 * std::numbers::pi * unit(rng);
+      du = length * std::cos(angle), dv = length * std::sin(angle);
+    }
+    if (i % 4000 == 2000) du = -du, dv = -dv;  // back the way it came
+    if (i % 500 == 250) {                      // a gentle turn
+      const double a = 0.05 * (unit(rng) - 0.5), c = std::cos(a), s = std::sin(a);
+      const double ru = c * du - s * dv, rv = s * du + c * dv;
+      du = ru, dv = rv;
+    }
+    if (i % 9973 == 0) u = 400 * unit(rng), v = 400 * unit(rng);  // a jump
+    u += du, v += dv;
+    if (u < -3 || u > 402) du = -du;  // (a little off the terrain, then back)
+    if (v < -3 || v > 402) dv = -dv;
+    const double z = i % 3 == 0 ? kInf : 160 * (unit(rng) - 0.5);
+    ASSERT_EQ(index.heightBelow(cursor, u, v, z), index.heightBelow(u, v, z))
+        << "step " << i << " at " << u << " " << v;
+    if (i % 7 == 0) {
+      const auto a = index.above(cursor, u, v, z), b = index.above(u, v, z);
+      ASSERT_EQ(a.has_value(), b.has_value()) << "step " << i;
+      if (a) {
+        ASSERT_EQ(a->polygon, b->polygon) << "step " << i;
+      }
+    }
+    if (i % 1500 == 0) {
+      const auto oracle = bruteForce(mesh, CartesianMapping().gravity(), CartesianMapping().origin(), {u, v, 0.0});
+      if (oracle.nearestEdge < 1e-9) continue;
+      std::optional<double> want;
+      for (const auto& h : oracle.hits) {
+        if (h.height <= z && (!want || h.height > *want)) want = h.height;
+      }
+      const auto got = index.heightBelow(cursor, u, v, z);
+      ASSERT_EQ(got.has_value(), want.has_value()) << "step " << i;
+      if (want) {
+        ASSERT_NEAR(*got, *want, 1e-9 * std::max(1.0, std::fabs(*want))) << "step " << i;
+      }
+      ++checked;
+    }
+  }
+  EXPECT_GT(checked, 80);
+}
 
 TEST(TerrainQueries, ParallelBuildIsTheSerialBuild) {
   // The build's parts split by triangle and by leaf on two threads make the same index, node for

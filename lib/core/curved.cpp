@@ -402,8 +402,10 @@ std::uint32_t CurvedIndex<M>::nearest(double u, double v, double h, double& hOut
     return nearestIn<Below>(v > 0 ? polarNorth_ : polarSouth_, false, u, v, line, elevation(h), hOut, tOut);
   }
   if (!tree_.contains(u, v)) return kNoTriangle;
-  const std::span<const std::uint32_t> items =
-      tree_.leafRange(cursor ? tree_.leafNode(u, v, *cursor) : tree_.leafNode(u, v));
+  // (On a walk, the triangles of a leaf ahead on its course are fetched as it enters a leaf.)
+  const std::span<const std::uint32_t> items = tree_.leafRange(
+      cursor ? tree_.leafNode(u, v, *cursor, [this](std::span<const std::uint32_t> ahead) { prefetch(ahead); })
+             : tree_.leafNode(u, v));
   prefetch(items);  // the candidates load while the line is computed
   line = lineAt(u, v);
   return nearestIn<Below>(items, true, u, v, line, elevation(h), hOut, tOut);

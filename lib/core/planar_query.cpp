@@ -100,7 +100,10 @@ std::uint32_t PlanarCore::nearest(double u, double v, double z, double& h, Curso
   }
   ensureTree();
   if (!tree_.contains(u, v)) return kNoTriangle;  // also rejects NaN
-  const Quadtree::Node leaf = cursor ? tree_.leafNode(u, v, *cursor) : tree_.leafNode(u, v);
+  // (On a walk, the records of a leaf ahead on its course are fetched as it enters a leaf.)
+  const Quadtree::Node leaf =
+      cursor ? tree_.leafNode(u, v, *cursor, [this](std::span<const std::uint32_t> ahead) { prefetchTriangles(ahead); })
+             : tree_.leafNode(u, v);
   const bool single = Quadtree::singleLayer(leaf);
   if (cursor && single) {
     // A walk's next point is often in the last point's triangle. Clearly inside it (beyond the

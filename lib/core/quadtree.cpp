@@ -1,6 +1,7 @@
 #include "qota/quadtree.hpp"
 
 #include <algorithm>
+#include <atomic>
 
 #include <cmath>
 #include <string>
@@ -108,7 +109,65 @@ Quadtree::Node Quadtree::descend(double u, double v, Cursor& cursor) const {
   }
   cursor.leaf = nd;
   cursor.box = {lu, lv, hu, hv};
+  cursor.stamp = stamp_;
   return nd;
+}
+
+std::uint64_t Quadtree::nextStamp() {
+  static std::atomic<std::uint64_t> next{1};
+  return next++;
+}
+
+bool Quadtree::leafPast(const Box2& b, double u, double v, double du, double dv, Node& leaf, Box2& box) const {
+  // The steps to the box's far side along each axis; the first whole number past the nearer.
+  const double tu = du > 0 ? (b.uhi - u) / du : du < 0 ? (b.ulo - u) / du : INFINITY;
+  const double tv = dv > 0 ? (b.vhi - v) / dv : dv < 0 ? (b.vlo - v) / dv : INFINITY;
+  const double steps = std::floor(std::min(tu, tv)) + 1;
+  if (!(steps >= 1 && steps <= 64)) return false;
+  const double qu = u + steps * du, qv = v + steps * dv;
+  if (!contains(qu, qv)) return false;
+  Cursor c;
+  leaf = descend(qu, qv, c);
+  box = c.box;
+  return true;
+}
+
+Quadtree::Node Quadtree::lookAhead(double u, double v, bool sameTree, Cursor& cursor) const {
+  const double du = u - cursor.lastU, dv = v - cursor.lastV;  // (NaN on a cursor's first query)
+  const Box2& b = cursor.box;
+  // A cursor moved by steps as large as its leaves (or at random) gains nothing, and the
+  // descents ahead would cost it misses of their own; so does a tree that stays in cache.
+  const bool walking = fetchAhead_ && std::fabs(du) <= 0.5 * (b.uhi - b.ulo) &&
+                       std::fabs(dv) <= 0.5 * (b.vhi - b.vlo) && (du != 0 || dv != 0) && sameTree;
+  constexpr int K = Cursor::kAhead;
+  if (!walking) {
+    cursor.nextCount = 0;
+    return Node{0, 0};
+  }
+  const auto fetch = [this](const Node& leaf) {
+    if (leaf.count == kInner || leafSize(leaf) == 0) return;
+    const std::uint32_t* r = refs_.data() + leaf.first;
+    __builtin_prefetch(r);
+    __builtin_prefetch(r + leafSize(leaf) - 1);
+  };
+  const auto same = [](const Node& x, const Node& y) { return x.first == y.first && x.count == y.count; };
+  // Extends the course from leaf i - 1 (or the cursor's) to leaf i, ..., K - 1.
+  const auto extend = [&](int i) {
+    for (cursor.nextCount = i; cursor.nextCount < K; ++cursor.nextCount) {
+      const Box2& from = cursor.nextCount == 0 ? b : cursor.nextBox[cursor.nextCount - 1];
+      if (!leafPast(from, u, v, du, dv, cursor.next[cursor.nextCount], cursor.nextBox[cursor.nextCount])) return;
+      fetch(cursor.next[cursor.nextCount]);
+    }
+  };
+  if (cursor.nextCount == K && same(cursor.next[0], cursor.leaf)) {
+    // On course: the leaf after this one had its references fetched a leaf ago, so its items can
+    // be fetched now; the one after it is new.
+    for (int i = 0; i + 1 < K; ++i) cursor.next[i] = cursor.next[i + 1], cursor.nextBox[i] = cursor.nextBox[i + 1];
+    extend(K - 1);
+    return cursor.next[0];
+  }
+  extend(0);  // a new course: the leaves ahead found again, their items fetched on the next
+  return Node{0, 0};
 }
 
 void Quadtree::refreshJump(std::uint32_t n, std::uint32_t depth, const Box2& box) {
@@ -136,6 +195,7 @@ void Quadtree::refreshJump(std::uint32_t n, std::uint32_t depth, const Box2& box
 }
 
 void Quadtree::compact() {
+  stamp_ = nextStamp();
   // Copy every leaf's live range into a fresh array, in node order.
   BigVector<std::uint32_t> fresh;
   fresh.reserve(refs_.size() - abandoned_);
@@ -151,6 +211,10 @@ void Quadtree::compact() {
 }
 
 void Quadtree::buildJumpTable() {
+  stamp_ = nextStamp();  // (the end of every build and of markLeaves, and a tree file's load)
+  // A tree within a few MiB (with its items' records, some more) stays in cache while it is
+  // walked: nothing to fetch ahead.
+  fetchAhead_ = nodes_.size() * sizeof(Node) + refs_.size() * sizeof(std::uint32_t) > (4u << 20);
   jumpDepth_ = 0;
   cutU_.clear(), cutV_.clear(), jump_.clear();
   if (!cut_.empty()) return;  // the table's uniform cells are the midpoint cuts' alone

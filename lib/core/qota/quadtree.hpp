@@ -170,18 +170,42 @@ class Quadtree {
   }
   // A query cursor for temporal coherence: the last leaf found and a box of points known to lie
   // in it, half-open ([ulo, uhi) x [vlo, vhi), the boundary rule's own sides), so that a query a
-  // small step from the last one skips the descent. A default cursor matches nothing. One per
-  // moving object; not to be shared between threads.
+  // small step from the last one skips the descent. They hold for the tree, and the edit of it,
+  // whose stamp they carry: a cursor taken to another tree, or kept across an edit, descends
+  // afresh. A default cursor matches nothing. One per moving object; not to be shared between
+  // threads.
   struct Cursor {
     Node leaf{0, 0};
     Box2 box;
+    std::uint64_t stamp = 0;  // the tree's stamp_ when leaf and box were found (0: none)
+    // A walk's lookahead (lookAhead): its last point, and the next two leaves its steps lead to
+    // (with their boxes, of this stamp).
+    double lastU = NAN, lastV = NAN;
+    static constexpr int kAhead = 2;
+    Node next[kAhead]{};
+    Box2 nextBox[kAhead];
+    int nextCount = 0;
   };
   // leafNode(u, v), starting from the cursor when (u, v) is in its box, and updating it. The
-  // answer is the same leaf as leafNode(u, v). Precondition: contains(u, v).
+  // answer is the same leaf as leafNode(u, v). Precondition: contains(u, v). On entering a leaf
+  // on a walk's course, ahead(items) is handed the items of a leaf ahead, whose references
+  // are in cache, to prefetch what the caller reads of them (see lookAhead).
   Node leafNode(double u, double v, Cursor& cursor) const {
+    return leafNode(u, v, cursor, [](std::span<const std::uint32_t>) {});
+  }
+  template <class Ahead>
+  Node leafNode(double u, double v, Cursor& cursor, const Ahead& ahead) const {
     const Box2& b = cursor.box;
-    if (u >= b.ulo && u < b.uhi && v >= b.vlo && v < b.vhi) return cursor.leaf;
-    return descend(u, v, cursor);
+    if (u >= b.ulo && u < b.uhi && v >= b.vlo && v < b.vhi && cursor.stamp == stamp_) [[likely]] {
+      cursor.lastU = u, cursor.lastV = v;
+      return cursor.leaf;
+    }
+    const bool sameTree = cursor.stamp == stamp_;
+    const Node nd = descend(u, v, cursor);
+    const Node ready = lookAhead(u, v, sameTree, cursor);
+    if (leafSize(ready) != 0) ahead(leafRange(ready));
+    cursor.lastU = u, cursor.lastV = v;
+    return nd;
   }
   std::span<const std::uint32_t> leafRange(const Node& leaf) const {
     return {refs_.data() + leaf.first, leafSize(leaf)};
@@ -278,6 +302,21 @@ class Quadtree {
     return static_cast<std::uint32_t>(g);
   }
   Node descend(double u, double v, Cursor& cursor) const;
+  // A walk of steps smaller than its leaves (a vehicle, a profile, a scan line) that has just
+  // entered the cursor's leaf will next cross the leaves its steps lead to. The one after next
+  // has its references fetched now, and the next one, whose references were fetched a leaf ago,
+  // is handed to the index (leafNode's `ahead`) to prefetch its items: a leaf's misses are waited for
+  // while the walk crosses the two before it. The answers are the same; only the cache differs.
+  // (sameTree: the cursor's lookahead is of this tree and edit.) Returns that next leaf (an empty
+  // one for none).
+  Node lookAhead(double u, double v, bool sameTree, Cursor& cursor) const;
+  // The leaf (and its box) holding the first point p + k (du, dv), k = 1, 2, ..., past box
+  // b, for a point p in or before b; false when that is over 64 steps on or off the tree.
+  bool leafPast(const Box2& b, double u, double v, double du, double dv, Node& leaf, Box2& box) const;
+  // A fresh value for every tree and every change of one (cursors compare it).
+  std::uint64_t stamp_ = nextStamp();
+  static std::uint64_t nextStamp();
+  bool fetchAhead_ = false;  // lookAhead pays (the tree is larger than a cache holds)
   // Copies node n (at depth, with box) into the jump table cells it covers (if it is at or above
   // the table's depth).
   void refreshJump(std::uint32_t n, std::uint32_t depth, const Box2& box);
@@ -411,6 +450,7 @@ void Quadtree::forOverlappingLeaves(const Visit& visitLeaf, const std::function<
 template <class Overlaps, class Prepare>
 void Quadtree::insert(std::uint32_t item, Overlaps&& overlaps, Prepare&& prepare) {
   if (nodes_.empty() || half_.empty()) throw Error("quadtree: insert into a tree never built");
+  stamp_ = nextStamp();
   itemCount_ = std::max(itemCount_, item + 1);
   refBudget_ = std::max<std::uint64_t>(refBudget_, 64ull * itemCount_ + (1ull << 22));
   forOverlappingLeaves(
@@ -438,6 +478,7 @@ void Quadtree::insert(std::uint32_t item, Overlaps&& overlaps, Prepare&& prepare
 template <class Overlaps>
 void Quadtree::remove(std::uint32_t item, Overlaps&& overlaps) {
   if (nodes_.empty() || half_.empty()) return;
+  stamp_ = nextStamp();
   forOverlappingLeaves(
       [&](std::uint32_t n, std::uint32_t depth, const Box2& box) {
         Node& leaf = nodes_[n];
