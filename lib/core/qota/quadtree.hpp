@@ -201,7 +201,16 @@ class Quadtree {
       return cursor.leaf;
     }
     const bool sameTree = cursor.stamp == stamp_;
-    const Node nd = descend(u, v, cursor);
+    Node nd;
+    const Box2& n = cursor.nextBox[0];
+    if (sameTree && cursor.nextCount > 0 && u >= n.ulo && u < n.uhi && v >= n.vlo && v < n.vhi) {
+      // On the course the lookahead found: its next leaf, without a descent (the box is the
+      // descent's own, so the points in it are the leaf's).
+      nd = cursor.leaf = cursor.next[0];
+      cursor.box = n;
+    } else {
+      nd = descend(u, v, cursor);
+    }
     const Node ready = lookAhead(u, v, sameTree, cursor);
     if (leafSize(ready) != 0) ahead(leafRange(ready));
     cursor.lastU = u, cursor.lastV = v;
