@@ -4,7 +4,9 @@
 
 #include <algorithm>
 #include <numbers>
+#include <cmath>
 #include <limits>
+#include <optional>
 #include <random>
 #include <span>
 
@@ -306,6 +308,32 @@ TEST(Edits, CursorsKeptAcrossEditsOrTakenToAnotherIndex) {
   for (int k = 19; k >= 0; --k) {
     ASSERT_TRUE(index.removePolygon(ids[static_cast<std::size_t>(k)]));
     EXPECT_EQ(index.height(cursor, next(), 10.2), k == 0 ? 0.0 : 4.0 + k) << "after removing plate " << k;
+  }
+}
+
+// A cursor used with an index, then with another built later in the same memory (a loop over
+// tiles, an optional re-emplaced), answers the new one: on the grid path (a regular grid: the
+// cursor's memo of the last triangle's plane) and on the quadtree's (a jittered grid).
+TEST(Edits, ACursorMeetsAnIndexBuiltInTheSameMemoryAsAnother) {
+  const auto grid = [](double z, double jitter) {
+    Mesh mesh = jitteredFlat(40, z);
+    if (jitter == 0) {
+      for (auto& p : mesh.vertices) p.x() = std::round(p.x()), p.y() = std::round(p.y());
+    }
+    return mesh;
+  };
+  for (const double jitter : {0.0, 0.01}) {
+    std::optional<CartesianIndex> index;
+    Cursor cursor;
+    double u = 10.2;
+    for (int k = 0; k < 6; ++k) {
+      const double z = 3.0 * k;
+      index.emplace(grid(z, jitter), CartesianMapping());
+      ASSERT_EQ(index->gridFastPath(), jitter == 0);
+      for (int i = 0; i < 3; ++i) {
+        EXPECT_EQ(index->height(cursor, u += 0.001, 10.3), z) << "index " << k << ", jitter " << jitter;
+      }
+    }
   }
 }
 

@@ -32,7 +32,7 @@ void PlanarCore::rebuildTree(const Box2& domain) {
 
 std::uint32_t PlanarCore::insertPolygon(std::span<const Eigen::Vector3d> corners) {
   ensureTree();
-  ++generation_;
+  generation_ = nextSerial();
   const auto id = static_cast<std::uint32_t>(stats_.polygons);
   if (corners.size() < 3) {
     throw Error("insertPolygon: a polygon needs at least 3 corners, got " + std::to_string(corners.size()));
@@ -101,7 +101,7 @@ std::uint32_t PlanarCore::insertPolygon(std::span<const Eigen::Vector3d> corners
 
 bool PlanarCore::removePolygon(std::uint32_t polygon) {
   ensureTree();
-  ++generation_;
+  generation_ = nextSerial();
   const std::optional<std::size_t> triangles = ledger_.remove(
       polygon, stats_.polygons, cold_.size(), [this](std::size_t t) { return cold_[t].polygon; },
       [this](std::uint32_t t) {

@@ -344,7 +344,10 @@ class PlanarCore : public IndexFace<PlanarCore> {
   void leanCorner(std::uint64_t col, std::uint64_t row, std::uint32_t half, int k, double& u, double& v,
                   double& h) const;
   static double leanHeight(const LeanPlane& p, double u, double v);
-  std::uint64_t generation_ = 0;  // edits so far (invalidates cursors' memos)
+  // This index's state among every index's in the process, renewed by each edit: a cursor's
+  // memo holds only for the state it was made in (an index built later in the same memory, or
+  // this one edited, is another).
+  std::uint64_t generation_ = nextSerial();
   // The quadtree. On a regular grid the fast path answers every height query without it, so it
   // is built on first need (statistics, all(), edits, shadows, tree files), once, thread-safely.
   mutable Quadtree tree_;
