@@ -2,6 +2,7 @@
 // and seams, and the planet, ellipsoid and station terrains.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <random>
@@ -314,6 +315,39 @@ TEST(CurvedIndex, SphereMatchesOracle) {
     EXPECT_EQ(missesAtFeatures(mesh, mapping, index, 24, true), 0);
     if (!rotate) {
       EXPECT_GT(index.stats().polarNorth, 0u);
+    }
+  }
+}
+
+// Walks through a cursor over a sphere's tree larger than a cache holds, where the cursor fetches
+// the leaves ahead of a walk: runs of small steps in longitude and latitude, turns, reversals,
+// across the seam and near the poles, answer as the plain queries (which the oracle holds above).
+TEST(CurvedIndex, LongCursorWalksAnswerAsPlainQueries) {
+  const Mesh mesh = bumpySphere(7, 1000.0, 0.02, 21, true);
+  const SphericalIndex index(mesh, SphericalMapping());
+  ASSERT_GT(index.stats().tree.memoryBytes, std::uint64_t{8} << 20) << "too small a tree to fetch ahead";
+  std::mt19937_64 rng(28);
+  Cursor cursor;
+  double u = 170, v = 10, du = 0.01, dv = 0.003;
+  for (int i = 0; i < 120000; ++i) {
+    if (i % 3000 == 0) {  // a new course: steps from a thousandth of a degree to a few degrees
+      const double length = std::pow(10.0, uniform(rng, -3, 0.6)), angle = uniform(rng, 0, 2 * M_PI);
+      du = length * std::cos(angle), dv = length * std::sin(angle);
+    }
+    if (i % 3000 == 1500) du = -du, dv = -dv;
+    u += du, v += dv;
+    if (u > 180) u -= 360;  // across the seam
+    if (u < -180) u += 360;
+    if (v > 89.5 || v < -89.5) dv = -dv, v = std::clamp(v, -89.5, 89.5);
+    const double h = i % 3 == 0 ? 2000.0 : 1000 * uniform(rng, 0.97, 1.03);
+    ASSERT_EQ(index.heightBelow(cursor, u, v, h), index.heightBelow(u, v, h))
+        << "step " << i << " at " << u << " " << v;
+    if (i % 5 == 0) {
+      const auto a = index.below(cursor, u, v, h), b = index.below(u, v, h);
+      ASSERT_EQ(a.has_value(), b.has_value()) << "step " << i;
+      if (a) {
+        ASSERT_EQ(a->polygon, b->polygon) << "step " << i;
+      }
     }
   }
 }

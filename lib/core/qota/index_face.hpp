@@ -33,9 +33,10 @@
 namespace qota {
 
 /// A moving object's memory for coherent queries, one per object and thread: the quadtree's last
-/// leaf (Quadtree::Cursor), and the index's memo of its last answer (the grid path keeps the
-/// last triangle's plane there, so that a walk within one triangle solves no plane), valid only
-/// for that index (owner), unedited since (generation), at that key.
+/// leaf and the leaves ahead of its walk (Quadtree::Cursor, valid for the tree and edit of its
+/// stamp), and the index's memo of its last answer (the grid path keeps the last triangle's
+/// plane there, so that a walk within one triangle solves no plane), valid only for that index
+/// (owner) in that state (generation: unique in the process, renewed by edits), at that key.
 struct Cursor : Quadtree::Cursor {
   struct Memo {
     const void* owner = nullptr;
