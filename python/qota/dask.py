@@ -19,8 +19,9 @@ groups, each group one task that places and indexes the raster and looks from it
 (qota::cumulativeViewshed), the tasks' counts summed.
 
 Points: heights under (x, y) points given as a dask DataFrame or array, each partition answered
-by a sampler that reads the raster tile by tile (one per worker process and raster), bit for bit
-the whole terrain's (Terrain.from_raster).
+by a sampler that reads the raster tile by tile (one per worker process, raster and call: a
+raster rewritten between calls is read again, one rewritten after a call and before its
+computation refused), bit for bit the whole terrain's (Terrain.from_raster).
 """
 from __future__ import annotations
 
@@ -527,12 +528,34 @@ def _writer_lock(path):
 
 # --- points ------------------------------------------------------------------------------------
 
+def _file_identity(path):
+    """What tells one version of a raster file from another: its device, inode, size and
+    modification time (None for what is not a local file: GDAL's virtual paths and names)."""
+    try:
+        st = os.stat(path)
+    except (OSError, ValueError):
+        return None
+    return (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
+
+
+def _sample_source(path, band, resampling):
+    """The key of one sample() call's samplers: the raster, and a token of the call, so that a
+    later call (the file rewritten in between, a VRT's member replaced) opens the raster afresh
+    instead of answering from the tiles an earlier call cached; and the file's identity then,
+    which each process checks as it opens the raster."""
+    return (path, band, resampling, uuid.uuid4().hex, _file_identity(path))
+
+
 @functools.lru_cache(maxsize=8)
 def _sampler(source):
-    """One sampler per raster (path, band, resampling) in each process: its tile cache serves
-    every task there."""
-    path, band, resampling = source
-    return _qota._RasterSampler(path, band, resampling)
+    """One sampler per raster and sample() call in each process: its tile cache serves every task
+    of the call there. A raster that has changed since the call is refused, not half-read."""
+    path, band, resampling, _, identity = source
+    sampler = _qota._RasterSampler(path, band, resampling)
+    if _file_identity(path) != identity:
+        raise Error(f"{path} changed after qota.dask.sample was called (it was rewritten or replaced); "
+                    f"call qota.dask.sample again to sample the new file")
+    return sampler
 
 
 def _sample_xy(source, x, y):
@@ -598,7 +621,7 @@ def sample(source, points, *, band=1, x="x", y="y", by_block=False, block=1024, 
     from . import RESAMPLINGS
     if resampling not in RESAMPLINGS:
         raise Error(f"resampling must be one of {', '.join(RESAMPLINGS)}, got {resampling!r}")
-    source = (path, band, resampling)
+    source = _sample_source(path, band, resampling)
     from . import _is_geodataframe
     if _is_geodataframe(points) and not hasattr(points, "map_partitions"):
         import dask.dataframe as dd

@@ -4,6 +4,7 @@ two sizes, voids across block edges; the tiles made from the file and from the a
 under points equal Terrain.from_raster's bit for bit, results written to GeoTIFF and Zarr read
 back the same, and what cannot be done exactly is refused with a clear qota.Error."""
 import logging
+import os
 
 import numpy as np
 import pytest
@@ -191,6 +192,36 @@ def test_points_equal_the_whole_terrain(client):
             assert got.index.equals(expected.index)
             np.testing.assert_array_equal(got.to_numpy(), expected.to_numpy())
 
+
+
+def test_a_raster_rewritten_between_calls_is_read_again(client, tmp_path):
+    # Workers keep a call's samplers and their tiles; a later call after the file was rewritten
+    # (or replaced) reads the new heights, and a file rewritten after a call but before its
+    # computation is refused, not answered from either version. (Flat rasters: the heights are
+    # known by construction.)
+    path = tmp_path / "flat.tif"
+
+    def write(value, replace):
+        target = tmp_path / "next.tif" if replace else path
+        profile = dict(driver="GTiff", width=40, height=30, count=1, dtype="float32",
+                       transform=rasterio.transform.from_origin(0, 30, 1, 1))
+        with rasterio.open(target, "w", **profile) as out:
+            out.write(np.full((30, 40), value, np.float32), 1)
+        if replace:
+            os.replace(target, path)
+
+    points = dsa.from_array(np.array([[0.5 + i, 29.5 - i] for i in range(20)]), chunks=(5, 2))
+    write(10.0, replace=False)
+    np.testing.assert_array_equal(qota.dask.sample(path, points).compute(), 10.0)
+    write(99.0, replace=True)
+    np.testing.assert_array_equal(qota.dask.sample(path, points).compute(), 99.0)
+    write(-4.5, replace=False)
+    np.testing.assert_array_equal(qota.dask.sample(path, points, resampling="nearest").compute(), -4.5)
+    lazy = qota.dask.sample(path, points)
+    write(7.0, replace=True)
+    with pytest.raises(qota.Error, match="changed after qota.dask.sample was called"):
+        lazy.compute()
+    np.testing.assert_array_equal(qota.dask.sample(path, points).compute(), 7.0)
 
 
 def test_geodataframes_through_dask(client):
