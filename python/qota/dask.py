@@ -546,21 +546,29 @@ def _sample_source(path, band, resampling):
     return (path, band, resampling, uuid.uuid4().hex, _file_identity(path))
 
 
+def _unchanged(path, identity, call):
+    """Refuses a raster that changed after the call that set up the computation: its tasks would
+    answer from two versions, or from the old one's cached tiles."""
+    if _file_identity(path) != identity:
+        raise Error(f"{path} changed after qota.dask.{call} was called (it was rewritten or replaced); "
+                    f"call qota.dask.{call} again to use the new file")
+
+
 @functools.lru_cache(maxsize=8)
 def _sampler(source):
     """One sampler per raster and sample() call in each process: its tile cache serves every task
-    of the call there. A raster that has changed since the call is refused, not half-read."""
+    of the call there."""
     path, band, resampling, _, identity = source
     sampler = _qota._RasterSampler(path, band, resampling)
-    if _file_identity(path) != identity:
-        raise Error(f"{path} changed after qota.dask.sample was called (it was rewritten or replaced); "
-                    f"call qota.dask.sample again to sample the new file")
+    _unchanged(path, identity, "sample")
     return sampler
 
 
 def _sample_xy(source, x, y):
-    return _sampler(source).heights(np.ascontiguousarray(x, dtype=np.float64),
-                                        np.ascontiguousarray(y, dtype=np.float64))
+    heights = _sampler(source).heights(np.ascontiguousarray(x, dtype=np.float64),
+                                       np.ascontiguousarray(y, dtype=np.float64))
+    _unchanged(source[0], source[4], "sample")  # (the tiles this batch read are of that version)
+    return heights
 
 
 def _sample_frame(frame, source, x, y, name):
@@ -617,11 +625,11 @@ def sample(source, points, *, band=1, x="x", y="y", by_block=False, block=1024, 
     """
     path = _local_file(source)
     band, block = _whole(band, "band"), _whole(block, "block")
-    description = _qota._describe_raster(path, band)  # refused here, on the client, if unreadable
     from . import RESAMPLINGS
     if resampling not in RESAMPLINGS:
         raise Error(f"resampling must be one of {', '.join(RESAMPLINGS)}, got {resampling!r}")
-    source = _sample_source(path, band, resampling)
+    source = _sample_source(path, band, resampling)  # (before the description: a change after it is then seen)
+    description = _qota._describe_raster(path, band)  # refused here, on the client, if unreadable
     from . import _is_geodataframe
     if _is_geodataframe(points) and not hasattr(points, "map_partitions"):
         import dask.dataframe as dd
@@ -704,8 +712,11 @@ def _sample_by_block(source, points, x, y, description, block):
 VIEWSHED_NODATA = np.iinfo(np.uint32).max
 
 
-def _viewshed_counts(path, xs, ys, heights, target_height, max_distance, band, flat, height_ref):
-    return _qota._cumulative(path, xs, ys, heights, target_height, max_distance, band, flat, height_ref)
+def _viewshed_counts(path, identity, xs, ys, heights, target_height, max_distance, band, flat, height_ref):
+    _unchanged(path, identity, "viewsheds")
+    counts = _qota._cumulative(path, xs, ys, heights, target_height, max_distance, band, flat, height_ref)
+    _unchanged(path, identity, "viewsheds")  # (the counts are of the raster the call described)
+    return counts
 
 
 def viewsheds(source, observers, *, observer_height=2.0, target_height=0.0, max_distance=0.0, band=1, flat=False,
@@ -725,6 +736,7 @@ def viewsheds(source, observers, *, observer_height=2.0, target_height=0.0, max_
 
     path = _local_file(source)
     band, per_task = _whole(band, "band"), _whole(per_task, "per_task")
+    identity = _file_identity(path)  # (before the description: a change after it is then seen)
     description = _qota._describe_raster(path, band)  # refused here, on the client, if unreadable
     points = np.asarray(observers, dtype=np.float64)
     if points.ndim != 2 or points.shape[1] not in (2, 3) or len(points) == 0:
@@ -750,9 +762,9 @@ def viewsheds(source, observers, *, observer_height=2.0, target_height=0.0, max_
     parts = []
     for first in range(0, len(points), per_task):
         group = slice(first, first + per_task)
-        counts = dask.delayed(_viewshed_counts, pure=True)(path, points[group, 0].copy(), points[group, 1].copy(),
-                                                          heights[group], target, distance, band, bool(flat),
-                                                          reference)
+        counts = dask.delayed(_viewshed_counts, pure=True)(path, identity, points[group, 0].copy(),
+                                                          points[group, 1].copy(), heights[group], target, distance,
+                                                          band, bool(flat), reference)
         parts.append(counts)
     rows, cols = description["height"], description["width"]
     total = da.stack([da.from_delayed(p, shape=(rows, cols), dtype=np.int64) for p in parts]).sum(axis=0)

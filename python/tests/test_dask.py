@@ -198,19 +198,19 @@ def test_a_raster_rewritten_between_calls_is_read_again(client, tmp_path):
     # Workers keep a call's samplers and their tiles; a later call after the file was rewritten
     # (or replaced) reads the new heights, and a file rewritten after a call but before its
     # computation is refused, not answered from either version. (Flat rasters: the heights are
-    # known by construction.)
+    # known by construction, and on a plane every pixel sees both observers.)
     path = tmp_path / "flat.tif"
 
     def write(value, replace):
         target = tmp_path / "next.tif" if replace else path
-        profile = dict(driver="GTiff", width=40, height=30, count=1, dtype="float32",
-                       transform=rasterio.transform.from_origin(0, 30, 1, 1))
+        profile = dict(driver="GTiff", width=40, height=30, count=1, dtype="float32", crs="EPSG:32610",
+                       transform=rasterio.transform.from_origin(500000, 5000030, 1, 1))
         with rasterio.open(target, "w", **profile) as out:
             out.write(np.full((30, 40), value, np.float32), 1)
         if replace:
             os.replace(target, path)
 
-    points = dsa.from_array(np.array([[0.5 + i, 29.5 - i] for i in range(20)]), chunks=(5, 2))
+    points = dsa.from_array(np.array([[500000.5 + i, 5000029.5 - i] for i in range(20)]), chunks=(5, 2))
     write(10.0, replace=False)
     np.testing.assert_array_equal(qota.dask.sample(path, points).compute(), 10.0)
     write(99.0, replace=True)
@@ -222,6 +222,13 @@ def test_a_raster_rewritten_between_calls_is_read_again(client, tmp_path):
     with pytest.raises(qota.Error, match="changed after qota.dask.sample was called"):
         lazy.compute()
     np.testing.assert_array_equal(qota.dask.sample(path, points).compute(), 7.0)
+    # Cumulative viewsheds likewise: counted on the raster the call described, or refused.
+    observers = np.array([[500005.5, 5000005.5], [500030.5, 5000020.5]])
+    counts = qota.dask.viewsheds(path, observers, flat=True, per_task=1)
+    write(8.0, replace=True)
+    with pytest.raises(qota.Error, match="changed after qota.dask.viewsheds was called"):
+        counts.compute()
+    np.testing.assert_array_equal(qota.dask.viewsheds(path, observers, flat=True, per_task=1).compute(), 2)
 
 
 def test_geodataframes_through_dask(client):
