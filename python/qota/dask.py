@@ -25,7 +25,6 @@ computation refused), bit for bit the whole terrain's (Terrain.from_raster).
 """
 from __future__ import annotations
 
-import functools
 import os
 import shutil
 import threading
@@ -539,10 +538,10 @@ def _file_identity(path):
 
 
 def _sample_source(path, band, resampling):
-    """The key of one sample() call's samplers: the raster, and a token of the call, so that a
-    later call (the file rewritten in between, a VRT's member replaced) opens the raster afresh
-    instead of answering from the tiles an earlier call cached; and the file's identity then,
-    which each process checks as it opens the raster."""
+    """What one sample() call's tasks are given: the raster, a token of the call, so that a later
+    call (the file rewritten in between, a VRT's member replaced) opens the raster afresh instead
+    of answering from the tiles an earlier call cached, and the file's identity then, which each
+    process checks as it reads the raster."""
     return (path, band, resampling, uuid.uuid4().hex, _file_identity(path))
 
 
@@ -554,13 +553,28 @@ def _unchanged(path, identity, call):
                     f"call qota.dask.{call} again to use the new file")
 
 
-@functools.lru_cache(maxsize=8)
+#: Each process's samplers: for each raster (path, band, resampling), the latest sample() call's,
+#: at most 8 rasters (a sampler holds up to 128 MiB of tiles).
+_samplers = {}
+_samplers_lock = threading.Lock()
+
+
 def _sampler(source):
-    """One sampler per raster and sample() call in each process: its tile cache serves every task
-    of the call there."""
-    path, band, resampling, _, identity = source
+    """The sampler of a raster and a sample() call in this process: its tile cache serves every
+    task of the call there, and a later call's replaces it."""
+    path, band, resampling, call, identity = source
+    key = (path, band, resampling)
+    with _samplers_lock:
+        held = _samplers.get(key)
+        if held is not None and held[0] == call:
+            return held[1]
     sampler = _qota._RasterSampler(path, band, resampling)
     _unchanged(path, identity, "sample")
+    with _samplers_lock:
+        _samplers.pop(key, None)
+        _samplers[key] = (call, sampler)  # (the newest last)
+        while len(_samplers) > 8:
+            _samplers.pop(next(iter(_samplers)))
     return sampler
 
 

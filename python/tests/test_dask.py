@@ -5,6 +5,7 @@ under points equal Terrain.from_raster's bit for bit, results written to GeoTIFF
 back the same, and what cannot be done exactly is refused with a clear qota.Error."""
 import logging
 import os
+import warnings
 
 import numpy as np
 import pytest
@@ -222,6 +223,13 @@ def test_a_raster_rewritten_between_calls_is_read_again(client, tmp_path):
     with pytest.raises(qota.Error, match="changed after qota.dask.sample was called"):
         lazy.compute()
     np.testing.assert_array_equal(qota.dask.sample(path, points).compute(), 7.0)
+    # A process keeps one sampler a raster, the latest call's (each holds up to 128 MiB of tiles).
+    qota.dask._samplers.clear()
+    with warnings.catch_warnings():  # (the synchronous scheduler beside the client: on purpose)
+        warnings.simplefilter("ignore", UserWarning)
+        for _ in range(5):
+            np.testing.assert_array_equal(qota.dask.sample(path, points).compute(scheduler="sync"), 7.0)
+    assert len(qota.dask._samplers) == 1
     # Cumulative viewsheds likewise: counted on the raster the call described, or refused.
     observers = np.array([[500005.5, 5000005.5], [500030.5, 5000020.5]])
     counts = qota.dask.viewsheds(path, observers, flat=True, per_task=1)
