@@ -591,10 +591,14 @@ def _sample_frame(frame, source, x, y, name):
     return pd.Series(_sample_xy(source, frame[x].to_numpy(), frame[y].to_numpy()), index=frame.index, name=name)
 
 
-def _sample_geodataframe(frame, path, band, resampling, field):
+def _sample_geodataframe(frame, source, field):
     from . import sample as sample_points
 
-    return sample_points(path, frame, band=band, resampling=resampling, field=field)
+    path, band, resampling, _, identity = source
+    _unchanged(path, identity, "sample")
+    sampled = sample_points(path, frame, band=band, resampling=resampling, field=field)
+    _unchanged(path, identity, "sample")  # (the partition's heights are of that version)
+    return sampled
 
 
 def _sample_rows(points, source):
@@ -654,7 +658,7 @@ def sample(source, points, *, band=1, x="x", y="y", by_block=False, block=1024, 
         if field in points.columns:
             raise Error(f"the GeoDataFrame already has a column {field!r}; name the heights' column with field=")
         meta = points._meta.assign(**{field: np.zeros(0, dtype=np.float64)})
-        return points.map_partitions(_sample_geodataframe, path, band, resampling, field, meta=meta)
+        return points.map_partitions(_sample_geodataframe, source, field, meta=meta)
     if hasattr(points, "map_partitions") and hasattr(points, "columns"):
         for column in (x, y):
             if column not in points.columns:

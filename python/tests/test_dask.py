@@ -219,9 +219,15 @@ def test_a_raster_rewritten_between_calls_is_read_again(client, tmp_path):
     write(-4.5, replace=False)
     np.testing.assert_array_equal(qota.dask.sample(path, points, resampling="nearest").compute(), -4.5)
     lazy = qota.dask.sample(path, points)
+    geo = pytest.importorskip("geopandas")
+    places = geo.GeoDataFrame(geometry=geo.points_from_xy([500003.5, 500010.5], [5000020.5, 5000001.5]),
+                              crs="EPSG:32610")
+    lazy_frame = qota.dask.sample(path, places)
     write(7.0, replace=True)
     with pytest.raises(qota.Error, match="changed after qota.dask.sample was called"):
         lazy.compute()
+    with pytest.raises(qota.Error, match="changed after qota.dask.sample was called"):
+        lazy_frame.compute()
     np.testing.assert_array_equal(qota.dask.sample(path, points).compute(), 7.0)
     # A process keeps one sampler a raster, the latest call's (each holds up to 128 MiB of tiles).
     qota.dask._samplers.clear()
