@@ -57,7 +57,16 @@ fuzz_one() {
   fi
   echo "$name: ${runs:-0} runs, $crashes crashes"
   if [ "$crashes" -ne 0 ]; then
-    grep -E 'ERROR|SUMMARY|runtime error|Test unit written|deadly signal|ALARM|==[0-9]+==' "$log" | head -20 | sed 's/^/  /'
+    # The report: the log's last lines but libFuzzer's progress (so also what the process said
+    # before a signal: an uncaught exception's 'terminate called', a library's 'stack smashing
+    # detected', the harness's own reason for an abort).
+    grep -Ev '^#[0-9]+[[:space:]]+(NEW|REDUCE|pulse|INITED|RELOAD)' "$log" | tail -n 50 | sed 's/^/  /'
+    # The input itself, in hex, so that a crash found in CI can be replayed from its log.
+    for unit in "$artifacts"/*; do
+      [ -f "$unit" ] || continue
+      echo "  input $(basename "$unit") ($(stat -c %s "$unit") bytes):"
+      od -An -tx1 -v "$unit" | head -64 | sed 's/^/   /'
+    done
     return 1
   fi
 }

@@ -61,7 +61,7 @@ const Run& run() {
                         200 * std::exp(-((c - 30) * (c - 30) + (r - 10) * (r - 10)) / 20.0);
     }
     if (ds->GetRasterBand(1)->RasterIO(GF_Write, 0, 0, 40, 40, z.data(), 40, 40, GDT_Float32, 0, 0) != CE_None)
-      std::abort();
+      qota::fuzz::fail("cannot write the DEM");
     ds.reset();
     std::ostringstream sink;
     qota::tools::ShadowOptions o;
@@ -79,7 +79,7 @@ const Run& run() {
         out.tiles.push_back(o.output);
       }
     }
-    if (out.whole.size() != 1600 || !fs::exists(out.state)) std::abort();  // the harness itself is broken
+    if (out.whole.size() != 1600 || !fs::exists(out.state)) qota::fuzz::fail("the run's shadow or state is missing");
     return out;
   }();
   return r;
@@ -88,12 +88,20 @@ const Run& run() {
 // Assembles `tiles`: exit 0 only with the whole run's pixels.
 void assembleChecked(const std::vector<std::string>& tiles) {
   const std::string output = (qota::fuzz::scratch() / "assembled.tif").string();
-  fs::remove(output);
+  std::error_code ec;
+  fs::remove(output, ec);
   qota::tools::AssembleOptions a;
   a.tiles = tiles, a.output = output, a.quiet = true;
   std::ostringstream out, err;
   if (qota::tools::assemble(a, out, err) != 0) return;
-  if (readBand(output) != run().whole) std::abort();  // a wrong answer with exit 0
+  const std::vector<std::uint8_t> assembled = readBand(output);
+  if (assembled != run().whole) {  // a wrong answer with exit 0
+    std::size_t differ = 0;
+    for (std::size_t i = 0; i < std::min(assembled.size(), run().whole.size()); ++i)
+      differ += assembled[i] != run().whole[i];
+    qota::fuzz::fail("qota assemble exited 0 with " + std::to_string(assembled.size()) + " pixels, " +
+                     std::to_string(differ) + " of them not the whole run's");
+  }
 }
 
 void useState(const std::string& text) {
@@ -139,12 +147,13 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   }
   // Fresh copies of the four tiles, one of them changed.
   const fs::path dir = qota::fuzz::scratch() / "tiles";
-  fs::remove_all(dir);
-  fs::create_directories(dir);
+  std::error_code ec;
+  fs::remove_all(dir, ec);
+  if (!fs::create_directories(dir, ec) || ec) qota::fuzz::fail("cannot make " + dir.string() + ": " + ec.message());
   std::vector<std::string> tiles;
   for (const std::string& t : r.tiles) {
     tiles.push_back((dir / fs::path(t).filename()).string());
-    fs::copy_file(t, tiles.back());
+    qota::fuzz::copyFile(t, tiles.back());
   }
   if (mode == 2) {
     const int pick = in.byte();
