@@ -21,7 +21,8 @@ groups, each group one task that places and indexes the raster and looks from it
 Points: heights under (x, y) points given as a dask DataFrame or array, each partition answered
 by a sampler that reads the raster tile by tile (one per worker process, raster and call: a
 raster rewritten between calls is read again, one rewritten after a call and before its
-computation refused), bit for bit the whole terrain's (Terrain.from_raster).
+computation refused, and so is a VRT whose source file was, or any file GDAL reads for the
+raster), bit for bit the whole terrain's (Terrain.from_raster).
 """
 from __future__ import annotations
 
@@ -528,13 +529,19 @@ def _writer_lock(path):
 # --- points ------------------------------------------------------------------------------------
 
 def _file_identity(path):
-    """What tells one version of a raster file from another: its device, inode, size and
-    modification time (None for what is not a local file: GDAL's virtual paths and names)."""
-    try:
-        st = os.stat(path)
-    except (OSError, ValueError):
-        return None
-    return (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
+    """What tells one version of a raster from another: the device, inode, size and modification
+    time of every local file GDAL reads for it (the file, a VRT's sources, its sidecars), sorted
+    by name; None when none is a local file (GDAL's virtual paths and names)."""
+    path = os.fspath(path)
+    files = {path, *_qota._raster_files(path)}
+    identity = []
+    for name in sorted(files):
+        try:
+            st = os.stat(name)
+        except (OSError, ValueError):
+            continue
+        identity.append((name, st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns))
+    return tuple(identity) or None
 
 
 def _sample_source(path, band, resampling):
@@ -548,8 +555,12 @@ def _sample_source(path, band, resampling):
 def _unchanged(path, identity, call):
     """Refuses a raster that changed after the call that set up the computation: its tasks would
     answer from two versions, or from the old one's cached tiles."""
-    if _file_identity(path) != identity:
-        raise Error(f"{path} changed after qota.dask.{call} was called (it was rewritten or replaced); "
+    now = _file_identity(path)
+    if now != identity:
+        before, after = ({f[0]: f for f in i or ()} for i in (identity, now))
+        changed = sorted(n for n in before.keys() | after.keys() if before.get(n) != after.get(n))
+        which = "" if changed in ([], [os.fspath(path)]) else f" ({', '.join(changed)})"
+        raise Error(f"{path}{which} changed after qota.dask.{call} was called (it was rewritten or replaced); "
                     f"call qota.dask.{call} again to use the new file")
 
 

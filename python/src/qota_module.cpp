@@ -653,6 +653,25 @@ py::dict describeRaster(const std::string& path, int band) {
   return d;
 }
 
+// Every file GDAL reads for a raster: the file itself, a VRT's sources, sidecars (.aux.xml,
+// .ovr, .msk, a world file). qota.dask watches them for a change between a call and its
+// computation. Empty when GDAL cannot open the raster (reading it then says why).
+std::vector<std::string> rasterFiles(const std::string& path) {
+  py::gil_scoped_release release;
+  qota::ensureGdalRegistered();
+  CPLPushErrorHandler(CPLQuietErrorHandler);
+  std::unique_ptr<GDALDataset> ds(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER));
+  std::vector<std::string> files;
+  if (ds) {
+    char** list = ds->GetFileList();
+    for (char** f = list; f && *f; ++f) files.emplace_back(*f);
+    CSLDestroy(list);
+  }
+  ds.reset();
+  CPLPopErrorHandler();
+  return files;
+}
+
 // The instants (Julian days, UT) of the local clock hours start and end of a date (qota shadow
 // --hours's span).
 std::array<double, 2> localSpan(const std::string& time, const std::string& tz, double start, double end) {
@@ -823,6 +842,7 @@ PYBIND11_MODULE(_qota, m) {
       .def(py::pickle([](const qota::ShadowTiles& t) { return py::make_tuple(py::bytes(t.state())); },
                       [](const py::tuple& s) { return qota::ShadowTiles::restore(s[0].cast<std::string>()); }));
   m.def("_describe_raster", &describeRaster, py::arg("path"), py::arg("band"));
+  m.def("_raster_files", &rasterFiles, py::arg("path"));
   m.def("_byte_size", &qota::tools::parseByteSize, py::arg("text"));
   m.def("_local_span", &localSpan, py::arg("time"), py::arg("tz"), py::arg("start"), py::arg("end"));
   m.def(

@@ -245,6 +245,32 @@ def test_a_raster_rewritten_between_calls_is_read_again(client, tmp_path):
     np.testing.assert_array_equal(qota.dask.viewsheds(path, observers, flat=True, per_task=1).compute(), 2)
 
 
+def test_a_vrt_whose_source_changed_after_the_call_is_refused(client, tmp_path):
+    # A VRT mosaic of two tiles: a tile rewritten after a call and before its computation (the
+    # VRT itself untouched) is refused, naming the tile, as a rewritten raster is; the next call
+    # reads the new heights. (Flat tiles: the heights at their pixel centres are known.)
+    gdal = pytest.importorskip("osgeo.gdal")
+
+    def tile(name, x0, value):
+        profile = dict(driver="GTiff", width=20, height=30, count=1, dtype="float32", crs="EPSG:32610",
+                       transform=rasterio.transform.from_origin(x0, 5000030, 1, 1))
+        with rasterio.open(tmp_path / name, "w", **profile) as out:
+            out.write(np.full((30, 20), value, np.float32), 1)
+
+    tile("a.tif", 500000, 10.0)
+    tile("b.tif", 500020, 20.0)
+    vrt = tmp_path / "mosaic.vrt"
+    mosaic = gdal.BuildVRT(str(vrt), [str(tmp_path / "a.tif"), str(tmp_path / "b.tif")])
+    mosaic = None  # noqa: F841 (written when closed)
+    points = dsa.from_array(np.array([[500005.5, 5000010.5], [500025.5, 5000010.5]]), chunks=(1, 2))
+    np.testing.assert_array_equal(qota.dask.sample(vrt, points).compute(), [10.0, 20.0])
+    lazy = qota.dask.sample(vrt, points)
+    tile("b.tif", 500020, 30.0)
+    with pytest.raises(qota.Error, match=r"b\.tif\) changed after qota\.dask\.sample was called"):
+        lazy.compute()
+    np.testing.assert_array_equal(qota.dask.sample(vrt, points).compute(), [10.0, 30.0])
+
+
 def test_geodataframes_through_dask(client):
     gpd = pytest.importorskip("geopandas")
     # Points in UTM (the frame's CRS, not the raster's), some empty and off the raster; nearest:
