@@ -22,7 +22,8 @@
 // machine's hardware counters are not available to perf).
 //
 // Flags: --quick (a 16k-triangle TIN and Delft, 100k queries; ctest runs it), --large (adds the
-// 4M TIN, the default does too; --no-large leaves it out).
+// 4M TIN, the default does too; --no-large leaves it out), --only tin|tin4m|rainier|delft (that
+// terrain alone).
 #include <embree3/rtcore.h>
 #include <sys/mman.h>
 
@@ -515,16 +516,23 @@ bool run(const Terrain& t, std::size_t n, double latencyNs, double cacheBytes) {
 
 int main(int argc, char** argv) {
   bool quick = false, large = true;
+  std::string only;  // one terrain: tin, tin4m, rainier or delft
   for (int i = 1; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--quick")) {
       quick = true;
     } else if (!std::strcmp(argv[i], "--no-large")) {
       large = false;
+    } else if (!std::strcmp(argv[i], "--only") && i + 1 < argc &&
+               std::strstr(" tin tin4m rainier delft ", (" " + std::string(argv[i + 1]) + " ").c_str())) {
+      only = argv[++i];
     } else if (std::strcmp(argv[i], "--large") != 0) {
-      std::fprintf(stderr, "tin_bench: unknown option %s (--quick, --large, --no-large)\n", argv[i]);
+      std::fprintf(stderr,
+                   "tin_bench: unknown option %s (--quick, --large, --no-large, --only tin|tin4m|rainier|delft)\n",
+                   argv[i]);
       return 2;
     }
   }
+  const auto wanted = [&](const char* key) { return only.empty() || only == key; };
   const std::size_t n = quick ? 100000 : 1000000;
   const double latency = dramLatencyNs();
   std::printf("tin_bench: qota vs Embree %d.%d.%d on irregular meshes, %zu queries per set, one thread\n",
@@ -536,13 +544,15 @@ int main(int argc, char** argv) {
               cache / (1 << 20));
   bool ok = true;
   if (quick) {
-    ok = run(fractalTin(8192, "Delaunay TIN over a fractal (8k points)"), n, latency, cache) && ok;
-    ok = run(delft(), n, latency, cache) && ok;
+    if (wanted("tin")) ok = run(fractalTin(8192, "Delaunay TIN over a fractal (8k points)"), n, latency, cache) && ok;
+    if (wanted("delft")) ok = run(delft(), n, latency, cache) && ok;
   } else {
-    ok = run(fractalTin(524288, "Delaunay TIN over a fractal (524k points)"), n, latency, cache) && ok;
-    if (large) ok = run(fractalTin(2097152, "Delaunay TIN over a fractal (2.1M points)"), n, latency, cache) && ok;
-    ok = run(rainierTin(700000), n, latency, cache) && ok;
-    ok = run(delft(), n, latency, cache) && ok;
+    if (wanted("tin"))
+      ok = run(fractalTin(524288, "Delaunay TIN over a fractal (524k points)"), n, latency, cache) && ok;
+    if ((large && only.empty()) || only == "tin4m")
+      ok = run(fractalTin(2097152, "Delaunay TIN over a fractal (2.1M points)"), n, latency, cache) && ok;
+    if (wanted("rainier")) ok = run(rainierTin(700000), n, latency, cache) && ok;
+    if (wanted("delft")) ok = run(delft(), n, latency, cache) && ok;
   }
   std::printf("\n%s\n", ok ? "every qota answer equals the exact oracle's" : "SOME qota ANSWERS ARE WRONG");
   return ok ? 0 : 1;
