@@ -83,6 +83,12 @@ Point2 Quadtree::costCut(const Box2& box, std::uint32_t depth, std::span<const s
 }
 
 Quadtree::Node Quadtree::descend(double u, double v, Cursor& cursor) const {
+  cursor.leaf = descend(u, v, cursor.box);
+  cursor.stamp = stamp_;
+  return cursor.leaf;
+}
+
+Quadtree::Node Quadtree::descend(double u, double v, Box2& box) const {
   // leafNode's descent, also tracking the high edges of the box: a low child's high edge is the
   // cut itself, a high child's is its parent's.
   Node nd = nodes_[0];
@@ -107,9 +113,7 @@ Quadtree::Node Quadtree::descend(double u, double v, Cursor& cursor) const {
     n = nd.first + (static_cast<std::uint32_t>(highV) << 1 | static_cast<std::uint32_t>(highU));
     nd = nodes_[n];
   }
-  cursor.leaf = nd;
-  cursor.box = {lu, lv, hu, hv};
-  cursor.stamp = stamp_;
+  box = {lu, lv, hu, hv};
   return nd;
 }
 
@@ -126,9 +130,7 @@ bool Quadtree::leafPast(const Box2& b, double u, double v, double du, double dv,
   if (!(steps >= 1 && steps <= 64)) return false;
   const double qu = u + steps * du, qv = v + steps * dv;
   if (!contains(qu, qv)) return false;
-  Cursor c;
-  leaf = descend(qu, qv, c);
-  box = c.box;
+  leaf = descend(qu, qv, box);
   return true;
 }
 

@@ -310,6 +310,8 @@ class Quadtree {
     while (g < last && x >= cut[g + 1]) ++g;
     return static_cast<std::uint32_t>(g);
   }
+  // leafNode's descent, the leaf's box with it (a cursor's: also its leaf and this tree's stamp).
+  Node descend(double u, double v, Box2& box) const;
   Node descend(double u, double v, Cursor& cursor) const;
   // A walk of steps smaller than its leaves (a vehicle, a profile, a scan line) that has just
   // entered the cursor's leaf will next cross the leaves its steps lead to. The one after next
