@@ -117,7 +117,7 @@ Quadtree::Node Quadtree::descend(double u, double v, Box2& box) const {
   return nd;
 }
 
-std::uint64_t Quadtree::nextStamp() {
+std::uint64_t nextSerial() {
   static std::atomic<std::uint64_t> next{1};
   return next++;
 }
@@ -197,7 +197,6 @@ void Quadtree::refreshJump(std::uint32_t n, std::uint32_t depth, const Box2& box
 }
 
 void Quadtree::compact() {
-  stamp_ = nextStamp();
   // Copy every leaf's live range into a fresh array, in node order.
   BigVector<std::uint32_t> fresh;
   fresh.reserve(refs_.size() - abandoned_);
@@ -213,7 +212,7 @@ void Quadtree::compact() {
 }
 
 void Quadtree::buildJumpTable() {
-  stamp_ = nextStamp();  // (the end of every build and of markLeaves, and a tree file's load)
+  stamp_ = nextSerial();  // (the end of every build, markLeaves and compaction, and a tree file's load)
   // A tree within a few MiB (with its items' records, some more) stays in cache while it is
   // walked: nothing to fetch ahead.
   fetchAhead_ = nodes_.size() * sizeof(Node) + refs_.size() * sizeof(std::uint32_t) > (4u << 20);

@@ -37,6 +37,10 @@
 
 namespace qota {
 
+// A number no earlier call in the process returned: what tells a tree's or an index's state from
+// every other's, including one built later in the same memory.
+std::uint64_t nextSerial();
+
 class Quadtree {
  public:
   static constexpr std::uint32_t kInner = 0xffffffffu;
@@ -325,8 +329,7 @@ class Quadtree {
   // b, for a point p in or before b; false when that is over 64 steps on or off the tree.
   bool leafPast(const Box2& b, double u, double v, double du, double dv, Node& leaf, Box2& box) const;
   // A fresh value for every tree and every change of one (cursors compare it).
-  std::uint64_t stamp_ = nextStamp();
-  static std::uint64_t nextStamp();
+  std::uint64_t stamp_ = nextSerial();
   bool fetchAhead_ = false;  // lookAhead pays (the tree is larger than a cache holds)
   // Copies node n (at depth, with box) into the jump table cells it covers (if it is at or above
   // the table's depth).
@@ -461,7 +464,7 @@ void Quadtree::forOverlappingLeaves(const Visit& visitLeaf, const std::function<
 template <class Overlaps, class Prepare>
 void Quadtree::insert(std::uint32_t item, Overlaps&& overlaps, Prepare&& prepare) {
   if (nodes_.empty() || half_.empty()) throw Error("quadtree: insert into a tree never built");
-  stamp_ = nextStamp();
+  stamp_ = nextSerial();
   itemCount_ = std::max(itemCount_, item + 1);
   refBudget_ = std::max<std::uint64_t>(refBudget_, 64ull * itemCount_ + (1ull << 22));
   forOverlappingLeaves(
@@ -489,7 +492,7 @@ void Quadtree::insert(std::uint32_t item, Overlaps&& overlaps, Prepare&& prepare
 template <class Overlaps>
 void Quadtree::remove(std::uint32_t item, Overlaps&& overlaps) {
   if (nodes_.empty() || half_.empty()) return;
-  stamp_ = nextStamp();
+  stamp_ = nextSerial();
   forOverlappingLeaves(
       [&](std::uint32_t n, std::uint32_t depth, const Box2& box) {
         Node& leaf = nodes_[n];

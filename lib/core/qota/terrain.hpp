@@ -289,10 +289,6 @@ class PlanarCore : public IndexFace<PlanarCore> {
   static bool separated(const EdgeView& a, const EdgeView& b);
   // This index's build among all in the process (prepareLeaf's table of pairs found apart).
   std::uint64_t serial_ = nextSerial();
-  static std::uint64_t nextSerial() {
-    static std::atomic<std::uint64_t> next{1};
-    return next++;
-  }
   void prefetchTriangles(std::span<const std::uint32_t> items) const;
 
   PlanarFrame frame_;
