@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 #include <proj.h>
 
+#include <cmath>
 #include <filesystem>
 #include <array>
 #include <random>
@@ -15,6 +16,7 @@
 
 #include "qota/error.hpp"
 #include "qota/geoid.hpp"
+#include "qota/raster_grid.hpp"
 #include "qota_tools.hpp"
 #include "raster_files.hpp"
 
@@ -251,6 +253,55 @@ TEST(Geoid, TreeFilesKeepTheReference) {
   const SampleRun fromTree = sample(o, points);
   ASSERT_EQ(fromTree.code, 0) << fromTree.err;
   EXPECT_EQ(fromTree.out, fromRaster.out);
+}
+
+TEST(Geoid, APointBeyondTheGridIsNamedWhateverTheThreads) {
+  // A geoid grid that covers every pixel centre of the raster but not its east edge (the outer
+  // half pixel, placed after the pixels: past the first blocks). The frame's points are placed in
+  // blocks of 65,536 on every core; the point named must be the first beyond the grid in the
+  // frame's own order (a later block on another thread can fail first), and the failure a clean
+  // refusal that writes nothing.
+  const int w = 400, h = 400;
+  const std::string raster = crop("geoid_partial.tif", "EPSG:4326", 500, 500, w, h);
+  const qota::test::RasterValues r = qota::test::readRaster(raster);
+  const double eastCentre = r.geotransform[0] + (w - 0.5) * r.geotransform[1];
+  RasterSpec g;
+  g.width = 40, g.height = 60;  // nodes 0.01 degree apart, the last a little east of eastCentre
+  const double lastNode = eastCentre + 0.25 * r.geotransform[1];
+  g.geotransform = {lastNode - 39.5 * 0.01, 0.01, 0, 46.9, 0, -0.01};
+  g.crs = "EPSG:4326";
+  g.bands = {std::vector<double>(40 * 60, -19.0)};
+  const std::string grid = scratchPath("geoid_partial_grid.tif").string();
+  qota::test::writeRaster(grid, g);
+  // The first vertex the grid does not cover: pixel centres first, then the border's vertices.
+  qota::HeightReference ref;
+  ref.name = "partial", ref.grid = grid;
+  const qota::Geoid geoid(ref);
+  const auto covered = [&](double col, double row) {
+    return !std::isnan(
+        geoid.undulation(r.geotransform[0] + col * r.geotransform[1], r.geotransform[3] + row * r.geotransform[5]));
+  };
+  for (int i = 0; i < w * h; ++i) ASSERT_TRUE(covered(i % w + 0.5, i / w + 0.5)) << i;
+  std::string first;
+  const qota::RasterGrid frameGrid(w, h, {.border = true});
+  for (const auto& e : frameGrid.extraVertices()) {
+    if (!covered(e.col, e.row)) {
+      first = "pixel (" + std::to_string(e.col) + ", " + std::to_string(e.row) + ")";
+      break;
+    }
+  }
+  ASSERT_FALSE(first.empty());
+  qota::tools::ShadowOptions o;
+  o.source = raster;
+  o.output = scratchPath("geoid_partial_out.tif").string();
+  o.azimuth = 135, o.altitude = 10, o.quiet = true, o.heightRef = grid;
+  for (int run = 0; run < 3; ++run) {
+    std::ostringstream out, err;
+    EXPECT_EQ(qota::tools::shadow(o, out, err), 2);
+    EXPECT_NE(err.str().find(first + " at "), std::string::npos) << first << "\n" << err.str();
+    EXPECT_NE(err.str().find("is outside the geoid grid"), std::string::npos) << err.str();
+    EXPECT_FALSE(std::filesystem::exists(o.output));
+  }
 }
 
 TEST(Geoid, ShadowsRecordTheirReference) {
