@@ -14,6 +14,7 @@
 #include <fstream>
 #include <iomanip>
 #include <random>
+#include <set>
 #include <sstream>
 
 #include "qota/error.hpp"
@@ -23,6 +24,7 @@
 #include "qota/viewshed.hpp"
 #include "qota_tools.hpp"
 #include "raster_files.hpp"
+#include "walk_ring.hpp"
 
 namespace {
 
@@ -673,22 +675,29 @@ void compareOnBody(const BodyCase& b, const std::string& name, double col, doubl
   o.observerX = b.lon0 + col * b.step, o.observerY = b.lat0 - row * b.step;
   o.observerHeight = H, o.targetHeight = T;
   o.frame.heightRef = "ellipsoid";
-  const auto got = qota::viewshed(dem, o).sight;
   const auto want = bodyOracle(b, col, row, H, T);
-  int differ = 0, ambiguous = 0;
-  for (std::size_t i = 0; i < got.size(); ++i) {
-    if (want[i] == Sight::NoData) {
-      ++ambiguous;
-      continue;
+  // Each line of sight walked over the squares under it (the default on an ellipsoid), and
+  // through the quadtree.
+  for (const bool walk : {true, false}) {
+    o.sweep = walk;
+    const qota::Viewshed seen = qota::viewshed(dem, o);
+    EXPECT_EQ(seen.method, walk ? "walk" : "quadtree") << name;
+    const auto& got = seen.sight;
+    int differ = 0, ambiguous = 0;
+    for (std::size_t i = 0; i < got.size(); ++i) {
+      if (want[i] == Sight::NoData) {
+        ++ambiguous;
+        continue;
+      }
+      if (walk) ++compared, visible += want[i] == Sight::Visible;
+      if (got[i] != want[i] && differ++ < 5) {
+        ADD_FAILURE() << name << " (" << seen.method << "): pixel (" << i % b.w << ", " << i / b.w << ") qota "
+                      << static_cast<int>(got[i]) << ", oracle " << static_cast<int>(want[i]);
+      }
     }
-    ++compared, visible += want[i] == Sight::Visible;
-    if (got[i] != want[i] && differ++ < 5) {
-      ADD_FAILURE() << name << ": pixel (" << i % b.w << ", " << i / b.w << ") qota " << static_cast<int>(got[i])
-                    << ", oracle " << static_cast<int>(want[i]);
-    }
+    EXPECT_EQ(differ, 0) << name << " (" << seen.method << ")";
+    EXPECT_LT(ambiguous, static_cast<int>(got.size()) / 50) << name << ": too many cells within rounding";
   }
-  EXPECT_EQ(differ, 0) << name;
-  EXPECT_LT(ambiguous, static_cast<int>(got.size()) / 50) << name << ": too many cells within rounding";
 }
 
 std::vector<double> hills(int w, int h, double relief, unsigned seed) {
@@ -837,6 +846,171 @@ TEST(Viewshed, SweepAgreesWithEveryLineOfSightOnRainier) {
     swept += fast.swept;
   }
   EXPECT_GT(swept, 50000u);  // (of 95,167 tested: the tile's scattered voids leave many to the exact test)
+}
+
+// On the ellipsoid: the walk over the squares under each line of sight answers as the quadtree
+// does (itself held to the oracle above), pixel for pixel, on the real tile with its voids, for
+// observers high and low, with a target height, refraction and maximum distances.
+TEST(Viewshed, WalkAgreesWithTheQuadtreeOnTheEllipsoidOnRainier) {
+  qota::DemOptions read;
+  read.lonLatAsCartesian = true;
+  const qota::DemTerrain dem = qota::loadDem(QOTA_DATA_DIR "/mt_rainier_90m.tif", read);
+  const double spots[][5] = {// lon, lat, observer height, maximum distance, refraction
+                             {-121.7326, 46.8356, 10, 6000, 0},
+                             {-121.760, 46.853, 2, 5000, 0},
+                             {-121.80, 46.80, 30, 7000, 0.13},
+                             {-121.70, 46.90, 2, 9000, 0}};
+  for (const auto& spot : spots) {
+    qota::ViewshedOptions o;
+    o.observerX = spot[0], o.observerY = spot[1], o.observerHeight = spot[2], o.maxDistance = spot[3];
+    o.refraction = spot[4];
+    if (spot[2] == 2) o.targetHeight = 1.5;
+    const qota::Viewshed walked = qota::viewshed(dem, o);
+    o.sweep = false;
+    const qota::Viewshed indexed = qota::viewshed(dem, o);
+    EXPECT_EQ(walked.method, "walk");
+    EXPECT_EQ(indexed.method, "quadtree");
+    int differ = 0;
+    for (std::size_t i = 0; i < walked.sight.size(); ++i) differ += walked.sight[i] != indexed.sight[i];
+    EXPECT_EQ(differ, 0) << "observer " << spot[0] << ", " << spot[1];
+    EXPECT_EQ(walked.visible, indexed.visible);
+    EXPECT_GT(walked.visible, 0u);
+  }
+  // Cumulative: each observer walked, against the sum of the quadtree's single viewsheds.
+  std::vector<qota::Observer> observers;
+  for (const auto& spot : spots) observers.push_back({spot[0], spot[1], spot[2], ""});
+  qota::CumulativeOptions c;
+  c.targetHeight = 1.5, c.maxDistance = 6000;
+  const qota::CumulativeViewshed counted = qota::cumulativeViewshed(dem, observers, c);
+  std::vector<std::uint32_t> sum(counted.count.size(), 0);
+  for (const auto& spot : spots) {
+    qota::ViewshedOptions o;
+    o.observerX = spot[0], o.observerY = spot[1], o.observerHeight = spot[2];
+    o.targetHeight = 1.5, o.maxDistance = 6000, o.sweep = false;
+    const qota::Viewshed one = qota::viewshed(dem, o);
+    for (std::size_t i = 0; i < sum.size(); ++i) sum[i] += one.sight[i] == Sight::Visible;
+  }
+  EXPECT_EQ(counted.count, sum);
+}
+
+// A projected raster (the tile's heights on a UTM grid of 90 m) seen whole from observers near
+// its outermost centres, at a corner and by an edge: lines of sight to the edges run along the
+// border's triangles, which the walk tests where its padded track reaches them. An observer in
+// the outer half pixel goes through the quadtree.
+TEST(Viewshed, WalkAlongTheEdgesOfAProjectedRaster) {
+  const qota::test::RasterValues tile = qota::test::readRaster(QOTA_DATA_DIR "/mt_rainier_90m.tif");
+  qota::test::RasterSpec spec;
+  spec.width = 90, spec.height = 70;
+  spec.geotransform = {590000, 90, 0, 5190000, 0, -90};
+  spec.crs = "EPSG:32610";
+  spec.nodata = -32768;
+  spec.bands = {{}};
+  for (int r = 0; r < spec.height; ++r) {
+    for (int c = 0; c < spec.width; ++c) spec.bands[0].push_back(tile.at(560 + c, 440 + r));
+  }
+  const auto path = qota::test::scratchPath("viewshed_utm_edges.tif");
+  qota::test::writeRaster(path, spec);
+  qota::DemOptions read;
+  const qota::DemTerrain dem = qota::loadDem(path.string(), read);
+  const auto at = [&](double col, double row) {
+    return std::array<double, 2>{spec.geotransform[0] + col * 90, spec.geotransform[3] - row * 90};
+  };
+  // (pixel coordinates: centres at + 0.5; a pixel inside the outermost centres is 1.5)
+  const double spots[][3] = {{1.5, 1.5, 20}, {45.5, 0.75, 5}, {88.5, 35.25, 15}, {30.5, 68.5, 40}, {0.3, 30.5, 10}};
+  int walks = 0;
+  for (const auto& spot : spots) {
+    qota::ViewshedOptions o;
+    const auto xy = at(spot[0], spot[1]);
+    o.observerX = xy[0], o.observerY = xy[1], o.observerHeight = spot[2];
+    for (const double target : {0.0, 3.0}) {
+      o.targetHeight = target;
+      o.sweep = true;
+      const qota::Viewshed walked = qota::viewshed(dem, o);
+      o.sweep = false;
+      const qota::Viewshed indexed = qota::viewshed(dem, o);
+      walks += walked.method == "walk";
+      EXPECT_EQ(walked.method, spot[0] > 0.5 ? "walk" : "quadtree") << spot[0] << ", " << spot[1];
+      int differ = 0;
+      for (std::size_t i = 0; i < walked.sight.size(); ++i) differ += walked.sight[i] != indexed.sight[i];
+      EXPECT_EQ(differ, 0) << "observer at pixel " << spot[0] << ", " << spot[1] << ", target " << target;
+    }
+  }
+  EXPECT_EQ(walks, 8);
+}
+
+// The ring cells a padded track reaches, against every ring cell's widened box clipped against
+// the track (Liang-Barsky), on random rasters and tracks: inside, outside, along the edges, through
+// the corners, points, axis-parallel.
+TEST(WalkRing, VisitsEveryRingCellAPaddedTrackReaches) {
+  std::mt19937 rng(1709);
+  std::uniform_real_distribution<double> unit(0, 1);
+  int reached = 0;
+  for (int round = 0; round < 3000; ++round) {
+    const int w = 2 + static_cast<int>(unit(rng) * 30), h = 2 + static_cast<int>(unit(rng) * 30);
+    const auto coordinate = [&](int size) {
+      const double k = unit(rng);
+      // (whole and half numbers often: tracks along the centres' lines and the edges)
+      return k < 0.3 ? std::round(unit(rng) * (size + 2) * 2) / 2 - 1.5 : unit(rng) * (size + 3) - 2;
+    };
+    double ax = coordinate(w), ay = coordinate(h), bx = coordinate(w), by = coordinate(h);
+    if (round % 10 == 0) bx = ax;
+    if (round % 10 == 1) by = ay;
+    if (round % 50 == 2) bx = ax, by = ay;
+    const double pad = round % 7 == 0 ? 1e-6 : unit(rng) * 2;
+    std::set<std::pair<int, int>> visited;
+    qota::walk::forRingCells(ax, ay, bx, by, pad, w, h, [&](qota::walk::Side side, int k) {
+      visited.insert({static_cast<int>(side), k});
+      return false;
+    });
+    const double grow = pad * (1 - 1e-9);
+    for (int r = -1; r <= h - 1; ++r) {
+      for (int c = -1; c <= w - 1; ++c) {
+        if (c != -1 && c != w - 1 && r != -1 && r != h - 1) continue;
+        // The track against the box [c - grow, c + 1 + grow] x [r - grow, r + 1 + grow].
+        double u0 = 0, u1 = 1;
+        const auto clip = [&](double start, double step, double lo, double hi) {
+          if (step == 0) {
+            if (start < lo || start > hi) u0 = 2;
+            return;
+          }
+          const double ua = (lo - start) / step, ub = (hi - start) / step;
+          u0 = std::max(u0, std::min(ua, ub)), u1 = std::min(u1, std::max(ua, ub));
+        };
+        clip(ax, bx - ax, c - grow, c + 1 + grow);
+        clip(ay, by - ay, r - grow, r + 1 + grow);
+        if (!(u0 <= u1)) continue;
+        ++reached;
+        qota::walk::Side side;
+        int k;
+        qota::walk::ringCellOf(c, r, h, side, k);
+        EXPECT_TRUE(visited.count({static_cast<int>(side), k}))
+            << "cell (" << c << ", " << r << ") of " << w << " x " << h << ", track (" << ax << ", " << ay << ") to ("
+            << bx << ", " << by << "), pad " << pad;
+      }
+    }
+  }
+  EXPECT_GT(reached, 3000);
+}
+
+// A wide geographic raster far north is too far from its linear image for the walk's corridor
+// (its pad beyond two pixels): the quadtree answers there.
+TEST(Viewshed, AWideRasterFarNorthGoesThroughTheQuadtree) {
+  qota::test::RasterSpec spec;
+  spec.width = 240, spec.height = 40;
+  spec.geotransform = {10, 0.05, 0, 72, 0, -0.05};  // 12 degrees of longitude at 70 N
+  spec.crs = "EPSG:4326";
+  spec.bands = {std::vector<double>(static_cast<std::size_t>(spec.width) * spec.height, 100.0)};
+  const auto path = qota::test::scratchPath("viewshed_wide_north.tif");
+  qota::test::writeRaster(path, spec);
+  qota::DemOptions read;
+  read.lonLatAsCartesian = true;
+  const qota::DemTerrain dem = qota::loadDem(path.string(), read);
+  qota::ViewshedOptions o;
+  o.observerX = 16.025, o.observerY = 71.025, o.observerHeight = 50;
+  o.frame.heightRef = "ellipsoid";
+  const qota::Viewshed seen = qota::viewshed(dem, o);
+  EXPECT_EQ(seen.method, "quadtree");
+  EXPECT_GT(seen.visible, 0u);
 }
 
 // The sweep cuts each quadrant into slices of slopes, which the threads take in turn. Every

@@ -339,8 +339,9 @@ int parseAndRun(int argc, const char* const* argv, std::istream& in, std::ostrea
                    "Output value of pixels beyond --max-distance")
       ->capture_default_str();
   viewshedCmd->add_flag("--per-pixel", viewshedOptions.perPixel,
-                        "Test every pixel's line of sight through the quadtree instead of the exact sweep (the same "
-                        "answers, slower; for comparison)");
+                        "Test every pixel's line of sight through the quadtree instead of the exact sweep (flat) or "
+                        "the walk over the squares under it (on the ellipsoid): the same answers, slower; for "
+                        "comparison");
   addTreeOptions(viewshedCmd, viewshedOptions.index);
 
   AssembleOptions assembleOptions;

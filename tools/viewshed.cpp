@@ -206,7 +206,9 @@ void writeOne(const ViewshedOptions& o, Run& run, std::ostream& out, OutputStage
         << formatNumber(o.observerHeight) << " m above the surface at " << formatNumber(seen.surface, 3) << " m\n"
         << "visible: " << seen.visible << " of " << seen.tested << " pixels tested ("
         << formatNumber(seen.tested ? 100.0 * seen.visible / seen.tested : 0.0, 2) << " %)\n"
-        << "decided: " << seen.swept << " by the sweep, " << seen.oneByOne << " one by one\n";
+        << "decided: " << seen.swept << " by the sweep, " << seen.oneByOne << " one by one ("
+        << (seen.method == "walk" ? "walked over the squares under each line of sight" : "through the quadtree")
+        << ")\n";
   }
   std::vector<double> values(seen.sight.size());
   for (std::size_t i = 0; i < values.size(); ++i) {

@@ -17,6 +17,7 @@
 #include "qota/terrain.hpp"
 #include "shadow_facing.hpp"
 #include "viewshed_sweep.hpp"
+#include "walk_ring.hpp"
 
 namespace qota {
 
@@ -437,32 +438,39 @@ class Sightlines {
   // frame) touches, each by the index's own rule (segmentMeetsTriangle; endVertex's triangles left
   // out as segmentMeets leaves them). The same answer as the index's walk, which tests a subset of
   // these by the same rule, for segments inside the outermost centres' lines.
+  // On an ellipsoid with the observer's model ready (model()), the track is the segment's in the
+  // model, the squares are padded by the model's pad, heights are the model's and the border's
+  // triangles join where the padded track reaches them: the same answer for any segment from the
+  // observer. metSquare: the square (row (width - 1) + col) of the triangle met, when one is.
   bool walkMeets(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double ax, double ay, double bx, double by,
-                 std::uint32_t endVertex) const {
+                 std::uint32_t endVertex, std::int64_t* metSquare = nullptr) const {
     const int w = frame_.width, h = frame_.height;
     const Eigen::Vector3d d = b - a;
-    constexpr double kPad = 1e-7;  // pixels: far beyond the rounding of the track, a superset
-    const int c0 = std::max(0, static_cast<int>(std::floor(std::min(ax, bx) - kPad)));
-    const int c1 = std::min(w - 2, static_cast<int>(std::floor(std::max(ax, bx) + kPad)));
+    // Pixels: a flat frame's, far beyond the rounding of the track (a superset); a model's, its
+    // vertices' largest distance from their pixels' positions (model()).
+    const double pad = model_ ? model_->pad : 1e-7;
+    const double za = heightOf(a), zb = heightOf(b), dz = zb - za;
+    const int c0 = std::max(0, static_cast<int>(std::floor(std::min(ax, bx) - pad)));
+    const int c1 = std::min(w - 2, static_cast<int>(std::floor(std::max(ax, bx) + pad)));
     // A square whose corners all lie above the segment's heights over its column, or all below,
     // by more than any rounding here or in the frame's coordinates, holds no triangle it meets.
-    const double margin = 1e-6 + 1e-9 * (std::fabs(a.z()) + std::fabs(b.z()));
+    const double margin = 1e-6 + 1e-9 * (std::fabs(za) + std::fabs(zb));
     // The track over squares' columns [from, to] (clamped to the segment, padded): its rows and
     // the segment's heights there.
     const auto span = [&](int from, int to, double& y0, double& y1, double& lineLow, double& lineHigh) {
-      double z0 = a.z(), z1 = b.z();
+      double z0 = za, z1 = zb;
       y0 = ay, y1 = by;
       if (bx != ax) {
-        const double u0 = std::clamp((from - kPad - ax) / (bx - ax), 0.0, 1.0);
-        const double u1 = std::clamp((to + 1 + kPad - ax) / (bx - ax), 0.0, 1.0);
+        const double u0 = std::clamp((from - pad - ax) / (bx - ax), 0.0, 1.0);
+        const double u1 = std::clamp((to + 1 + pad - ax) / (bx - ax), 0.0, 1.0);
         y0 = ay + u0 * (by - ay), y1 = ay + u1 * (by - ay);
-        z0 = a.z() + u0 * d.z(), z1 = a.z() + u1 * d.z();
+        z0 = za + u0 * dz, z1 = za + u1 * dz;
       }
       lineLow = std::min(z0, z1) - margin, lineHigh = std::max(z0, z1) + margin;
     };
     const auto rows = [&](double y0, double y1, int& r0, int& r1) {
-      r0 = std::max(0, static_cast<int>(std::floor(std::min(y0, y1) - kPad)));
-      r1 = std::min(h - 2, static_cast<int>(std::floor(std::max(y0, y1) + kPad)));
+      r0 = std::max(0, static_cast<int>(std::floor(std::min(y0, y1) - pad)));
+      r1 = std::min(h - 2, static_cast<int>(std::floor(std::max(y0, y1) + pad)));
     };
     // The segment's heights over the part of its track within squares' columns [from, to] and
     // rows [top, bottom] (padded; false when the track does not come that near).
@@ -470,16 +478,17 @@ class Sightlines {
       double u0 = 0, u1 = 1;
       const auto within = [&](double start, double step, double lo, double hi) {
         if (step == 0) return;  // (the whole segment: the blocks were chosen along the track)
-        const double ua = (lo - kPad - start) / step, ub = (hi + kPad - start) / step;
+        const double ua = (lo - pad - start) / step, ub = (hi + pad - start) / step;
         u0 = std::max(u0, std::min(ua, ub)), u1 = std::min(u1, std::max(ua, ub));
       };
       within(ax, bx - ax, from, to + 1);
       within(ay, by - ay, top, bottom + 1);
       if (!(u0 <= u1)) return false;
-      const double z0 = a.z() + u0 * d.z(), z1 = a.z() + u1 * d.z();
+      const double z0 = za + u0 * dz, z1 = za + u1 * dz;
       lineLow = std::min(z0, z1) - margin, lineHigh = std::max(z0, z1) + margin;
       return true;
     };
+    if (model_ && ringMeets(a, d, ax, ay, bx, by, pad, endVertex)) return true;
     std::vector<std::uint8_t> cellClear;  // of the block column's blocks, from its first row's
     for (int block = c0 / kWalkBlock; block <= c1 / kWalkBlock; ++block) {
       const int from = std::max(c0, block * kWalkBlock), to = std::min(c1, block * kWalkBlock + kWalkBlock - 1);
@@ -512,17 +521,214 @@ class Sightlines {
             continue;
           }
           const std::size_t tl = static_cast<std::size_t>(r) * w + c;
-          const double za = vertexZ(tl), zb = vertexZ(tl + 1), zc = vertexZ(tl + w), zd = vertexZ(tl + w + 1);
-          if (std::min({za, zb, zc, zd}) > lineHigh || std::max({za, zb, zc, zd}) < lineLow) continue;
-          for (std::uint32_t half = 0; half < 2; ++half) {
-            const std::array<std::uint32_t, 3> k = frame_.grid.triangle(RasterGrid::innerTriangle(w, r, c, half));
-            if (!frame_.valid[k[0]] || !frame_.valid[k[1]] || !frame_.valid[k[2]]) continue;
-            if (meetsTriangle(k, a, d, endVertex)) return true;
+          const double zA = zOf(tl), zB = zOf(tl + 1), zC = zOf(tl + w), zD = zOf(tl + w + 1);
+          if (std::min({zA, zB, zC, zD}) > lineHigh || std::max({zA, zB, zC, zD}) < lineLow) continue;
+          if (squareMeets(c, r, a, d, endVertex)) {
+            if (metSquare) *metSquare = static_cast<std::int64_t>(r) * (w - 1) + c;
+            return true;
           }
         }
       }
     }
     return false;
+  }
+
+  // Whether the open segment from a to a + d meets an inner triangle with data of square (c, r).
+  bool squareMeets(int c, int r, const Eigen::Vector3d& a, const Eigen::Vector3d& d, std::uint32_t endVertex) const {
+    const int w = frame_.width;
+    for (std::uint32_t half = 0; half < 2; ++half) {
+      const std::array<std::uint32_t, 3> k = frame_.grid.triangle(RasterGrid::innerTriangle(w, r, c, half));
+      if (!frame_.valid[k[0]] || !frame_.valid[k[1]] || !frame_.valid[k[2]]) continue;
+      if (meetsTriangle(k, a, d, endVertex)) return true;
+    }
+    return false;
+  }
+
+  // A height walkMeets compares: a frame point's, in the model's terms when there is one.
+  double heightOf(const Eigen::Vector3d& p) const { return model_ ? model_->up.dot(p - model_->origin) : p.z(); }
+  // Vertex i's height in the same terms.
+  double zOf(std::size_t i) const { return model_ ? model_->z[i] : vertexZ(i); }
+
+  // ---- Lines of sight on an ellipsoid without a quadtree ----
+  //
+  // Why the walk stays exact there. The model is a linear image of the frame, centred on the
+  // observer: (x, y) its tangent plane's coordinates mapped into pixel units by the inverse of the
+  // raster's Jacobian at the observer, z the height along the observer's up. A linear map keeps
+  // which segments meet which triangles, and keeps each triangle's points within its corners'
+  // heights. Every vertex's model (x, y) lies within `pad` pixels (each coordinate) of its pixel
+  // position, measured vertex by vertex; so a triangle whose model projection meets the segment's
+  // lies in a square (or a border cell) within pad of the segment's track, which walkMeets pads
+  // by as much. The triangles found are then tested exactly in the frame (meetsTriangle).
+  struct Model {
+    Eigen::Vector3d origin, up;
+    Eigen::Matrix<double, 2, 3> plane;  // frame offset -> pixels
+    double pad = 0;
+    std::vector<double> z;  // each vertex's height along up, from the origin
+  };
+  // Model pads beyond this walk too wide a corridor to pay (a wide geographic raster far from
+  // its centre): the quadtree answers those.
+  static constexpr double kMostPad = 2.0;
+
+  // Whether walkLook can take this observer: on an ellipsoid's frame of the raster's grid (no
+  // seam or pole), above the surface, strictly inside the outermost centres' lines.
+  bool walkable(const Placed& eye, double height) const {
+    const LocalFrame& f = frame_;
+    if (!f.body.ellipsoid || !(height > 0) || !f.gridMesh || f.mesh.vertices.empty()) return false;
+    const RasterGrid::Closure& closure = f.grid.closure();
+    if (closure.wrapsColumns || closure.northCap || closure.southCap) return false;
+    const double x = eye.col - 0.5 - f.window.col, y = eye.row - 0.5 - f.window.row;
+    return x > 0 && y > 0 && x < f.width - 1 && y < f.height - 1;
+  }
+
+  // The model of `eye` (above), its vertices' heights and pad measured on `threads` threads;
+  // false (and no model) when the pad is beyond kMostPad or the raster's Jacobian there is flat.
+  bool model(const Placed& eye, unsigned threads) {
+    model_.reset();
+    walkLow_.clear(), walkHigh_.clear();
+    const LocalFrame& f = frame_;
+    auto m = std::make_unique<Model>();
+    m->origin = eye.point;
+    // Up: the normal the observer was placed along (from the surface under it), so that it stands
+    // over its own pixel position in the model however high it is.
+    const Eigen::Vector3d foot = pointAt(eye.col, eye.row, eye.surface);
+    m->up = (pointAt(eye.col, eye.row, eye.surface + 1000) - foot).normalized();
+    const Eigen::Vector3d e1 = m->up.unitOrthogonal(), e2 = m->up.cross(e1);
+    const auto tangent = [&](const Eigen::Vector3d& v) { return Eigen::Vector2d(e1.dot(v), e2.dot(v)); };
+    Eigen::Matrix2d jacobian;
+    jacobian.col(0) =
+        tangent(pointAt(eye.col + 1, eye.row, eye.surface) - pointAt(eye.col - 1, eye.row, eye.surface)) / 2;
+    jacobian.col(1) =
+        tangent(pointAt(eye.col, eye.row + 1, eye.surface) - pointAt(eye.col, eye.row - 1, eye.surface)) / 2;
+    if (!(std::fabs(jacobian.determinant()) > 0) || !jacobian.allFinite()) return false;
+    Eigen::Matrix<double, 2, 3> tangents;
+    tangents.row(0) = e1.transpose(), tangents.row(1) = e2.transpose();
+    m->plane = jacobian.inverse() * tangents;
+    const auto& v = f.mesh.vertices;
+    const int w = f.width;
+    const std::size_t n = f.pixelCount();
+    const auto& extra = f.grid.extraVertices();
+    const double ex = eye.col - 0.5 - f.window.col, ey = eye.row - 0.5 - f.window.row;
+    m->z.resize(v.size());
+    std::mutex most;
+    batch::inSlices(v.size(), threads, 1 << 16, [&](std::size_t lo, std::size_t hi) {
+      double pad = 0;
+      for (std::size_t i = lo; i < hi; ++i) {
+        const Eigen::Vector3d offset = v[i] - m->origin;
+        m->z[i] = m->up.dot(offset);
+        const Eigen::Vector2d xy = m->plane * offset;
+        // The vertex's pixel position, from the observer's (pixel centres at whole numbers).
+        const double px = i < n ? static_cast<double>(i % w) : extra[i - n].col - 0.5;
+        const double py = i < n ? static_cast<double>(i / w) : extra[i - n].row - 0.5;
+        pad = std::max({pad, std::fabs(xy.x() - (px - ex)), std::fabs(xy.y() - (py - ey))});
+      }
+      const std::lock_guard<std::mutex> hold(most);
+      m->pad = std::max(m->pad, pad);
+    });
+    // (Rounding of the model's coordinates: far below a millionth of a pixel.)
+    m->pad += 1e-6;
+    if (!(m->pad <= kMostPad)) return false;
+    model_ = std::move(m);
+    ringCells();
+    walkBlocks(threads);
+    return true;
+  }
+
+  // The border's triangles by the ring cells their pixel positions' box overlaps (walk_ring.hpp),
+  // for ringMeets.
+  void ringCells() {
+    const LocalFrame& f = frame_;
+    const int w = f.width, h = f.height;
+    const std::size_t n = f.pixelCount();
+    const auto& extra = f.grid.extraVertices();
+    for (int side = 0; side < 4; ++side) ring_[side].assign(side < 2 ? w + 1 : h + 1, {});
+    for (std::size_t t = f.grid.innerTriangleCount(); t < f.grid.triangleCount(); ++t) {
+      const std::array<std::uint32_t, 3> k = f.grid.triangle(t);
+      double c0 = INFINITY, c1 = -INFINITY, r0 = INFINITY, r1 = -INFINITY;
+      for (const std::uint32_t i : k) {
+        const double x = i < n ? static_cast<double>(i % w) : extra[i - n].col - 0.5;
+        const double y = i < n ? static_cast<double>(i / w) : extra[i - n].row - 0.5;
+        c0 = std::min(c0, x), c1 = std::max(c1, x), r0 = std::min(r0, y), r1 = std::max(r1, y);
+      }
+      const int ca = std::max(-1, static_cast<int>(std::floor(c0)));
+      const int cb = std::min(w - 1, static_cast<int>(std::floor(c1)));
+      const int ra = std::max(-1, static_cast<int>(std::floor(r0)));
+      const int rb = std::min(h - 1, static_cast<int>(std::floor(r1)));
+      for (int r = ra; r <= rb; ++r) {
+        for (int c = ca; c <= cb; ++c) {
+          if (c != -1 && c != w - 1 && r != -1 && r != h - 1) continue;  // (an inner square)
+          walk::Side side;
+          int at;
+          walk::ringCellOf(c, r, h, side, at);
+          ring_[static_cast<int>(side)][at].push_back(static_cast<std::uint32_t>(t));
+        }
+      }
+    }
+  }
+
+  // Whether the open segment from a to a + d meets a border triangle with data in a ring cell its
+  // track (ax, ay) to (bx, by), padded, reaches (walk_ring.hpp).
+  bool ringMeets(const Eigen::Vector3d& a, const Eigen::Vector3d& d, double ax, double ay, double bx, double by,
+                 double pad, std::uint32_t endVertex) const {
+    const std::size_t n = frame_.pixelCount();
+    const auto& extra = frame_.grid.extraVertices();
+    const auto withData = [&](std::uint32_t i) {
+      return i < n ? frame_.valid[i] != 0 : frame_.valid[extra[i - n].pixel] != 0;
+    };
+    return walk::forRingCells(ax, ay, bx, by, pad, frame_.width, frame_.height, [&](walk::Side side, int k) {
+      for (const std::uint32_t t : ring_[static_cast<int>(side)][k]) {
+        const std::array<std::uint32_t, 3> c = frame_.grid.triangle(t);
+        if (withData(c[0]) && withData(c[1]) && withData(c[2]) && meetsTriangle(c, a, d, endVertex)) return true;
+      }
+      return false;
+    });
+  }
+
+  // Sight of every pixel from an observer walkable and modelled (model()): each line of sight
+  // tested by walkMeets, after the square that blocked the pixel before it in the row and its
+  // neighbours (a ridge that hides one pixel mostly hides the next: a few triangles in place of a
+  // walk); visit and the rest as look's.
+  template <class Visit>
+  bool walkLook(const Placed& eye, double targetHeight, double maxDistance, unsigned threads, const Progress& progress,
+                double from, double span, const Visit& visit) const {
+    const LocalFrame& f = frame_;
+    const Eigen::Vector3d up = f.upAt(eye.point);
+    const auto& v = f.mesh.vertices;
+    const int w = f.width, h = f.height;
+    const PixelWindow& win = f.window;
+    const double ex = eye.col - 0.5 - win.col, ey = eye.row - 0.5 - win.row;
+    return inRows(threads, progress, from, span, "testing lines of sight", [&](std::size_t r) {
+      const std::size_t rowStart = (win.row + r) * static_cast<std::size_t>(dem_.width) + win.col - r * w;
+      std::int64_t blocker = -1;  // the square that blocked the last pixel, along the row
+      for (std::size_t i = r * w; i < (r + 1) * w; ++i) {
+        if (!f.valid[i]) continue;
+        const std::size_t at = rowStart + i;
+        if (maxDistance > 0 && horizontal(v[i] - eye.point, up) > maxDistance) {
+          visit(at, Sight::OutOfRange);
+          continue;
+        }
+        const bool onSurface = targetHeight == 0;
+        const Eigen::Vector3d target = onSurface ? v[i] : v[i] + targetHeight * f.upAt(v[i]);
+        const std::uint32_t endVertex = onSurface ? static_cast<std::uint32_t>(i) : CartesianIndex::kNoVertex;
+        const Eigen::Vector3d d = target - eye.point;
+        bool blocked = false;
+        if (blocker >= 0) {
+          const int bc = static_cast<int>(blocker % (w - 1)), br = static_cast<int>(blocker / (w - 1));
+          for (int dr = -1; dr <= 1 && !blocked; ++dr) {
+            for (int dc = -1; dc <= 1 && !blocked; ++dc) {
+              const int c = bc + dc, rr = br + dr;
+              if (c < 0 || rr < 0 || c > w - 2 || rr > h - 2) continue;
+              blocked = squareMeets(c, rr, eye.point, d, endVertex);
+              if (blocked) blocker = static_cast<std::int64_t>(rr) * (w - 1) + c;
+            }
+          }
+        }
+        if (!blocked) {
+          const Eigen::Vector2d xy = model_->plane * (target - model_->origin);
+          blocked = walkMeets(eye.point, target, ex, ey, ex + xy.x(), ey + xy.y(), endVertex, &blocker);
+        }
+        visit(at, blocked ? Sight::Hidden : Sight::Visible);
+      }
+    });
   }
 
   // For walkMeets: the lowest and highest frame height over each block of kWalkBlock x
@@ -534,7 +740,7 @@ class Sightlines {
     const std::size_t across = walkBlocksAcross_, down = static_cast<std::size_t>((h - 2) / kWalkBlock) + 1;
     walkLow_.assign(across * down, INFINITY);
     walkHigh_.assign(across * down, -INFINITY);
-    const double* z = frame_.mesh.vertices.empty() ? heights_.data() : nullptr;
+    const double* z = model_ ? model_->z.data() : frame_.mesh.vertices.empty() ? heights_.data() : nullptr;
     batch::inSlices(down, threads, 8, [&](std::size_t first, std::size_t end) {
       for (std::size_t b = first; b < end; ++b) {
         // Block b's squares' corners: pixel rows 8 b to 8 b + 8, and for block column c pixel
@@ -607,6 +813,7 @@ class Sightlines {
     frame_ = flat_ ? gridFrame(basis_, window, std::move(valid))
                    : windowFrame(basis_, window, heights_, std::move(valid), !holes_);
     walkLow_.clear(), walkHigh_.clear();  // (walkBlocks: of the frame before)
+    model_.reset();
     if (!complete_) {
       // The centre square's frame completes the basis (pixel size, the triangles' turn), as every
       // window's frame of the raster does (shadow_frame.hpp): this one when it holds the centre
@@ -680,6 +887,9 @@ class Sightlines {
   static constexpr int kWalkBlock = 8;
   std::size_t walkBlocksAcross_ = 0;
   std::vector<double> walkLow_, walkHigh_;
+  // model(): the observer's, and the border's triangles by ring cell.
+  std::unique_ptr<Model> model_;
+  std::vector<std::vector<std::uint32_t>> ring_[4];  // by walk::Side
 };
 
 // Before lines of sight go through the quadtree: its memory, unless the job's estimate counted
@@ -747,7 +957,14 @@ Viewshed viewshedOf(const DemTerrain& dem, std::vector<double>* takeHeights, con
     finished = sight.sweepLook(observer, o.observerHeight, o.targetHeight, o.maxDistance, threadsOr(threads), progress,
                                0.05, 0.95, visit, counts);
     out.swept = counts.decided;
+    out.method = "walk";
+  } else if (o.sweep && sight.walkable(observer, o.observerHeight) && sight.model(observer, threadsOr(threads))) {
+    // On an ellipsoid: each line of sight walked over the squares under it (no quadtree to build).
+    if (progress && !progress(0.1, "testing lines of sight")) throw Error("viewshed cancelled");
+    finished = sight.walkLook(observer, o.targetHeight, o.maxDistance, threadsOr(threads), progress, 0.1, 0.9, visit);
+    out.method = "walk";
   } else {
+    out.method = "quadtree";
     requireQuadtree(dem, f, o.sweep && !f.body.ellipsoid);
     if (progress && !progress(0.05, "building the quadtree")) throw Error("viewshed cancelled");
     const double diagonal = std::max(sight.diagonal(), std::hypot(f.pixelSizeX, f.pixelSizeY));
@@ -815,6 +1032,9 @@ CumulativeViewshed cumulativeViewshed(const DemTerrain& dem, std::span<const Obs
       sweep::Counts counts;
       finished = sight.sweepLook(placed[k], observers[k].height, o.targetHeight, o.maxDistance, workers, progress, from,
                                  0.9 / observers.size(), visit, counts);
+    } else if (o.sweep && sight.walkable(placed[k], observers[k].height) && sight.model(placed[k], workers)) {
+      finished = sight.walkLook(placed[k], o.targetHeight, o.maxDistance, workers, progress, from,
+                                0.9 / observers.size(), visit);
     } else {
       if (!indexed) {
         requireQuadtree(dem, f, o.sweep && !f.body.ellipsoid);

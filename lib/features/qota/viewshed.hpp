@@ -48,7 +48,9 @@ struct ViewshedOptions {
   IndexOptions index;  // the quadtree's options
   // Decide lines of sight by the exact sweep where it applies (a flat frame, an observer above
   // the surface and inside the outermost pixel centres), testing one by one only the pixels it
-  // leaves undecided; false: every pixel's line of sight through the quadtree. The same answers.
+  // leaves undecided; on an ellipsoid (an observer above the surface, a pixel or more inside the
+  // outermost centres) walk each line of sight over the squares under it, with no quadtree to
+  // build; false: every pixel's line of sight through the quadtree. The same answers.
   bool sweep = true;
 };
 
@@ -60,6 +62,11 @@ struct Viewshed {
   // Of the tested pixels: decided by the sweep, and tested one by one (by the sweep's exact
   // fallback, or all of them without the sweep).
   std::size_t swept = 0, oneByOne = 0;
+  // How those were tested: "walk" (the squares under each line of sight: the sweep's exact
+  // fallback, and on an ellipsoid), or "quadtree" (ViewshedOptions::sweep off, or an observer
+  // neither takes: on the surface, within a pixel of the outermost centres, a raster round the
+  // globe or one too far from flat to walk).
+  std::string method;
   std::string frameDescription;
 };
 
