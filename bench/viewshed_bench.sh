@@ -2,8 +2,9 @@
 # qota viewshed against gdal_viewshed and GRASS r.viewshed (Debian's grass-core, which it
 # installs) in the same run, on a 2000 x 2000 DEM of 30 m pixels (the Rainier tile warped to UTM
 # 10N, bilinear), observer 2 m up at a pixel centre, flat (no curvature: gdal_viewshed -cc 0,
-# r.viewshed without -c, qota --flat), the whole raster and within 10 km. Times are medians of
-# RUNS runs (default 3) with their spread ((max - min) / median). Agreement: the pixels each
+# r.viewshed without -c, qota --flat), the whole raster and within 10 km; then each tool's
+# default with curvature (qota exact on WGS84, gdal_viewshed's correction), timed. Times are
+# medians of RUNS runs (default 3) with their spread ((max - min) / median). Agreement: the pixels each
 # tool marks otherwise than qota (exact on the triangulated terrain: tests/test_viewshed.cpp),
 # among the pixels with data within range, and how many each marks visible.
 #   bench/viewshed_bench.sh [BUILD] [RUNS]
@@ -47,6 +48,19 @@ for md in 0 10000; do
   measure gdal_viewshed -q -ox "$x" -oy "$y" -oz 2 -cc 0 -vv 255 -iv 0 -ov 64 "${gmd[@]}" "$dem" "$work/gdal_$md.tif"
   secs[gdal_$md]=$med
   printf '%-50s %8s %7s%% %8d\n' "gdal_viewshed, $label" "$med" "$spread" $((mem / 1024))
+  # With curvature: qota's default (the DEM on WGS84 over EGM96, straight lines in ECEF, each
+  # line of sight walked over the squares under it), once more through the quadtree (its answers
+  # must be the walk's), and gdal_viewshed's default (-cc 0.85714: a parabolic drop, refraction in).
+  measure "$qota" viewshed "$dem" --observer "$x,$y" --oz 2 "${qmd[@]}" -o "$work/curved_$md.tif" -q
+  secs[curved_$md]=$med
+  printf '%-50s %8s %7s%% %8d\n' "qota viewshed on WGS84 (default), $label" "$med" "$spread" $((mem / 1024))
+  saved=$runs runs=1
+  measure "$qota" viewshed "$dem" --observer "$x,$y" --oz 2 "${qmd[@]}" --per-pixel -o "$work/curvedpp_$md.tif" -q
+  runs=$saved
+  printf '%-50s %8s %8s %8d\n' "qota viewshed on WGS84 --per-pixel, $label" "$med" "(once)" $((mem / 1024))
+  measure gdal_viewshed -q -ox "$x" -oy "$y" -oz 2 -vv 255 -iv 0 -ov 64 "${gmd[@]}" "$dem" "$work/gdalcc_$md.tif"
+  secs[gdalcc_$md]=$med
+  printf '%-50s %8s %7s%% %8d\n' "gdal_viewshed, its curvature, $label" "$med" "$spread" $((mem / 1024))
   if [ -n "$grass" ]; then
     # GRASS needs a project: made once in the scratch folder, the DEM imported; r.viewshed alone timed.
     [ -d "$work/grass" ] || grass -c "$dem" -e "$work/grass" > /dev/null 2>&1
@@ -65,6 +79,9 @@ echo
 echo "cells per second against gdal_viewshed's (same DEM, same observer): whole raster $(
   awk -v q="${secs[qota_0]}" -v g="${secs[gdal_0]}" 'BEGIN { printf "%.2fx", g / q }'), within 10 km $(
   awk -v q="${secs[qota_10000]}" -v g="${secs[gdal_10000]}" 'BEGIN { printf "%.2fx", g / q }')"
+echo "with curvature (qota exact on WGS84, gdal_viewshed's correction): whole raster $(
+  awk -v q="${secs[curved_0]}" -v g="${secs[gdalcc_0]}" 'BEGIN { printf "%.2fx", g / q }'), within 10 km $(
+  awk -v q="${secs[curved_10000]}" -v g="${secs[gdalcc_10000]}" 'BEGIN { printf "%.2fx", g / q }')"
 echo
 echo "agreement with the exact rule (pixels with data within range):"
 /usr/bin/python3 - "$work" <<'EOF'
@@ -96,6 +113,9 @@ for md in ("0", "10000"):
     p = read(f"perpixel_{md}.tif")
     print(f"    qota --per-pixel (one line of sight a pixel through the quadtree): differs from the sweep on "
           f"{(p != q).sum()} pixels of all {q.size}")
+    c, cp = read(f"curved_{md}.tif"), read(f"curvedpp_{md}.tif")
+    print(f"    on the ellipsoid: qota marks {(c == 255).sum()} visible; --per-pixel differs from the walk on "
+          f"{(c != cp).sum()} pixels of all {c.size}")
     for tool, visible in (("gdal_viewshed", 255), ("r.viewshed", 1)):
         a = read(f"{'gdal' if tool == 'gdal_viewshed' else 'grass'}_{md}.tif", f"qota_{md}.tif")
         if a is None:
