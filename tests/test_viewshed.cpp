@@ -421,17 +421,21 @@ TEST(PointLight, PixelGridMatchesExactOracle) {
     std::uniform_int_distribution<int> qc(0, 4 * g.w), qr(0, 4 * g.h);
     for (int tries = 0; tries < 4; ++tries) {
       const double col = qc(rng) / 4.0, row = qr(rng) / 4.0, H = (tries + 1) * 1.5;
-      qota::PointLightOptions o;
-      o.x = col, o.y = g.h - row, o.height = H, o.frame.pixelSize = 1;
-      const std::vector<qota::Light> got = qota::pointLightMask(dem, o);
       const std::vector<Sight> want = gridOracle(g, col, row, H, 0, 0);
-      int differ = 0;
-      for (std::size_t i = 0; i < got.size(); ++i) {
-        const qota::Light expected = want[i] == Sight::Visible ? qota::Light::Lit : qota::Light::Shadow;
-        differ += got[i] != expected;
-        lit += expected == qota::Light::Lit, dark += expected == qota::Light::Shadow;
+      // Walked where the light is inside the outermost centres' lines, and through the quadtree.
+      for (const bool walk : {true, false}) {
+        qota::PointLightOptions o;
+        o.x = col, o.y = g.h - row, o.height = H, o.frame.pixelSize = 1, o.walk = walk;
+        const std::vector<qota::Light> got = qota::pointLightMask(dem, o);
+        int differ = 0;
+        for (std::size_t i = 0; i < got.size(); ++i) {
+          const qota::Light expected = want[i] == Sight::Visible ? qota::Light::Lit : qota::Light::Shadow;
+          differ += got[i] != expected;
+          if (walk) lit += expected == qota::Light::Lit, dark += expected == qota::Light::Shadow;
+        }
+        EXPECT_EQ(differ, 0) << "case " << k << ": light at (" << col << ", " << row << ") " << H << " m up"
+                             << (walk ? ", walked" : ", through the quadtree");
       }
-      EXPECT_EQ(differ, 0) << "case " << k << ": light at (" << col << ", " << row << ") " << H << " m up";
       ++cases;
     }
   }
@@ -452,6 +456,45 @@ TEST(PointLight, AbsoluteHeightIsTheSameLight) {
   EXPECT_EQ(qota::pointLightMask(dem, above), qota::pointLightMask(dem, absolute));
   above.height = 0;
   EXPECT_THROW(qota::pointLightMask(dem, above), qota::Error);
+}
+
+// On the ellipsoid (a crop of the Rainier tile round the summit, voids filled for light): a lamp
+// above the surface and one at an absolute height, walked and through the quadtree, pixel for
+// pixel.
+TEST(PointLight, WalkAgreesWithTheQuadtreeOnTheEllipsoid) {
+  const qota::test::RasterValues tile = qota::test::readRaster(QOTA_DATA_DIR "/mt_rainier_90m.tif");
+  qota::test::RasterSpec spec;
+  spec.width = 160, spec.height = 140;
+  spec.geotransform = tile.geotransform;
+  spec.geotransform[0] += 260 * tile.geotransform[1], spec.geotransform[3] += 130 * tile.geotransform[5];
+  spec.crs = "EPSG:4326";
+  spec.nodata = -32768;
+  spec.bands = {{}};
+  for (int r = 0; r < spec.height; ++r) {
+    for (int c = 0; c < spec.width; ++c) spec.bands[0].push_back(tile.at(260 + c, 130 + r));
+  }
+  const auto path = qota::test::scratchPath("point_light_rainier.tif");
+  qota::test::writeRaster(path, spec);
+  qota::DemOptions read;
+  read.lonLatAsCartesian = true;
+  const qota::DemTerrain dem = qota::loadDem(path.string(), read);
+  const double lon = spec.geotransform[0] + 70.5 * spec.geotransform[1];
+  const double lat = spec.geotransform[3] + 60.5 * spec.geotransform[5];
+  for (const bool above : {true, false}) {
+    qota::PointLightOptions o;
+    o.x = lon, o.y = lat, o.aboveSurface = above, o.height = above ? 300 : 3500;
+    const std::vector<qota::Light> walked = qota::pointLightMask(dem, o);
+    o.walk = false;
+    const std::vector<qota::Light> indexed = qota::pointLightMask(dem, o);
+    int differ = 0, lit = 0;
+    for (std::size_t i = 0; i < walked.size(); ++i) {
+      differ += walked[i] != indexed[i];
+      lit += walked[i] == qota::Light::Lit;
+    }
+    EXPECT_EQ(differ, 0) << (above ? "300 m above the surface" : "3500 m over the geoid");
+    EXPECT_GT(lit, 1000);
+    EXPECT_LT(lit, spec.width * spec.height - 1000);
+  }
 }
 
 TEST(SegmentMeets, NamesATriangleTheOracleSaysItMeets) {

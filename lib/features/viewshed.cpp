@@ -533,15 +533,28 @@ class Sightlines {
     return false;
   }
 
-  // Whether the open segment from a to a + d meets an inner triangle with data of square (c, r).
+  // Whether the open segment from a to a + d meets an inner triangle of square (c, r) that blocks
+  // (with holes, one with data: blocks()).
   bool squareMeets(int c, int r, const Eigen::Vector3d& a, const Eigen::Vector3d& d, std::uint32_t endVertex) const {
     const int w = frame_.width;
     for (std::uint32_t half = 0; half < 2; ++half) {
       const std::array<std::uint32_t, 3> k = frame_.grid.triangle(RasterGrid::innerTriangle(w, r, c, half));
-      if (!frame_.valid[k[0]] || !frame_.valid[k[1]] || !frame_.valid[k[2]]) continue;
+      if (!blocks(k)) continue;
       if (meetsTriangle(k, a, d, endVertex)) return true;
     }
     return false;
+  }
+
+  // Whether a triangle of the grid blocks lines of sight: with holes (viewsheds) one whose corners
+  // all have data, as index() keeps them; filled (lights), every one.
+  bool blocks(const std::array<std::uint32_t, 3>& k) const {
+    if (!holes_) return true;
+    const std::size_t n = frame_.pixelCount();
+    const auto& extra = frame_.grid.extraVertices();
+    for (const std::uint32_t i : k) {
+      if (i < n ? !frame_.valid[i] : extra[i - n].pole == 0 && !frame_.valid[extra[i - n].pixel]) return false;
+    }
+    return true;
   }
 
   // A height walkMeets compares: a frame point's, in the model's terms when there is one.
@@ -572,8 +585,13 @@ class Sightlines {
   // Whether walkLook can take this observer: on an ellipsoid's frame of the raster's grid (no
   // seam or pole), above the surface, strictly inside the outermost centres' lines.
   bool walkable(const Placed& eye, double height) const {
+    return frame_.body.ellipsoid && height > 0 && walkableFrom(eye);
+  }
+  // The same for any point (a light at an absolute height; a flat frame with its vertices placed
+  // too, whose segments stay inside the outermost centres' lines).
+  bool walkableFrom(const Placed& eye) const {
     const LocalFrame& f = frame_;
-    if (!f.body.ellipsoid || !(height > 0) || !f.gridMesh || f.mesh.vertices.empty()) return false;
+    if (!f.gridMesh || f.mesh.vertices.empty()) return false;
     const RasterGrid::Closure& closure = f.grid.closure();
     if (closure.wrapsColumns || closure.northCap || closure.southCap) return false;
     const double x = eye.col - 0.5 - f.window.col, y = eye.row - 0.5 - f.window.row;
@@ -590,15 +608,15 @@ class Sightlines {
     m->origin = eye.point;
     // Up: the normal the observer was placed along (from the surface under it), so that it stands
     // over its own pixel position in the model however high it is.
-    const Eigen::Vector3d foot = pointAt(eye.col, eye.row, eye.surface);
-    m->up = (pointAt(eye.col, eye.row, eye.surface + 1000) - foot).normalized();
+    // (A light at an absolute height has no surface under it here: any height gives the normal.)
+    const double surface = std::isfinite(eye.surface) ? eye.surface : 0.0;
+    const Eigen::Vector3d foot = pointAt(eye.col, eye.row, surface);
+    m->up = (pointAt(eye.col, eye.row, surface + 1000) - foot).normalized();
     const Eigen::Vector3d e1 = m->up.unitOrthogonal(), e2 = m->up.cross(e1);
     const auto tangent = [&](const Eigen::Vector3d& v) { return Eigen::Vector2d(e1.dot(v), e2.dot(v)); };
     Eigen::Matrix2d jacobian;
-    jacobian.col(0) =
-        tangent(pointAt(eye.col + 1, eye.row, eye.surface) - pointAt(eye.col - 1, eye.row, eye.surface)) / 2;
-    jacobian.col(1) =
-        tangent(pointAt(eye.col, eye.row + 1, eye.surface) - pointAt(eye.col, eye.row - 1, eye.surface)) / 2;
+    jacobian.col(0) = tangent(pointAt(eye.col + 1, eye.row, surface) - pointAt(eye.col - 1, eye.row, surface)) / 2;
+    jacobian.col(1) = tangent(pointAt(eye.col, eye.row + 1, surface) - pointAt(eye.col, eye.row - 1, surface)) / 2;
     if (!(std::fabs(jacobian.determinant()) > 0) || !jacobian.allFinite()) return false;
     Eigen::Matrix<double, 2, 3> tangents;
     tangents.row(0) = e1.transpose(), tangents.row(1) = e2.transpose();
@@ -669,36 +687,58 @@ class Sightlines {
   // track (ax, ay) to (bx, by), padded, reaches (walk_ring.hpp).
   bool ringMeets(const Eigen::Vector3d& a, const Eigen::Vector3d& d, double ax, double ay, double bx, double by,
                  double pad, std::uint32_t endVertex) const {
-    const std::size_t n = frame_.pixelCount();
-    const auto& extra = frame_.grid.extraVertices();
-    const auto withData = [&](std::uint32_t i) {
-      return i < n ? frame_.valid[i] != 0 : frame_.valid[extra[i - n].pixel] != 0;
-    };
     return walk::forRingCells(ax, ay, bx, by, pad, frame_.width, frame_.height, [&](walk::Side side, int k) {
       for (const std::uint32_t t : ring_[static_cast<int>(side)][k]) {
         const std::array<std::uint32_t, 3> c = frame_.grid.triangle(t);
-        if (withData(c[0]) && withData(c[1]) && withData(c[2]) && meetsTriangle(c, a, d, endVertex)) return true;
+        if (blocks(c) && meetsTriangle(c, a, d, endVertex)) return true;
       }
       return false;
     });
   }
 
+  // Whether the open segment from `eye` (walkable, and modelled on an ellipsoid: model()) to
+  // `target`, above frame pixel i, meets the terrain: the square that blocked the segment before
+  // (blocker, -1 for none; a ridge that hides one pixel mostly hides the next in the row) and its
+  // neighbours first, a few triangles in place of a walk, then walkMeets. blocker becomes the
+  // square met, when one is.
+  bool walkBlocked(const Placed& eye, const Eigen::Vector3d& target, std::size_t i, std::uint32_t endVertex,
+                   std::int64_t& blocker) const {
+    const LocalFrame& f = frame_;
+    const int w = f.width, h = f.height;
+    const Eigen::Vector3d d = target - eye.point;
+    if (blocker >= 0) {
+      const int bc = static_cast<int>(blocker % (w - 1)), br = static_cast<int>(blocker / (w - 1));
+      for (int dr = -1; dr <= 1; ++dr) {
+        for (int dc = -1; dc <= 1; ++dc) {
+          const int c = bc + dc, r = br + dr;
+          if (c < 0 || r < 0 || c > w - 2 || r > h - 2 || !squareMeets(c, r, eye.point, d, endVertex)) continue;
+          blocker = static_cast<std::int64_t>(r) * (w - 1) + c;
+          return true;
+        }
+      }
+    }
+    const double ex = eye.col - 0.5 - f.window.col, ey = eye.row - 0.5 - f.window.row;
+    if (!model_) {  // (a flat frame: a target above pixel i stands over its pixel position)
+      return walkMeets(eye.point, target, ex, ey, static_cast<double>(i % w), static_cast<double>(i / w), endVertex,
+                       &blocker);
+    }
+    const Eigen::Vector2d xy = model_->plane * (target - model_->origin);
+    return walkMeets(eye.point, target, ex, ey, ex + xy.x(), ey + xy.y(), endVertex, &blocker);
+  }
+
   // Sight of every pixel from an observer walkable and modelled (model()): each line of sight
-  // tested by walkMeets, after the square that blocked the pixel before it in the row and its
-  // neighbours (a ridge that hides one pixel mostly hides the next: a few triangles in place of a
-  // walk); visit and the rest as look's.
+  // tested by walkBlocked; visit and the rest as look's.
   template <class Visit>
   bool walkLook(const Placed& eye, double targetHeight, double maxDistance, unsigned threads, const Progress& progress,
                 double from, double span, const Visit& visit) const {
     const LocalFrame& f = frame_;
     const Eigen::Vector3d up = f.upAt(eye.point);
     const auto& v = f.mesh.vertices;
-    const int w = f.width, h = f.height;
+    const int w = f.width;
     const PixelWindow& win = f.window;
-    const double ex = eye.col - 0.5 - win.col, ey = eye.row - 0.5 - win.row;
     return inRows(threads, progress, from, span, "testing lines of sight", [&](std::size_t r) {
       const std::size_t rowStart = (win.row + r) * static_cast<std::size_t>(dem_.width) + win.col - r * w;
-      std::int64_t blocker = -1;  // the square that blocked the last pixel, along the row
+      std::int64_t blocker = -1;  // along the row
       for (std::size_t i = r * w; i < (r + 1) * w; ++i) {
         if (!f.valid[i]) continue;
         const std::size_t at = rowStart + i;
@@ -709,24 +749,7 @@ class Sightlines {
         const bool onSurface = targetHeight == 0;
         const Eigen::Vector3d target = onSurface ? v[i] : v[i] + targetHeight * f.upAt(v[i]);
         const std::uint32_t endVertex = onSurface ? static_cast<std::uint32_t>(i) : CartesianIndex::kNoVertex;
-        const Eigen::Vector3d d = target - eye.point;
-        bool blocked = false;
-        if (blocker >= 0) {
-          const int bc = static_cast<int>(blocker % (w - 1)), br = static_cast<int>(blocker / (w - 1));
-          for (int dr = -1; dr <= 1 && !blocked; ++dr) {
-            for (int dc = -1; dc <= 1 && !blocked; ++dc) {
-              const int c = bc + dc, rr = br + dr;
-              if (c < 0 || rr < 0 || c > w - 2 || rr > h - 2) continue;
-              blocked = squareMeets(c, rr, eye.point, d, endVertex);
-              if (blocked) blocker = static_cast<std::int64_t>(rr) * (w - 1) + c;
-            }
-          }
-        }
-        if (!blocked) {
-          const Eigen::Vector2d xy = model_->plane * (target - model_->origin);
-          blocked = walkMeets(eye.point, target, ex, ey, ex + xy.x(), ey + xy.y(), endVertex, &blocker);
-        }
-        visit(at, blocked ? Sight::Hidden : Sight::Visible);
+        visit(at, walkBlocked(eye, target, i, endVertex, blocker) ? Sight::Hidden : Sight::Visible);
       }
     });
   }
@@ -1068,12 +1091,20 @@ std::vector<Light> pointLightMask(const DemTerrain& dem, const PointLightOptions
   Sightlines sight(dem, o.frame, o.index, progress, /*holes=*/false);
   sight.place();
   const LocalFrame& f = sight.frame();
-  const Eigen::Vector3d light = o.aboveSurface ? sight.observerAt(o.x, o.y, o.height, "the light").point : [&] {
+  const Sightlines::Placed lamp = o.aboveSurface ? sight.observerAt(o.x, o.y, o.height, "the light") : [&] {
     const auto [col, row] = dem.pixelOf(dem.turnedOnto(o.x), o.y);
-    return sight.pointAt(col, row, o.height);
+    return Sightlines::Placed{sight.pointAt(col, row, o.height), NAN, col, row};
   }();
-  if (progress && !progress(0.05, "building the quadtree")) throw Error("shadow computation cancelled");
-  sight.index(Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ(), 0.0);
+  const Eigen::Vector3d light = lamp.point;
+  // Each segment walked over the squares under it where the light stands inside the outermost
+  // centres' lines (on an ellipsoid, modelled: model()); else through the quadtree.
+  const bool walk = o.walk && sight.walkableFrom(lamp) && (!f.body.ellipsoid || sight.model(lamp, threadsOr(threads)));
+  if (!walk) {
+    if (progress && !progress(0.05, "building the quadtree")) throw Error("shadow computation cancelled");
+    sight.index(Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ(), 0.0);
+  } else if (!f.body.ellipsoid) {
+    sight.walkBlocks(threadsOr(threads));
+  }
   // How each triangle faces the light (its plane's side), for attached shadow: the light
   // arriving from below a pixel's own surface.
   const Mesh& mesh = f.mesh;
@@ -1087,6 +1118,7 @@ std::vector<Light> pointLightMask(const DemTerrain& dem, const PointLightOptions
   const int w = f.width;
   const bool finished = sight.inRows(threadsOr(threads), progress, 0.1, 0.9, "testing pixels", [&](std::size_t r) {
     std::uint32_t blocker = CartesianIndex::kNoPolygon;  // the last pixel's, along the row
+    std::int64_t blockerSquare = -1;                     // (the walk's)
     for (std::size_t i = r * w; i < (r + 1) * w; ++i) {
       if (!f.valid[i]) continue;
       std::uint32_t ring[RasterGrid::kMaxRing];
@@ -1095,7 +1127,10 @@ std::vector<Light> pointLightMask(const DemTerrain& dem, const PointLightOptions
       const Eigen::Vector3d& p = mesh.vertices[i];
       const bool attached = shadow::attachedShadow(f, std::span<const std::uint32_t>(ring, count), closed,
                                                    static_cast<std::uint32_t>(i), light - p, facing.data());
-      out[i] = attached || sight.meets(blocker, light, p, static_cast<std::uint32_t>(i)) ? Light::Shadow : Light::Lit;
+      const auto vertex = static_cast<std::uint32_t>(i);
+      const bool cast = !attached && (walk ? sight.walkBlocked(lamp, p, i, vertex, blockerSquare)
+                                           : sight.meets(blocker, light, p, vertex));
+      out[i] = attached || cast ? Light::Shadow : Light::Lit;
     }
   });
   if (!finished) throw Error("shadow computation cancelled");

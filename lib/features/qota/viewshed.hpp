@@ -122,6 +122,10 @@ struct PointLightOptions {
   bool aboveSurface = true;
   FrameOptions frame;
   IndexOptions index;
+  // Walk each pixel's segment to the light over the squares under it, where the light stands
+  // inside the outermost pixel centres' lines (no quadtree to build); false: through the
+  // quadtree. The same answers.
+  bool walk = true;
 };
 std::vector<Light> pointLightMask(const DemTerrain& dem, const PointLightOptions& options,
                                   const Progress& progress = {}, unsigned threads = 0);
