@@ -1213,11 +1213,58 @@ TEST(ViewshedTool, TheSweepIsEstimatedWithoutAQuadtree) {
   o.perPixel = false, o.observer = {0.3, h - 500.5};
   err.str("");
   EXPECT_EQ(qota::tools::viewshed(o, out, err), 2);
-  EXPECT_NE(err.str().find("an observer the sweep cannot take"), std::string::npos) << err.str();
+  EXPECT_NE(err.str().find("an observer or light the sweep and the walk cannot take"), std::string::npos) << err.str();
   EXPECT_FALSE(std::filesystem::exists(outPath));
   o.maxDistance = 30;
   EXPECT_EQ(qota::tools::viewshed(o, out, err), 0) << err.str();
   EXPECT_TRUE(std::filesystem::exists(outPath));
+}
+
+// The same on the ellipsoid, where lines of sight are walked: within a budget that holds the walk
+// and not a quadtree, the viewshed runs; --per-pixel, and an observer in the outer half pixel (which
+// the walk cannot take), are refused before anything large is built, naming why.
+TEST(ViewshedTool, TheWalkIsEstimatedWithoutAQuadtree) {
+  const int w = 1000, h = 1000;  // 15 km of UTM 32N, 15 m pixels
+  qota::test::RasterSpec spec;
+  spec.width = w, spec.height = h;
+  spec.geotransform = {400000, 15, 0, 5160000, 0, -15};
+  spec.crs = "EPSG:32632";
+  spec.bands = {std::vector<double>(static_cast<std::size_t>(w) * h)};
+  for (int r = 0; r < h; ++r) {
+    for (int c = 0; c < w; ++c) {
+      spec.bands[0][static_cast<std::size_t>(r) * w + c] =
+          std::round(800 + 300 * std::sin(c * 0.02) * std::cos(r * 0.03));
+    }
+  }
+  const auto dem = qota::test::scratchPath("viewshed_walk_budget.tif");
+  qota::test::writeRaster(dem, spec);
+  const auto outPath = qota::test::scratchPath("viewshed_walk_budget_out.tif");
+  std::filesystem::remove(outPath);
+  namespace memory = qota::memory;
+  const std::uint64_t v = static_cast<std::uint64_t>(w) * h, t = 2 * static_cast<std::uint64_t>(w - 1) * (h - 1);
+  const std::uint64_t walk = memory::kProcessBase + (memory::kDemHeights + memory::kWalkedLinesOfSight).bytes(v, 0);
+  const std::uint64_t quadtree = memory::kLinesOfSight.bytes(v, t);
+  ASSERT_LT(2 * walk, quadtree);
+  struct Budget {
+    explicit Budget(std::uint64_t bytes) { memory::setLimit(memory::residentBytes() + bytes); }
+    ~Budget() { memory::setLimit(0); }
+  } budget((walk + quadtree) / 2);
+  qota::tools::ViewshedOptions o;
+  o.source = dem.string(), o.output = outPath.string(), o.quiet = true;
+  o.observer = {403007.5, 5153007.5};
+  std::ostringstream out, err;
+  ASSERT_EQ(qota::tools::viewshed(o, out, err), 0) << err.str();
+  ASSERT_TRUE(std::filesystem::exists(outPath));
+  std::filesystem::remove(outPath);
+  o.perPixel = true;
+  EXPECT_EQ(qota::tools::viewshed(o, out, err), 2);
+  EXPECT_NE(err.str().find("for this job, more than the"), std::string::npos) << err.str();
+  EXPECT_FALSE(std::filesystem::exists(outPath));
+  o.perPixel = false, o.observer = {400000 + 0.3 * 15, 5153007.5};
+  err.str("");
+  EXPECT_EQ(qota::tools::viewshed(o, out, err), 2);
+  EXPECT_NE(err.str().find("an observer or light the sweep and the walk cannot take"), std::string::npos) << err.str();
+  EXPECT_FALSE(std::filesystem::exists(outPath));
 }
 
 TEST(ViewshedTool, ObserversFromTextLayersAndCsv) {

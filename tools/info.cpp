@@ -263,9 +263,10 @@ void memoryFacts(const DemTerrain& dem, const SourceOptions& so, Facts& f) {
   const bool curved = !mappingEntry(so.mapping).map;
   const std::uint64_t tree = memory::kProcessBase + memory::kDemMesh.bytes(v, t) +
                              (curved ? memory::kCurvedIndex : memory::kCartesianIndex).bytes(v, t);
-  // (qota viewshed reads the heights alone: on the ellipsoid each line of sight goes through the
-  // quadtree; a flat frame's (--flat, or a raster without CRS) are swept, with no quadtree.)
-  const std::uint64_t sight = memory::kProcessBase + (memory::kDemHeights + memory::kLinesOfSight).bytes(v, t);
+  // (qota viewshed reads the heights alone: on the ellipsoid each line of sight is walked over the
+  // squares under it; a flat frame's (--flat, or a raster without CRS) are swept; neither builds a
+  // quadtree.)
+  const std::uint64_t sight = memory::kProcessBase + (memory::kDemHeights + memory::kWalkedLinesOfSight).bytes(v, t);
   const std::uint64_t swept = memory::kProcessBase + (memory::kDemHeights + memory::kSweptLinesOfSight).bytes(v, t);
   std::uint64_t shadow = 0;
   try {

@@ -289,7 +289,9 @@ int shadow(const ShadowOptions& given, std::ostream& out, std::ostream& err) {
     DemOptions demOptions;
     demOptions.band = o.band;
     demOptions.lonLatAsCartesian = true;  // read as lon/lat: the frame puts it on its ellipsoid
-    demOptions.then = o.lightPoint ? memory::kLinesOfSight : memory::kShadow;
+    // (A point light inside the outermost pixel centres is walked, with no quadtree; one outside
+    // is checked again before its quadtree is built.)
+    demOptions.then = o.lightPoint ? memory::kWalkedLight : memory::kShadow;
     demOptions.fillVoids = o.fillVoids ? kFillVoidsPixels : 0;
     refuseBeyondMaxPixels(o, describeDem(o.source, demOptions));
     const DemTerrain dem = loadDem(o.source, demOptions);

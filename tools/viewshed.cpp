@@ -359,16 +359,17 @@ int viewshed(const ViewshedOptions& given, std::ostream& out, std::ostream& err)
     DemOptions demOptions;
     demOptions.band = o.band;
     demOptions.lonLatAsCartesian = true;  // read as lon/lat: the frame puts it on its ellipsoid
-    // The sweep (a flat frame: --flat, or a raster without CRS; not --per-pixel) keeps no
-    // quadtree: a cost of its own, a tenth of a quadtree's or less. An observer it cannot take (on
-    // the surface, or outside the outermost pixel centres) is checked again before its quadtree is
-    // built (qota::viewshed).
+    // The sweep (a flat frame: --flat, or a raster without CRS; not --per-pixel) and the walk (on
+    // the ellipsoid) keep no quadtree: a cost of their own, a tenth of a quadtree's or less. An
+    // observer neither can take (on the surface, outside the outermost pixel centres, a raster too
+    // far from flat to walk) is checked again before its quadtree is built (qota::viewshed).
     memory::PerItem extra;
     if (!o.png.empty()) extra = extra + memory::kPreview;
     if (!o.observersFile.empty()) extra = extra + memory::kCounts;
     if (!o.whichFile.empty()) extra = extra + memory::kWhich;
     const memory::PerItem swept = memory::kSweptLinesOfSight + extra, quadtree = memory::kLinesOfSight + extra;
-    demOptions.then = o.perPixel || !o.flat ? quadtree : swept;
+    const memory::PerItem walked = memory::kWalkedLinesOfSight + extra;
+    demOptions.then = o.perPixel ? quadtree : o.flat ? swept : walked;
     demOptions.thenWithoutCrs = o.perPixel ? quadtree : swept;
     demOptions.fillVoids = o.fillVoids ? kFillVoidsPixels : 0;
     demOptions.triangles = false;  // (the frame triangulates the grid from the heights)

@@ -925,8 +925,9 @@ void requireQuadtree(const DemTerrain& dem, const LocalFrame& frame, bool unswep
   const std::uint64_t vertices = w * h, triangles = w > 1 && h > 1 ? 2 * (w - 1) * (h - 1) : 0;
   if (dem.estimatedBytes >= memory::kProcessBase + memory::kLinesOfSight.bytes(vertices, triangles)) return;
   memory::require(dem.path + ": lines of sight through the quadtree" +
-                      (unswept ? std::string(" (an observer the sweep cannot take: on the surface, or outside the "
-                                             "outermost pixel centres)")
+                      (unswept ? std::string(" (an observer or light the sweep and the walk cannot take: on the "
+                                             "surface, outside the outermost pixel centres, or on a raster too far "
+                                             "from flat to walk)")
                                : std::string()),
                   memory::kLinesOfSight, vertices, triangles);
 }
@@ -988,7 +989,7 @@ Viewshed viewshedOf(const DemTerrain& dem, std::vector<double>* takeHeights, con
     out.method = "walk";
   } else {
     out.method = "quadtree";
-    requireQuadtree(dem, f, o.sweep && !f.body.ellipsoid);
+    requireQuadtree(dem, f, o.sweep);
     if (progress && !progress(0.05, "building the quadtree")) throw Error("viewshed cancelled");
     const double diagonal = std::max(sight.diagonal(), std::hypot(f.pixelSizeX, f.pixelSizeY));
     sight.index(out.observer, f.upAt(out.observer), o.maxDistance > 0 ? o.maxDistance + 2 * diagonal : 0.0);
@@ -1060,7 +1061,7 @@ CumulativeViewshed cumulativeViewshed(const DemTerrain& dem, std::span<const Obs
                                 0.9 / observers.size(), visit);
     } else {
       if (!indexed) {
-        requireQuadtree(dem, f, o.sweep && !f.body.ellipsoid);
+        requireQuadtree(dem, f, o.sweep);
         if (progress && !progress(from, "building the quadtree")) throw Error("viewshed cancelled");
         // One quadtree for every observer: the whole terrain (each observer's maximum distance
         // is checked per pixel).
@@ -1100,6 +1101,7 @@ std::vector<Light> pointLightMask(const DemTerrain& dem, const PointLightOptions
   // centres' lines (on an ellipsoid, modelled: model()); else through the quadtree.
   const bool walk = o.walk && sight.walkableFrom(lamp) && (!f.body.ellipsoid || sight.model(lamp, threadsOr(threads)));
   if (!walk) {
+    requireQuadtree(dem, f, o.walk);
     if (progress && !progress(0.05, "building the quadtree")) throw Error("shadow computation cancelled");
     sight.index(Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ(), 0.0);
   } else if (!f.body.ellipsoid) {

@@ -478,8 +478,9 @@ py::array_t<std::int64_t> cumulative(const std::string& path, py::array_t<double
     demOptions.lonLatAsCartesian = true;
     demOptions.triangles = false;  // (the frame triangulates the grid from the heights, as qota viewshed)
     demOptions.vertices = false;
-    // (As qota viewshed --observers estimates it: flat frames sweep.)
-    demOptions.then = (flat ? qota::memory::kSweptLinesOfSight : qota::memory::kLinesOfSight) + qota::memory::kCounts;
+    // (As qota viewshed --observers estimates it: flat frames sweep, the ellipsoid's walk.)
+    demOptions.then =
+        (flat ? qota::memory::kSweptLinesOfSight : qota::memory::kWalkedLinesOfSight) + qota::memory::kCounts;
     demOptions.thenWithoutCrs = qota::memory::kSweptLinesOfSight + qota::memory::kCounts;
     const qota::DemTerrain dem = qota::loadDem(path, demOptions);
     width = dem.width, height = dem.height;

@@ -50,6 +50,15 @@ constexpr PerItem kLinesOfSight{100, 300};
 // difference), counting many observers 36 (kCounts), and which observers see each pixel 49 (kWhich
 // more).
 constexpr PerItem kSweptLinesOfSight{16, 0};
+// Lines of sight walked over the squares under them, with no quadtree (viewsheds on an ellipsoid,
+// viewshed.cpp): the frame's points, the heights in metres, each point's height in the
+// observer's model, the verdicts. With the heights read (kDemHeights), measured 42 bytes a pixel
+// (bench/viewshed_bench.sh's DEM, and the same at 10 m: 6000 x 6000).
+constexpr PerItem kWalkedLinesOfSight{40, 0};
+// A point light walked (qota shadow --light-point): the same with the frame's triangles and how
+// each faces the light, beside the shadow tool's own mesh and frame (kDemMesh, read). Measured 162
+// to 166 bytes a pixel in all (the two DEMs above).
+constexpr PerItem kWalkedLight{120, 0};
 constexpr PerItem kPreview{45, 0};
 constexpr PerItem kCounts{18, 0};
 constexpr PerItem kWhich{16, 0};
