@@ -1035,25 +1035,43 @@ TEST(WalkRing, VisitsEveryRingCellAPaddedTrackReaches) {
   EXPECT_GT(reached, 3000);
 }
 
-// A wide geographic raster far north is too far from its linear image for the walk's corridor
-// (its pad beyond two pixels): the quadtree answers there.
-TEST(Viewshed, AWideRasterFarNorthGoesThroughTheQuadtree) {
+// A wide geographic raster far north lies far from its linear image (a pad of some 6 pixels at
+// its ends): each block's own offset keeps the walk's squares few, and the walk answers as the
+// quadtree does, pixel for pixel. A raster spanning tens of degrees (a pad beyond 32 pixels) goes
+// through the quadtree.
+TEST(Viewshed, AWideRasterFarNorthIsWalkedBlockByBlock) {
   qota::test::RasterSpec spec;
   spec.width = 240, spec.height = 40;
   spec.geotransform = {10, 0.05, 0, 72, 0, -0.05};  // 12 degrees of longitude at 70 N
   spec.crs = "EPSG:4326";
-  spec.bands = {std::vector<double>(static_cast<std::size_t>(spec.width) * spec.height, 100.0)};
+  spec.bands = {hills(240, 40, 900, 11)};
   const auto path = qota::test::scratchPath("viewshed_wide_north.tif");
   qota::test::writeRaster(path, spec);
   qota::DemOptions read;
   read.lonLatAsCartesian = true;
   const qota::DemTerrain dem = qota::loadDem(path.string(), read);
+  for (const double lon : {16.025, 10.525, 21.725}) {
+    qota::ViewshedOptions o;
+    o.observerX = lon, o.observerY = 71.025, o.observerHeight = 2000;
+    o.frame.heightRef = "ellipsoid";
+    const qota::Viewshed walked = qota::viewshed(dem, o);
+    o.sweep = false;
+    const qota::Viewshed indexed = qota::viewshed(dem, o);
+    EXPECT_EQ(walked.method, "walk");
+    int differ = 0;
+    for (std::size_t i = 0; i < walked.sight.size(); ++i) differ += walked.sight[i] != indexed.sight[i];
+    EXPECT_EQ(differ, 0) << "observer at " << lon;
+    EXPECT_GT(walked.visible, 500u);
+    EXPECT_LT(walked.visible, walked.tested - 500);
+  }
+  spec.geotransform = {0, 0.25, 0, 80, 0, -0.25};  // 60 degrees by 10
+  const auto wide = qota::test::scratchPath("viewshed_wider_north.tif");
+  qota::test::writeRaster(wide, spec);
+  const qota::DemTerrain wider = qota::loadDem(wide.string(), read);
   qota::ViewshedOptions o;
-  o.observerX = 16.025, o.observerY = 71.025, o.observerHeight = 50;
+  o.observerX = 30.125, o.observerY = 75.125, o.observerHeight = 50;
   o.frame.heightRef = "ellipsoid";
-  const qota::Viewshed seen = qota::viewshed(dem, o);
-  EXPECT_EQ(seen.method, "quadtree");
-  EXPECT_GT(seen.visible, 0u);
+  EXPECT_EQ(qota::viewshed(wider, o).method, "quadtree");
 }
 
 // The sweep cuts each quadrant into slices of slopes, which the threads take in turn. Every

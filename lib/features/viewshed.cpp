@@ -488,7 +488,10 @@ class Sightlines {
       lineLow = std::min(z0, z1) - margin, lineHigh = std::max(z0, z1) + margin;
       return true;
     };
-    if (model_ && ringMeets(a, d, ax, ay, bx, by, pad, endVertex)) return true;
+    if (model_) {
+      if (ringMeets(a, d, ax, ay, bx, by, pad, endVertex)) return true;
+      return shiftedWalkMeets(a, d, ax, ay, bx, by, za, zb, margin, endVertex, metSquare);
+    }
     std::vector<std::uint8_t> cellClear;  // of the block column's blocks, from its first row's
     for (int block = c0 / kWalkBlock; block <= c1 / kWalkBlock; ++block) {
       const int from = std::max(c0, block * kWalkBlock), to = std::min(c1, block * kWalkBlock + kWalkBlock - 1);
@@ -520,17 +523,88 @@ class Sightlines {
             r = br * kWalkBlock + kWalkBlock - 1;  // (the block's last row; the loop steps past it)
             continue;
           }
-          const std::size_t tl = static_cast<std::size_t>(r) * w + c;
-          const double zA = zOf(tl), zB = zOf(tl + 1), zC = zOf(tl + w), zD = zOf(tl + w + 1);
-          if (std::min({zA, zB, zC, zD}) > lineHigh || std::max({zA, zB, zC, zD}) < lineLow) continue;
-          if (squareMeets(c, r, a, d, endVertex)) {
-            if (metSquare) *metSquare = static_cast<std::int64_t>(r) * (w - 1) + c;
-            return true;
+          if (squareMet(c, r, lineLow, lineHigh, a, d, endVertex, metSquare)) return true;
+        }
+      }
+    }
+    return false;
+  }
+
+  // walkMeets in a model: block by block, each block's corners' model positions shifted back by
+  // the block's own offset (Model::Block), so that the track is sought within the block's small
+  // spread instead of the whole raster's pad. The blocks a track can reach are those within the
+  // pad of it; in each, the squares within the spread of the shifted track, their triangles
+  // tested exactly in the frame. (The pad grows with the distance from the observer on a
+  // geographic raster, the spread within a block stays a small fraction of a pixel.)
+  bool shiftedWalkMeets(const Eigen::Vector3d& a, const Eigen::Vector3d& d, double ax, double ay, double bx, double by,
+                        double za, double zb, double margin, std::uint32_t endVertex, std::int64_t* metSquare) const {
+    const int w = frame_.width, h = frame_.height;
+    const Model& m = *model_;
+    const double pad = m.pad, dz = zb - za;
+    // [u0, u1] narrowed to where start + u step lies in [lo, hi]; false when empty.
+    const auto clip = [](double start, double step, double lo, double hi, double& u0, double& u1) {
+      if (step == 0) return start >= lo && start <= hi && u0 <= u1;
+      const double ua = (lo - start) / step, ub = (hi - start) / step;
+      u0 = std::max(u0, std::min(ua, ub)), u1 = std::min(u1, std::max(ua, ub));
+      return u0 <= u1;
+    };
+    const auto heights = [&](double u0, double u1, double& low, double& high) {
+      const double z0 = za + u0 * dz, z1 = za + u1 * dz;
+      low = std::min(z0, z1) - margin, high = std::max(z0, z1) + margin;
+    };
+    const int lastColumn = w - 2, lastRow = h - 2;
+    const int bc0 = std::max(0, static_cast<int>(std::floor(std::min(ax, bx) - pad))) / kWalkBlock;
+    const int bc1 = std::min(lastColumn, static_cast<int>(std::floor(std::max(ax, bx) + pad))) / kWalkBlock;
+    for (int bc = bc0; bc <= bc1; ++bc) {
+      const int c0 = bc * kWalkBlock, c1 = std::min(lastColumn, c0 + kWalkBlock - 1);
+      // The block rows the track can reach over these columns (within the pad).
+      double v0 = 0, v1 = 1;
+      if (!clip(ax, bx - ax, c0 - pad, c1 + 1 + pad, v0, v1)) continue;
+      const double ya = ay + v0 * (by - ay), yb = ay + v1 * (by - ay);
+      const int br0 = std::max(0, static_cast<int>(std::floor(std::min(ya, yb) - pad))) / kWalkBlock;
+      const int br1 = std::min(lastRow, static_cast<int>(std::floor(std::max(ya, yb) + pad))) / kWalkBlock;
+      for (int br = br0; br <= br1; ++br) {
+        const std::size_t at = static_cast<std::size_t>(br) * walkBlocksAcross_ + bc;
+        const Model::Block& s = m.blocks[at];
+        const int r0 = br * kWalkBlock, r1 = std::min(lastRow, r0 + kWalkBlock - 1);
+        // The shifted track within the block's squares, widened by its spread.
+        const double sx = ax - s.dx, sy = ay - s.dy;
+        double u0 = 0, u1 = 1;
+        if (!clip(sx, bx - ax, c0 - s.rx, c1 + 1 + s.rx, u0, u1) ||
+            !clip(sy, by - ay, r0 - s.ry, r1 + 1 + s.ry, u0, u1)) {
+          continue;
+        }
+        double low, high;
+        heights(u0, u1, low, high);
+        if (walkLow_[at] > high || walkHigh_[at] < low) continue;
+        for (int c = c0; c <= c1; ++c) {
+          double t0 = u0, t1 = u1;
+          if (!clip(sx, bx - ax, c - s.rx, c + 1 + s.rx, t0, t1)) continue;
+          const double y0 = sy + t0 * (by - ay), y1 = sy + t1 * (by - ay);
+          const int ra = std::max(r0, static_cast<int>(std::floor(std::min(y0, y1) - s.ry)));
+          const int rb = std::min(r1, static_cast<int>(std::floor(std::max(y0, y1) + s.ry)));
+          heights(t0, t1, low, high);
+          for (int r = ra; r <= rb; ++r) {
+            if (squareMet(c, r, low, high, a, d, endVertex, metSquare)) return true;
           }
         }
       }
     }
     return false;
+  }
+
+  // Whether the segment, its heights over square (c, r) within [low, high], meets a triangle of
+  // the square: none when the square's corners all lie above or all below those heights (its
+  // triangles within its corners' heights), else squareMeets; metSquare (when given) the square.
+  bool squareMet(int c, int r, double low, double high, const Eigen::Vector3d& a, const Eigen::Vector3d& d,
+                 std::uint32_t endVertex, std::int64_t* metSquare) const {
+    const int w = frame_.width;
+    const std::size_t tl = static_cast<std::size_t>(r) * w + c;
+    const double zA = zOf(tl), zB = zOf(tl + 1), zC = zOf(tl + w), zD = zOf(tl + w + 1);
+    if (std::min({zA, zB, zC, zD}) > high || std::max({zA, zB, zC, zD}) < low) return false;
+    if (!squareMeets(c, r, a, d, endVertex)) return false;
+    if (metSquare) *metSquare = static_cast<std::int64_t>(r) * (w - 1) + c;
+    return true;
   }
 
   // Whether the open segment from a to a + d meets an inner triangle of square (c, r) that blocks
@@ -577,10 +651,17 @@ class Sightlines {
     Eigen::Matrix<double, 2, 3> plane;  // frame offset -> pixels
     double pad = 0;
     std::vector<double> z;  // each vertex's height along up, from the origin
+    // Per block of kWalkBlock x kWalkBlock squares (walkBlocks' blocks): the middle of its
+    // corners' offsets (model position less pixel position), and how far any corner's lies from
+    // it, by axis.
+    struct Block {
+      double dx = 0, dy = 0, rx = 0, ry = 0;
+    };
+    std::vector<Block> blocks;
   };
-  // Model pads beyond this walk too wide a corridor to pay (a wide geographic raster far from
-  // its centre): the quadtree answers those.
-  static constexpr double kMostPad = 2.0;
+  // Pads beyond this reach too many blocks a track to pay (a raster spanning tens of degrees):
+  // the quadtree answers those.
+  static constexpr double kMostPad = 32.0;
 
   // Whether walkLook can take this observer: on an ellipsoid's frame of the raster's grid (no
   // seam or pole), above the surface, strictly inside the outermost centres' lines.
@@ -645,6 +726,31 @@ class Sightlines {
     // (Rounding of the model's coordinates: far below a millionth of a pixel.)
     m->pad += 1e-6;
     if (!(m->pad <= kMostPad)) return false;
+    // Each block's offsets: the corners of its squares, pixel rows and columns kWalkBlock b to
+    // kWalkBlock b + kWalkBlock (a pixel on a block's side is a corner of the blocks on both sides).
+    const int h = f.height;
+    const std::size_t across = static_cast<std::size_t>((w - 2) / kWalkBlock) + 1;
+    const std::size_t down = static_cast<std::size_t>((h - 2) / kWalkBlock) + 1;
+    m->blocks.assign(across * down, {});
+    batch::inSlices(down, threads, 4, [&](std::size_t first, std::size_t end) {
+      for (std::size_t b = first; b < end; ++b) {
+        for (std::size_t c = 0; c < across; ++c) {
+          double x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY;
+          const int rowEnd = std::min(static_cast<int>(b) * kWalkBlock + kWalkBlock, h - 1);
+          const int colEnd = std::min(static_cast<int>(c) * kWalkBlock + kWalkBlock, w - 1);
+          for (int r = static_cast<int>(b) * kWalkBlock; r <= rowEnd; ++r) {
+            for (int k = static_cast<int>(c) * kWalkBlock; k <= colEnd; ++k) {
+              const std::size_t i = static_cast<std::size_t>(r) * w + k;
+              const Eigen::Vector2d xy = m->plane * (v[i] - m->origin);
+              const double ox = xy.x() - (k - ex), oy = xy.y() - (r - ey);
+              x0 = std::min(x0, ox), x1 = std::max(x1, ox), y0 = std::min(y0, oy), y1 = std::max(y1, oy);
+            }
+          }
+          // (The spread widened for the rounding of these offsets, as the pad is.)
+          m->blocks[b * across + c] = {(x0 + x1) / 2, (y0 + y1) / 2, (x1 - x0) / 2 + 1e-6, (y1 - y0) / 2 + 1e-6};
+        }
+      }
+    });
     model_ = std::move(m);
     ringCells();
     walkBlocks(threads);
