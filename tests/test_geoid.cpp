@@ -257,20 +257,20 @@ TEST(Geoid, TreeFilesKeepTheReference) {
 
 TEST(Geoid, APointBeyondTheGridIsNamedWhateverTheThreads) {
   // A geoid grid that covers every pixel centre of the raster but not its east edge (the outer
-  // half pixel, placed after the pixels: past the first blocks). The frame's points are placed in
+  // half pixel, placed after the pixels: in the last blocks). The frame's points are placed in
   // blocks of 65,536 on every core; the point named must be the first beyond the grid in the
   // frame's own order (a later block on another thread can fail first), and the failure a clean
   // refusal that writes nothing.
-  const int w = 400, h = 400;
-  const std::string raster = crop("geoid_partial.tif", "EPSG:4326", 500, 500, w, h);
+  const int w = 1200, h = 1200;  // (22 blocks: several threads)
+  const std::string raster = crop("geoid_partial.tif", "EPSG:4326", 0, 0, w, h);
   const qota::test::RasterValues r = qota::test::readRaster(raster);
   const double eastCentre = r.geotransform[0] + (w - 0.5) * r.geotransform[1];
   RasterSpec g;
-  g.width = 40, g.height = 60;  // nodes 0.01 degree apart, the last a little east of eastCentre
+  g.width = 110, g.height = 60;  // nodes 0.01 degree apart, the last a little east of eastCentre
   const double lastNode = eastCentre + 0.25 * r.geotransform[1];
-  g.geotransform = {lastNode - 39.5 * 0.01, 0.01, 0, 46.9, 0, -0.01};
+  g.geotransform = {lastNode - 109.5 * 0.01, 0.01, 0, 47.2, 0, -0.01};
   g.crs = "EPSG:4326";
-  g.bands = {std::vector<double>(40 * 60, -19.0)};
+  g.bands = {std::vector<double>(110 * 60, -19.0)};
   const std::string grid = scratchPath("geoid_partial_grid.tif").string();
   qota::test::writeRaster(grid, g);
   // The first vertex the grid does not cover: pixel centres first, then the border's vertices.
