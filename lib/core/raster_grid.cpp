@@ -87,11 +87,8 @@ std::array<std::uint32_t, 3> RasterGrid::triangle(std::size_t t) const {
   const std::size_t inner = innerTriangleCount();
   if (t >= inner) return extraTriangles_[t - inner];
   const std::size_t square = t / 2, w = static_cast<std::size_t>(width_);
-  const std::size_t r = square / (w - 1), c = square % (w - 1);
-  const auto tl = static_cast<std::uint32_t>(r * w + c), tr = tl + 1;
-  const auto bl = static_cast<std::uint32_t>(tl + w), br = bl + 1;
-  if (t % 2 == 0) return {tl, bl, br};
-  return {tl, br, tr};
+  return innerCorners(static_cast<std::uint32_t>(w), static_cast<std::uint32_t>(square / (w - 1)),
+                      static_cast<std::uint32_t>(square % (w - 1)), static_cast<std::uint32_t>(t % 2));
 }
 
 std::optional<std::uint64_t> RasterGrid::innerTriangleWith(std::uint32_t a, std::uint32_t b, std::uint32_t c) const {

@@ -612,7 +612,8 @@ class Sightlines {
   bool squareMeets(int c, int r, const Eigen::Vector3d& a, const Eigen::Vector3d& d, std::uint32_t endVertex) const {
     const int w = frame_.width;
     for (std::uint32_t half = 0; half < 2; ++half) {
-      const std::array<std::uint32_t, 3> k = frame_.grid.triangle(RasterGrid::innerTriangle(w, r, c, half));
+      const std::array<std::uint32_t, 3> k = RasterGrid::innerCorners(
+          static_cast<std::uint32_t>(w), static_cast<std::uint32_t>(r), static_cast<std::uint32_t>(c), half);
       if (!blocks(k)) continue;
       if (meetsTriangle(k, a, d, endVertex)) return true;
     }
@@ -814,8 +815,9 @@ class Sightlines {
     const Eigen::Vector3d d = target - eye.point;
     if (blocker >= 0) {
       const int bc = static_cast<int>(blocker % (w - 1)), br = static_cast<int>(blocker / (w - 1));
-      for (int dr = -1; dr <= 1; ++dr) {
-        for (int dc = -1; dc <= 1; ++dc) {
+      static constexpr int kOrder[3] = {0, -1, 1};  // (the square itself first)
+      for (const int dr : kOrder) {
+        for (const int dc : kOrder) {
           const int c = bc + dc, r = br + dr;
           if (c < 0 || r < 0 || c > w - 2 || r > h - 2 || !squareMeets(c, r, eye.point, d, endVertex)) continue;
           blocker = static_cast<std::int64_t>(r) * (w - 1) + c;

@@ -71,6 +71,13 @@ class RasterGrid {
                                                std::uint32_t half) {
     return 2 * (row * (width - 1) + col) + half;
   }
+  // The corners of the inner triangle in half `half` of the square whose top-left centre is (col,
+  // row), in the order described above (what triangle() gives for its number).
+  static constexpr std::array<std::uint32_t, 3> innerCorners(std::uint32_t width, std::uint32_t row, std::uint32_t col,
+                                                             std::uint32_t half) {
+    const std::uint32_t tl = row * width + col, tr = tl + 1, bl = tl + width, br = bl + 1;
+    return half == 0 ? std::array<std::uint32_t, 3>{tl, bl, br} : std::array<std::uint32_t, 3>{tl, br, tr};
+  }
   // The corners of triangle t, inner ones first, in the order described above.
   std::array<std::uint32_t, 3> triangle(std::size_t t) const;
   // The rule read backwards: the inner triangle whose corners are {a, b, c} in any order (the
