@@ -640,9 +640,8 @@ void placeVertices(LocalFrame& f, const FrameBasis& b, std::span<const double> z
   // (A small frame on one thread: each more thread keeps its own blocks' buffers and heap, a
   // megabyte or two that a small job's memory estimate has no room for.)
   constexpr std::size_t kBlocksPerThread = 4;
-  const unsigned threads = static_cast<unsigned>(
-      std::min<std::size_t>((blocks + kBlocksPerThread - 1) / kBlocksPerThread,
-                            std::clamp(std::thread::hardware_concurrency(), 1u, 8u)));
+  const unsigned threads = static_cast<unsigned>(std::min<std::size_t>(
+      (blocks + kBlocksPerThread - 1) / kBlocksPerThread, std::clamp(std::thread::hardware_concurrency(), 1u, 8u)));
   {
     std::vector<std::jthread> pool;
     for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work);
