@@ -981,6 +981,28 @@ TEST(Viewshed, WalkAlongTheEdgesOfAProjectedRaster) {
   EXPECT_EQ(walks, 8);
 }
 
+// An observer half a pixel inside a raster whose top edge is the pole (not closed round it): the
+// walk's model needs points a pixel either side of the observer, one of them beyond the pole, so
+// the quadtree answers (the model declines instead of failing the viewshed).
+TEST(Viewshed, AnObserverByThePoleGoesThroughTheQuadtree) {
+  qota::test::RasterSpec spec;
+  spec.width = 40, spec.height = 20;
+  spec.geotransform = {0, 0.05, 0, 90, 0, -0.05};
+  spec.crs = "EPSG:4326";
+  spec.bands = {hills(40, 20, 300, 5)};
+  const auto path = qota::test::scratchPath("viewshed_pole.tif");
+  qota::test::writeRaster(path, spec);
+  qota::DemOptions read;
+  read.lonLatAsCartesian = true;
+  const qota::DemTerrain dem = qota::loadDem(path.string(), read);
+  qota::ViewshedOptions o;
+  o.observerX = 1.0125, o.observerY = 90 - 0.75 * 0.05, o.observerHeight = 10;
+  o.frame.heightRef = "ellipsoid";
+  const qota::Viewshed seen = qota::viewshed(dem, o);
+  EXPECT_EQ(seen.method, "quadtree");
+  EXPECT_GT(seen.visible, 0u);
+}
+
 // The ring cells a padded track reaches, against every ring cell's widened box clipped against
 // the track (Liang-Barsky), on random rasters and tracks: inside, outside, along the edges, through
 // the corners, points, axis-parallel.

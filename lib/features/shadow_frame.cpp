@@ -546,9 +546,9 @@ LocalFrame windowFrame(const FrameBasis& b, const PixelWindow& window, std::vect
 }
 
 LocalFrame windowFrame(const FrameBasis& b, const PixelWindow& window, std::span<const double> z,
-                       std::vector<std::uint8_t> valid, bool triangles) {
+                       std::vector<std::uint8_t> valid, bool triangles, unsigned threads) {
   LocalFrame f = gridFrame(b, window, std::move(valid));
-  placeVertices(f, b, z);
+  placeVertices(f, b, z, threads);
   if (triangles) f.mesh.indices = f.grid.indices();
   return f;
 }
@@ -577,7 +577,7 @@ LocalFrame gridFrame(const FrameBasis& b, const PixelWindow& window, std::vector
   return f;
 }
 
-void placeVertices(LocalFrame& f, const FrameBasis& b, std::span<const double> z) {
+void placeVertices(LocalFrame& f, const FrameBasis& b, std::span<const double> z, unsigned threadsAsked) {
   const int w = f.width, h = f.height;
   const PixelWindow& window = f.window;
   const std::size_t n = f.pixelCount();
@@ -640,8 +640,9 @@ void placeVertices(LocalFrame& f, const FrameBasis& b, std::span<const double> z
   // (A small frame on one thread: each more thread keeps its own blocks' buffers and heap, a
   // megabyte or two that a small job's memory estimate has no room for.)
   constexpr std::size_t kBlocksPerThread = 4;
-  const unsigned threads = static_cast<unsigned>(std::min<std::size_t>(
-      (blocks + kBlocksPerThread - 1) / kBlocksPerThread, std::clamp(std::thread::hardware_concurrency(), 1u, 8u)));
+  const unsigned most = threadsAsked ? threadsAsked : std::clamp(std::thread::hardware_concurrency(), 1u, 8u);
+  const unsigned threads =
+      static_cast<unsigned>(std::min<std::size_t>((blocks + kBlocksPerThread - 1) / kBlocksPerThread, most));
   {
     std::vector<std::jthread> pool;
     for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work);

@@ -139,6 +139,9 @@ class Sightlines {
     placeWindow({0, 0, w, h});
   }
 
+  // The threads placing a frame's points may take (place(); 0: one per core).
+  void placingThreads(unsigned threads) { threads_ = threads; }
+
   // A pixel's diagonal near the observer in metres (set by place with a reach; else 0).
   double diagonal() const { return diagonal_; }
   const LocalFrame& frame() const { return frame_; }
@@ -203,7 +206,7 @@ class Sightlines {
   // The quadtree over the triangles with data; with reach > 0, only those whose corners all lie
   // within reach of `near` seen from above (along `up`).
   void index(const Eigen::Vector3d& near, const Eigen::Vector3d& up, double reach) {
-    if (frame_.mesh.vertices.empty()) placeVertices(frame_, basis_, heights_);
+    if (frame_.mesh.vertices.empty()) placeVertices(frame_, basis_, heights_, threads_);
     const std::size_t n = frame_.pixelCount();
     const auto& v = frame_.mesh.vertices;
     const auto& extra = frame_.grid.extraVertices();
@@ -697,8 +700,12 @@ class Sightlines {
     const Eigen::Vector3d e1 = m->up.unitOrthogonal(), e2 = m->up.cross(e1);
     const auto tangent = [&](const Eigen::Vector3d& v) { return Eigen::Vector2d(e1.dot(v), e2.dot(v)); };
     Eigen::Matrix2d jacobian;
-    jacobian.col(0) = tangent(pointAt(eye.col + 1, eye.row, surface) - pointAt(eye.col - 1, eye.row, surface)) / 2;
-    jacobian.col(1) = tangent(pointAt(eye.col, eye.row + 1, surface) - pointAt(eye.col, eye.row - 1, surface)) / 2;
+    try {
+      jacobian.col(0) = tangent(pointAt(eye.col + 1, eye.row, surface) - pointAt(eye.col - 1, eye.row, surface)) / 2;
+      jacobian.col(1) = tangent(pointAt(eye.col, eye.row + 1, surface) - pointAt(eye.col, eye.row - 1, surface)) / 2;
+    } catch (const Error&) {
+      return false;  // (a point a pixel from the observer beyond the CRS, a pole or the geoid grid)
+    }
     if (!(std::fabs(jacobian.determinant()) > 0) || !jacobian.allFinite()) return false;
     Eigen::Matrix<double, 2, 3> tangents;
     tangents.row(0) = e1.transpose(), tangents.row(1) = e2.transpose();
@@ -916,6 +923,7 @@ class Sightlines {
 
  private:
   double diagonal_ = 0;
+  unsigned threads_ = 1;  // (placingThreads)
   // The frame of `window`: the heights in metres there, voids filled (shadows) or at the lowest
   // height (holes, whose triangles are left out); the basis completed from the raster's centre.
   void placeWindow(const PixelWindow& window) {
@@ -942,7 +950,7 @@ class Sightlines {
     // Viewsheds read the triangles from the grid (index(), guess(), walkMeets()); a point light's
     // attached shadow needs the mesh's.
     frame_ = flat_ ? gridFrame(basis_, window, std::move(valid))
-                   : windowFrame(basis_, window, heights_, std::move(valid), !holes_);
+                   : windowFrame(basis_, window, heights_, std::move(valid), !holes_, threads_);
     walkLow_.clear(), walkHigh_.clear();  // (walkBlocks: of the frame before)
     model_.reset();
     if (!complete_) {
@@ -1054,6 +1062,7 @@ Viewshed viewshedOf(const DemTerrain& dem, std::vector<double>* takeHeights, con
   checkHeight("target height", o.targetHeight);
   checkMetres("maximum distance", o.maxDistance);
   Sightlines sight(dem, o.frame, o.index, progress, /*holes=*/true, takeHeights);
+  sight.placingThreads(threadsOr(threads));
   Viewshed out;
   const Sightlines::Placed observer = sight.observerAt(o.observerX, o.observerY, o.observerHeight, "the observer");
   out.observer = observer.point, out.surface = observer.surface;
@@ -1134,6 +1143,7 @@ CumulativeViewshed cumulativeViewshed(const DemTerrain& dem, std::span<const Obs
                 " observers (a bit each), not " + std::to_string(observers.size()));
   }
   Sightlines sight(dem, o.frame, o.index, progress);
+  sight.placingThreads(threadsOr(threads));
   sight.place();
   const LocalFrame& f = sight.frame();
   std::vector<Sightlines::Placed> placed;
@@ -1198,6 +1208,7 @@ std::vector<Light> pointLightMask(const DemTerrain& dem, const PointLightOptions
     throw Error("the light's height must be within 1e9 m (beyond any terrain), got " + number(o.height));
   }
   Sightlines sight(dem, o.frame, o.index, progress, /*holes=*/false);
+  sight.placingThreads(threadsOr(threads));
   sight.place();
   const LocalFrame& f = sight.frame();
   const Sightlines::Placed lamp = o.aboveSurface ? sight.observerAt(o.x, o.y, o.height, "the light") : [&] {

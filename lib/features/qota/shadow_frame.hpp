@@ -169,14 +169,18 @@ void heightsInMetres(const FrameBasis& basis, const PixelWindow& window, std::ve
 // corners), for callers that read the triangulation from the grid (viewsheds).
 LocalFrame windowFrame(const FrameBasis& basis, const PixelWindow& window, std::vector<double> heights,
                        std::vector<std::uint8_t> valid, bool triangles = true);
-// The same over heights the caller keeps (a viewshed's over the whole raster: no copy of them).
+// The same over heights the caller keeps (a viewshed's over the whole raster: no copy of them),
+// its points placed on up to `threads` threads (0: one per core; placeVertices).
 LocalFrame windowFrame(const FrameBasis& basis, const PixelWindow& window, std::span<const double> heights,
-                       std::vector<std::uint8_t> valid, bool triangles = true);
+                       std::vector<std::uint8_t> valid, bool triangles = true, unsigned threads = 1);
 // The frame of `window` without its points (mesh empty; the grid, valid, body and units as
 // windowFrame's), for callers that place the points they need on demand (FlatPlacement);
 // placeVertices then adds them all, as windowFrame places them.
 LocalFrame gridFrame(const FrameBasis& basis, const PixelWindow& window, std::vector<std::uint8_t> valid);
-void placeVertices(LocalFrame& frame, const FrameBasis& basis, std::span<const double> heights);
+// threads: at most this many (0: one per core, up to 8), and a thread only for every 4 blocks
+// of 65,536 points (each thread keeps its own buffers and CRS conversion). The same points
+// whatever the threads.
+void placeVertices(LocalFrame& frame, const FrameBasis& basis, std::span<const double> heights, unsigned threads = 1);
 // Frame points of raster positions: pixel coordinates (GDAL's: pixel centres at + 0.5) and
 // heights in metres over the frame's reference (the basis's heightRef on an ellipsoid), placed
 // by the arithmetic windowFrame places its vertices with, so a pixel centre at its pixel's height
