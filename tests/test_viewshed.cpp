@@ -759,6 +759,22 @@ std::vector<double> hills(int w, int h, double relief, unsigned seed) {
   return z;
 }
 
+// hills() on a longitude/latitude raster (EPSG:4326) of this geotransform, written and read as
+// qota viewshed reads it.
+qota::DemTerrain lonLatHills(const std::string& name, int w, int h, const std::array<double, 6>& geotransform,
+                             double relief, unsigned seed) {
+  qota::test::RasterSpec spec;
+  spec.width = w, spec.height = h;
+  spec.geotransform = geotransform;
+  spec.crs = "EPSG:4326";
+  spec.bands = {hills(w, h, relief, seed)};
+  const auto path = qota::test::scratchPath(name);
+  qota::test::writeRaster(path, spec);
+  qota::DemOptions read;
+  read.lonLatAsCartesian = true;
+  return qota::loadDem(path.string(), read);
+}
+
 TEST(Viewshed, Wgs84MatchesStraightGeocentricSegments) {
   int compared = 0, visible = 0;
   for (unsigned seed = 1; seed <= 3; ++seed) {
@@ -985,16 +1001,7 @@ TEST(Viewshed, WalkAlongTheEdgesOfAProjectedRaster) {
 // walk's model needs points a pixel either side of the observer, one of them beyond the pole, so
 // the quadtree answers (the model declines instead of failing the viewshed).
 TEST(Viewshed, AnObserverByThePoleGoesThroughTheQuadtree) {
-  qota::test::RasterSpec spec;
-  spec.width = 40, spec.height = 20;
-  spec.geotransform = {0, 0.05, 0, 90, 0, -0.05};
-  spec.crs = "EPSG:4326";
-  spec.bands = {hills(40, 20, 300, 5)};
-  const auto path = qota::test::scratchPath("viewshed_pole.tif");
-  qota::test::writeRaster(path, spec);
-  qota::DemOptions read;
-  read.lonLatAsCartesian = true;
-  const qota::DemTerrain dem = qota::loadDem(path.string(), read);
+  const qota::DemTerrain dem = lonLatHills("viewshed_pole.tif", 40, 20, {0, 0.05, 0, 90, 0, -0.05}, 300, 5);
   qota::ViewshedOptions o;
   o.observerX = 1.0125, o.observerY = 90 - 0.75 * 0.05, o.observerHeight = 10;
   o.frame.heightRef = "ellipsoid";
@@ -1062,16 +1069,8 @@ TEST(WalkRing, VisitsEveryRingCellAPaddedTrackReaches) {
 // quadtree does, pixel for pixel. A raster spanning tens of degrees (a pad beyond 32 pixels) goes
 // through the quadtree.
 TEST(Viewshed, AWideRasterFarNorthIsWalkedBlockByBlock) {
-  qota::test::RasterSpec spec;
-  spec.width = 240, spec.height = 40;
-  spec.geotransform = {10, 0.05, 0, 72, 0, -0.05};  // 12 degrees of longitude at 70 N
-  spec.crs = "EPSG:4326";
-  spec.bands = {hills(240, 40, 900, 11)};
-  const auto path = qota::test::scratchPath("viewshed_wide_north.tif");
-  qota::test::writeRaster(path, spec);
-  qota::DemOptions read;
-  read.lonLatAsCartesian = true;
-  const qota::DemTerrain dem = qota::loadDem(path.string(), read);
+  // 12 degrees of longitude at 70 N
+  const qota::DemTerrain dem = lonLatHills("viewshed_wide_north.tif", 240, 40, {10, 0.05, 0, 72, 0, -0.05}, 900, 11);
   for (const double lon : {16.025, 10.525, 21.725}) {
     qota::ViewshedOptions o;
     o.observerX = lon, o.observerY = 71.025, o.observerHeight = 2000;
@@ -1086,10 +1085,8 @@ TEST(Viewshed, AWideRasterFarNorthIsWalkedBlockByBlock) {
     EXPECT_GT(walked.visible, 500u);
     EXPECT_LT(walked.visible, walked.tested - 500);
   }
-  spec.geotransform = {0, 0.25, 0, 80, 0, -0.25};  // 60 degrees by 10
-  const auto wide = qota::test::scratchPath("viewshed_wider_north.tif");
-  qota::test::writeRaster(wide, spec);
-  const qota::DemTerrain wider = qota::loadDem(wide.string(), read);
+  // 60 degrees by 10
+  const qota::DemTerrain wider = lonLatHills("viewshed_wider_north.tif", 240, 40, {0, 0.25, 0, 80, 0, -0.25}, 900, 11);
   qota::ViewshedOptions o;
   o.observerX = 30.125, o.observerY = 75.125, o.observerHeight = 50;
   o.frame.heightRef = "ellipsoid";
