@@ -1211,6 +1211,14 @@ TEST(ViewshedTool, WritesByteRasterAndRefusesBadValues) {
   EXPECT_FALSE(std::filesystem::exists(outPath));
 }
 
+// The tools' memory limit while it lives: what the process holds now and `bytes` more.
+struct ToolBudget {
+  explicit ToolBudget(std::uint64_t bytes) { qota::memory::setLimit(qota::memory::residentBytes() + bytes); }
+  ~ToolBudget() { qota::memory::setLimit(0); }
+  ToolBudget(const ToolBudget&) = delete;
+  ToolBudget& operator=(const ToolBudget&) = delete;
+};
+
 // The sweep keeps no quadtree, and the memory a job is refused for says so. Under a budget that
 // holds the sweep's estimate and not a quadtree's: a viewshed of a raster without CRS (a flat
 // frame without --flat) runs; --per-pixel is refused before the raster is read; an observer the
@@ -1232,10 +1240,7 @@ TEST(ViewshedTool, TheSweepIsEstimatedWithoutAQuadtree) {
   const std::uint64_t sweep = memory::kProcessBase + (memory::kDemHeights + memory::kSweptLinesOfSight).bytes(v, 0);
   const std::uint64_t quadtree = memory::kLinesOfSight.bytes(v, t);
   ASSERT_LT(2 * sweep, quadtree);
-  struct Budget {
-    explicit Budget(std::uint64_t bytes) { memory::setLimit(memory::residentBytes() + bytes); }
-    ~Budget() { memory::setLimit(0); }
-  } budget((sweep + quadtree) / 2);
+  const ToolBudget budget((sweep + quadtree) / 2);
   qota::tools::ViewshedOptions o;
   o.source = dem, o.output = outPath.string(), o.quiet = true, o.pixelSize = 1;
   o.observer = {500.5, h - 500.5};
@@ -1282,10 +1287,7 @@ TEST(ViewshedTool, TheWalkIsEstimatedWithoutAQuadtree) {
   const std::uint64_t walk = memory::kProcessBase + (memory::kDemHeights + memory::kWalkedLinesOfSight).bytes(v, 0);
   const std::uint64_t quadtree = memory::kLinesOfSight.bytes(v, t);
   ASSERT_LT(2 * walk, quadtree);
-  struct Budget {
-    explicit Budget(std::uint64_t bytes) { memory::setLimit(memory::residentBytes() + bytes); }
-    ~Budget() { memory::setLimit(0); }
-  } budget((walk + quadtree) / 2);
+  const ToolBudget budget((walk + quadtree) / 2);
   qota::tools::ViewshedOptions o;
   o.source = dem.string(), o.output = outPath.string(), o.quiet = true;
   o.observer = {403007.5, 5153007.5};

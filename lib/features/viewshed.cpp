@@ -869,9 +869,9 @@ class Sightlines {
     });
   }
 
-  // For walkMeets: the lowest and highest frame height over each block of kWalkBlock x
-  // kWalkBlock squares (the corners of its squares), row-major by blocks; slices of block rows
-  // on `threads` threads.
+  // For walkMeets: the lowest and highest height (zOf: the frame's, or the model's when there is
+  // one) over each block of kWalkBlock x kWalkBlock squares (the corners of its squares),
+  // row-major by blocks; slices of block rows on `threads` threads.
   void walkBlocks(unsigned threads) {
     const int w = frame_.width, h = frame_.height;
     walkBlocksAcross_ = static_cast<std::size_t>((w - 2) / kWalkBlock) + 1;
