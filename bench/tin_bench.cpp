@@ -23,7 +23,8 @@
 //
 // Flags: --quick (a 16k-triangle TIN and Delft, 100k queries; ctest runs it), --large (adds the
 // 4M TIN, the default does too; --no-large leaves it out), --only tin|tin4m|rainier|delft (that
-// terrain alone).
+// terrain alone), --maxpoly N (qota's Maxpoly, default the library's 8: the trade of bytes and
+// build time against batch speed, docs/performance.md).
 #include <embree3/rtcore.h>
 #include <sys/mman.h>
 
@@ -61,8 +62,12 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 
 // ---- the machine: one dependent DRAM miss ------------------------------------------------------
 
-// ns per step of a pointer chase over a random cycle through kBytes (huge pages asked for).
-double chaseNs(std::size_t kBytes, std::size_t kSteps) {
+// ns per load of `chains` pointer chases through one random cycle over kBytes (huge pages asked
+// for), started evenly apart and stepped together: one chain's loads each wait for the last (a
+// dependent miss); several chains' loads of a step are independent and overlap.
+double chaseNs(std::size_t kBytes, std::size_t kSteps, std::size_t chains = 1) {
+  constexpr std::size_t kMaxChains = 16;
+  chains = std::clamp<std::size_t>(chains, 1, kMaxChains);
   const std::size_t kN = kBytes / sizeof(std::uint64_t);
   void* raw = std::aligned_alloc(std::size_t{2} << 20, kBytes);
   if (!raw) return NAN;
@@ -74,17 +79,28 @@ double chaseNs(std::size_t kBytes, std::size_t kSteps) {
   std::mt19937_64 rng(3);
   for (std::size_t i = kN - 1; i > 0; --i) std::swap(order[i], order[rng() % i]);
   for (std::size_t i = 0; i < kN; ++i) next[order[i]] = order[(i + 1) % kN];
-  std::uint64_t at = 0;
-  for (std::size_t i = 0; i < kSteps / 10; ++i) at = next[at];  // warm the page tables
+  std::uint64_t at[kMaxChains];
+  for (std::size_t c = 0; c < chains; ++c) at[c] = order[c * (kN / chains)];
+  const auto step = [&] {
+    for (std::size_t c = 0; c < chains; ++c) at[c] = next[at[c]];
+  };
+  for (std::size_t i = 0; i < kSteps / 10; ++i) step();  // warm the page tables
   const auto t0 = Clock::now();
-  for (std::size_t i = 0; i < kSteps; ++i) at = next[at];
-  const double ns = seconds(t0, Clock::now()) * 1e9 / kSteps;
-  if (at == ~std::uint64_t{0}) std::printf("-");  // keep the chase
+  for (std::size_t i = 0; i < kSteps; ++i) step();
+  const double ns = seconds(t0, Clock::now()) * 1e9 / static_cast<double>(kSteps * chains);
+  std::uint64_t keep = 0;
+  for (std::size_t c = 0; c < chains; ++c) keep ^= at[c];
+  if (keep == ~std::uint64_t{0}) std::printf("-");  // keep the chases
   std::free(raw);
   return ns;
 }
 
 double dramLatencyNs() { return chaseNs(std::size_t{256} << 20, 20'000'000); }
+
+// ns per miss when 16 are in flight at once (16 chases over 256 MiB): what a batch that overlaps
+// its queries' misses can reach at best, the core's few line-fill buffers, not the latency,
+// then bounding it.
+double overlappedMissNs() { return chaseNs(std::size_t{256} << 20, 2'000'000, 16); }
 
 // The cache a query's arrays can use, as this machine shows it (the sizes the system reports
 // can be a host's, not this machine's share): the largest power-of-two chase, from 1 MiB, that
@@ -363,7 +379,8 @@ Check check(const Oracle& oracle, const Set& s, std::span<const std::optional<do
 // triangles' records (fetched together). Each is a DRAM miss unless its array is cached; with
 // the cache's size C (effectiveCacheBytes), an array of S bytes is counted a miss with
 // probability 1 - C / S (as if it had the cache to itself: a lower bound on the misses).
-void printMissModel(const qota::CartesianIndex& index, double measuredMisses, double cache) {
+void printMissModel(const qota::CartesianIndex& index, double measuredMisses, double cache, double overlappedNs,
+                    double measuredBatchNs) {
   const qota::Quadtree& tree = index.tree();
   const std::uint32_t k = tree.jumpDepth();
   const auto nodes = tree.nodes();
@@ -388,20 +405,44 @@ void printMissModel(const qota::CartesianIndex& index, double measuredMisses, do
       " cache; measured %.2f misses' time\n",
       mib(jumpBytes), below, mib(nodeBytes), mib(refBytes), leafItems, mib(recordBytes), loads, misses, mib(cache),
       measuredMisses);
+  // A batch overlaps its queries' misses: it is then bound by the lines it reads a query (the
+  // cell, the nodes below it, the references, a line a record), each at the machine's overlapped
+  // miss time.
+  const double lines = 1 + below + 1 + leafItems;
+  if (misses > 0) {
+    std::printf(
+        "  model, a batch: %.1f lines a query x %.1f ns (a miss among 16 in flight) = %.0f ns; measured %.0f ns\n",
+        lines, overlappedNs, lines * overlappedNs, measuredBatchNs);
+  } else {
+    std::printf("  model, a batch: its %.1f lines a query are all in the cache: no DRAM bound (measured %.0f ns)\n",
+                lines, measuredBatchNs);
+  }
+  // Where the bytes go: the records (64 a triangle, one line), what the exact tests and the
+  // answers need besides (each triangle's corners and polygon, the vertices), the tree.
+  const double nt = static_cast<double>(index.stats().triangles);
+  const double all = static_cast<double>(index.stats().memoryBytes);
+  const double treeBytes = static_cast<double>(index.stats().tree.memoryBytes);
+  std::printf(
+      "  bytes a triangle: %.0f records + %.0f corners, polygons and vertices + %.0f tree (%.0f references,"
+      " %.0f nodes and jump table)\n",
+      recordBytes / nt, (all - treeBytes - recordBytes) / nt, treeBytes / nt, refBytes / nt,
+      (treeBytes - refBytes) / nt);
 }
 
-bool run(const Terrain& t, std::size_t n, double latencyNs, double cacheBytes) {
+bool run(const Terrain& t, std::size_t n, double latencyNs, double cacheBytes, double overlappedNs,
+         std::uint32_t maxPoly) {
   const auto tris = trianglesOf(t.mesh);
   // Builds: the fastest of three each (a build's time varies by a tenth or more here), qota on
   // one thread as Embree, and on every core.
   double qotaBuild = kInf, qotaBuildAll = kInf, embreeBuild = kInf;
   std::optional<qota::CartesianIndex> built;
-  qota::IndexOptions oneThread;
+  qota::IndexOptions everyCore, oneThread;
+  everyCore.tree.maxPoly = oneThread.tree.maxPoly = maxPoly;
   oneThread.buildThreads = 1;
   for (int round = 0; round < 3; ++round) {
     built.reset();
     auto q0 = Clock::now();
-    built.emplace(t.mesh, qota::CartesianMapping());
+    built.emplace(t.mesh, qota::CartesianMapping(), everyCore);
     qotaBuildAll = std::min(qotaBuildAll, seconds(q0, Clock::now()));
     built.reset();
     q0 = Clock::now();
@@ -455,7 +496,7 @@ bool run(const Terrain& t, std::size_t n, double latencyNs, double cacheBytes) {
   std::printf("  %-16s %9s %9s %8s %12s %9s %8s %11s  %s\n", "ns/query", "qota", "embree", "ratio", "qota batch",
               "embree16", "ratio", "qota/miss", "exact");
   bool ok = true;
-  double randomMisses = 0;
+  double randomMisses = 0, randomBatchNs = 0;
   for (const Set* s : {&random, &below, &walk}) {
     const std::size_t m = s->points.size();
     std::vector<std::optional<double>> single(m), batch(m);
@@ -491,7 +532,7 @@ bool run(const Terrain& t, std::size_t n, double latencyNs, double cacheBytes) {
         cs.wrong == 0 && same
             ? ("all " + std::to_string(m) + " (" + std::to_string(cs.hits) + " hits)").c_str()
             : ("WRONG: " + std::to_string(cs.wrong) + (same ? "" : ", batch differs") + "; first " + cs.first).c_str());
-    if (s == &random) randomMisses = qs / latencyNs;
+    if (s == &random) randomMisses = qs / latencyNs, randomBatchNs = qb;
     if (s == &walk) {
       qota::Cursor cursor;
       std::vector<std::optional<double>> viaCursor(m);
@@ -508,7 +549,7 @@ bool run(const Terrain& t, std::size_t n, double latencyNs, double cacheBytes) {
                   qc / latencyNs, sameWalk ? "= plain walk" : "DIFFERS from the plain walk");
     }
   }
-  printMissModel(index, randomMisses, cacheBytes);
+  printMissModel(index, randomMisses, cacheBytes, overlappedNs, randomBatchNs);
   return ok;
 }
 
@@ -517,6 +558,7 @@ bool run(const Terrain& t, std::size_t n, double latencyNs, double cacheBytes) {
 int main(int argc, char** argv) {
   bool quick = false, large = true;
   std::string only;  // one terrain: tin, tin4m, rainier or delft
+  std::uint32_t maxPoly = qota::QuadtreeOptions{}.maxPoly;
   for (int i = 1; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--quick")) {
       quick = true;
@@ -525,34 +567,53 @@ int main(int argc, char** argv) {
     } else if (!std::strcmp(argv[i], "--only") && i + 1 < argc &&
                std::strstr(" tin tin4m rainier delft ", (" " + std::string(argv[i + 1]) + " ").c_str())) {
       only = argv[++i];
+    } else if (!std::strcmp(argv[i], "--maxpoly") && i + 1 < argc) {
+      char* end = nullptr;
+      const unsigned long v = std::strtoul(argv[++i], &end, 10);
+      if (*end != '\0' || v < 1 || v > 64) {
+        std::fprintf(stderr, "tin_bench: --maxpoly takes a whole number from 1 to 64, not '%s'\n", argv[i]);
+        return 2;
+      }
+      maxPoly = static_cast<std::uint32_t>(v);
     } else if (std::strcmp(argv[i], "--large") != 0) {
-      std::fprintf(stderr,
-                   "tin_bench: unknown option %s (--quick, --large, --no-large, --only tin|tin4m|rainier|delft)\n",
-                   argv[i]);
+      std::fprintf(
+          stderr,
+          "tin_bench: unknown option %s (--quick, --large, --no-large, --only tin|tin4m|rainier|delft, --maxpoly N)\n",
+          argv[i]);
       return 2;
     }
   }
   const auto wanted = [&](const char* key) { return only.empty() || only == key; };
   const std::size_t n = quick ? 100000 : 1000000;
   const double latency = dramLatencyNs();
-  std::printf("tin_bench: qota vs Embree %d.%d.%d on irregular meshes, %zu queries per set, one thread\n",
-              RTC_VERSION_MAJOR, RTC_VERSION_MINOR, RTC_VERSION_PATCH, n);
+  std::printf("tin_bench: qota (Maxpoly %u) vs Embree %d.%d.%d on irregular meshes, %zu queries per set, one thread\n",
+              maxPoly, RTC_VERSION_MAJOR, RTC_VERSION_MINOR, RTC_VERSION_PATCH, n);
   std::printf("one dependent DRAM miss (pointer chase over 256 MiB): %.1f ns; 'qota/miss' is a query's time in those\n",
               latency);
   const double cache = effectiveCacheBytes(latency);
   std::printf("cache a chase still finds (largest power of two under half a miss a step): %.0f MiB\n",
               cache / (1 << 20));
+  const double overlapped = overlappedMissNs();
+  std::printf(
+      "a miss among 16 in flight (16 chases stepped together): %.1f ns, %.1fx the dependent miss's throughput\n",
+      overlapped, latency / overlapped);
   bool ok = true;
   if (quick) {
-    if (wanted("tin")) ok = run(fractalTin(8192, "Delaunay TIN over a fractal (8k points)"), n, latency, cache) && ok;
-    if (wanted("delft")) ok = run(delft(), n, latency, cache) && ok;
+    if (wanted("tin"))
+      ok = run(fractalTin(8192, "Delaunay TIN over a fractal (8k points)"), n, latency, cache, overlapped, maxPoly) &&
+           ok;
+    if (wanted("delft")) ok = run(delft(), n, latency, cache, overlapped, maxPoly) && ok;
   } else {
     if (wanted("tin"))
-      ok = run(fractalTin(524288, "Delaunay TIN over a fractal (524k points)"), n, latency, cache) && ok;
+      ok = run(fractalTin(524288, "Delaunay TIN over a fractal (524k points)"), n, latency, cache, overlapped,
+               maxPoly) &&
+           ok;
     if ((large && only.empty()) || only == "tin4m")
-      ok = run(fractalTin(2097152, "Delaunay TIN over a fractal (2.1M points)"), n, latency, cache) && ok;
-    if (wanted("rainier")) ok = run(rainierTin(700000), n, latency, cache) && ok;
-    if (wanted("delft")) ok = run(delft(), n, latency, cache) && ok;
+      ok = run(fractalTin(2097152, "Delaunay TIN over a fractal (2.1M points)"), n, latency, cache, overlapped,
+               maxPoly) &&
+           ok;
+    if (wanted("rainier")) ok = run(rainierTin(700000), n, latency, cache, overlapped, maxPoly) && ok;
+    if (wanted("delft")) ok = run(delft(), n, latency, cache, overlapped, maxPoly) && ok;
   }
   std::printf("\n%s\n", ok ? "every qota answer equals the exact oracle's" : "SOME qota ANSWERS ARE WRONG");
   return ok ? 0 : 1;
