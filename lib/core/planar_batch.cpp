@@ -237,7 +237,10 @@ void PlanarCore::heightsBelowBatch(std::span<const Point2> points, const ZOf& zO
     if (i >= 2 * kAhead && i - 2 * kAhead < n) {  // C
       const std::size_t k = i - 2 * kAhead, r = k % kRing;
       while (more[r]) more[r] = tree_.stepWalk(points[k].u, points[k].v, walk[r], leafOf[r]);
-      __builtin_prefetch(tree_.leafRange(leafOf[r]).data());
+      // (Both ends: a leaf's references cross into a second line about one time in three.)
+      const std::span<const std::uint32_t> refs = tree_.leafRange(leafOf[r]);
+      __builtin_prefetch(refs.data());
+      if (!refs.empty()) __builtin_prefetch(&refs.back());
     }
     if (i >= 3 * kAhead && i - 3 * kAhead < n) {  // D
       prefetchTriangles(tree_.leafRange(leafOf[(i - 3 * kAhead) % kRing]));
