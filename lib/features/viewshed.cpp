@@ -544,10 +544,16 @@ class Sightlines {
     const int w = frame_.width, h = frame_.height;
     const Model& m = *model_;
     const double pad = m.pad, dz = zb - za;
-    // [u0, u1] narrowed to where start + u step lies in [lo, hi]; false when empty.
-    const auto clip = [](double start, double step, double lo, double hi, double& u0, double& u1) {
-      if (step == 0) return start >= lo && start <= hi && u0 <= u1;
-      const double ua = (lo - start) / step, ub = (hi - start) / step;
+    // [u0, u1] narrowed to where start + u step lies in [lo, hi]; false when empty. (By the
+    // step's reciprocal, one division a track instead of two a test: the parameters move by an
+    // ulp or so, far inside the spreads' and the pad's slack of 1e-6 pixel.)
+    struct Axis {
+      double step, inverse;
+    };
+    const Axis across{bx - ax, 1 / (bx - ax)}, down{by - ay, 1 / (by - ay)};
+    const auto clip = [](double start, const Axis& axis, double lo, double hi, double& u0, double& u1) {
+      if (axis.step == 0) return start >= lo && start <= hi && u0 <= u1;
+      const double ua = (lo - start) * axis.inverse, ub = (hi - start) * axis.inverse;
       u0 = std::max(u0, std::min(ua, ub)), u1 = std::min(u1, std::max(ua, ub));
       return u0 <= u1;
     };
@@ -562,7 +568,7 @@ class Sightlines {
       const int c0 = bc * kWalkBlock, c1 = std::min(lastColumn, c0 + kWalkBlock - 1);
       // The block rows the track can reach over these columns (within the pad).
       double v0 = 0, v1 = 1;
-      if (!clip(ax, bx - ax, c0 - pad, c1 + 1 + pad, v0, v1)) continue;
+      if (!clip(ax, across, c0 - pad, c1 + 1 + pad, v0, v1)) continue;
       const double ya = ay + v0 * (by - ay), yb = ay + v1 * (by - ay);
       const int br0 = std::max(0, static_cast<int>(std::floor(std::min(ya, yb) - pad))) / kWalkBlock;
       const int br1 = std::min(lastRow, static_cast<int>(std::floor(std::max(ya, yb) + pad))) / kWalkBlock;
@@ -573,8 +579,7 @@ class Sightlines {
         // The shifted track within the block's squares, widened by its spread.
         const double sx = ax - s.dx, sy = ay - s.dy;
         double u0 = 0, u1 = 1;
-        if (!clip(sx, bx - ax, c0 - s.rx, c1 + 1 + s.rx, u0, u1) ||
-            !clip(sy, by - ay, r0 - s.ry, r1 + 1 + s.ry, u0, u1)) {
+        if (!clip(sx, across, c0 - s.rx, c1 + 1 + s.rx, u0, u1) || !clip(sy, down, r0 - s.ry, r1 + 1 + s.ry, u0, u1)) {
           continue;
         }
         double low, high;
@@ -582,7 +587,7 @@ class Sightlines {
         if (walkLow_[at] > high || walkHigh_[at] < low) continue;
         for (int c = c0; c <= c1; ++c) {
           double t0 = u0, t1 = u1;
-          if (!clip(sx, bx - ax, c - s.rx, c + 1 + s.rx, t0, t1)) continue;
+          if (!clip(sx, across, c - s.rx, c + 1 + s.rx, t0, t1)) continue;
           const double y0 = sy + t0 * (by - ay), y1 = sy + t1 * (by - ay);
           const int ra = std::max(r0, static_cast<int>(std::floor(std::min(y0, y1) - s.ry)));
           const int rb = std::min(r1, static_cast<int>(std::floor(std::max(y0, y1) + s.ry)));
