@@ -5,6 +5,7 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <future>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -408,7 +409,7 @@ Box2 PlanarCore::boxOf(std::uint32_t t) const {
 bool PlanarCore::prepareLeaf(std::span<std::uint32_t> items) const {
   // The pairwise check is quadratic: a leaf this large (a large Maxpoly, or a stack no cut can
   // part) is simply not marked, which only costs the early exit.
-  constexpr std::size_t kMaxChecked = 64;
+  constexpr std::size_t kMaxChecked = kMaxCheckedLeaf;
   if (items.size() > kMaxChecked) return false;
   // Each triangle's edges and corners gathered once, on first need: the pairs then test from the
   // stack instead of reloading two records a pair (a leaf of n triangles has n (n - 1) / 2
@@ -441,9 +442,20 @@ bool PlanarCore::prepareLeaf(std::span<std::uint32_t> items) const {
       slot = key;
     }
   }
-  std::sort(items.begin(), items.end(), [this](std::uint32_t a, std::uint32_t b) {
-    return cold_[a].polygon != cold_[b].polygon ? cold_[a].polygon < cold_[b].polygon : a < b;
-  });
+  return orderLeaf(items);
+}
+
+bool PlanarCore::orderLeaf(std::span<std::uint32_t> items) const {
+  if (items.size() > kMaxCheckedLeaf) return false;  // (as prepareLeaf leaves it: the same index)
+  // By (polygon, triangle), each key read once; an insertion sort, as leaves are a few items.
+  std::uint64_t key[kMaxCheckedLeaf];
+  for (std::size_t i = 0; i < items.size(); ++i) {
+    const std::uint64_t k = std::uint64_t{cold_[items[i]].polygon} << 32 | items[i];
+    std::size_t j = i;
+    for (; j > 0 && key[j - 1] > k; --j) key[j] = key[j - 1];
+    key[j] = k;
+  }
+  for (std::size_t i = 0; i < items.size(); ++i) items[i] = static_cast<std::uint32_t>(key[i]);
   return true;
 }
 
@@ -518,13 +530,19 @@ void PlanarCore::buildTreeOver(const std::vector<Box2>& boxes, const Box2& domai
   // (A fresh index has removed nothing: its build reads no triangle's polygon id, four times an
   // item a level.)
   const bool anyRemoved = ledger_.anyRemoved();
+  // One sheet (a TIN, a grid seen from above) has every leaf a single layer, no pair to test;
+  // the proof reads the edges alone, so it runs beside the tree's build when there are threads.
+  std::future<bool> sheetBeside;
+  if (threads != 1) sheetBeside = std::async(std::launch::async, [this] { return oneSheet(); });
   tree_.build(
       static_cast<std::uint32_t>(boxes.size()), domain, options,
       [this, &boxes, anyRemoved](std::uint32_t t, const Box2& b) {
         return !(anyRemoved && ledger_.removed(cold_[t].polygon)) && overlaps(t, boxes[t], b);
       },
       minU, minV, [&boxes](std::uint32_t t) { return boxes[t]; }, threads);
-  tree_.markLeaves([this](std::span<std::uint32_t> items) { return prepareLeaf(items); }, threads);
+  const bool sheet = sheetBeside.valid() ? sheetBeside.get() : oneSheet();
+  tree_.markLeaves(
+      [this, sheet](std::span<std::uint32_t> items) { return sheet ? orderLeaf(items) : prepareLeaf(items); }, threads);
 }
 
 bool PlanarCore::separated(const EdgeView& a, const EdgeView& b) {

@@ -252,7 +252,15 @@ class PlanarCore : public IndexFace<PlanarCore> {
   // whole box beyond its error bound outside.
   static bool edgesReach(const Tri& r, const Box2& b);
   Box2 boxOf(std::uint32_t t) const;
+  // A leaf's single-layer test (pairwise), and its order when single-layer (by polygon id, so
+  // that the first triangle holding a point answers). A leaf of more than kMaxCheckedLeaf items is
+  // not marked: the pairs are quadratic.
+  static constexpr std::size_t kMaxCheckedLeaf = 64;
   bool prepareLeaf(std::span<std::uint32_t> items) const;
+  bool orderLeaf(std::span<std::uint32_t> items) const;
+  // Whether the live triangles' interiors are pairwise disjoint, by the mesh's edges and
+  // boundary alone (planar_sheet.cpp); false when that proof does not apply (then the pairs).
+  bool oneSheet() const;
 
   // occludedAbove's test of one triangle t.
   bool triangleOccludesAbove(std::uint32_t t, double u, double v, double h, std::uint32_t vertex) const;

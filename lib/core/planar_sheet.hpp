@@ -1,0 +1,33 @@
+// Whether a planar index's triangles form one sheet: interiors pairwise disjoint, proved for the
+// whole mesh at once instead of pair by pair in every leaf (PlanarCore::prepareLeaf), so the
+// build marks every leaf a single layer at the cost of a pass over the edges.
+//
+// Why the proof holds. Every triangle is counter-clockwise in the plane, so a point inside it
+// has winding number 1 about its boundary and a point outside 0: the number of triangles over a
+// point off every edge is the winding number about the sum of their boundaries. Where two
+// triangles share an edge in opposite directions (a -> b in one, b -> a in the other: they lie on
+// either side of it), the two copies cancel in that sum. If every edge is so shared or used once,
+// what is left is the mesh's boundary B, and the count over a point is B's winding number there.
+// If B is one simple closed polygon, counter-clockwise, that number is 1 inside and 0 outside:
+// no point is under two triangles, and no two interiors meet.
+//
+// Anything else is left to the pairs (false): an edge used twice the same way or three times, a
+// boundary of several loops (holes, parts apart, a raster's voids), a boundary that touches or
+// crosses itself (a ramp that winds over itself, two vertices at one place), a vertex that two
+// boundary edges leave. The tests are on vertex numbers and exact orientations only.
+#pragma once
+
+#include <cstdint>
+#include <span>
+
+#include "qota/grid_path.hpp"  // TriangleCorners
+#include "qota/vocabulary.hpp"
+
+namespace qota::detail {
+
+// triangles: counter-clockwise in the plane of `vertices`, none of zero area; left[t] (when not
+// empty): triangle t is not part of the mesh (a removed polygon's).
+bool oneSheet(std::span<const TriangleCorners> triangles, std::span<const Point2> vertices,
+              std::span<const std::uint8_t> left = {});
+
+}  // namespace qota::detail

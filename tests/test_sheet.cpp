@@ -1,0 +1,209 @@
+// The one-sheet proof (lib/core/planar_sheet.hpp) on meshes whose answer is known by their
+// construction, and indexes built over sheets and over a ramp that winds over itself, against
+// the brute-force oracle.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <numbers>
+#include <optional>
+#include <random>
+#include <vector>
+
+#include "oracle.hpp"
+#include "planar_sheet.hpp"
+#include "qota/terrain.hpp"
+
+namespace {
+
+using qota::CartesianIndex;
+using qota::CartesianMapping;
+using qota::Mesh;
+using qota::Point2;
+using qota::detail::TriangleCorners;
+
+// A mesh's triangles and plane points, as the proof takes them (the mesh's triangles are
+// counter-clockwise seen from above).
+struct Plane {
+  std::vector<TriangleCorners> triangles;
+  std::vector<Point2> vertices;
+};
+Plane planeOf(const Mesh& m) {
+  Plane p;
+  for (const auto& v : m.vertices) p.vertices.push_back({v.x(), v.y()});
+  for (std::size_t t = 0; t < m.polygonCount(); ++t) {
+    const auto c = m.polygon(t);
+    p.triangles.push_back({{c[0], c[1], c[2]}, static_cast<std::uint32_t>(t)});
+  }
+  return p;
+}
+bool oneSheet(const Mesh& m, std::span<const std::uint8_t> left = {}) {
+  const Plane p = planeOf(m);
+  return qota::detail::oneSheet(p.triangles, p.vertices, left);
+}
+
+// A mesh of the points and triangles (corners counter-clockwise seen from above).
+Mesh meshOf(const std::vector<Eigen::Vector3d>& points, std::initializer_list<std::array<std::uint32_t, 3>> triangles) {
+  Mesh m;
+  m.vertices = points;
+  for (const auto& t : triangles) m.addTriangle(t[0], t[1], t[2]);
+  return m;
+}
+
+// n x n cells of a grid with each vertex moved at random within a fifth of a cell, two
+// triangles a cell (counter-clockwise): a proper triangulation.
+Mesh jitteredGrid(int n, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> jitter(-0.2, 0.2), height(0, 5);
+  Mesh m;
+  for (int r = 0; r <= n; ++r) {
+    for (int c = 0; c <= n; ++c) m.addVertex({c + jitter(rng), r + jitter(rng), height(rng)});
+  }
+  const auto at = [n](int c, int r) { return static_cast<std::uint32_t>(r * (n + 1) + c); };
+  for (int r = 0; r < n; ++r) {
+    for (int c = 0; c < n; ++c) {
+      m.addTriangle(at(c, r), at(c + 1, r), at(c + 1, r + 1));
+      m.addTriangle(at(c, r), at(c + 1, r + 1), at(c, r + 1));
+    }
+  }
+  return m;
+}
+
+// A ramp round the origin, `segments` steps of 15 degrees, rising 2 m a radian, its inner edge
+// at 5 + 0.3 theta and 4 wide: past one turn (24 steps) its second turn lies over the first.
+Mesh ramp(int segments) {
+  Mesh m;
+  for (int i = 0; i <= segments; ++i) {
+    const double theta = i * std::numbers::pi / 12, inner = 5 + 0.3 * theta, outer = inner + 4;
+    m.addVertex({inner * std::cos(theta), inner * std::sin(theta), 2 * theta});
+    m.addVertex({outer * std::cos(theta), outer * std::sin(theta), 2 * theta});
+  }
+  for (int i = 0; i < segments; ++i) {
+    const auto in0 = static_cast<std::uint32_t>(2 * i), out0 = in0 + 1, in1 = in0 + 2, out1 = in0 + 3;
+    m.addTriangle(in0, out0, out1);
+    m.addTriangle(in0, out1, in1);
+  }
+  return m;
+}
+
+TEST(OneSheet, AProperTriangulationIsOneSheet) {
+  for (std::uint64_t seed = 1; seed <= 5; ++seed) EXPECT_TRUE(oneSheet(jitteredGrid(12, seed))) << seed;
+  EXPECT_TRUE(oneSheet(ramp(21)));  // a C, 315 degrees round
+}
+
+TEST(OneSheet, ARampPastOneTurnIsNot) {
+  // Its boundary crosses itself: the second turn's inner edge runs over the first step's end.
+  EXPECT_FALSE(oneSheet(ramp(30)));
+  EXPECT_FALSE(oneSheet(ramp(36)));
+  EXPECT_FALSE(oneSheet(ramp(60)));
+}
+
+TEST(OneSheet, HolesAndPartsApartAreLeftToThePairs) {
+  const Mesh grid = jitteredGrid(6, 3);
+  std::vector<std::uint8_t> left(grid.polygonCount(), 0);
+  left[2 * (3 * 6 + 3)] = 1;  // a triangle inside: a hole, a second boundary loop
+  EXPECT_FALSE(oneSheet(grid, left));
+  std::fill(left.begin(), left.end(), 0);
+  left[1] = 1;  // a corner's triangle: the boundary stays one loop
+  EXPECT_TRUE(oneSheet(grid, left));
+
+  const std::vector<Eigen::Vector3d> six{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {5, 0, 0}, {6, 0, 0}, {5, 1, 0}};
+  EXPECT_FALSE(oneSheet(meshOf(six, {{0, 1, 2}, {3, 4, 5}})));  // two triangles apart
+  EXPECT_TRUE(oneSheet(meshOf(six, {{0, 1, 2}})));
+}
+
+TEST(OneSheet, PinchesTwinsAndTouchesAreLeftToThePairs) {
+  const std::vector<Eigen::Vector3d> bow{{0, 0, 0}, {1, -1, 0}, {1, 1, 0}, {-1, 1, 0}, {-1, -1, 0}};
+  // Two triangles sharing a corner only (a bow tie): two boundary edges leave that corner.
+  EXPECT_FALSE(oneSheet(meshOf(bow, {{0, 1, 2}, {0, 3, 4}})));
+  // The same triangle twice: its edges each used twice the same way.
+  EXPECT_FALSE(oneSheet(meshOf(bow, {{0, 1, 2}, {0, 1, 2}})));
+  // Two triangles on one place with vertices of their own: two loops, one over the other.
+  std::vector<Eigen::Vector3d> stacked = bow;
+  for (int k = 0; k < 3; ++k) stacked.push_back(bow[k] + Eigen::Vector3d(0, 0, 1));
+  EXPECT_FALSE(oneSheet(meshOf(stacked, {{0, 1, 2}, {5, 6, 7}})));
+  // A ring of 8 cells round a missing centre, cut open beside one cell: that cell's corners on
+  // the cut are vertices of their own at the places of its neighbours', so the boundary runs
+  // along itself there. No two triangles overlap, but the proof does not take a boundary that
+  // touches itself.
+  Mesh ring;
+  const auto vertex = [&](double x, double y) { return ring.addVertex({x, y, 0}); };
+  std::uint32_t g[4][4];
+  for (int r = 0; r < 4; ++r) {
+    for (int c = 0; c < 4; ++c) g[r][c] = vertex(c, r);
+  }
+  const std::uint32_t cut0 = vertex(1, 0), cut1 = vertex(1, 1);  // the second side of the cut
+  const auto cell = [&](std::uint32_t a, std::uint32_t b, std::uint32_t c, std::uint32_t d) {
+    ring.addTriangle(a, b, c);  // a b c d counter-clockwise
+    ring.addTriangle(a, c, d);
+  };
+  cell(g[0][0], cut0, cut1, g[1][0]);  // the cell left of the cut, on the cut's second side
+  cell(g[0][1], g[0][2], g[1][2], g[1][1]);
+  cell(g[0][2], g[0][3], g[1][3], g[1][2]);
+  cell(g[1][2], g[1][3], g[2][3], g[2][2]);
+  cell(g[2][2], g[2][3], g[3][3], g[3][2]);
+  cell(g[2][1], g[2][2], g[3][2], g[3][1]);
+  cell(g[2][0], g[2][1], g[3][1], g[3][0]);
+  cell(g[1][0], g[1][1], g[2][1], g[2][0]);
+  EXPECT_FALSE(oneSheet(ring));
+}
+
+// heightBelow and above at random points of the mesh's box, at random heights, against the
+// oracle (points within 1e-9 of an edge, and height ties, skipped). Returns the points checked
+// under two or more triangles.
+int checkAgainstOracle(const Mesh& mesh, std::uint64_t seed) {
+  const CartesianIndex index(mesh, CartesianMapping());
+  Eigen::Vector3d lo = mesh.vertices[0], hi = mesh.vertices[0];
+  for (const auto& v : mesh.vertices) lo = lo.cwiseMin(v), hi = hi.cwiseMax(v);
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> unit(0, 1);
+  int layered = 0;
+  for (int q = 0; q < 4000; ++q) {
+    const Eigen::Vector3d p = lo + (hi - lo).cwiseProduct(Eigen::Vector3d(unit(rng), unit(rng), unit(rng)));
+    const auto oracle = qota::test::bruteForce(mesh, CartesianMapping().gravity(), CartesianMapping().origin(), p);
+    if (oracle.nearestEdge < 1e-9) continue;
+    std::optional<double> below, above;
+    for (const auto& h : oracle.hits) {
+      if (h.height <= p.z() && (!below || h.height > *below)) below = h.height;
+      if (h.height >= p.z() && (!above || h.height < *above)) above = h.height;
+    }
+    layered += oracle.hits.size() > 1;
+    const auto gotBelow = index.heightBelow(p.x(), p.y(), p.z());
+    const auto gotAbove = index.above(p.x(), p.y(), p.z());
+    EXPECT_EQ(gotBelow.has_value(), below.has_value()) << p.transpose();
+    EXPECT_EQ(gotAbove.has_value(), above.has_value()) << p.transpose();
+    if (below && gotBelow) {
+      EXPECT_NEAR(*gotBelow, *below, 1e-9) << p.transpose();
+    }
+    if (above && gotAbove) {
+      EXPECT_NEAR(gotAbove->height, *above, 1e-9) << p.transpose();
+    }
+  }
+  return layered;
+}
+
+TEST(OneSheet, IndexesOverSheetsAndOverARampAnswerAsTheOracle) {
+  EXPECT_EQ(checkAgainstOracle(jitteredGrid(40, 7), 1), 0);
+  EXPECT_EQ(checkAgainstOracle(ramp(21), 2), 0);
+  // Two and a half turns: points under two and three floors, which a leaf taken for a single
+  // layer would answer by its first triangle (the lowest floor).
+  EXPECT_GT(checkAgainstOracle(ramp(60), 3), 300);
+}
+
+TEST(OneSheet, EveryLeafOfASheetIsASingleLayerInPolygonOrder) {
+  const Mesh mesh = jitteredGrid(60, 11);
+  const CartesianIndex index(mesh, CartesianMapping());
+  ASSERT_FALSE(index.gridFastPath());
+  int leaves = 0;
+  index.tree().forEachLeaf([&](const qota::Quadtree::Node& leaf, std::uint32_t) {
+    const auto items = index.tree().leafRange(leaf);
+    if (items.size() < 2) return;
+    ++leaves;
+    EXPECT_TRUE(qota::Quadtree::singleLayer(leaf));
+  });
+  EXPECT_GT(leaves, 100);
+}
+
+}  // namespace
