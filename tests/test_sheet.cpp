@@ -100,17 +100,34 @@ TEST(OneSheet, ARampPastOneTurnIsNot) {
   EXPECT_FALSE(oneSheet(ramp(60)));
 }
 
-TEST(OneSheet, HolesAndPartsApartAreLeftToThePairs) {
+TEST(OneSheet, HolesIslandsAndPartsApartAreOneSheet) {
   const Mesh grid = jitteredGrid(6, 3);
+  const std::size_t cell = 2 * (3 * 6 + 3);  // the first triangle of cell (3, 3)
   std::vector<std::uint8_t> left(grid.polygonCount(), 0);
-  left[2 * (3 * 6 + 3)] = 1;  // a triangle inside: a hole, a second boundary loop
-  EXPECT_FALSE(oneSheet(grid, left));
-  std::fill(left.begin(), left.end(), 0);
-  left[1] = 1;  // a corner's triangle: the boundary stays one loop
+  left[cell] = 1;  // a triangle inside: a hole, a clockwise loop inside the outer one
   EXPECT_TRUE(oneSheet(grid, left));
+  left[cell + 1] = 1;  // the whole cell
+  EXPECT_TRUE(oneSheet(grid, left));
+  std::fill(left.begin(), left.end(), 0);
+  left[1] = 1;  // a corner's triangle
+  EXPECT_TRUE(oneSheet(grid, left));
+  std::fill(left.begin(), left.end(), 0);
+  left[cell] = left[cell - 2 * 6 - 1] = 1;  // two triangles meeting at a corner: a pinched hole
+  EXPECT_FALSE(oneSheet(grid, left));
+
+  // A small triangle of its own over the cell's middle: an island in the cell's hole, a part
+  // over the sheet where the cell is there.
+  Mesh island = grid;
+  const auto a = island.addVertex({3.45, 3.45, 9}), b = island.addVertex({3.55, 3.45, 9}),
+             c = island.addVertex({3.5, 3.55, 9});
+  island.addTriangle(a, b, c);
+  std::vector<std::uint8_t> holed(island.polygonCount(), 0);
+  holed[cell] = holed[cell + 1] = 1;
+  EXPECT_TRUE(oneSheet(island, holed));
+  EXPECT_FALSE(oneSheet(island));  // over the sheet: counted twice there
 
   const std::vector<Eigen::Vector3d> six{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {5, 0, 0}, {6, 0, 0}, {5, 1, 0}};
-  EXPECT_FALSE(oneSheet(meshOf(six, {{0, 1, 2}, {3, 4, 5}})));  // two triangles apart
+  EXPECT_TRUE(oneSheet(meshOf(six, {{0, 1, 2}, {3, 4, 5}})));  // two triangles apart
   EXPECT_TRUE(oneSheet(meshOf(six, {{0, 1, 2}})));
 }
 
@@ -120,7 +137,7 @@ TEST(OneSheet, PinchesTwinsAndTouchesAreLeftToThePairs) {
   EXPECT_FALSE(oneSheet(meshOf(bow, {{0, 1, 2}, {0, 3, 4}})));
   // The same triangle twice: its edges each used twice the same way.
   EXPECT_FALSE(oneSheet(meshOf(bow, {{0, 1, 2}, {0, 1, 2}})));
-  // Two triangles on one place with vertices of their own: two loops, one over the other.
+  // Two triangles on one place with vertices of their own: two loops along each other.
   std::vector<Eigen::Vector3d> stacked = bow;
   for (int k = 0; k < 3; ++k) stacked.push_back(bow[k] + Eigen::Vector3d(0, 0, 1));
   EXPECT_FALSE(oneSheet(meshOf(stacked, {{0, 1, 2}, {5, 6, 7}})));
@@ -186,6 +203,32 @@ int checkAgainstOracle(const Mesh& mesh, std::uint64_t seed) {
 
 TEST(OneSheet, IndexesOverSheetsAndOverARampAnswerAsTheOracle) {
   EXPECT_EQ(checkAgainstOracle(jitteredGrid(40, 7), 1), 0);
+  // Holes of a cell each, every third with an island in it (one sheet), and islands over the
+  // sheet beside them (not: the pairs decide there).
+  const Mesh grid = jitteredGrid(40, 8);
+  Mesh holed;
+  holed.vertices = grid.vertices;
+  for (std::size_t t = 0; t < grid.polygonCount(); ++t) {
+    const std::size_t cell = t / 2, c = cell % 40, r = cell / 40;
+    if (c % 5 == 2 && r % 5 == 2) continue;
+    const auto k = grid.polygon(t);
+    holed.addTriangle(k[0], k[1], k[2]);
+  }
+  Mesh over = holed;
+  for (int r = 2; r < 40; r += 5) {
+    for (int c = 2; c < 40; c += 15) {
+      for (Mesh* m : {&holed, &over}) {
+        const double x = c + (m == &holed ? 0.5 : 2.5), y = r + 0.5;
+        const auto a = m->addVertex({x - 0.1, y - 0.1, 9}), b = m->addVertex({x + 0.1, y - 0.1, 9}),
+                   d = m->addVertex({x, y + 0.1, 9});
+        m->addTriangle(a, b, d);
+      }
+    }
+  }
+  EXPECT_TRUE(oneSheet(holed));
+  EXPECT_FALSE(oneSheet(over));
+  EXPECT_EQ(checkAgainstOracle(holed, 4), 0);
+  checkAgainstOracle(over, 5);
   EXPECT_EQ(checkAgainstOracle(ramp(21), 2), 0);
   // Two and a half turns: points under two and three floors, which a leaf taken for a single
   // layer would answer by its first triangle (the lowest floor).

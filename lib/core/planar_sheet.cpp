@@ -68,11 +68,10 @@ bool detail::oneSheet(std::span<const TriangleCorners> triangles, std::span<cons
   std::vector<std::uint32_t>().swap(rank);
   const auto point = [&](std::uint32_t a) { return vertices[vertexOf[a]]; };
 
-  // Each edge once, or twice in opposite directions; those used once form the boundary, a
-  // successor a vertex (next).
-  std::vector<std::uint32_t> next(used, kNone);
-  std::size_t boundary = 0;
-  std::uint32_t start = kNone;
+  // Each edge once, or twice in opposite directions; those used once form the boundary: each
+  // boundary vertex left by one boundary edge and entered by one (next: its successor).
+  std::vector<std::uint32_t> next(used, kNone), edges;  // edges: each boundary edge by its first vertex
+  std::vector<std::uint8_t> entered(used, 0);
   for (std::uint32_t a = 0; a < used; ++a) {
     for (std::uint32_t i = first[a]; i < first[a + 1]; ++i) {
       const std::uint32_t b = to[i];
@@ -82,39 +81,52 @@ bool detail::oneSheet(std::span<const TriangleCorners> triangles, std::span<cons
       bool back = false;
       for (std::uint32_t j = first[b]; j < first[b + 1] && !back; ++j) back = to[j] == a;
       if (back) continue;
-      if (next[a] != kNone) return false;  // two boundary edges leave a
-      next[a] = b;
-      ++boundary;
-      // The loop's start: its least vertex by (u, v), a corner of the polygon where it turns
-      // the way the polygon winds.
-      const Point2 pa = point(a);
-      if (start == kNone || pa.u < point(start).u || (pa.u == point(start).u && pa.v < point(start).v)) start = a;
+      if (next[a] != kNone || entered[b]) return false;  // two boundary edges leave a, or enter b
+      next[a] = b, entered[b] = 1;
+      edges.push_back(a);
     }
   }
-  if (boundary < 3) return false;
+  std::vector<std::uint32_t>().swap(to);
+  std::vector<std::uint32_t>().swap(first);
+  const std::size_t m = edges.size();
+  if (m < 3) return false;
 
-  // One loop through every boundary edge.
-  std::vector<std::uint32_t> loop;
-  loop.reserve(boundary);
-  for (std::uint32_t v = start; loop.size() <= boundary;) {
-    loop.push_back(v);
-    v = next[v];
-    if (v == kNone) return false;
-    if (v == start) break;
+  // The loops. A boundary vertex is left once and entered once, so the boundary edges fall into
+  // loops that share no vertex. Each loop's turn at its least vertex by (u, v) (a convex corner
+  // of a simple polygon) says which way it winds: +1 counter-clockwise, -1 clockwise.
+  std::vector<std::uint32_t> loopOf(used, kNone);
+  struct Loop {
+    std::uint32_t least;
+    int winds;
+  };
+  std::vector<Loop> loops;
+  const auto before = [&](Point2 p, Point2 q) { return p.u < q.u || (p.u == q.u && p.v < q.v); };
+  for (const std::uint32_t start : edges) {
+    if (loopOf[start] != kNone) continue;
+    const auto id = static_cast<std::uint32_t>(loops.size());
+    std::uint32_t least = start, previous = kNone, beforeLeast = kNone;
+    for (std::uint32_t v = start;;) {
+      if (next[v] == kNone) return false;  // entered, never left
+      loopOf[v] = id;
+      if (before(point(v), point(least))) least = v, beforeLeast = previous;
+      previous = v;
+      v = next[v];
+      if (v == start) break;
+    }
+    if (beforeLeast == kNone) beforeLeast = previous;  // (the least is the start: the last vertex)
+    const int turn = orient2dSign(point(beforeLeast), point(least), point(next[least]));
+    if (turn == 0) return false;
+    loops.push_back({least, turn});
   }
-  if (loop.size() != boundary) return false;
 
-  // Counter-clockwise: the turn at the least vertex (a convex corner of a simple polygon).
-  const std::size_t m = loop.size();
-  const auto at = [&](std::size_t i) { return point(loop[i % m]); };
-  if (orient2dSign(at(m - 1), at(0), at(1)) <= 0) return false;
-
-  // Simple: no two edges meet but neighbours at their shared corner (and those do not fold back
-  // along each other). Edges are bucketed on a grid over their boxes; a pair that meets shares a
-  // cell, as both boxes hold the meeting point and the cells are a monotonic function of it.
+  // Simple and apart: no two boundary edges meet but neighbours at their shared corner (which
+  // must not fold back along each other). Edges are bucketed on a grid over their boxes; a pair
+  // that meets shares a cell, as both boxes hold the meeting point and the cells are a monotonic
+  // function of it. (A boundary crowded into a few cells would cost its square: past a budget
+  // the pairs decide.)
   double ulo = INFINITY, uhi = -INFINITY, vlo = INFINITY, vhi = -INFINITY;
-  for (std::uint32_t v : loop) {
-    const Point2 p = point(v);
+  for (const std::uint32_t a : edges) {
+    const Point2 p = point(a);
     ulo = std::min(ulo, p.u), uhi = std::max(uhi, p.u), vlo = std::min(vlo, p.v), vhi = std::max(vhi, p.v);
   }
   const auto side = static_cast<std::uint32_t>(std::clamp(std::sqrt(static_cast<double>(m)), 1.0, 1024.0));
@@ -123,36 +135,59 @@ bool detail::oneSheet(std::span<const TriangleCorners> triangles, std::span<cons
     return static_cast<std::uint32_t>(std::clamp(std::floor((x - lo) * scale), 0.0, side - 1.0));
   };
   std::vector<std::vector<std::uint32_t>> cells(static_cast<std::size_t>(side) * side);
-  for (std::size_t e = 0; e < m; ++e) {
-    const Point2 p = at(e), q = at(e + 1);
+  for (const std::uint32_t a : edges) {
+    const Point2 p = point(a), q = point(next[a]);
     const std::uint32_t c0 = cell(std::min(p.u, q.u), ulo, su), c1 = cell(std::max(p.u, q.u), ulo, su);
     const std::uint32_t r0 = cell(std::min(p.v, q.v), vlo, sv), r1 = cell(std::max(p.v, q.v), vlo, sv);
     for (std::uint32_t r = r0; r <= r1; ++r) {
-      for (std::uint32_t c = c0; c <= c1; ++c) cells[static_cast<std::size_t>(r) * side + c].push_back(e);
+      for (std::uint32_t c = c0; c <= c1; ++c) cells[static_cast<std::size_t>(r) * side + c].push_back(a);
     }
   }
-  // (A boundary crowded into a few cells would cost its square: past a budget the pairs decide.)
   std::size_t budget = 64 * m + (1u << 20);
   for (const auto& in : cells) {
     for (std::size_t x = 0; x < in.size(); ++x) {
       for (std::size_t y = x + 1; y < in.size(); ++y) {
         if (budget-- == 0) return false;
-        std::size_t e = in[x], f = in[y];
-        if (f < e) std::swap(e, f);
-        const Point2 p = at(e), q = at(e + 1), r = at(f), s = at(f + 1);
-        if (f == e + 1 || (e == 0 && f == m - 1)) {
-          // Neighbours: shared corner q (or p, for the last and the first), the other two ends
-          // must not lie along one line on the same side of it.
-          const Point2 shared = f == e + 1 ? q : p, a = f == e + 1 ? p : q, b = f == e + 1 ? s : r;
-          if (m == 3) continue;  // (a triangle: its corners are not collinear, seen above)
-          if (orient2dSign(a, shared, b) != 0) continue;
-          const bool backU = (a.u - shared.u > 0) == (b.u - shared.u > 0) && a.u != shared.u && b.u != shared.u;
-          const bool backV = (a.v - shared.v > 0) == (b.v - shared.v > 0) && a.v != shared.v && b.v != shared.v;
+        std::uint32_t e = in[x], f = in[y];
+        if (next[f] == e) std::swap(e, f);  // (neighbours: e's end is f's start)
+        const Point2 p = point(e), q = point(next[e]), r = point(f), t = point(next[f]);
+        if (next[e] == f) {
+          // Shared corner q: p and t must not lie along one line on the same side of it.
+          if (orient2dSign(p, q, t) != 0) continue;
+          const bool backU = (p.u - q.u > 0) == (t.u - q.u > 0) && p.u != q.u && t.u != q.u;
+          const bool backV = (p.v - q.v > 0) == (t.v - q.v > 0) && p.v != q.v && t.v != q.v;
           if (backU || backV) return false;
           continue;
         }
-        if (segmentsMeet(p, q, r, s)) return false;
+        if (segmentsMeet(p, q, r, t)) return false;
       }
+    }
+  }
+
+  // Nested right: inside a counter-clockwise loop the count must be 1, so the loops round it
+  // must wind 0 in all (a hole's clockwise loop round an island's, an outer loop round the
+  // hole). A loop's least vertex lies off every other loop (they do not meet), so its winding
+  // number about each is exact: the crossings of the ray from it towards +u, counted by side
+  // (upward edges with it on their left +1, downward ones with it on their right -1), among the
+  // edges in the cells the ray passes.
+  if (loops.size() > 1) {
+    std::vector<std::uint32_t> seen(used, kNone);  // (an edge in several cells counted once a ray)
+    for (std::uint32_t id = 0; id < loops.size(); ++id) {
+      if (loops[id].winds < 0) continue;
+      const Point2 p = point(loops[id].least);
+      const std::uint32_t row = cell(p.v, vlo, sv);
+      int around = 0;
+      for (std::uint32_t c = cell(p.u, ulo, su); c < side; ++c) {
+        for (const std::uint32_t a : cells[static_cast<std::size_t>(row) * side + c]) {
+          if (budget-- == 0) return false;
+          if (loopOf[a] == id || seen[a] == id) continue;
+          seen[a] = id;
+          const Point2 q = point(a), r = point(next[a]);
+          if (q.v <= p.v && r.v > p.v && orient2dSign(q, r, p) > 0) ++around;
+          if (r.v <= p.v && q.v > p.v && orient2dSign(q, r, p) < 0) --around;
+        }
+      }
+      if (around > 0) return false;
     }
   }
   return true;

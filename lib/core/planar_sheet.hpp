@@ -8,13 +8,17 @@
 // triangles share an edge in opposite directions (a -> b in one, b -> a in the other: they lie on
 // either side of it), the two copies cancel in that sum. If every edge is so shared or used once,
 // what is left is the mesh's boundary B, and the count over a point is B's winding number there.
-// If B is one simple closed polygon, counter-clockwise, that number is 1 inside and 0 outside:
-// no point is under two triangles, and no two interiors meet.
+// If B is simple closed polygons that do not meet, each one's winding number is 1 inside it
+// (counter-clockwise) or -1 (clockwise, a hole) and 0 outside, and the count is their sum: at
+// most 1 everywhere when the loops round each counter-clockwise one wind 0 in all (an island
+// inside a hole inside an outer loop; parts side by side). Then no point is under two
+// triangles, and no two interiors meet.
 //
 // Anything else is left to the pairs (false): an edge used twice the same way or three times, a
-// boundary of several loops (holes, parts apart, a raster's voids), a boundary that touches or
-// crosses itself (a ramp that winds over itself, two vertices at one place), a vertex that two
-// boundary edges leave. The tests are on vertex numbers and exact orientations only.
+// boundary vertex that two boundary edges leave or enter, boundary edges that touch or cross (a
+// ramp that winds over itself, two vertices at one place), a loop inside a counter-clockwise
+// loop with no hole between (a part over another). The tests are on vertex numbers and exact
+// orientations only.
 #pragma once
 
 #include <cstdint>
