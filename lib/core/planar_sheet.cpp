@@ -35,7 +35,7 @@ bool segmentsMeet(Point2 p, Point2 q, Point2 r, Point2 s) {
 bool detail::oneSheet(std::span<const TriangleCorners> triangles, std::span<const Point2> vertices,
                       std::span<const std::uint8_t> left) {
   const std::size_t vertexCount = vertices.size(), triangleCount = triangles.size();
-  if (triangleCount == 0 || vertexCount >= kNone) return false;
+  if (triangleCount == 0 || vertexCount >= kNone || triangleCount >= kNone / 3) return false;  // (32-bit counts)
   const auto live = [&](std::size_t t) { return left.empty() || !left[t]; };
 
   // The vertices renumbered in the order the triangles (in Morton order) first use them, so that
@@ -164,13 +164,14 @@ bool detail::oneSheet(std::span<const TriangleCorners> triangles, std::span<cons
     }
   }
 
+  if (loops.size() == 1) return loops[0].winds > 0;
   // Nested right: inside a counter-clockwise loop the count must be 1, so the loops round it
   // must wind 0 in all (a hole's clockwise loop round an island's, an outer loop round the
   // hole). A loop's least vertex lies off every other loop (they do not meet), so its winding
   // number about each is exact: the crossings of the ray from it towards +u, counted by side
   // (upward edges with it on their left +1, downward ones with it on their right -1), among the
   // edges in the cells the ray passes.
-  if (loops.size() > 1) {
+  {
     std::vector<std::uint32_t> seen(used, kNone);  // (an edge in several cells counted once a ray)
     for (std::uint32_t id = 0; id < loops.size(); ++id) {
       if (loops[id].winds < 0) continue;
