@@ -113,7 +113,23 @@ TEST(OneSheet, HolesIslandsAndPartsApartAreOneSheet) {
   EXPECT_TRUE(oneSheet(grid, left));
   std::fill(left.begin(), left.end(), 0);
   left[cell] = left[cell - 2 * 6 - 1] = 1;  // two triangles meeting at a corner: a pinched hole
-  EXPECT_FALSE(oneSheet(grid, left));
+  EXPECT_TRUE(oneSheet(grid, left));
+  std::fill(left.begin(), left.end(), 0);
+  left[2 * 1 + 1] = 1;  // cell (1, 0)'s upper triangle: a hole touching the outer edge at a corner
+  EXPECT_TRUE(oneSheet(grid, left));
+  // Cells gone along a diagonal: voids meeting at corners, as a raster's do.
+  std::fill(left.begin(), left.end(), 0);
+  for (int k = 1; k < 5; ++k) left[2 * (k * 6 + k)] = left[2 * (k * 6 + k) + 1] = 1;
+  EXPECT_TRUE(oneSheet(grid, left));
+  // Every other cell of a 4 x 4 block gone, as a checkerboard: cells inside it are islands held
+  // by their corners alone, each corner touching other loops.
+  std::fill(left.begin(), left.end(), 0);
+  for (int r = 1; r < 5; ++r) {
+    for (int c = 1; c < 5; ++c) {
+      if ((r + c) % 2 == 0) left[2 * (r * 6 + c)] = left[2 * (r * 6 + c) + 1] = 1;
+    }
+  }
+  EXPECT_TRUE(oneSheet(grid, left));
 
   // A small triangle of its own over the cell's middle: an island in the cell's hole, a part
   // over the sheet where the cell is there.
@@ -126,15 +142,49 @@ TEST(OneSheet, HolesIslandsAndPartsApartAreOneSheet) {
   EXPECT_TRUE(oneSheet(island, holed));
   EXPECT_FALSE(oneSheet(island));  // over the sheet: counted twice there
 
+  // A ring of 3 x 3 cells (its middle cell gone) whose hole reaches its leftmost vertex, where
+  // the hole's loop and the outer one touch: alone it is one sheet; laid over the grid it is
+  // counted twice there (the loops must be taken apart at that touch to tell which way each
+  // winds).
+  const auto ring = [](double x0, double y0) {
+    Mesh m;
+    for (int r = 0; r < 4; ++r) {
+      for (int c = 0; c < 4; ++c) m.addVertex({x0 + c - (c == 0 && r == 1 ? 0.5 : 0), y0 + r, 9});
+    }
+    const auto at = [](int c, int r) { return static_cast<std::uint32_t>(r * 4 + c); };
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) {
+        if (r == 1 && c == 1) continue;
+        if (!(r == 1 && c == 0)) m.addTriangle(at(c, r), at(c + 1, r), at(c + 1, r + 1));
+        m.addTriangle(at(c, r), at(c + 1, r + 1), at(c, r + 1));
+      }
+    }
+    return m;
+  };
+  EXPECT_TRUE(oneSheet(ring(0, 0)));
+  Mesh ringOver = grid;
+  const Mesh lifted = ring(1.5, 1.5);
+  const auto base = static_cast<std::uint32_t>(ringOver.vertices.size());
+  ringOver.vertices.insert(ringOver.vertices.end(), lifted.vertices.begin(), lifted.vertices.end());
+  for (std::size_t t = 0; t < lifted.polygonCount(); ++t) {
+    const auto k = lifted.polygon(t);
+    ringOver.addTriangle(base + k[0], base + k[1], base + k[2]);
+  }
+  EXPECT_FALSE(oneSheet(ringOver));
+
   const std::vector<Eigen::Vector3d> six{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {5, 0, 0}, {6, 0, 0}, {5, 1, 0}};
   EXPECT_TRUE(oneSheet(meshOf(six, {{0, 1, 2}, {3, 4, 5}})));  // two triangles apart
   EXPECT_TRUE(oneSheet(meshOf(six, {{0, 1, 2}})));
 }
 
-TEST(OneSheet, PinchesTwinsAndTouchesAreLeftToThePairs) {
+TEST(OneSheet, TwinsTouchesAndOverlapsAtACornerAreLeftToThePairs) {
   const std::vector<Eigen::Vector3d> bow{{0, 0, 0}, {1, -1, 0}, {1, 1, 0}, {-1, 1, 0}, {-1, -1, 0}};
-  // Two triangles sharing a corner only (a bow tie): two boundary edges leave that corner.
-  EXPECT_FALSE(oneSheet(meshOf(bow, {{0, 1, 2}, {0, 3, 4}})));
+  // Two triangles sharing a corner only (a bow tie): one sheet, pinched there.
+  EXPECT_TRUE(oneSheet(meshOf(bow, {{0, 1, 2}, {0, 3, 4}})));
+  // Two sharing a corner, one within the other's angle there: round the corner two boundary
+  // edges leave one after the other (the second triangle's covered corner lies in the first's).
+  const std::vector<Eigen::Vector3d> fan{{0, 0, 0}, {2, 0, 0}, {0, 2, 0}, {2, 1, 0}, {1, 2, 0}};
+  EXPECT_FALSE(oneSheet(meshOf(fan, {{0, 1, 2}, {0, 3, 4}})));
   // The same triangle twice: its edges each used twice the same way.
   EXPECT_FALSE(oneSheet(meshOf(bow, {{0, 1, 2}, {0, 1, 2}})));
   // Two triangles on one place with vertices of their own: two loops along each other.
@@ -229,6 +279,20 @@ TEST(OneSheet, IndexesOverSheetsAndOverARampAnswerAsTheOracle) {
   EXPECT_FALSE(oneSheet(over));
   EXPECT_EQ(checkAgainstOracle(holed, 4), 0);
   checkAgainstOracle(over, 5);
+  // A checkerboard of voids in a block of 10 x 10 cells: pinches, and islands held by corners.
+  Mesh checkered;
+  checkered.vertices = grid.vertices;
+  for (std::size_t t = 0; t < grid.polygonCount(); ++t) {
+    const std::size_t cell = t / 2, c = cell % 40, r = cell / 40;
+    if (c >= 10 && c < 20 && r >= 10 && r < 20 && (c + r) % 2 == 0) continue;
+    const auto k = grid.polygon(t);
+    checkered.addTriangle(k[0], k[1], k[2]);
+  }
+  EXPECT_TRUE(oneSheet(checkered));
+  EXPECT_EQ(checkAgainstOracle(checkered, 7), 0);
+  // Two triangles sharing a corner, the second over the first near it (a pinch that overlaps).
+  const Mesh fan = meshOf({{0, 0, 0}, {20, 0, 0}, {0, 20, 0}, {20, 10, 5}, {10, 20, 5}}, {{0, 1, 2}, {0, 3, 4}});
+  EXPECT_GT(checkAgainstOracle(fan, 6), 300);
   EXPECT_EQ(checkAgainstOracle(ramp(21), 2), 0);
   // Two and a half turns: points under two and three floors, which a leaf taken for a single
   // layer would answer by its first triangle (the lowest floor).

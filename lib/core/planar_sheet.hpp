@@ -8,17 +8,20 @@
 // triangles share an edge in opposite directions (a -> b in one, b -> a in the other: they lie on
 // either side of it), the two copies cancel in that sum. If every edge is so shared or used once,
 // what is left is the mesh's boundary B, and the count over a point is B's winding number there.
-// If B is simple closed polygons that do not meet, each one's winding number is 1 inside it
-// (counter-clockwise) or -1 (clockwise, a hole) and 0 outside, and the count is their sum: at
-// most 1 everywhere when the loops round each counter-clockwise one wind 0 in all (an island
-// inside a hole inside an outer loop; parts side by side). Then no point is under two
-// triangles, and no two interiors meet.
+// If B is simple closed polygons that meet only at shared vertices, without crossing there, each
+// one's winding number is 1 inside it (counter-clockwise) or -1 (clockwise, a hole) and 0
+// outside, and the count is their sum: at most 1 everywhere when the loops round each
+// counter-clockwise one wind 0 in all (an island inside a hole inside an outer loop; parts side
+// by side). Then no point is under two triangles, and no two interiors meet. Where the boundary
+// pinches (voids meeting at a corner), the edges round the vertex must alternate, leaving and
+// entering, and are paired so that the loops touch there.
 //
-// Anything else is left to the pairs (false): an edge used twice the same way or three times, a
-// boundary vertex that two boundary edges leave or enter, boundary edges that touch or cross (a
-// ramp that winds over itself, two vertices at one place), a loop inside a counter-clockwise
-// loop with no hole between (a part over another). The tests are on vertex numbers and exact
-// orientations only.
+// Anything else is left to the pairs (false): an edge used twice the same way or three times,
+// boundary edges that touch or cross other than at a shared vertex (a ramp that winds over
+// itself, two vertices at one place), edges round a pinch that do not alternate (a triangle's
+// corner inside another's), a loop inside a counter-clockwise loop with no hole between (a part
+// over another), a pinch of more than four edges that a loop comes back to. The tests are on
+// vertex numbers and exact orientations only.
 #pragma once
 
 #include <cstdint>
