@@ -3,7 +3,7 @@
 # this machine, into one report (stdout, and REPORT when given): each prints its figures beside
 # a baseline measured in the same run (gdallocationinfo, gdal_viewshed, r.viewshed, Embree,
 # brute force, the whole raster in memory), with the run-to-run spread beside each timing. It
-# builds what it runs first (in BUILD, configured). Nothing else should run meanwhile. About 10
+# builds what it runs first (in BUILD, configured). Nothing else should run meanwhile. About 13
 # minutes on 2 cores with the default RUNS; BIG=1 adds the 1.7 G-pixel tiled shadow (10 more).
 #   bench/run_all.sh [BUILD] [RUNS] [REPORT]
 set -euo pipefail
@@ -50,6 +50,12 @@ run() {
       section "$b: not built (needs Debian's libembree-dev$([ "$b" = tin ] && echo " and libcgal-dev"))"
     fi
   done
+  # The Maxpoly table of docs/performance.md (the default's 8 is the run above).
+  if [ -x "$bench/tin_bench" ]; then
+    for maxpoly in 16 32; do
+      run "tin, Maxpoly $maxpoly (tin_bench --no-large --maxpoly $maxpoly)" "$bench/tin_bench" --no-large --maxpoly "$maxpoly"
+    done
+  fi
   if [ "${#failed[@]}" -gt 0 ]; then
     printf '\nfailed: %s\n' "${failed[*]}"
     exit 1
