@@ -217,6 +217,33 @@ TEST(OneSheet, TwinsTouchesAndOverlapsAtACornerAreLeftToThePairs) {
   EXPECT_FALSE(oneSheet(ring));
 }
 
+TEST(OneSheet, InputsOutsideItsRulesAreLeftToThePairs) {
+  const std::vector<Eigen::Vector3d> three{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  const Plane p = planeOf(meshOf(three, {{0, 1, 2}}));
+  EXPECT_TRUE(qota::detail::oneSheet(p.triangles, p.vertices));
+  std::vector<TriangleCorners> beyond = p.triangles;
+  beyond[0].corner[2] = 3;  // a corner out of range
+  EXPECT_FALSE(qota::detail::oneSheet(beyond, p.vertices));
+  const std::vector<std::uint8_t> shortLeft(2, 0);  // a mask for another mesh
+  EXPECT_FALSE(qota::detail::oneSheet(p.triangles, p.vertices, shortLeft));
+  // Coordinates the exact orientations do not cover (and a range too narrow for its cells'
+  // scale): false, not a guess.
+  for (const double tiny : {1e-320, 1e-200}) {
+    EXPECT_FALSE(oneSheet(meshOf({{0, 0, 0}, {tiny, 0, 0}, {0, 1, 0}}, {{0, 1, 2}}))) << tiny;
+  }
+  EXPECT_FALSE(oneSheet(meshOf({{0, 0, 0}, {1e200, 0, 0}, {0, 1, 0}}, {{0, 1, 2}})));
+  // A fan of many triangles round one vertex (each edge's reverse is found by a search).
+  Mesh fan;
+  fan.addVertex({0, 0, 0});
+  constexpr int kSpokes = 20000;
+  for (int k = 0; k < kSpokes; ++k) {
+    const double a = 2 * std::numbers::pi * k / kSpokes;
+    fan.addVertex({std::cos(a), std::sin(a), 0});
+  }
+  for (std::uint32_t k = 1; k <= kSpokes; ++k) fan.addTriangle(0, k, k % kSpokes + 1);
+  EXPECT_TRUE(oneSheet(fan));
+}
+
 // heightBelow and above at random points of the mesh's box, at random heights, against the
 // oracle (points within 1e-9 of an edge, and height ties, skipped). Returns the points checked
 // under two or more triangles.

@@ -37,6 +37,7 @@ bool detail::oneSheet(std::span<const TriangleCorners> triangles, std::span<cons
                       std::span<const std::uint8_t> left) {
   const std::size_t vertexCount = vertices.size(), triangleCount = triangles.size();
   if (triangleCount == 0 || vertexCount >= kNone || triangleCount >= kNone / 3) return false;  // (32-bit counts)
+  if (!left.empty() && left.size() != triangleCount) return false;
   const auto live = [&](std::size_t t) { return left.empty() || !left[t]; };
 
   // The vertices renumbered in the order the triangles (in Morton order) first use them, so that
@@ -48,10 +49,17 @@ bool detail::oneSheet(std::span<const TriangleCorners> triangles, std::span<cons
   for (std::size_t t = 0; t < triangleCount; ++t) {
     if (!live(t)) continue;
     for (std::uint32_t c : triangles[t].corner) {
+      if (c >= vertexCount) return false;
       if (rank[c] == kNone) rank[c] = static_cast<std::uint32_t>(vertexOf.size()), vertexOf.push_back(c);
     }
   }
   const auto used = static_cast<std::uint32_t>(vertexOf.size());
+  // The orientations below are exact for coordinates of magnitude 1e-150 to 1e150 (or 0) only.
+  for (const std::uint32_t c : vertexOf) {
+    for (const double x : {vertices[c].u, vertices[c].v}) {
+      if (!(std::fabs(x) <= 1e150) || (x != 0 && std::fabs(x) < 1e-150)) return false;
+    }
+  }
   // The directed edges by their first vertex (counting sort): their ends first[a]..first[a + 1] in
   // `next`.
   std::vector<std::uint32_t> first(used + 1, 0);
@@ -68,6 +76,10 @@ bool detail::oneSheet(std::span<const TriangleCorners> triangles, std::span<cons
   }
   std::vector<std::uint32_t>().swap(fill);
   std::vector<std::uint32_t>().swap(rank);
+  // Each vertex's ends sorted: a repeated edge is then two equal neighbours, and an edge's
+  // reverse a binary search (a fan of many triangles round one vertex costs its log, not its
+  // square).
+  for (std::uint32_t a = 0; a < used; ++a) std::sort(next.begin() + first[a], next.begin() + first[a + 1]);
   const auto point = [&](std::uint32_t a) { return vertices[vertexOf[a]]; };
 
   // Each edge once, or twice in opposite directions; those used once form the boundary, each
@@ -80,12 +92,8 @@ bool detail::oneSheet(std::span<const TriangleCorners> triangles, std::span<cons
   for (std::uint32_t a = 0; a < used; ++a) {
     for (std::uint32_t i = first[a]; i < first[a + 1]; ++i) {
       const std::uint32_t b = next[i];
-      for (std::uint32_t j = first[a]; j < i; ++j) {
-        if (next[j] == b) return false;  // a -> b twice
-      }
-      bool back = false;
-      for (std::uint32_t j = first[b]; j < first[b + 1] && !back; ++j) back = next[j] == a;
-      if (back) continue;
+      if (i > first[a] && next[i - 1] == b) return false;  // a -> b twice
+      if (std::binary_search(next.begin() + first[b], next.begin() + first[b + 1], a)) continue;
       if (++outs[a] > kMostAtAPinch || ++ins[b] > kMostAtAPinch) return false;
       outOf[a] = static_cast<std::uint32_t>(from.size());
       from.push_back(a), to.push_back(b);
@@ -100,10 +108,11 @@ bool detail::oneSheet(std::span<const TriangleCorners> triangles, std::span<cons
   }
 
   // Each boundary edge's successor along its loop: the edge leaving its end, or, where several
-  // leave (a pinch), the one that bounds the same covered corner. Round a pinch the boundary
-  // edges must alternate, leaving and entering (counter-clockwise, a covered corner follows an
-  // edge leaving and ends at one entering); an edge entering then goes on by the edge leaving
-  // just clockwise of it, so that the loops touch there and do not cross.
+  // leave (a pinch), one next to it round the vertex. Round a pinch the boundary edges must
+  // alternate, leaving and entering (counter-clockwise, a covered corner follows an edge leaving
+  // and ends at one entering); an edge entering then goes on by an edge leaving next to it (here
+  // the one just clockwise, bounding the same covered corner; the one just counter-clockwise
+  // would do as well), so that the loops touch there and do not cross.
   std::vector<std::uint32_t> succ(m, kNone);
   struct AtPinch {
     std::uint32_t vertex, edge;
@@ -206,27 +215,41 @@ bool detail::oneSheet(std::span<const TriangleCorners> triangles, std::span<cons
   }
   const auto side = static_cast<std::uint32_t>(std::clamp(std::sqrt(static_cast<double>(m)), 1.0, 1024.0));
   const double su = uhi > ulo ? side / (uhi - ulo) : 0, sv = vhi > vlo ? side / (vhi - vlo) : 0;
+  // (NaN, from a range too narrow or too wide for its scale, is cell 0: still monotonic.)
   const auto cell = [side](double x, double lo, double scale) {
-    return static_cast<std::uint32_t>(std::clamp(std::floor((x - lo) * scale), 0.0, side - 1.0));
+    const double t = (x - lo) * scale;
+    return t >= 1 ? static_cast<std::uint32_t>(std::min(std::floor(t), side - 1.0)) : 0u;
   };
-  // (The cells' edges in one array, cell k's at start[k]..start[k + 1]: a count, then a fill.)
+  // (The cells' edges in one array, cell k's at start[k]..start[k + 1]: a count, then a fill;
+  // first their number, which long edges over many cells could make too large.)
   const std::size_t cellCount = static_cast<std::size_t>(side) * side;
-  std::vector<std::uint32_t> start(cellCount + 1, 0), inCells;
   std::size_t budget = 64 * m + (1u << 20);
-  const auto forCells = [&](std::uint32_t e, const auto& visit) {
+  struct Span {
+    std::uint32_t c0, c1, r0, r1;
+  };
+  const auto spanOf = [&](std::uint32_t e) {
     const Point2 p = point(from[e]), q = point(to[e]);
-    const std::uint32_t c0 = cell(std::min(p.u, q.u), ulo, su), c1 = cell(std::max(p.u, q.u), ulo, su);
-    const std::uint32_t r0 = cell(std::min(p.v, q.v), vlo, sv), r1 = cell(std::max(p.v, q.v), vlo, sv);
-    for (std::uint32_t r = r0; r <= r1; ++r) {
-      for (std::uint32_t c = c0; c <= c1; ++c) visit(static_cast<std::size_t>(r) * side + c);
+    return Span{cell(std::min(p.u, q.u), ulo, su), cell(std::max(p.u, q.u), ulo, su), cell(std::min(p.v, q.v), vlo, sv),
+                cell(std::max(p.v, q.v), vlo, sv)};
+  };
+  std::uint64_t entries = 0;
+  for (std::uint32_t e = 0; e < m; ++e) {
+    const Span c = spanOf(e);
+    entries += std::uint64_t{c.c1 - c.c0 + 1} * (c.r1 - c.r0 + 1);
+    if (entries > budget) return false;
+  }
+  const auto forCells = [&](std::uint32_t e, const auto& visit) {
+    const Span c = spanOf(e);
+    for (std::uint32_t r = c.r0; r <= c.r1; ++r) {
+      for (std::uint32_t k = c.c0; k <= c.c1; ++k) visit(static_cast<std::size_t>(r) * side + k);
     }
   };
+  std::vector<std::size_t> start(cellCount + 1, 0);
   for (std::uint32_t e = 0; e < m; ++e) forCells(e, [&](std::size_t k) { ++start[k + 1]; });
   for (std::size_t k = 0; k < cellCount; ++k) start[k + 1] += start[k];
-  if (start[cellCount] > budget) return false;  // (long edges over many cells)
-  inCells.resize(start[cellCount]);
+  std::vector<std::uint32_t> inCells(start[cellCount]);
   {
-    std::vector<std::uint32_t> at(start.begin(), start.end() - 1);
+    std::vector<std::size_t> at(start.begin(), start.end() - 1);
     for (std::uint32_t e = 0; e < m; ++e) forCells(e, [&](std::size_t k) { inCells[at[k]++] = e; });
   }
   const auto cellEdges = [&](std::size_t k) {

@@ -32,8 +32,11 @@
 
 namespace qota::detail {
 
-// triangles: counter-clockwise in the plane of `vertices`, none of zero area; left[t] (when not
-// empty): triangle t is not part of the mesh (a removed polygon's).
+// triangles: counter-clockwise in the plane of `vertices`, none of zero area (trusted: the
+// proof rests on it; PlanarCore fans and orients its triangles so); left[t] (when not empty, one
+// a triangle): triangle t is not part of the mesh (a removed polygon's). A corner out of range,
+// a `left` of another size, or a coordinate beyond the exact predicates' range (magnitudes 1e-150
+// to 1e150, or 0) give false.
 bool oneSheet(std::span<const TriangleCorners> triangles, std::span<const Point2> vertices,
               std::span<const std::uint8_t> left = {});
 
