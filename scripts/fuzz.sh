@@ -5,7 +5,8 @@
 #   scripts/fuzz.sh SECONDS [HARNESS...]
 #
 # Harnesses (tests/fuzz/fuzz_NAME.cpp): treefile, mesh, sample_line, raster, cli, tiles (tiles
-# states, and tiles' metadata and bytes given to qota assemble). Each first
+# states, and tiles' metadata and bytes given to qota assemble), sheet (the one-sheet proof
+# against pairs of triangles). Each first
 # replays its seed corpus (tests/fuzz/corpus/NAME) and every crash ever found
 # (tests/fuzz/crashes/NAME, kept as regressions once fixed), then fuzzes for SECONDS seconds
 # starting from the corpus (new inputs go to a scratch copy, not the repository). A crash, a
@@ -18,7 +19,7 @@ cd "$(dirname "$0")/.."
 seconds=${1:?usage: scripts/fuzz.sh SECONDS [HARNESS...]}
 shift
 harnesses=("$@")
-[ ${#harnesses[@]} -eq 0 ] && harnesses=(treefile mesh sample_line raster cli tiles)
+[ ${#harnesses[@]} -eq 0 ] && harnesses=(treefile mesh sample_line raster cli tiles sheet)
 
 # The harnesses live in build-asan, the instrumented build scripts/sanitize.sh runs the tests in
 # (after it, nothing is left to build).
