@@ -5,9 +5,9 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
-#include <future>
 #include <cmath>
 #include <cstring>
+#include <future>
 #include <limits>
 #include <numeric>
 #include <string>
@@ -409,12 +409,11 @@ Box2 PlanarCore::boxOf(std::uint32_t t) const {
 bool PlanarCore::prepareLeaf(std::span<std::uint32_t> items) const {
   // The pairwise check is quadratic: a leaf this large (a large Maxpoly, or a stack no cut can
   // part) is simply not marked, which only costs the early exit.
-  constexpr std::size_t kMaxChecked = kMaxCheckedLeaf;
-  if (items.size() > kMaxChecked) return false;
+  if (items.size() > kMaxCheckedLeaf) return false;
   // Each triangle's edges and corners gathered once, on first need: the pairs then test from the
   // stack instead of reloading two records a pair (a leaf of n triangles has n (n - 1) / 2
   // pairs: 14 million for a TIN of a million triangles, a third of its build before this).
-  EdgeView view[kMaxChecked];
+  EdgeView view[kMaxCheckedLeaf];
   std::uint64_t gathered = 0;  // bit i: view[i] is filled
   auto viewOf = [&](std::size_t i) -> const EdgeView& {
     if (!(gathered >> i & 1u)) view[i] = edgeView(items[i]), gathered |= std::uint64_t{1} << i;

@@ -17,20 +17,6 @@ namespace {
 
 constexpr std::uint32_t kNone = 0xffffffffu;
 
-// Whether the closed segments pq and rs meet (exact orientations; collinear ones by their extents).
-bool segmentsMeet(Point2 p, Point2 q, Point2 r, Point2 s) {
-  const int a = orient2dSign(p, q, r), b = orient2dSign(p, q, s);
-  const int c = orient2dSign(r, s, p), d = orient2dSign(r, s, q);
-  if (a * b > 0 || c * d > 0) return false;
-  if (a != 0 || b != 0 || c != 0 || d != 0) return true;
-  // All four on one line: they meet where their extents along it overlap (both axes, so a
-  // vertical line is compared by v).
-  const auto overlap = [](double a0, double a1, double b0, double b1) {
-    return std::max(std::min(a0, a1), std::min(b0, b1)) <= std::min(std::max(a0, a1), std::max(b0, b1));
-  };
-  return overlap(p.u, q.u, r.u, s.u) && overlap(p.v, q.v, r.v, s.v);
-}
-
 }  // namespace
 
 bool detail::oneSheet(std::span<const TriangleCorners> triangles, std::span<const Point2> vertices,

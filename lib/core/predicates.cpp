@@ -1,5 +1,6 @@
 #include "qota/predicates.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 namespace qota {
@@ -110,6 +111,18 @@ int orient3dSign(const double a[3], const double b[3], const double d[3]) {
     if (e[i] < 0) return -1;
   }
   return 0;
+}
+
+bool segmentsMeet(Point2 a, Point2 b, Point2 c, Point2 d) {
+  // (p collinear with xy: within its box is on it.)
+  const auto on = [](Point2 x, Point2 y, Point2 p) {
+    return std::min(x.u, y.u) <= p.u && p.u <= std::max(x.u, y.u) && std::min(x.v, y.v) <= p.v &&
+           p.v <= std::max(x.v, y.v);
+  };
+  const int d1 = orient2dSign(c, d, a), d2 = orient2dSign(c, d, b);
+  const int d3 = orient2dSign(a, b, c), d4 = orient2dSign(a, b, d);
+  if (d1 * d2 < 0 && d3 * d4 < 0) return true;
+  return (d1 == 0 && on(c, d, a)) || (d2 == 0 && on(c, d, b)) || (d3 == 0 && on(a, b, c)) || (d4 == 0 && on(a, b, d));
 }
 
 }  // namespace qota

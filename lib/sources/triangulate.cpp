@@ -93,19 +93,6 @@ struct Node {
   Point2 p;          // projected position
 };
 
-// Do segments ab and cd meet (closed segments, exact)?
-bool onSegment(Point2 a, Point2 b, Point2 p) {  // p collinear with ab: within its box?
-  return std::min(a.u, b.u) <= p.u && p.u <= std::max(a.u, b.u) && std::min(a.v, b.v) <= p.v &&
-         p.v <= std::max(a.v, b.v);
-}
-bool segmentsMeet(Point2 a, Point2 b, Point2 c, Point2 d) {
-  const int d1 = orient2dSign(c, d, a), d2 = orient2dSign(c, d, b);
-  const int d3 = orient2dSign(a, b, c), d4 = orient2dSign(a, b, d);
-  if (d1 * d2 < 0 && d3 * d4 < 0) return true;
-  return (d1 == 0 && onSegment(c, d, a)) || (d2 == 0 && onSegment(c, d, b)) || (d3 == 0 && onSegment(a, b, c)) ||
-         (d4 == 0 && onSegment(a, b, d));
-}
-
 // Does the direction from corner b towards x point into the polygon (strictly), given the ring's
 // neighbours a -> b -> c with the interior on the left?
 bool locallyInside(Point2 a, Point2 b, Point2 c, Point2 x) {

@@ -44,6 +44,10 @@ inline double orient2dApprox(Point2 a, Point2 b, Point2 c) {
   return (a.u - c.u) * (b.v - c.v) - (a.v - c.v) * (b.u - c.u);
 }
 
+// Whether the closed segments ab and cd share a point, by exact orientations (collinear ones by
+// their boxes). Same range of validity as orient2dSign.
+bool segmentsMeet(Point2 a, Point2 b, Point2 c, Point2 d);
+
 // Sign (-1, 0, +1) of the exact determinant det[a; b; d] = a . (b x d): which side of the plane
 // through the origin, a and b the point d lies on. The curved mappings' line test (curved.hpp)
 // calls it when its filtered evaluation cannot decide. Same range of validity as orient2dSign.
